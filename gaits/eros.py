@@ -1,0 +1,300 @@
+"""EROS quarter-circle walking trajectory with heel-strike gait and landing deceleration.
+
+Pristovani, Wijayanto, Alasiry, Khalilullah, *Walking Trajectory Optimization
+Algorithm for Robot Humanoid on Synthetic Grass* (EROS robot). Equation numbers
+are the paper's.
+
+The walk is a chain of transitions between via points PP_i, four per cycle
+(Sec. 4.2 A): SSP->DSP of the right leg (its landing), DSP->SSP of the left leg
+(its lift-off), SSP->DSP of the left leg, DSP->SSP of the right leg. Within a
+transition every coordinate moves from PP_i to PP_i+1 along a quarter circle in
+the angle domain: the input T_T runs from 0 to 90 deg in increments of T_mn,
+one increment per controller tick (T_T(i) = T_T(i-1) + T_mn), and
+
+* X (eqs 37, 41):              X = (1 - cos T_T) dS_x + PP_x
+* Y, Z on lift-offs (38, 42):  (Y, Z) = sin(T_T) dS + PP
+* Y, Z on landings (39, 43):   (Y, Z) = (1 - cos T_T) dS + PP
+
+(eq 39 is printed ``1 - sin(T_T + T_mn) + 90``; the reading that makes sense is
+``1 - sin(T_T + 90 deg)`` = ``1 - cos T_T``.) A lift-off therefore rises fast
+and ends slowly at the apex (a quarter circle in the x-z plane), and a landing
+leaves the apex slowly and meets the ground at its highest speed, toe first:
+the failure the paper sees on synthetic grass.
+
+Our reading of the paper's inputs X, Y, Z (Sec. 5 gives (8, 45, 100),
+(16, 35, 95) and (24, 25, 90) mm): X is the step length (each foot travels 2X
+per stride, the body X per step); Y the lateral sway of the hip toward the
+support foot; Z the swing-foot lift. Tables 7-8 label the step rows 0-24 "cm";
+24 cm steps are impossible for a 52 cm robot whose legs are ~25 cm, while the
+text's mm matches the inputs and the 2 cm steps of the similar TKU-X robot, so
+we read mm. Z as a hip height would keep the knees bent ~125 deg under load all
+the time; as a lift it needs that bend only in the unloaded swing leg and
+clears 50 mm grass, so we read the lift. The paper gives no values for the hip
+height, T_mn, C_H, C_DC, n or the controller tick: ours are in the parameter
+defaults and ``gaits/baselines``.
+
+Heel-strike gait (eqs 44-47). The ankle pitch gets offsets proportional to the
+height difference of the two feet, dS_z = Z_swing - Z_support, taken at the
+via point that ends the lift-off (push-off, alpha, eqs 44, 46) and at the one
+that starts the landing (collision, beta, eqs 45, 47). The paper divides by a
+gain C_H; we multiply by ``heel_gain`` [rad/m] (= 1/C_H), so that a zero gain
+switches the offsets off. Per leg, over its own cycle: during the other leg's
+landing it ramps 0 -> +alpha (toe down, push-off); during its own lift-off
++alpha -> -beta (toe up); it holds -beta through its landing so the heel meets
+the ground first; during the other leg's lift-off it returns -beta -> 0 (foot
+flat, loaded). Each ramp follows the transition's Y/Z profile.
+
+Landing deceleration (eqs 48-49). The landing's x travel is divided into n
+areas of equal length (eq 48, T_n = dS_x / n): area k spans T_T in
+[acos(1 - (k-1)/n), acos(1 - k/n)]. Eq 49 as printed,
+``T_mn,DC(n) = log(T_mn,DC(n-1) - C_DC) x T_mn``, is not dimensionally
+meaningful (the log of an angle); the text says the increment falls in a
+logarithmic rather than linear way as the foot nears the ground. We use
+``T_mn,DC(k) = T_mn / (1 + C_DC ln(1 + k))`` in area k: C_DC = 0 is the plain
+gait, and the landing lengthens monotonically with C_DC and with n.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .leg_kinematics import LegGeometry
+from .params import GaitParams, ParamError, param, register_family
+from .trajectory import GaitTrajectory, assemble, resample
+
+__all__ = [
+    "ErosParams",
+    "Transition",
+    "quarter_circle",
+    "angle_steps",
+    "decelerated_angle_steps",
+    "via_points",
+    "eros_references",
+    "generate",
+]
+
+# state vector of a via point: foot x (left, right), foot z (left, right), body x, body sway y
+XL, XR, ZL, ZR, BX, BY = range(6)
+X_COORDS = (XL, XR, BX)
+
+
+@register_family
+@dataclass(frozen=True)
+class ErosParams(GaitParams):
+    """EROS walking-trajectory parameters (SI units). Defaults: the paper's 8 mm experiment, no optimisation."""
+
+    FAMILY = "eros"
+    step_x: float = param(0.008, "m", -0.06, 0.06, "step length; negative walks backward", "X")
+    sway_y: float = param(0.045, "m", 0.0, 0.08, "lateral hip sway toward the support foot", "Y")
+    foot_lift: float = param(0.100, "m", 0.0, 0.11, "swing-foot lift height", "Z")
+    hip_height: float = param(0.230, "m", 0.12, 0.30, "sole to hip-joint centre while walking (ours)")
+    stance_width: float = param(0.090, "m", 0.04, 0.20, "lateral distance between the sole centres (ours)")
+    t_mn: float = param(math.radians(3.0), "rad", math.radians(0.25), math.radians(45.0),
+                        "quarter-circle angle increment per controller tick", "T_mn")
+    tick: float = param(0.01, "s", 0.001, 0.05, "controller tick: one T_mn increment (ours)")
+    n_steps: int = param(8, "-", 2, 500, "number of steps (each swing is one step)")
+    first_swing: str = param("left", "-", doc="leg that swings first", choices=("left", "right"))
+    heel_strike: bool = param(False, "-", doc="heel-strike gait on (eqs 44-47)")
+    heel_gain: float = param(2.0, "rad/m", 0.0, 10.0,
+                             "ankle-pitch offset per metre of foot height difference", "1/C_H")
+    landing_deceleration: bool = param(False, "-", doc="landing deceleration on (eqs 48-49)")
+    c_dc: float = param(1.0, "-", 0.0, 10.0, "deceleration gain", "C_DC")
+    n_areas: int = param(4, "-", 1, 20, "number of landing areas", "n")
+    t_start: float = param(0.5, "s", 0.0, 10.0, "standing time before the first step (ours)")
+    t_end: float = param(0.5, "s", 0.0, 10.0, "standing time after the last step (ours)")
+
+    def check_consistency(self) -> None:
+        if self.sway_y > self.stance_width:
+            raise ParamError(f"eros: sway_y = {self.sway_y:g} m carries the hip past the support "
+                             f"foot; it must be at most stance_width = {self.stance_width:g} m")
+
+
+@dataclass(frozen=True)
+class Transition:
+    """One quarter-circle transition between via points (indices into the tick timeline)."""
+
+    kind: str          # "lift" (DSP->SSP, eqs 38/42) or "land" (SSP->DSP, eqs 39/43) or "settle"
+    swing: int         # +1 left leg moves, -1 right leg
+    start: np.ndarray  # (6,) via point PP_i: xl, xr, zl, zr, body x, body y
+    end: np.ndarray    # (6,) via point PP_i+1
+    theta: np.ndarray  # (K,) T_T samples after the start, last = pi/2
+
+
+def quarter_circle(theta: np.ndarray, kind: str) -> tuple[np.ndarray, np.ndarray]:
+    """Profiles (X, Y/Z) in [0, 1] of eqs 37-39 for T_T = theta [rad]; exactly 1 at pi/2."""
+    theta = np.asarray(theta, dtype=float)
+    x = 1.0 - np.cos(theta)
+    yz = np.sin(theta) if kind == "lift" else 1.0 - np.cos(theta)
+    end = theta >= np.pi / 2
+    return np.where(end, 1.0, x), np.where(end, 1.0, yz)
+
+
+def angle_steps(t_mn: float) -> np.ndarray:
+    """T_T samples T_mn, 2 T_mn, ... of one transition; the last is exactly 90 deg."""
+    k = int(math.ceil(round((math.pi / 2) / t_mn, 9)))
+    theta = np.arange(1, k + 1) * t_mn
+    theta[-1] = np.pi / 2
+    return theta
+
+
+def decelerated_angle_steps(t_mn: float, c_dc: float, n_areas: int) -> np.ndarray:
+    """T_T samples of a decelerated landing (eqs 48-49 as read in the module docstring)."""
+    bounds = np.arccos(1.0 - np.arange(1, n_areas + 1) / n_areas)   # area ends, equal x travel
+    bounds[-1] = np.pi / 2
+    out = []
+    theta = 0.0
+    while theta < np.pi / 2 - 1e-12:
+        k = int(np.searchsorted(bounds, theta, side="right")) + 1     # 1-based area of theta
+        k = min(k, n_areas)
+        theta = min(theta + t_mn / (1.0 + c_dc * math.log(1.0 + k)), np.pi / 2)
+        out.append(theta)
+    out[-1] = np.pi / 2
+    return np.array(out)
+
+
+def via_points(p: ErosParams) -> list[Transition]:
+    """The chain of transitions for ``n_steps`` steps, plus a final settle (ankles back to flat)."""
+    state = np.zeros(6)
+    swing = 1 if p.first_swing == "left" else -1
+    plain = angle_steps(p.t_mn)
+    landing = (decelerated_angle_steps(p.t_mn, p.c_dc, p.n_areas)
+               if p.landing_deceleration else plain)
+    chain: list[Transition] = []
+    for j in range(p.n_steps):
+        xs, xp = (XL, XR) if swing == 1 else (XR, XL)
+        zs = ZL if swing == 1 else ZR
+        last = j == p.n_steps - 1
+        target = state[xp] + (0.0 if last else p.step_x)
+        body_next = 0.5 * (target + state[xp])
+        apex = state.copy()
+        apex[xs] = 0.5 * (state[xs] + target)
+        apex[zs] = p.foot_lift
+        apex[BX] = 0.5 * (state[BX] + body_next)
+        apex[BY] = -swing * p.sway_y            # toward the support foot
+        chain.append(Transition("lift", swing, state, apex, plain))
+        down = apex.copy()
+        down[xs] = target
+        down[zs] = 0.0
+        down[BX] = body_next
+        down[BY] = 0.0
+        chain.append(Transition("land", swing, apex, down, landing))
+        state = down
+        swing = -swing
+    chain.append(Transition("settle", 0, state, state.copy(), plain))
+    return chain
+
+
+def _heel_targets(p: ErosParams, chain: list[Transition]) -> list[tuple[float, float]]:
+    """End values of the ankle-pitch offsets (left, right) after each transition (eqs 44-47)."""
+    ends = []
+    cur = {1: 0.0, -1: 0.0}
+    for i, tr in enumerate(chain):
+        nxt = chain[i + 1] if i + 1 < len(chain) else None
+        for leg in (1, -1):
+            if not p.heel_strike or tr.kind == "settle":
+                cur[leg] = 0.0
+                continue
+            zs = ZL if tr.swing == 1 else ZR
+            zp = ZR if tr.swing == 1 else ZL
+            if tr.kind == "lift" and tr.swing == leg:
+                # eq 45/47: collision offset from dS'_z at the via point that starts the landing
+                ds_collision = tr.end[zs] - tr.end[zp]
+                cur[leg] = -p.heel_gain * ds_collision
+            elif tr.kind == "land" and tr.swing == leg:
+                pass                                   # hold: the heel meets the ground first
+            elif tr.kind == "land" and tr.swing != leg:
+                if nxt is not None and nxt.kind == "lift" and nxt.swing == leg:
+                    # eq 44/46: push-off offset from dS_z at the via point that ends the lift-off
+                    z_own, z_other = (ZL, ZR) if leg == 1 else (ZR, ZL)
+                    ds_push = nxt.end[z_own] - nxt.end[z_other]
+                    cur[leg] = p.heel_gain * ds_push
+                else:
+                    cur[leg] = 0.0
+            elif tr.kind == "lift" and tr.swing != leg:
+                cur[leg] = 0.0                         # foot flat again once loaded
+        ends.append((cur[1], cur[-1]))
+    return ends
+
+
+@dataclass(frozen=True)
+class ErosReferences:
+    """World references on the controller's own tick timeline (before resampling)."""
+
+    t: np.ndarray            # (K,) [s]
+    state: np.ndarray        # (K, 6) xl, xr, zl, zr, body x, body sway y [m]
+    ankle_offset: np.ndarray  # (K, 2) [rad] left, right
+    support: np.ndarray      # (K,)
+    via_ticks: np.ndarray    # tick index at which each via point is reached (first = 0)
+    via_states: np.ndarray   # (len(chain) + 1, 6)
+    transition_ticks: np.ndarray  # (len(chain),) ticks spent in each transition
+
+
+def eros_references(p: ErosParams) -> ErosReferences:
+    """Run the quarter-circle chain tick by tick (eqs 36-49)."""
+    chain = via_points(p)
+    heel_ends = _heel_targets(p, chain)
+    n_start = int(round(p.t_start / p.tick))
+    n_end = int(round(p.t_end / p.tick))
+    states = [np.repeat(chain[0].start[None, :], n_start + 1, axis=0)]
+    offsets = [np.zeros((n_start + 1, 2))]
+    supports = [np.zeros(n_start + 1, dtype=int)]
+    via_ticks = [n_start]
+    via_states = [chain[0].start]
+    spent = []
+    off = np.zeros(2)
+    tick = n_start
+    for tr, heel_end in zip(chain, heel_ends):
+        prof_x, prof_yz = quarter_circle(tr.theta, "lift" if tr.kind == "lift" else "land")
+        delta = tr.end - tr.start                               # eq 36
+        seg = np.repeat(tr.start[None, :], len(tr.theta), axis=0)
+        for c in range(6):
+            prof = prof_x if c in X_COORDS else prof_yz
+            seg[:, c] = tr.start[c] + prof * delta[c]
+        seg[-1] = tr.end                                        # the via point, exactly
+        new_off = np.asarray(heel_end)
+        seg_off = off[None, :] + prof_yz[:, None] * (new_off - off)[None, :]
+        seg_off[-1] = new_off
+        off = new_off
+        states.append(seg)
+        offsets.append(seg_off)
+        supports.append(np.full(len(tr.theta), -tr.swing, dtype=int))
+        tick += len(tr.theta)
+        via_ticks.append(tick)
+        via_states.append(tr.end)
+        spent.append(len(tr.theta))
+    states.append(np.repeat(chain[-1].end[None, :], n_end, axis=0))
+    offsets.append(np.zeros((n_end, 2)))
+    supports.append(np.zeros(n_end, dtype=int))
+    state = np.concatenate(states)
+    t = np.arange(len(state)) * p.tick
+    return ErosReferences(t, state, np.concatenate(offsets), np.concatenate(supports),
+                          np.array(via_ticks), np.array(via_states), np.array(spent))
+
+
+def generate(p: ErosParams, leg: LegGeometry = LegGeometry(), dt: float | None = None) -> GaitTrajectory:
+    """The EROS walk as a joint table sampled every ``dt`` (default: the controller tick)."""
+    ref = eros_references(p)
+    dt = p.tick if dt is None else dt
+    if not (1e-4 <= dt <= 0.1):
+        raise ParamError(f"dt = {dt!r} s is out of range [0.0001, 0.1] s")
+    if abs(dt - p.tick) < 1e-12:
+        t, state, off, support = ref.t, ref.state, ref.ankle_offset, ref.support
+    else:
+        t = np.arange(int(math.floor(ref.t[-1] / dt + 1e-9)) + 1) * dt
+        state = resample(ref.t, ref.state, t)
+        off = resample(ref.t, ref.ankle_offset, t)
+        idx = np.clip(np.searchsorted(ref.t, t, side="right") - 1, 0, len(ref.t) - 1)
+        support = ref.support[idx]
+    n = len(t)
+    half = p.stance_width / 2
+    left = np.column_stack([state[:, XL], np.full(n, half), state[:, ZL]])
+    right = np.column_stack([state[:, XR], np.full(n, -half), state[:, ZR]])
+    pelvis = np.column_stack([state[:, BX], state[:, BY],
+                              np.full(n, p.hip_height + leg.hip_offset_z)])
+    support = np.where((state[:, ZL] > 0) | (state[:, ZR] > 0), support, 0)
+    return assemble("eros", t, leg, p_world_pelvis=pelvis, p_world_foot_l=left,
+                    p_world_foot_r=right, support=support, ankle_pitch_offset=off,
+                    meta={"transition_ticks": ref.transition_ticks.tolist()})

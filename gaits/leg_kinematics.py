@@ -1,0 +1,203 @@
+"""EROS 6-DoF leg inverse and forward kinematics (Pristovani et al., eqs 9-35, Tables 5-6).
+
+Chain of one leg, from the pelvis frame (x forward, y left, z up; origin midway
+between the two hip-joint centres):
+
+    T_pelvis_sole = Trans(0, +-d_y1, -d_z1) Rz(q1) Rx(q2) Ry(q3) Trans(0, 0, -d_z3)
+                    Ry(q4) Trans(0, 0, -d_z4) Ry(q5) Rx(q6) Trans(0, 0, -d_z6)
+
+q1..q6 = hip yaw, hip roll, hip pitch, knee, ankle pitch, ankle roll. Angles obey
+the right-hand rule about the pelvis axes at the zero pose, so knee flexion is
+positive and a positive ankle pitch points the toe down.
+
+Readings of the printed paper (the OCR and the paper itself garble some lines):
+
+* Table 5 lists the translation (0, d_y1, -d_z1) after Rz(q1). We put it before:
+  the hip-yaw axis passes through the hip centre, as on every servo humanoid,
+  so that yaw turns the foot about the leg and does not swing the hip sideways.
+  Tables 5-6 repeat theta indices (``R_y(theta_RL,2)`` for the knee); we read
+  them as q4, q5, q6.
+* Eqs 10-13 as printed give dP_x = 0 and dP_y = 2 P_y for zero heading, which
+  cannot be meant. We read them as the target expressed in the yawed hip frame:
+  ``dP = Rz(-q1) P`` (R0 cos(beta), R0 sin(beta) with beta = atan2(P_y, P_x) - q1).
+* Eq 17 prints ``R2 = sqrt(dP_x^2 + P6z^2)``; the hip-ankle distance in the
+  rolled plane is ``sqrt(dP_x^2 + R1^2)``, which eq 21 (``atan(dP_x / R1)``)
+  already assumes. We use R1.
+* Eqs 22-24 give the thigh's angle to the hip-ankle line as
+  ``atan(l3 sin(gc) / (l3 + l4 cos(gc)))``; the triangle gives
+  ``atan2(l4 sin(q4), l3 + l4 cos(q4))`` with q4 = pi - gc (eq 26). We use the
+  latter; the two agree only for a straight leg.
+* Eqs 25-28 (q3 = ga + gb, q4 = 180 - gc, q5 = q3 + q4, q6 = -q2) hold with the
+  paper's own sign convention; in ours they read q3 = -(ga + gb), q5 = -(q3 + q4),
+  q6 = -q2, which keeps the sole parallel to the ground.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .params import ParamError
+
+__all__ = [
+    "LegGeometry",
+    "UnreachableTargetError",
+    "LEG_JOINTS",
+    "leg_ik",
+    "leg_fk",
+    "rot_x",
+    "rot_y",
+    "rot_z",
+]
+
+LEG_JOINTS = ("hip_yaw", "hip_roll", "hip_pitch", "knee", "ankle_pitch", "ankle_roll")
+
+
+class UnreachableTargetError(ValueError):
+    """A foot target lies outside the leg's reach; the message names the sample and distances."""
+
+
+@dataclass(frozen=True)
+class LegGeometry:
+    """Lengths the leg IK and the gait generators need (EROS Table 5 names in brackets).
+
+    Defaults are the built-in kid-size robot (52 cm, like EROS): see ``tuner.robot``.
+    """
+
+    hip_offset_y: float = 0.037    # [m] pelvis centre to each hip-joint centre, lateral (d_y1)
+    hip_offset_z: float = 0.0      # [m] pelvis origin to hip-joint centres, downward (d_z1)
+    thigh: float = 0.110           # [m] hip pitch axis to knee axis (d_z3)
+    shank: float = 0.110           # [m] knee axis to ankle pitch axis (d_z4)
+    ankle_height: float = 0.035    # [m] ankle roll axis to sole (d_z6)
+    com_above_pelvis: float = 0.020  # [m] CoM height above the pelvis origin, upright pose
+
+    def __post_init__(self) -> None:
+        for name in ("thigh", "shank", "ankle_height"):
+            value = getattr(self, name)
+            if not (0.0 < value < 1.0):
+                raise ParamError(f"leg.{name} = {value!r} m is out of range (0, 1) m")
+        if not (0.0 <= self.hip_offset_y < 0.5):
+            raise ParamError(f"leg.hip_offset_y = {self.hip_offset_y!r} m is out of range [0, 0.5) m")
+
+    @property
+    def max_hip_height(self) -> float:
+        """Sole-to-hip-centre height with the leg straight [m]."""
+        return self.thigh + self.shank + self.ankle_height
+
+    def hip_in_pelvis(self, side: int) -> np.ndarray:
+        """Hip-joint centre in the pelvis frame; side = +1 left, -1 right."""
+        return np.array([0.0, side * self.hip_offset_y, -self.hip_offset_z])
+
+
+def rot_x(a: np.ndarray) -> np.ndarray:
+    """Rotation matrices about x, shape (..., 3, 3)."""
+    a = np.asarray(a, dtype=float)
+    c, s = np.cos(a), np.sin(a)
+    o, z = np.ones_like(a), np.zeros_like(a)
+    return np.stack([np.stack([o, z, z], -1), np.stack([z, c, -s], -1), np.stack([z, s, c], -1)], -2)
+
+
+def rot_y(a: np.ndarray) -> np.ndarray:
+    a = np.asarray(a, dtype=float)
+    c, s = np.cos(a), np.sin(a)
+    o, z = np.ones_like(a), np.zeros_like(a)
+    return np.stack([np.stack([c, z, s], -1), np.stack([z, o, z], -1), np.stack([-s, z, c], -1)], -2)
+
+
+def rot_z(a: np.ndarray) -> np.ndarray:
+    a = np.asarray(a, dtype=float)
+    c, s = np.cos(a), np.sin(a)
+    o, z = np.ones_like(a), np.zeros_like(a)
+    return np.stack([np.stack([c, -s, z], -1), np.stack([s, c, z], -1), np.stack([z, z, o], -1)], -2)
+
+
+def _side(side: int | str) -> int:
+    if side in (1, "left", "l"):
+        return 1
+    if side in (-1, "right", "r"):
+        return -1
+    raise ValueError(f"side must be 'left'/'right' (or +1/-1), got {side!r}")
+
+
+def leg_fk(q: np.ndarray, leg: LegGeometry, side: int | str) -> tuple[np.ndarray, np.ndarray]:
+    """Forward kinematics: joint angles (..., 6) -> (p_pelvis_sole (..., 3), R_pelvis_sole (..., 3, 3)).
+
+    Implements the chain in the module docstring (EROS Table 5/6 with the yaw
+    axis through the hip centre).
+    """
+    q = np.asarray(q, dtype=float)
+    if q.shape[-1] != 6:
+        raise ValueError(f"leg_fk expects joint angles of shape (..., 6), got {q.shape}")
+    s = _side(side)
+    q1, q2, q3, q4, q5, q6 = np.moveaxis(q, -1, 0)
+    R_hip = rot_z(q1) @ rot_x(q2)
+    R_thigh = R_hip @ rot_y(q3)
+    R_shank = R_thigh @ rot_y(q4)
+    R_foot = R_shank @ rot_y(q5) @ rot_x(q6)
+    down = np.array([0.0, 0.0, -1.0])
+    p = (leg.hip_in_pelvis(s)
+         + (R_thigh @ down) * leg.thigh
+         + (R_shank @ down) * leg.shank
+         + (R_foot @ down) * leg.ankle_height)
+    return p, R_foot
+
+
+def leg_ik(p_pelvis_sole: np.ndarray, yaw: np.ndarray | float, leg: LegGeometry,
+           side: int | str, *, t: np.ndarray | None = None) -> np.ndarray:
+    """Inverse kinematics for a flat foot: sole position + heading -> joint angles (..., 6).
+
+    ``p_pelvis_sole`` (..., 3) is the sole centre in the pelvis frame and ``yaw``
+    (...) the foot heading (theta_Heading, eq 9); the sole is kept parallel to
+    the pelvis' x-y plane. Vectorised over leading dimensions.
+
+    Raises :class:`UnreachableTargetError` naming the first offending sample (and
+    its time if ``t`` is given) when the hip-ankle distance exceeds
+    ``thigh + shank``, is shorter than ``|thigh - shank|``, or the ankle would
+    not be below the hip (where eq 15's roll angle is undefined).
+    """
+    p = np.asarray(p_pelvis_sole, dtype=float)
+    if p.shape[-1] != 3:
+        raise ValueError(f"leg_ik expects targets of shape (..., 3), got {p.shape}")
+    yaw = np.broadcast_to(np.asarray(yaw, dtype=float), p.shape[:-1])
+    s = _side(side)
+    l3, l4 = leg.thigh, leg.shank
+    # eq 9: the yaw joint takes the heading directly
+    q1 = yaw.copy()
+    # eqs 10-13 (read as a rotation into the yawed hip frame), eq 14 (ankle above the sole)
+    p_hip = p - leg.hip_in_pelvis(s)
+    c, sn = np.cos(q1), np.sin(q1)
+    ax = c * p_hip[..., 0] + sn * p_hip[..., 1]
+    ay = -sn * p_hip[..., 0] + c * p_hip[..., 1]
+    az = p_hip[..., 2] + leg.ankle_height
+    # eqs 15-16: hip roll from the frontal plane, R1 the leg length seen from the front
+    q2 = np.arctan2(ay, -az)
+    r1 = np.hypot(ay, az)
+    # eq 17 (with R1): hip-ankle distance; eqs 18-20: inner knee angle by the law of cosines
+    r2 = np.hypot(ax, r1)
+    too_far = r2 > (l3 + l4) * (1 + 1e-12)
+    too_near = r2 < abs(l3 - l4) * (1 - 1e-12)
+    above = az >= 0.0                     # eq 15's roll needs the ankle below the hip
+    bad = too_far | too_near | above
+    if np.any(bad):
+        idx = np.unravel_index(int(np.flatnonzero(bad)[0]), bad.shape) if bad.ndim else ()
+        when = f" at t = {float(np.asarray(t)[idx]):.3f} s" if t is not None else ""
+        sample = f" (sample {tuple(int(i) for i in idx)})" if idx else ""
+        name = "left" if s == 1 else "right"
+        d = float(np.asarray(r2)[idx])
+        if bool(np.asarray(above)[idx]):
+            raise UnreachableTargetError(
+                f"{name} foot target {np.round(p[idx], 4).tolist()} m{sample}{when} is out of reach: "
+                f"the ankle would be {float(np.asarray(az)[idx]):.4f} m above the hip centre")
+        raise UnreachableTargetError(
+            f"{name} foot target {np.round(p[idx], 4).tolist()} m{sample}{when} is out of reach: "
+            f"hip-ankle distance {d:.4f} m, reachable [{abs(l3 - l4):.4f}, {l3 + l4:.4f}] m")
+    cos_gc = np.clip((l3 ** 2 + l4 ** 2 - r2 ** 2) / (2 * l3 * l4), -1.0, 1.0)
+    gc = np.arccos(cos_gc)
+    q4 = np.pi - gc                                   # eq 26
+    ga = np.arctan2(ax, r1)                           # eq 21
+    gb = np.arctan2(l4 * np.sin(q4), l3 + l4 * np.cos(q4))  # eqs 22-24 (triangle reading)
+    q3 = -(ga + gb)                                   # eq 25
+    q5 = -(q3 + q4)                                   # eq 27
+    q6 = -q2                                          # eq 28
+    return np.stack([q1, q2, q3, q4, q5, q6], axis=-1)

@@ -1,0 +1,87 @@
+"""The real ``gait-tuner`` CLI, run in a subprocess: outputs, exit codes, one-line errors."""
+
+import csv
+import subprocess
+
+import pytest
+
+from gaits import JOINT_NAMES
+
+
+def run(cmd, args, env, cwd=None):
+    return subprocess.run(cmd + args, capture_output=True, text=True, env=env, cwd=cwd, timeout=120)
+
+
+@pytest.mark.parametrize("family", ["tlipfm", "eros", "cosine"])
+def test_trajectory_writes_table_plot_and_params(gait_tuner_cmd, run_env, tmp_path, family):
+    out = tmp_path / family
+    r = run(gait_tuner_cmd, ["trajectory", "--gait", family, "--out", str(out)], run_env)
+    assert r.returncode == 0, r.stderr
+    assert (out / "references.png").stat().st_size > 10_000
+    with (out / "joints.csv").open() as fh:
+        rows = list(csv.reader(fh))
+    header = rows[0]
+    assert header[0] == "t[s]"
+    assert [h[:-5] for h in header[1:21]] == list(JOINT_NAMES)
+    assert "com_x[m]" in header and "zmp_ref_y[m]" in header and header[-1] == "support[-]"
+    assert len(rows) > 100
+    # the written params.yaml reproduces the same table
+    r2 = run(gait_tuner_cmd, ["trajectory", "--params", str(out / "params.yaml"),
+                              "--out", str(tmp_path / "again"), "--no-plot"], run_env)
+    assert r2.returncode == 0, r2.stderr
+    assert (tmp_path / "again" / "joints.csv").read_text() == (out / "joints.csv").read_text()
+
+
+def test_model_override_and_baseline_name(gait_tuner_cmd, run_env, tmp_path):
+    r = run(gait_tuner_cmd, ["trajectory", "--params", "tkux-table2", "--model", "lipm",
+                             "--out", str(tmp_path), "--no-plot", "--dt", "0.005"], run_env)
+    assert r.returncode == 0, r.stderr
+    assert "samples every 0.005 s" in r.stdout
+    assert "model: lipm" in (tmp_path / "params.yaml").read_text()
+
+
+@pytest.mark.parametrize("args,message", [
+    (["trajectory", "--params", "no-such-set", "--out", "X"], "not a baseline"),
+    (["trajectory", "--gait", "eros", "--params", "tkux-table2", "--out", "X"],
+     "holds 'tlipfm' parameters, but --gait is 'eros'"),
+    (["trajectory", "--gait", "eros", "--model", "lipm", "--out", "X"], "--model applies to the tlipfm"),
+    (["trajectory", "--gait", "tlipfm", "--dt", "2", "--out", "X"], "dt = 2.0 s is out of range"),
+    (["trajectory", "--gait", "walker", "--out", "X"], "Invalid value for '--gait'"),
+    (["trajectory", "--gait", "eros"], "Missing option '--out'"),
+    (["fly"], "No such command 'fly'"),
+])
+def test_bad_input_exits_2_with_one_line(gait_tuner_cmd, run_env, tmp_path, args, message):
+    args = [str(tmp_path / a) if a == "X" else a for a in args]
+    r = run(gait_tuner_cmd, args, run_env)
+    assert r.returncode == 2, (r.stdout, r.stderr)
+    assert message in r.stderr
+    assert "Traceback" not in r.stderr
+
+
+def test_malformed_file_and_unreachable_gait(gait_tuner_cmd, run_env, tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("gait: tlipfm\nparams:\n  t1: 0.6\n")
+    r = run(gait_tuner_cmd, ["trajectory", "--params", str(bad), "--out", str(tmp_path / "o")], run_env)
+    assert r.returncode == 2
+    assert r.stderr.strip().count("\n") == 0
+    assert "t1 = 0.6 s" in r.stderr
+    # hip higher than the straight leg: the IK says which foot, when and why
+    far = tmp_path / "far.yaml"
+    far.write_text("gait: eros\nparams:\n  hip_height: 0.29\n")
+    r = run(gait_tuner_cmd, ["trajectory", "--params", str(far), "--out", str(tmp_path / "o")], run_env)
+    assert r.returncode == 2
+    assert "out of reach" in r.stderr and "t = 0.000 s" in r.stderr
+
+
+def test_help_lists_verbs(gait_tuner_cmd, run_env):
+    r = run(gait_tuner_cmd, ["--help"], run_env)
+    assert r.returncode == 0
+    for verb in ("trajectory", "baselines", "params"):
+        assert verb in r.stdout
+
+
+def test_baselines_and_params_listing(gait_tuner_cmd, run_env):
+    r = run(gait_tuner_cmd, ["baselines"], run_env)
+    assert r.returncode == 0 and "tkux-table2" in r.stdout and "eros-x24-with" in r.stdout
+    r = run(gait_tuner_cmd, ["params", "tlipfm"], run_env)
+    assert r.returncode == 0 and "S_L" in r.stdout and "[0.08, 0.5] m" in r.stdout

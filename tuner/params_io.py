@@ -1,0 +1,34 @@
+"""Resolve a ``--params`` argument: a YAML file path or a shipped baseline name."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from gaits import GaitFile, list_baselines, load_baseline, load_gait_file
+
+from .errors import UserError
+
+__all__ = ["DEFAULT_BASELINE", "resolve_params"]
+
+#: The parameter set each family uses when ``--params`` is not given.
+DEFAULT_BASELINE = {"tlipfm": "tkux-table2", "eros": "eros-x8-without", "cosine": "cosine-setiono"}
+
+
+def resolve_params(spec: str | None, family: str | None) -> GaitFile:
+    """Load ``spec`` (path or baseline name), or the family's default; check the family matches."""
+    if spec is None:
+        if family is None:
+            raise UserError("give --gait or --params")
+        return load_baseline(DEFAULT_BASELINE[family])
+    path = Path(spec)
+    if path.suffix in (".yaml", ".yml") or path.exists():
+        gait_file = load_gait_file(path)
+    elif spec in list_baselines():
+        gait_file = load_baseline(spec)
+    else:
+        raise UserError(f"--params {spec!r}: no such file, and not a baseline "
+                        f"(baselines: {', '.join(list_baselines())})")
+    if family is not None and gait_file.family != family:
+        raise UserError(f"--params {spec!r} holds {gait_file.family!r} parameters, "
+                        f"but --gait is {family!r}")
+    return gait_file
