@@ -234,4 +234,4 @@ def generate(p: CosineLawParams, leg: LegGeometry = LegGeometry(), dt: float = 0
     pelvis = np.column_stack([hip_x, np.zeros(n), hip_z + leg.hip_offset_z])
     return assemble("cosine", t, leg, p_world_pelvis=pelvis, p_world_foot_l=foot[1],
                     p_world_foot_r=foot[-1], support=support,
-                    meta={"schedule": [k for k, _ in schedule]})
+                    meta={"schedule": [k for k, _ in schedule], "cycle_time": 2 * p.motion_time})

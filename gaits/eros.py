@@ -92,7 +92,7 @@ class ErosParams(GaitParams):
     foot_lift: float = param(0.100, "m", 0.0, 0.11, "swing-foot lift height", "Z")
     hip_height: float = param(0.230, "m", 0.12, 0.30, "sole to hip-joint centre while walking (ours)")
     stance_width: float = param(0.090, "m", 0.04, 0.20, "lateral distance between the sole centres (ours)")
-    t_mn: float = param(math.radians(3.0), "rad", math.radians(0.25), math.radians(45.0),
+    t_mn: float = param(math.radians(2.0), "rad", math.radians(0.25), math.radians(45.0),
                         "quarter-circle angle increment per controller tick", "T_mn")
     tick: float = param(0.01, "s", 0.001, 0.05, "controller tick: one T_mn increment (ours)")
     n_steps: int = param(8, "-", 2, 500, "number of steps (each swing is one step)")
@@ -116,18 +116,35 @@ class ErosParams(GaitParams):
 class Transition:
     """One quarter-circle transition between via points (indices into the tick timeline)."""
 
-    kind: str          # "lift" (DSP->SSP, eqs 38/42) or "land" (SSP->DSP, eqs 39/43) or "settle"
+    kind: str          # "lift" (DSP->SSP, eqs 38/42), "land" (SSP->DSP, eqs 39/43), or a start/stop kind
     swing: int         # +1 left leg moves, -1 right leg
     start: np.ndarray  # (6,) via point PP_i: xl, xr, zl, zr, body x, body y
     end: np.ndarray    # (6,) via point PP_i+1
     theta: np.ndarray  # (K,) T_T samples after the start, last = pi/2
 
 
+#: Y/Z profile family of each transition kind: the paper's lift-off (eq 38) and landing
+#: (eq 39) shapes, and a rest-to-rest raised cosine for our start/stop weight shifts.
+PROFILE = {"lift": "lift", "post": "lift", "land": "land", "pre": "land",
+           "shift": "rest", "return": "rest", "settle": "rest"}
+
+
 def quarter_circle(theta: np.ndarray, kind: str) -> tuple[np.ndarray, np.ndarray]:
-    """Profiles (X, Y/Z) in [0, 1] of eqs 37-39 for T_T = theta [rad]; exactly 1 at pi/2."""
+    """Profiles (X, Y/Z) in [0, 1] of eqs 37-39 for T_T = theta [rad]; exactly 1 at pi/2.
+
+    ``kind`` "lift" gives eq 38's sin, "land" eq 39's 1 - cos, "rest" the raised
+    cosine (1 - cos 2 T_T) / 2 of our start/stop shifts (zero speed at both ends).
+    """
     theta = np.asarray(theta, dtype=float)
     x = 1.0 - np.cos(theta)
-    yz = np.sin(theta) if kind == "lift" else 1.0 - np.cos(theta)
+    if kind == "lift":
+        yz = np.sin(theta)
+    elif kind == "land":
+        yz = 1.0 - np.cos(theta)
+    elif kind == "rest":
+        yz = (1.0 - np.cos(2.0 * theta)) / 2.0
+    else:
+        raise ValueError(f"profile kind must be lift, land or rest, got {kind!r}")
     end = theta >= np.pi / 2
     return np.where(end, 1.0, x), np.where(end, 1.0, yz)
 
@@ -156,13 +173,27 @@ def decelerated_angle_steps(t_mn: float, c_dc: float, n_areas: int) -> np.ndarra
 
 
 def via_points(p: ErosParams) -> list[Transition]:
-    """The chain of transitions for ``n_steps`` steps, plus a final settle (ankles back to flat)."""
+    """The chain of transitions: start-up, ``n_steps`` steps, stop, and a final settle.
+
+    The paper's cycle makes the hip sway a smooth sinusoid (1 - cos on landings
+    followed by sin on lift-offs), but starting it from rest with a lift-off would
+    need an infinite sideways acceleration. The paper does not say how EROS
+    starts; we start and stop the sway with transitions that move no foot:
+    "shift" (rest to the swing side, raised cosine), "pre" (back to the centre,
+    eq 39's shape, arriving at full sway speed), the steps, then "post" (eq 38's
+    shape, to the last landed foot's side) and "return" (raised cosine to the
+    centre). Those use the plain T_mn stepping.
+    """
     state = np.zeros(6)
     swing = 1 if p.first_swing == "left" else -1
     plain = angle_steps(p.t_mn)
     landing = (decelerated_angle_steps(p.t_mn, p.c_dc, p.n_areas)
                if p.landing_deceleration else plain)
     chain: list[Transition] = []
+    lean = state.copy()
+    lean[BY] = swing * p.sway_y                 # toward the first swing foot, at rest
+    chain.append(Transition("shift", 0, state, lean, plain))
+    chain.append(Transition("pre", 0, lean, state.copy(), plain))
     for j in range(p.n_steps):
         xs, xp = (XL, XR) if swing == 1 else (XR, XL)
         zs = ZL if swing == 1 else ZR
@@ -183,6 +214,10 @@ def via_points(p: ErosParams) -> list[Transition]:
         chain.append(Transition("land", swing, apex, down, landing))
         state = down
         swing = -swing
+    lean = state.copy()
+    lean[BY] = -swing * p.sway_y                # toward the foot that landed last
+    chain.append(Transition("post", 0, state, lean, plain))
+    chain.append(Transition("return", 0, lean, state.copy(), plain))
     chain.append(Transition("settle", 0, state, state.copy(), plain))
     return chain
 
@@ -194,8 +229,8 @@ def _heel_targets(p: ErosParams, chain: list[Transition]) -> list[tuple[float, f
     for i, tr in enumerate(chain):
         nxt = chain[i + 1] if i + 1 < len(chain) else None
         for leg in (1, -1):
-            if not p.heel_strike or tr.kind == "settle":
-                cur[leg] = 0.0
+            if not p.heel_strike or tr.kind not in ("lift", "land"):
+                cur[leg] = 0.0                         # start-up, stop and settle: feet flat
                 continue
             zs = ZL if tr.swing == 1 else ZR
             zp = ZR if tr.swing == 1 else ZL
@@ -247,7 +282,7 @@ def eros_references(p: ErosParams) -> ErosReferences:
     off = np.zeros(2)
     tick = n_start
     for tr, heel_end in zip(chain, heel_ends):
-        prof_x, prof_yz = quarter_circle(tr.theta, "lift" if tr.kind == "lift" else "land")
+        prof_x, prof_yz = quarter_circle(tr.theta, PROFILE[tr.kind])
         delta = tr.end - tr.start                               # eq 36
         seg = np.repeat(tr.start[None, :], len(tr.theta), axis=0)
         for c in range(6):
@@ -260,7 +295,8 @@ def eros_references(p: ErosParams) -> ErosReferences:
         off = new_off
         states.append(seg)
         offsets.append(seg_off)
-        supports.append(np.full(len(tr.theta), -tr.swing, dtype=int))
+        supports.append(np.full(len(tr.theta), -tr.swing if tr.kind in ("lift", "land") else 0,
+                                dtype=int))
         tick += len(tr.theta)
         via_ticks.append(tick)
         via_states.append(tr.end)
@@ -297,4 +333,5 @@ def generate(p: ErosParams, leg: LegGeometry = LegGeometry(), dt: float | None =
     support = np.where((state[:, ZL] > 0) | (state[:, ZR] > 0), support, 0)
     return assemble("eros", t, leg, p_world_pelvis=pelvis, p_world_foot_l=left,
                     p_world_foot_r=right, support=support, ankle_pitch_offset=off,
-                    meta={"transition_ticks": ref.transition_ticks.tolist()})
+                    meta={"transition_ticks": ref.transition_ticks.tolist(),
+                          "cycle_time": 4 * (math.pi / 2) / p.t_mn * p.tick})

@@ -379,4 +379,5 @@ def generate(p: TlipfmParams, leg: LegGeometry = LegGeometry(), dt: float = 0.01
     return assemble("tlipfm", t, leg, p_world_pelvis=pelvis, p_world_foot_l=left,
                     p_world_foot_r=right, support=support, p_world_zmp_ref=zmp,
                     meta={"model": com.constants.model, "T_TF": com.constants.T,
-                          "C_tau2": com.constants.c_tau2, "tau": com.constants.tau})
+                          "C_tau2": com.constants.c_tau2, "tau": com.constants.tau,
+                          "cycle_time": 2 * p.period})

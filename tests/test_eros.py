@@ -38,8 +38,9 @@ def test_via_points_are_reached_exactly(params):
     # four transitions per cycle: lift / land alternate, legs alternate per step
     chain = eros.via_points(params)
     kinds = [tr.kind for tr in chain]
-    assert kinds[:4] == ["lift", "land", "lift", "land"] and kinds[-1] == "settle"
-    assert [tr.swing for tr in chain[:4]] == [1, 1, -1, -1]
+    assert kinds[:2] == ["shift", "pre"] and kinds[-3:] == ["post", "return", "settle"]
+    assert kinds[2:6] == ["lift", "land", "lift", "land"]
+    assert [tr.swing for tr in chain[2:6]] == [1, 1, -1, -1]
 
 
 def test_walk_distance_and_direction():
@@ -72,7 +73,7 @@ def test_landing_deceleration_lengthens_landing_monotonically():
         ref = eros.eros_references(p)
         kinds = [tr.kind for tr in eros.via_points(p)]
         lengths.append(ref.transition_ticks[kinds.index("land")])
-    assert lengths[0] == 30                       # C_DC = 0: the plain 90 / T_mn ticks
+    assert lengths[0] == len(eros.angle_steps(WITH.t_mn)) == 60   # C_DC = 0: 90 / T_mn ticks (1.5 deg)
     assert all(b >= a for a, b in zip(lengths, lengths[1:]))
     assert lengths[-1] > 2 * lengths[0]
     # more areas: the later, slower increments reach further back
@@ -80,7 +81,8 @@ def test_landing_deceleration_lengthens_landing_monotonically():
     assert all(b >= a for a, b in zip(ticks, ticks[1:])) and ticks[-1] > ticks[0]
     # lift-offs keep their speed
     ref = eros.eros_references(WITH)
-    assert ref.transition_ticks[0] == 30
+    kinds = [tr.kind for tr in eros.via_points(WITH)]
+    assert ref.transition_ticks[kinds.index("lift")] == 60
 
 
 def test_deceleration_slows_touchdown():
@@ -114,7 +116,7 @@ def test_heel_strike_lands_heel_first_and_pushes_off():
     # the ankles are flat again after the walk
     assert np.all(ref.ankle_offset[-1] == 0.0)
     # offsets are continuous: no jump larger than one tick's ramp
-    assert np.max(np.abs(np.diff(ref.ankle_offset, axis=0))) < 2 * gain * lift * math.radians(3) * 1.01
+    assert np.max(np.abs(np.diff(ref.ankle_offset, axis=0))) < 2 * gain * lift * WITH.t_mn * 1.01
 
 
 def test_joint_table_resampling_keeps_endpoints():
@@ -131,3 +133,19 @@ def test_eros_parameter_errors():
         ErosParams(sway_y=0.08, stance_width=0.06)
     with pytest.raises(ParamError, match="eros.heel_strike must be true or false"):
         ErosParams(heel_strike="yes")
+
+
+def test_hip_sway_is_a_smooth_sinusoid():
+    """Landing (1 - cos) then lift-off (sin) make y = Y cos(phase): no speed jump between them."""
+    ref = eros.eros_references(WITHOUT)
+    y = ref.state[:, eros.BY]
+    v = np.diff(y) / WITHOUT.tick
+    assert np.max(np.abs(np.diff(v))) < 2.5 * WITHOUT.sway_y * WITHOUT.t_mn ** 2 / WITHOUT.tick ** 2 * WITHOUT.tick
+    assert y[0] == 0.0 and y[-1] == 0.0 and abs(v[0]) < 1e-3 and abs(v[-1]) < 1e-12
+
+
+def test_rest_profile_starts_and_ends_at_rest():
+    th = eros.angle_steps(math.radians(2.0))
+    _, yz = eros.quarter_circle(np.r_[0.0, th], "rest")
+    assert yz[0] == 0.0 and yz[-1] == 1.0
+    assert abs(yz[1] - yz[0]) < 0.002 and abs(yz[-1] - yz[-2]) < 0.002

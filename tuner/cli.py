@@ -74,6 +74,111 @@ def trajectory(family: str | None, params_spec: str | None, out_dir: Path, dt: f
 
 
 @cli.command()
+@click.option("--robot", "robot_name", default="kidsize", show_default=True, metavar="NAME|PATH",
+              help="Built-in robot name or a robot map YAML (bring your own MJCF).")
+@click.option("--surface", "surface_name", default="rigid", show_default=True, metavar="NAME|PATH",
+              help="rigid, carpet4, grass10, grass30, grass50, or a surface YAML.")
+@click.option("--gait", "family", type=click.Choice(["eros", "tlipfm", "cosine"]),
+              help="Gait family (taken from the parameter file if omitted).")
+@click.option("--params", "params_spec", metavar="PATH|BASELINE",
+              help="Parameter YAML file or shipped baseline name. Default: the family's paper baseline.")
+@click.option("--duration", type=float, help="Stop after this many seconds [s] (default: the whole gait).")
+@click.option("--json", "as_json", is_flag=True, help="Print the metrics as JSON.")
+@click.option("--plot", "plot_dir", type=click.Path(file_okay=False, path_type=Path),
+              help="Write pitch.png and zmp.png into this directory.")
+def simulate(robot_name: str, surface_name: str, family: str | None, params_spec: str | None,
+             duration: float | None, as_json: bool, plot_dir: Path | None) -> None:
+    """Walk a gait on a robot and a surface in MuJoCo and print its metrics."""
+    import json
+
+    from .metrics import DEFINITIONS, summarize
+    from .robot import load_robot
+    from .simulate import Simulator
+    from .surfaces import load_surface
+
+    gait_file = resolve_params(params_spec, family)
+    robot = load_robot(robot_name)
+    surface = load_surface(surface_name)
+    if duration is not None and duration <= 0:
+        raise UserError(f"--duration must be positive, got {duration:g} s")
+    sim = Simulator(robot, surface)
+    traj = gaits.generate(gait_file.params, robot.leg, sim.control_period)
+    trace = sim.rollout(traj, duration=duration)
+    metrics = summarize(trace)
+    label = params_spec or DEFAULT_BASELINE[gait_file.family]
+    if as_json:
+        click.echo(json.dumps({"robot": robot.name, "surface": surface.name, "gait": gait_file.family,
+                               "params": label, "metrics": metrics.to_dict(),
+                               "definitions": DEFINITIONS}, indent=2))
+    else:
+        click.echo(f"{gait_file.family} ({label}) on {robot.name} / {surface.name}: {metrics.reason}")
+        for key, text in DEFINITIONS.items():
+            value = getattr(metrics, key)
+            shown = "-" if value is None else (f"{value:.3f}" if isinstance(value, float) else str(value))
+            click.echo(f"  {key:16s} {shown:>10s}   {text}")
+    if plot_dir is not None:
+        from .plots import plot_pitch, plot_zmp
+        title = f"{gait_file.family} ({label}) on {surface.name}"
+        p1 = plot_pitch({label: trace}, plot_dir / "pitch.png", title)
+        p2 = plot_zmp(trace, plot_dir / "zmp.png", robot.foot_size, title)
+        if not as_json:
+            click.echo(f"wrote {p1}\nwrote {p2}")
+
+
+@cli.command()
+@click.argument("paper", type=click.Choice(["eros", "tlipfm"]))
+@click.option("--robot", "robot_name", default="kidsize", show_default=True, metavar="NAME|PATH")
+@click.option("--surface", "surface_name", default="rigid", show_default=True,
+              help="tlipfm only: the surface of the Table 3 walk.")
+@click.option("--lift-scale", default=0.25, show_default=True, type=click.FloatRange(0.05, 1.0),
+              help="eros only: multiply the paper's foot lift (Z = 90-100 mm) by this. On the built-in "
+                   "robot the full lift makes every EROS gait fall at its first step (measured), so "
+                   "the calibrated experiment uses 0.25 (22-26 mm).")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path),
+              help="Also write the report as Markdown (report.md) here.")
+def experiment(paper: str, robot_name: str, surface_name: str, lift_scale: float,
+               out_dir: Path | None) -> None:
+    """Run a paper's experiment in simulation and print it beside the paper's numbers.
+
+    eros: the stability matrix of Tables 7-8 (4 pedestals x 10 step settings,
+    without and with the optimisation). tlipfm: Table 3 (ZMP error of LIPM,
+    DLIPM and TLIPFM).
+    """
+    from tqdm import tqdm
+
+    from . import experiments as ex
+    from .robot import load_robot
+    from .surfaces import SURFACES, load_surface
+
+    robot = load_robot(robot_name)
+    if paper == "eros":
+        surfaces = {p: SURFACES[name] for p, name in ex.PEDESTALS.items()}
+        n = 2 * len(surfaces) * sum(len(v) for v in ex.EROS_STEPS_MM.values())
+        with tqdm(total=n, desc="EROS matrix", unit="walk", disable=None) as bar:
+            without = ex.eros_matrix(robot, surfaces, False, lift_scale=lift_scale, progress=bar.update)
+            with_ = ex.eros_matrix(robot, surfaces, True, lift_scale=lift_scale, progress=bar.update)
+        text = (f"foot lift: the paper's Z x {lift_scale:g}\n" + ex.format_eros(without, False)
+                + "\n\n" + ex.format_eros(with_, True))
+    else:
+        surface = load_surface(surface_name)
+        text = ex.format_table3(ex.tlipfm_table3(robot, surface), surface.name)
+    click.echo(text)
+    if out_dir is not None:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        (out_dir / "report.md").write_text("```\n" + text + "\n```\n", encoding="utf-8")
+        click.echo(f"wrote {out_dir / 'report.md'}")
+
+
+@cli.command()
+def surfaces() -> None:
+    """List the built-in surfaces and their contact parameters."""
+    from .surfaces import SURFACES
+    for s in SURFACES.values():
+        click.echo(f"{s.name:8s} layer {s.layer_height * 1000:4.0f} mm  drag {s.drag:5.1f} N s/m  "
+                   f"friction {s.friction:.2f}  {s.description}")
+
+
+@cli.command()
 def baselines() -> None:
     """List the papers' shipped parameter sets."""
     for name in list_baselines():

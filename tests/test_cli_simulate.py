@@ -1,0 +1,78 @@
+"""The simulate / experiment / surfaces verbs through the real CLI."""
+
+import json
+import subprocess
+
+import pytest
+
+
+def run(cmd, args, env):
+    return subprocess.run(cmd + args, capture_output=True, text=True, env=env, timeout=600)
+
+
+def test_simulate_prints_metrics_json_and_plots(gait_tuner_cmd, run_env, tmp_path):
+    r = run(gait_tuner_cmd, ["simulate", "--params", "tkux-table2", "--surface", "carpet4", "--json",
+                             "--plot", str(tmp_path)], run_env)
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(r.stdout)
+    assert doc["surface"] == "carpet4" and doc["gait"] == "tlipfm"
+    assert set(doc["definitions"]) <= set(doc["metrics"])
+    assert doc["metrics"]["fell"] is False
+    assert (tmp_path / "pitch.png").stat().st_size > 10_000
+    assert (tmp_path / "zmp.png").stat().st_size > 10_000
+    r = run(gait_tuner_cmd, ["simulate", "--gait", "eros", "--duration", "1.0"], run_env)
+    assert r.returncode == 0, r.stderr
+    assert "pitch_pm_deg" in r.stdout and "half the peak-to-peak" in r.stdout
+
+
+def test_user_surface_file(gait_tuner_cmd, run_env, tmp_path):
+    good = tmp_path / "turf.yaml"
+    good.write_text("layer_height: 0.02\nlayer_timeconst: 0.03\ndrag: 40\nfriction: 0.8\n")
+    r = run(gait_tuner_cmd, ["simulate", "--surface", str(good), "--gait", "tlipfm", "--duration", "1"], run_env)
+    assert r.returncode == 0, r.stderr
+    assert "/ turf:" in r.stdout
+
+
+@pytest.mark.parametrize("text,message", [
+    ("layer_height: 0.2\n", "surface.layer_height = 0.2 m is out of range [0, 0.1] m"),
+    ("blades: 3\n", "unknown surface field 'blades'"),
+    ("drag: 10\n", "drag = 10 N s/m needs a layer"),
+    ("[1, 2\n", "not valid YAML"),
+])
+def test_bad_surface_files_exit_2(gait_tuner_cmd, run_env, tmp_path, text, message):
+    path = tmp_path / "s.yaml"
+    path.write_text(text)
+    r = run(gait_tuner_cmd, ["simulate", "--surface", str(path), "--gait", "tlipfm"], run_env)
+    assert r.returncode == 2
+    assert message in r.stderr and r.stderr.strip().count("\n") == 0
+
+
+def test_unknown_surface_and_robot_exit_2(gait_tuner_cmd, run_env):
+    r = run(gait_tuner_cmd, ["simulate", "--surface", "ice", "--gait", "tlipfm"], run_env)
+    assert r.returncode == 2 and "not a built-in surface (rigid, carpet4" in r.stderr
+    r = run(gait_tuner_cmd, ["simulate", "--robot", "nao", "--gait", "tlipfm"], run_env)
+    assert r.returncode == 2 and "not a built-in robot (kidsize)" in r.stderr
+    r = run(gait_tuner_cmd, ["simulate", "--gait", "tlipfm", "--duration", "-1"], run_env)
+    assert r.returncode == 2 and "--duration must be positive" in r.stderr
+
+
+def test_experiment_tlipfm_table3(gait_tuner_cmd, run_env, tmp_path):
+    r = run(gait_tuner_cmd, ["experiment", "tlipfm", "--out", str(tmp_path)], run_env)
+    assert r.returncode == 0, r.stderr
+    assert "1.487/" in r.stdout and "1.107/" in r.stdout       # the paper's numbers beside ours
+    assert (tmp_path / "report.md").exists()
+
+
+def test_experiment_eros_matrix(gait_tuner_cmd, run_env):
+    r = run(gait_tuner_cmd, ["experiment", "eros"], run_env)
+    assert r.returncode == 0, r.stderr
+    assert "Table 7 (without optimisation)" in r.stdout and "Table 8 (with optimisation)" in r.stdout
+    assert r.stdout.count("stability %") == 2
+    assert "cells agreeing with the paper:" in r.stdout
+
+
+def test_surfaces_listing(gait_tuner_cmd, run_env):
+    r = run(gait_tuner_cmd, ["surfaces"], run_env)
+    assert r.returncode == 0
+    for name in ("rigid", "carpet4", "grass10", "grass30", "grass50"):
+        assert name in r.stdout

@@ -1,0 +1,44 @@
+"""Metric definitions pinned on synthetic traces."""
+
+import math
+
+import numpy as np
+import pytest
+
+from tuner.metrics import centre_of_pressure, pitch_pm, pitch_rms, zmp_error
+
+
+def test_sine_pitch_gives_known_rms_and_amplitude():
+    t = np.arange(0, 6.0 + 1e-9, 0.001)
+    A, P = math.radians(7.0), 0.5
+    pitch = 0.1 + A * np.sin(2 * np.pi * t / P)
+    assert pitch_rms(pitch) == pytest.approx(A / math.sqrt(2), rel=1e-3)
+    assert pitch_pm(t, pitch, cycle=1.0) == pytest.approx(A, rel=1e-6)
+
+
+def test_pm_uses_complete_cycles_only():
+    t = np.arange(0, 2.5, 0.01)
+    pitch = np.where(t < 1.0, 1.0, 0.0) * np.sin(2 * np.pi * t) + np.where(t >= 2.0, 10.0, 0.0)
+    # cycles [0, 1] and [1, 2]: amplitudes 1 and ~0 (the step at t = 2 lies outside)
+    assert pitch_pm(t, pitch, 1.0) == pytest.approx(0.5, abs=1e-3)
+    with pytest.raises(ValueError, match="cycle must be positive"):
+        pitch_pm(t, pitch, 0.0)
+
+
+def test_centre_of_pressure_of_known_forces():
+    pos = np.array([[[0.05, 0.03, 0.0], [0.05, -0.03, 0.0], [-0.05, 0.03, 0.0], [-0.05, -0.03, 0.0]]])
+    force = np.array([[30.0, 10.0, 0.0, 0.0]])            # all on the toe, mostly left
+    cop = centre_of_pressure(force, pos)
+    assert cop[0] == pytest.approx([0.05, (0.03 * 30 - 0.03 * 10) / 40])
+    force = np.array([[5.0, 5.0, 5.0, 5.0]])
+    assert centre_of_pressure(force, pos)[0] == pytest.approx([0.0, 0.0])
+    assert np.all(np.isnan(centre_of_pressure(np.zeros((1, 4)), pos)))
+    assert np.all(np.isnan(centre_of_pressure(force, pos, min_total=25.0)))
+    with pytest.raises(ValueError, match=r"\(1, 4\) and \(1, 3, 3\)"):
+        centre_of_pressure(force, pos[:, :3])
+
+
+def test_zmp_error_ignores_unloaded_samples():
+    zmp = np.array([[0.01, 0.0], [np.nan, np.nan], [0.0, -0.02]])
+    ref = np.zeros((3, 2))
+    assert zmp_error(zmp, ref) == pytest.approx((0.005, 0.01))

@@ -1,0 +1,106 @@
+"""MuJoCo rollouts: every family on every surface, the toe-sticking effect, failure modes."""
+
+import math
+
+import numpy as np
+import pytest
+
+import gaits
+from tuner.metrics import summarize
+from tuner.robot import load_robot
+from tuner.simulate import Simulator
+from tuner.surfaces import SURFACES, Surface
+
+ROBOT = load_robot("kidsize")
+SIMS = {}
+
+
+def sim_for(name):
+    if name not in SIMS:
+        SIMS[name] = Simulator(ROBOT, SURFACES[name])
+    return SIMS[name]
+
+
+@pytest.mark.parametrize("surface", list(SURFACES))
+@pytest.mark.parametrize("baseline", ["tkux-table2", "eros-x8-with", "cosine-setiono"])
+def test_every_family_on_every_surface(surface, baseline):
+    sim = sim_for(surface)
+    traj = gaits.generate(gaits.load_baseline(baseline).params, ROBOT.leg, sim.control_period)
+    trace = sim.rollout(traj, duration=3.0)
+    for arr in (trace.pitch, trace.roll, trace.p_torso, trace.p_com, trace.force, trace.q, trace.tau):
+        assert np.all(np.isfinite(arr))
+    # a standing start: upright and loaded on both feet for the first 0.3 s
+    first = trace.t <= 0.3
+    assert np.max(np.abs(trace.pitch[first])) < math.radians(5)
+    assert np.max(np.abs(trace.roll[first])) < math.radians(5)
+    weight = 4.95 * 9.81
+    assert np.all(trace.force[first][-5:].sum(axis=1) > 0.7 * weight)
+    # servos respect their torque limits
+    assert np.max(np.abs(trace.tau)) <= 6.0 + 1e-9
+    m = summarize(trace)
+    assert 0.0 <= m.pitch_rms_deg < 60 and 0.0 <= m.pitch_pm_deg < 90
+    assert -0.2 < m.distance_m < 0.5
+    assert trace.reason == "completed" or trace.reason.startswith("fell at t =")
+    assert m.fell == trace.fell
+    # the soles rest on the blade tips, never below the soil
+    assert np.min(trace.p_sole_l[:, 2]) > -0.005
+
+
+def test_tlipfm_walks_on_the_rigid_floor():
+    sim = sim_for("rigid")
+    traj = gaits.generate(gaits.load_baseline("tkux-table2").params, ROBOT.leg, sim.control_period)
+    m = summarize(sim.rollout(traj))
+    assert not m.fell
+    assert m.distance_m > 0.2            # 13 steps of 2 cm planned (0.26 m)
+
+
+def test_toe_first_landing_sticks_on_tall_grass():
+    """The same toe-first landing pitches the robot more on grass50 than on carpet4."""
+    q0 = gaits.generate(gaits.load_baseline("eros-x8-without").params, ROBOT.leg).q_ref[0]
+    out = {}
+    for name in ("carpet4", "grass50"):
+        tr = sim_for(name).landing_test(q0, pitch=math.radians(3.0), forward_speed=0.1)
+        out[name] = (np.degrees(tr.pitch.max()), np.degrees(tr.pitch[-1]))
+    assert out["grass50"][0] > out["carpet4"][0] + 2.0       # measured 6.8 vs 3.7 deg
+    assert out["grass50"][1] > out["carpet4"][1] + 4.0       # stays pitched: 5.7 vs -1.9 deg
+    # the drag at its upper bound stays numerically stable
+    strong = Simulator(ROBOT, SURFACES["grass50"].replace(drag=120.0))
+    tr = strong.landing_test(q0, pitch=math.radians(3.0), forward_speed=0.1)
+    assert not tr.fell and np.max(np.abs(np.degrees(tr.pitch))) < 15
+
+
+def test_fall_is_detected_with_time_and_place():
+    sim = sim_for("rigid")
+    q0 = gaits.generate(gaits.load_baseline("eros-x8-without").params, ROBOT.leg).q_ref[0]
+    tr = sim.landing_test(q0, pitch=math.radians(12.0), forward_speed=0.4)
+    assert tr.fell and tr.t_fall is not None and tr.t_fall < 1.0
+    assert tr.reason.startswith(f"fell at t = {tr.t_fall:.2f} s")
+    assert np.degrees(tr.pitch[-1]) >= 50.0 - 1e-6
+
+
+def test_servo_speed_limit_makes_fast_gaits_lag():
+    sim = sim_for("rigid")
+    p = gaits.load_baseline("eros-x24-without").params.replace(t_mn=math.radians(6.0))
+    trace = sim.rollout(gaits.generate(p, ROBOT.leg, sim.control_period), duration=2.5)
+    lag = np.abs(trace.q_cmd - trace.q_ref)
+    assert lag.max() > 0.05                                   # the commanded targets could not keep up
+    rate = np.abs(np.diff(trace.q_cmd, axis=0)) / sim.control_period
+    assert rate.max() <= ROBOT.leg_servo.speed + 1e-9
+
+
+def test_diverging_simulation_ends_with_a_reason():
+    bad = Surface(name="bad", layer_height=0.05, layer_timeconst=0.002, layer_dampratio=0.1,
+                  layer_dmin=0.9999, layer_dmax=0.9999, drag=120.0)
+    sim = Simulator(ROBOT, bad)
+    traj = gaits.generate(gaits.load_baseline("tkux-table2").params, ROBOT.leg, sim.control_period)
+    trace = sim.rollout(traj, duration=2.0)
+    assert trace.reason in ("completed",) or trace.reason.startswith(("fell", "diverged"))
+    m = summarize(trace)
+    assert np.isfinite(m.pitch_rms_deg) and np.isfinite(m.distance_m)
+
+
+def test_control_period_mismatch_is_an_error():
+    sim = sim_for("rigid")
+    traj = gaits.generate(gaits.load_baseline("tkux-table2").params, ROBOT.leg, 0.005)
+    with pytest.raises(ValueError, match=r"dt \(0.005 s\) must equal the control period \(0.01 s\)"):
+        sim.rollout(traj)

@@ -1,0 +1,116 @@
+"""Ground surfaces: a rigid floor, carpet and artificial grass as calibrated MuJoCo contact layers.
+
+Model. Hard soil is a plane at z = 0. A carpet or grass is a second plane at
+the same height whose contact *margin* is the blade height: a sole point less
+than ``layer_height`` above the soil is in contact with the layer, whose
+support is soft (MuJoCo ``solref``/``solimp``: weak at the blade tips, stiffer
+deeper in). Blades also hold a foot that moves sideways inside them: every sole
+corner inside the layer feels a horizontal drag ``-drag * v`` from the tips
+down. It is computed once per control tick for the 8 sole corners (a few
+numpy operations) and held for the tick, not applied in a per-step callback,
+which keeps a rollout on grass within 2x of the rigid floor; the price is an
+explicit force that oscillates above ~120 N s/m at 10 ms ticks, hence its
+bound. Measured (``tests/test_simulation.py``, ``Simulator.landing_test``):
+the same toe-first landing pitches the robot 6.6 deg on grass50 and leaves it
+pitched forward (toe held), against 3.7 deg and rocking back on carpet4; at
+the drags we can apply stably, the soft, deep layer does most of that and the
+drag adds little (6.8 vs 6.6 deg without it).
+
+The four built-in surfaces mirror the EROS paper's pedestals (Sec. 5, Figs
+20-23): grass50 (50 mm blades, sparse, irregular), grass30 (30 mm, dense,
+smooth), grass10 (10 mm, dense, rough) and carpet4 (4 mm carpet); ``rigid`` is
+a reference floor. How their numbers were chosen is in ``docs`` of each entry
+and in the calibration note of the README.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Mapping
+
+import yaml
+
+from gaits.params import GaitParams, ParamError, param
+
+from .errors import UserError
+
+__all__ = ["Surface", "SURFACES", "load_surface", "surface_names"]
+
+
+@dataclass(frozen=True)
+class Surface(GaitParams):
+    """A ground surface (SI units). ``layer_height = 0`` is a rigid floor."""
+
+    FAMILY = "surface"
+    name: str = param("custom", "-", doc="surface name")
+    layer_height: float = param(0.0, "m", 0.0, 0.10, "blade height / pile thickness (0: rigid)")
+    layer_timeconst: float = param(0.02, "s", 0.002, 0.5, "time constant of the layer's support (solref[0])")
+    layer_dampratio: float = param(1.0, "-", 0.1, 5.0, "damping ratio of the layer's support (solref[1])")
+    layer_dmin: float = param(0.5, "-", 0.0001, 0.9999, "constraint impedance at the blade tips (solimp[0])")
+    layer_dmax: float = param(0.95, "-", 0.0001, 0.9999, "constraint impedance at the soil (solimp[1])")
+    friction: float = param(0.9, "-", 0.05, 3.0, "sliding friction of the layer (or the rigid floor)")
+    drag: float = param(0.0, "N s/m", 0.0, 120.0, "horizontal drag on each sole corner inside the layer "
+                        "(held for a control tick: above ~120 it oscillates at 10 ms ticks, measured)")
+    soil_friction: float = param(0.9, "-", 0.05, 3.0, "sliding friction of the soil below the layer")
+    description: str = param("", "-", doc="where the numbers come from")
+
+    def check_consistency(self) -> None:
+        if self.layer_dmin > self.layer_dmax:
+            raise ParamError(f"surface {self.name!r}: layer_dmin = {self.layer_dmin:g} must not exceed "
+                             f"layer_dmax = {self.layer_dmax:g}")
+        if self.layer_height == 0.0 and self.drag > 0.0:
+            raise ParamError(f"surface {self.name!r}: drag = {self.drag:g} N s/m needs a layer "
+                             f"(layer_height > 0)")
+
+    @property
+    def rigid(self) -> bool:
+        return self.layer_height == 0.0
+
+
+SURFACES: dict[str, Surface] = {
+    "rigid": Surface(name="rigid", friction=0.9, soil_friction=0.9,
+                     description="hard floor, friction 0.9: the reference"),
+    "carpet4": Surface(name="carpet4", layer_height=0.004, layer_timeconst=0.01, layer_dampratio=1.0,
+                       layer_dmin=0.9, layer_dmax=0.95, friction=1.0, drag=5.0,
+                       description="EROS pedestal 4: green carpet, 4 mm, smooth and soft"),
+    "grass10": Surface(name="grass10", layer_height=0.010, layer_timeconst=0.02, layer_dampratio=1.0,
+                       layer_dmin=0.6, layer_dmax=0.95, friction=0.9, drag=30.0,
+                       description="EROS pedestal 3: 10 mm blades, 5 mm apart (dense), rough"),
+    "grass30": Surface(name="grass30", layer_height=0.030, layer_timeconst=0.03, layer_dampratio=1.0,
+                       layer_dmin=0.5, layer_dmax=0.95, friction=0.8, drag=60.0,
+                       description="EROS pedestal 2: 30 mm blades, 5 mm apart (dense), smooth"),
+    "grass50": Surface(name="grass50", layer_height=0.050, layer_timeconst=0.04, layer_dampratio=1.0,
+                       layer_dmin=0.4, layer_dmax=0.95, friction=0.8, drag=80.0,
+                       description="EROS pedestal 1: 50 mm blades, 10 mm apart (sparse), irregular"),
+}
+
+
+def surface_names() -> list[str]:
+    return list(SURFACES)
+
+
+def load_surface(name_or_path: str) -> Surface:
+    """A built-in surface by name, or a YAML file of :class:`Surface` fields."""
+    if name_or_path in SURFACES:
+        return SURFACES[name_or_path]
+    path = Path(name_or_path)
+    if not path.exists():
+        raise UserError(f"--surface {name_or_path!r}: not a built-in surface "
+                        f"({', '.join(SURFACES)}) and no such file")
+    try:
+        doc: Any = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except yaml.YAMLError:
+        raise UserError(f"{path}: not valid YAML") from None
+    if not isinstance(doc, Mapping):
+        raise UserError(f"{path}: expected a mapping of surface fields")
+    known = [row["name"] for row in Surface.field_table()]
+    for key in doc:
+        if key not in known:
+            raise UserError(f"{path}: unknown surface field {key!r} (known: {', '.join(known)})")
+    data = dict(doc)
+    data.setdefault("name", path.stem)
+    try:
+        return Surface(**data)
+    except ParamError as exc:
+        raise UserError(f"{path}: {exc}") from None
