@@ -14,9 +14,9 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 run: $(STAMP)
-	$(BIN)/gait-tuner trajectory --gait tlipfm --out runs/quickstart/tlipfm
-	$(BIN)/gait-tuner trajectory --gait eros --params eros-x16-with --out runs/quickstart/eros
-	$(BIN)/gait-tuner trajectory --gait cosine --out runs/quickstart/cosine
+	$(BIN)/gait-tuner tune studies/quickstart.yaml --workers 2
+	$(BIN)/gait-tuner export studies/quickstart.yaml --out runs/quickstart/best.yaml
+	$(BIN)/gait-tuner compare runs/quickstart/best.yaml --study studies/quickstart.yaml --out runs/quickstart/compare
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

@@ -76,3 +76,12 @@ def test_surfaces_listing(gait_tuner_cmd, run_env):
     assert r.returncode == 0
     for name in ("rigid", "carpet4", "grass10", "grass30", "grass50"):
         assert name in r.stdout
+
+
+def test_compare_writes_report(gait_tuner_cmd, run_env, tmp_path):
+    r = run(gait_tuner_cmd, ["compare", "tkux-table2", "--surfaces", "rigid", "--out", str(tmp_path)], run_env)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.count("| tkux-table2 | rigid |") == 1        # the baseline is not listed twice
+    assert (tmp_path / "compare.md").exists() and (tmp_path / "compare.png").stat().st_size > 10_000
+    r = run(gait_tuner_cmd, ["compare", "nothing.yaml", "--out", str(tmp_path)], run_env)
+    assert r.returncode == 2 and "no such file" in r.stderr

@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 import click
+import numpy as np
 
 import gaits
 from gaits import ParamError, UnreachableTargetError, families, family_class, list_baselines, load_baseline
@@ -167,6 +168,175 @@ def experiment(paper: str, robot_name: str, surface_name: str, lift_scale: float
         out_dir.mkdir(parents=True, exist_ok=True)
         (out_dir / "report.md").write_text("```\n" + text + "\n```\n", encoding="utf-8")
         click.echo(f"wrote {out_dir / 'report.md'}")
+
+
+@cli.command()
+@click.option("--workers", default=2, show_default=True, type=click.IntRange(1, 64))
+@click.option("--lift-scale", default=0.25, show_default=True, type=click.FloatRange(0.05, 1.0))
+def calibrate(workers: int, lift_scale: float) -> None:
+    """Re-derive the pedestals' contact numbers from the EROS Tables 7-8 (slow: minutes).
+
+    Prints, per pedestal, the grid point whose simulated stability matrix agrees
+    with the most table cells; tuner/surfaces.py holds the values it chose.
+    """
+    from tqdm import tqdm
+
+    from . import calibration as cal
+    from . import experiments as ex
+
+    n = len(ex.PEDESTALS) * int(np.prod([len(v) for v in cal.DEFAULT_GRID.values()]))
+    with tqdm(total=n, desc="calibration", unit="grid point", disable=None) as bar:
+        gain, best, _ = cal.calibrate(workers=workers, lift_scale=lift_scale, progress=bar.update)
+    click.echo(f"heel gain (shared): {gain:g} rad/m")
+    for ped, c in best.items():
+        click.echo(f"P{ped} {c.surface:8s} {c.values}  agrees {c.agree}/20  "
+                   f"without {c.without}  with {c.with_}")
+
+
+@cli.command()
+@click.argument("study_file", metavar="STUDY.yaml")
+@click.option("--trials", type=click.IntRange(1, 100_000), help="Total trials the study should hold "
+              "(default: the file's). Re-running resumes: finished trials are kept.")
+@click.option("--workers", default=1, show_default=True, type=click.IntRange(1, 64),
+              help="Processes running trials of this study at once.")
+@click.option("--storage", help="Optuna storage URL (sqlite:///..., postgresql://...). "
+              "Default: a journal file runs/<study>.journal, no server.")
+@click.option("--seed", type=int, help="Sampler seed (default: the file's sampler_seed).")
+@click.option("--runs", "runs_dir", default="runs", show_default=True,
+              type=click.Path(file_okay=False, path_type=Path), help="Folder of the journal files.")
+def tune(study_file: str, trials: int | None, workers: int, storage: str | None, seed: int | None,
+         runs_dir: Path) -> None:
+    """Run (or resume) a tuning study: Optuna search seeded by CasADi, against MuJoCo walks.
+
+    The progress bar shows finished trials of the total, the best score so far
+    (torso pitch RMS [deg] of a gait that did not fall), falls so far and the
+    time left. Ctrl-C stops cleanly: finished trials stay in the storage.
+    """
+    import optuna
+    from tqdm import tqdm
+
+    from .search import DONE_STATES, best_trial, open_storage, run_study
+    from .study import load_study
+
+    spec = load_study(study_file)
+    total = trials or spec.trials
+    sampler_seed = spec.sampler_seed if seed is None else seed
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    store = open_storage(spec, storage, runs_dir)
+    journal = None if storage else str(runs_dir / f"{spec.name}.journal")
+    click.echo(f"study {spec.name}: {spec.gait} on {spec.robot} / {', '.join(spec.surfaces)} "
+               f"({spec.aggregate if len(spec.surfaces) > 1 else 'single surface'}), "
+               f"{total} trials, {workers} worker(s), storage {storage or journal}")
+    bar = tqdm(total=total, unit="trial", dynamic_ncols=True, mininterval=0.5)
+
+    def progress(study) -> None:
+        done = study.get_trials(deepcopy=False, states=DONE_STATES)
+        bar.n = min(len(done), total)
+        falls = sum(1 for t in done if t.user_attrs.get("fell"))
+        try:
+            best = f"{best_trial(study).values[0]:.2f}"
+        except KeyError:
+            best = "-"
+        bar.set_postfix_str(f"best {best}, falls {falls}")
+        bar.refresh()
+
+    try:
+        study = run_study(spec, store, journal, total, workers, sampler_seed, progress)
+    except KeyboardInterrupt:
+        bar.close()
+        click.echo(f"interrupted: finished trials are kept in {storage or journal}; "
+                   f"run the same command to resume", err=True)
+        raise SystemExit(130)
+    bar.close()
+    t = best_trial(study)
+    n_fell = sum(1 for x in study.get_trials(deepcopy=False, states=DONE_STATES) if x.user_attrs.get("fell"))
+    click.echo(f"best trial {t.number}: pitch score {t.values[0]:.3f} deg"
+               + (f", speed {t.values[1]:.4f} m/s" if len(t.values) > 1 else "")
+               + f"; {'fell' if t.user_attrs.get('fell') else 'stayed up'}; falls in study: {n_fell}")
+    click.echo(f"export it with: gait-tuner export {study_file}"
+               + (f" --storage {storage}" if storage else "") + " --out best.yaml")
+
+
+@cli.command()
+@click.argument("study_file", metavar="STUDY")
+@click.option("--storage", help="Optuna storage URL (default: the journal under --runs).")
+@click.option("--runs", "runs_dir", default="runs", show_default=True,
+              type=click.Path(file_okay=False, path_type=Path))
+@click.option("--trial", "number", type=int, help="Export this trial instead of the best one.")
+@click.option("--out", default="best.yaml", show_default=True, type=click.Path(dir_okay=False, path_type=Path),
+              help="Parameter file to write; the joint table goes beside it (<out>.joints.csv).")
+def export(study_file: str, storage: str | None, runs_dir: Path, number: int | None, out: Path) -> None:
+    """Write a study's best (or a chosen) trial as a parameter YAML plus its joint table.
+
+    STUDY is the study file (or shipped study name). The YAML is accepted as it
+    is by `simulate` and `trajectory`.
+    """
+    import optuna
+
+    from .search import best_trial, trial_params
+    from .study import load_study
+
+    spec = load_study(study_file)
+    journal = runs_dir / f"{spec.name}.journal"
+    if not storage and not journal.exists():
+        raise UserError(f"no runs of study {spec.name!r} in {journal} (run `gait-tuner tune` first)")
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    from .search import open_storage
+    try:
+        study = optuna.load_study(study_name=spec.name, storage=open_storage(spec, storage, runs_dir))
+    except KeyError:
+        raise UserError(f"storage holds no study named {spec.name!r}") from None
+    try:
+        t = best_trial(study, number)
+        params = trial_params(spec.gait, t)
+    except KeyError as exc:
+        raise UserError(str(exc.args[0])) from None
+    desc = (f"study {spec.name} trial {t.number}: score {t.values[0]:.6g}"
+            + ("" if not t.user_attrs.get("fell") else " (fell)")
+            + f"; surfaces {', '.join(spec.surfaces)}; robot {spec.robot}")
+    gaits.save_gait_file(out, params, desc)
+    from .robot import load_robot
+    robot = load_robot(spec.robot)
+    table = gaits.generate(params, robot.leg, 0.01).to_csv(out.with_suffix(".joints.csv"))
+    click.echo(f"trial {t.number} (score {t.values[0]:.4f}) -> {out} and {table}")
+
+
+@cli.command()
+@click.argument("params_specs", nargs=-1, required=True, metavar="PARAMS...")
+@click.option("--robot", "robot_name", default="kidsize", show_default=True)
+@click.option("--surfaces", "surface_names", default="grass50,grass30,grass10,carpet4", show_default=True,
+              help="Comma-separated surfaces (names or files).")
+@click.option("--baselines/--no-baselines", default=True, show_default=True,
+              help="Add the paper's baselines of the same family (EROS: x24 without/with).")
+@click.option("--study", "study_file", help="Also plot this study's optimisation history, Pareto front "
+              "and parameter importances.")
+@click.option("--runs", "runs_dir", default="runs", show_default=True,
+              type=click.Path(file_okay=False, path_type=Path))
+@click.option("--out", "out_dir", default="runs/compare", show_default=True,
+              type=click.Path(file_okay=False, path_type=Path))
+def compare(params_specs: tuple[str, ...], robot_name: str, surface_names: str, baselines: bool,
+            study_file: str | None, runs_dir: Path, out_dir: Path) -> None:
+    """Compare parameter sets side by side: stability matrix, stability %, pitch, ZMP error, speed.
+
+    Each set walks every surface at the EROS experiment's step distances (0-24 mm
+    forward, 8-24 mm backward) with its other parameters as they are. Prints a
+    table and writes compare.md and PNG plots into --out.
+    """
+    from .compare import run_compare
+
+    text = run_compare(list(params_specs), robot_name, [s for s in surface_names.split(",") if s],
+                       baselines, study_file, runs_dir, out_dir)
+    click.echo(text)
+
+
+@cli.command(name="studies")
+def studies_cmd() -> None:
+    """List the shipped studies."""
+    from .study import list_studies, load_study
+    for path in list_studies():
+        spec = load_study(str(path))
+        click.echo(f"{path.stem:26s} {spec.gait:7s} {','.join(spec.surfaces):32s} {spec.trials:4d} trials  "
+                   f"{spec.description[:60]}")
 
 
 @cli.command()

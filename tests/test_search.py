@@ -1,0 +1,143 @@
+"""Tuning studies through the real CLI: run, resume after a kill, export, two workers, bad files."""
+
+import json
+import os
+import signal
+import subprocess
+import time
+
+import optuna
+import pytest
+
+STUDY = """name: {name}
+robot: kidsize
+surfaces: [rigid]
+gait: eros
+base: eros-x8-with
+fixed: {{foot_lift: 0.02, n_steps: 4}}
+space:
+  heel_gain: {{low: 0.0, high: 4.0}}
+  c_dc: {{low: 0.0, high: 3.0}}
+  n_areas: {{low: 1, high: 6}}
+objectives: [pitch_rms]
+trials: 6
+duration: 2.0
+enqueue: [casadi, baselines]
+sampler_seed: 3
+"""
+
+
+def write_study(tmp_path, name="tiny", text=STUDY):
+    path = tmp_path / f"{name}.yaml"
+    path.write_text(text.format(name=name))
+    return path
+
+
+def run(cmd, args, env, **kw):
+    return subprocess.run(cmd + args, capture_output=True, text=True, env=env, timeout=600, **kw)
+
+
+def load(tmp_path, name):
+    from optuna.storages import JournalStorage
+    from optuna.storages.journal import JournalFileBackend
+    storage = JournalStorage(JournalFileBackend(str(tmp_path / "runs" / f"{name}.journal")))
+    return optuna.load_study(study_name=name, storage=storage)
+
+
+def test_tune_export_simulate_reproduces(gait_tuner_cmd, run_env, tmp_path):
+    study = write_study(tmp_path)
+    runs = str(tmp_path / "runs")
+    r = run(gait_tuner_cmd, ["tune", str(study), "--runs", runs], run_env)
+    assert r.returncode == 0, r.stderr
+    assert "best trial" in r.stdout
+    s = load(tmp_path, "tiny")
+    done = [t for t in s.trials if t.state == optuna.trial.TrialState.COMPLETE]
+    assert len(done) == 6
+    starts = [t.user_attrs.get("start") for t in s.trials[:2]]
+    assert starts == ["casadi seed", "baseline 0"]            # the seed and the base go first
+    out = tmp_path / "best.yaml"
+    r = run(gait_tuner_cmd, ["export", str(study), "--runs", runs, "--out", str(out)], run_env)
+    assert r.returncode == 0, r.stderr
+    assert out.exists() and (tmp_path / "best.joints.csv").exists()
+    number = int(r.stdout.split()[1])
+    stored = next(t for t in done if t.number == number).user_attrs["per_surface"]["rigid"]
+    r = run(gait_tuner_cmd, ["simulate", "--params", str(out), "--surface", "rigid", "--duration", "2.0",
+                             "--json"], run_env)
+    assert r.returncode == 0, r.stderr
+    again = json.loads(r.stdout)["metrics"]
+    for key in ("pitch_rms_deg", "pitch_pm_deg", "distance_m", "zmp_error_x_cm", "fell"):
+        assert again[key] == stored[key]                           # exactly: the simulation is deterministic
+
+
+def test_resume_after_kill_keeps_finished_trials(gait_tuner_cmd, run_env, tmp_path):
+    study = write_study(tmp_path, "killed")
+    runs = str(tmp_path / "runs")
+    proc = subprocess.Popen(gait_tuner_cmd + ["tune", str(study), "--trials", "200", "--runs", runs],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=run_env,
+                            start_new_session=True)
+    deadline = time.time() + 120
+    n = 0
+    while time.time() < deadline:
+        time.sleep(0.5)
+        try:
+            n = len([t for t in load(tmp_path, "killed").trials if t.state.is_finished()])
+        except Exception:
+            n = 0
+        if n >= 4:
+            break
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    before = {t.number: t.values for t in load(tmp_path, "killed").trials
+              if t.state == optuna.trial.TrialState.COMPLETE}
+    assert len(before) >= 4
+    total = len(before) + 3
+    r = run(gait_tuner_cmd, ["tune", str(study), "--trials", str(total), "--runs", runs], run_env)
+    assert r.returncode == 0, r.stderr
+    after = load(tmp_path, "killed").trials
+    kept = {t.number: t.values for t in after if t.number in before}
+    assert kept == before
+    assert len([t for t in after if t.state in (optuna.trial.TrialState.COMPLETE,
+                                                optuna.trial.TrialState.PRUNED)]) == total
+
+
+def test_two_workers_finish_exactly_without_duplicates(gait_tuner_cmd, run_env, tmp_path):
+    study = write_study(tmp_path, "pair")
+    r = run(gait_tuner_cmd, ["tune", str(study), "--trials", "10", "--workers", "2",
+                             "--runs", str(tmp_path / "runs")], run_env)
+    assert r.returncode == 0, r.stderr
+    trials = load(tmp_path, "pair").trials
+    assert len(trials) == 10
+    assert all(t.state == optuna.trial.TrialState.COMPLETE for t in trials)
+    assert len({t.number for t in trials}) == 10
+
+
+@pytest.mark.parametrize("edit,message", [
+    (lambda s: s.replace("c_dc: {low: 0.0", "c_dk: {low: 0.0"), "space: unknown or non-numeric parameter 'c_dk'"),
+    (lambda s: s.replace("heel_gain: {low: 0.0, high: 4.0}", "heel_gain: {low: 4.0, high: 1.0}"),
+     "space: heel_gain bounds reversed or empty: low = 4.0, high = 1.0"),
+    (lambda s: s.replace("surfaces: [rigid]", "surfaces: [ice]"), "surfaces: --surface 'ice': not a built-in"),
+    (lambda s: s.replace("trials: 6", "trials: many"), "trials must be an integer"),
+    (lambda s: s + "colour: red\n", "unknown key 'colour'"),
+    (lambda s: s.replace("heel_gain: {low: 0.0, high: 4.0}", "heel_gain: {low: 0.0, high: 40.0}"),
+     "leaves the parameter's allowed range [0.0, 10.0] rad/m"),
+])
+def test_malformed_study_exits_2(gait_tuner_cmd, run_env, tmp_path, edit, message):
+    path = tmp_path / "bad.yaml"
+    path.write_text(edit(STUDY.format(name="bad")))
+    r = run(gait_tuner_cmd, ["tune", str(path), "--runs", str(tmp_path / "runs")], run_env)
+    assert r.returncode == 2, (r.stdout, r.stderr)
+    assert message in r.stderr
+    assert r.stderr.strip().count("\n") == 0
+
+
+def test_export_without_runs_exits_2(gait_tuner_cmd, run_env, tmp_path):
+    study = write_study(tmp_path, "never")
+    r = run(gait_tuner_cmd, ["export", str(study), "--runs", str(tmp_path / "runs")], run_env)
+    assert r.returncode == 2 and "run `gait-tuner tune` first" in r.stderr
+
+
+def test_shipped_studies_load(gait_tuner_cmd, run_env):
+    r = run(gait_tuner_cmd, ["studies"], run_env)
+    assert r.returncode == 0
+    for name in ("quickstart", "eros-grass50", "tlipfm-carpet4", "eros-robust", "eros-paper"):
+        assert name in r.stdout

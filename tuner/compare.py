@@ -1,0 +1,162 @@
+"""``gait-tuner compare``: tuned gaits beside the papers' baselines, on the EROS experiment's grid.
+
+For every parameter set and surface: the set's own walk (pitch vibration as the
+EROS +- figure and RMS, ZMP error, speed, fell) and an EROS-style stability
+matrix: the same set at the paper's step distances (0-24 mm forward, 8-24 mm
+backward; EROS: step X, TLIPFM: S_L with d_1 = d_2 = S_L/2, cosine: S), STABLE
+when the walk ends without a fall. Stability % is stable cells / 10.
+EROS baselines are added as the calibrated experiment walks them (foot lift x
+0.25, see ``gait-tuner experiment eros``), labelled so.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+import gaits  # noqa: E402
+
+from .experiments import EROS_STEPS_MM  # noqa: E402
+from .metrics import summarize  # noqa: E402
+from .params_io import resolve_params  # noqa: E402
+from .robot import load_robot  # noqa: E402
+from .simulate import Simulator  # noqa: E402
+from .surfaces import load_surface  # noqa: E402
+
+__all__ = ["with_step", "run_compare", "BASELINES_FOR"]
+
+BASELINES_FOR = {"eros": ("eros-x24-without", "eros-x24-with"), "tlipfm": ("tkux-table2",),
+                 "cosine": ("cosine-setiono",)}
+EROS_LIFT_SCALE = 0.25
+
+
+def with_step(params: gaits.GaitParams, step: float) -> gaits.GaitParams:
+    """The same gait at another signed step length [m]."""
+    fam = params.FAMILY
+    if fam == "eros":
+        return params.replace(step_x=step)
+    if fam == "tlipfm":
+        ratio = params.d1 / params.step_length if params.step_length else 0.5
+        return params.replace(step_length=step, d1=step * ratio, d2=step * (1 - ratio))
+    return params.replace(step=step)
+
+
+def _sets(specs: list[str], baselines: bool) -> list[tuple[str, gaits.GaitParams]]:
+    out = []
+    families = []
+    for s in specs:
+        gf = resolve_params(s, None)
+        out.append((s, gf.params))
+        families.append(gf.family)
+    if baselines:
+        for fam in dict.fromkeys(families):
+            for name in BASELINES_FOR[fam]:
+                if name in specs:
+                    continue                      # already compared under its own name
+                p = gaits.load_baseline(name).params
+                label = f"paper:{name}"
+                if fam == "eros":
+                    p = p.replace(foot_lift=p.foot_lift * EROS_LIFT_SCALE)
+                    label += f" (Z x{EROS_LIFT_SCALE:g})"
+                out.append((label, p))
+    return out
+
+
+def run_compare(specs: list[str], robot_name: str, surface_names: list[str], baselines: bool,
+                study_file: str | None, runs_dir: Path, out_dir: Path) -> str:
+    robot = load_robot(robot_name)
+    surfaces = [load_surface(s) for s in surface_names]
+    sets = _sets(specs, baselines)
+    rows = []
+    for label, params in sets:
+        for surface in surfaces:
+            sim = Simulator(robot, surface)
+            own = summarize(sim.rollout(gaits.generate(params, robot.leg, sim.control_period)))
+            cells = []
+            for direction, steps in EROS_STEPS_MM.items():
+                for mm in steps:
+                    p = with_step(params, (1 if direction == "forward" else -1) * mm / 1000)
+                    try:
+                        m = summarize(sim.rollout(gaits.generate(p, robot.leg, sim.control_period)))
+                        cells.append(not m.fell)
+                    except (gaits.ParamError, gaits.UnreachableTargetError):
+                        cells.append(False)
+            rows.append({"set": label, "surface": surface.name, "cells": cells,
+                         "stability": 100.0 * sum(cells) / len(cells), "own": own})
+    out_dir.mkdir(parents=True, exist_ok=True)
+    lines = ["| set | surface | stability % | matrix fwd 0..24 / bwd 8..24 | pitch +- [deg] | pitch RMS [deg] "
+             "| ZMP err x/y [cm] | speed [m/s] | own walk |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        o = r["own"]
+        mat = "".join("S" if c else "." for c in r["cells"][:7]) + " / " + "".join(
+            "S" if c else "." for c in r["cells"][7:])
+        lines.append(f"| {r['set']} | {r['surface']} | {r['stability']:.0f} | `{mat}` | {o.pitch_pm_deg:.2f} "
+                     f"| {o.pitch_rms_deg:.2f} | {o.zmp_error_x_cm:.2f}/{o.zmp_error_y_cm:.2f} "
+                     f"| {o.speed_mps:.4f} | {'fell' if o.fell else 'stable'} |")
+    summary = ["", "| set | mean stability % |", "|---|---|"]
+    for label, _ in sets:
+        vals = [r["stability"] for r in rows if r["set"] == label]
+        summary.append(f"| {label} | {np.mean(vals):.0f} |")
+    text = "\n".join(lines + summary)
+    defs = ("\nStability %: cells of the 10-cell EROS grid walked without a fall. Pitch +-: half the "
+            "peak-to-peak torso pitch per gait cycle (EROS). ZMP error: mean |measured - reference| "
+            "relative to the support foot.")
+    (out_dir / "compare.md").write_text(text + "\n" + defs + "\n", encoding="utf-8")
+    _plots(rows, sets, surfaces, out_dir)
+    if study_file:
+        _study_plots(study_file, runs_dir, out_dir)
+    return text + "\n" + defs + f"\nwrote {out_dir / 'compare.md'} and PNG plots"
+
+
+def _plots(rows, sets, surfaces, out_dir: Path) -> None:
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5))
+    width = 0.8 / max(len(sets), 1)
+    x = np.arange(len(surfaces))
+    for i, (label, _) in enumerate(sets):
+        mine = [next(r for r in rows if r["set"] == label and r["surface"] == s.name) for s in surfaces]
+        axes[0].bar(x + i * width, [r["stability"] for r in mine], width, label=label)
+        axes[1].bar(x + i * width, [r["own"].pitch_rms_deg for r in mine], width, label=label)
+    for ax, title in zip(axes, ("stability % (10-cell EROS grid)", "torso pitch RMS of its own walk [deg]")):
+        ax.set_xticks(x + width * (len(sets) - 1) / 2, [s.name for s in surfaces])
+        ax.set_title(title)
+        ax.grid(alpha=0.3, axis="y")
+    axes[0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out_dir / "compare.png", dpi=110)
+    plt.close(fig)
+
+
+def _study_plots(study_file: str, runs_dir: Path, out_dir: Path) -> None:
+    import optuna
+    from optuna.visualization import matplotlib as ovm
+
+    from .search import open_storage
+    from .study import load_study
+
+    spec = load_study(study_file)
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    study = optuna.load_study(study_name=spec.name, storage=open_storage(spec, None, runs_dir))
+    plots = {"history": lambda: ovm.plot_optimization_history(study, target=lambda t: t.values[0],
+                                                              target_name="pitch score [deg]"),
+             "importances": lambda: ovm.plot_param_importances(study, target=lambda t: t.values[0])}
+    if len(spec.objectives) > 1:
+        plots["pareto"] = lambda: ovm.plot_pareto_front(study, target_names=["pitch score [deg]", "speed [m/s]"])
+    notes = []
+    for name, make in plots.items():
+        try:
+            ax = make()
+            fig = ax.figure if hasattr(ax, "figure") else ax[0].figure
+            fig.set_size_inches(8, 5)
+            fig.tight_layout()
+            fig.savefig(out_dir / f"study_{name}.png", dpi=100)
+            plt.close(fig)
+        except (ValueError, RuntimeError) as exc:
+            notes.append(f"{name}: not drawn ({exc})")
+    if notes:
+        (out_dir / "study_plots.txt").write_text("\n".join(notes) + "\n", encoding="utf-8")

@@ -1,0 +1,276 @@
+"""The search: an Optuna study per (robot, surface(s), gait family), seeded, pruned, resumable.
+
+Objective. For each surface of the study the trial's gait is walked once; its
+score is the torso pitch RMS [deg] over the walk, and a fall adds
+``FALL_PENALTY_DEG * (1 - walked fraction)`` so that a gait that falls early
+scores worse than any that stays up, and falling later is better than falling
+sooner (the sampler gets a gradient towards stability). Falls are *also* a
+constraint (``fall_constraint`` > 0 when the robot fell anywhere), so Optuna's
+TPE sampler treats fallen trials as infeasible and ``best`` is always a gait
+that stayed up, if any did. A robust study aggregates the per-surface scores by
+their worst (max) or mean, as its file says. A parameter set the generators
+reject (e.g. t1 >= t2, an unreachable foot) scores the full penalty.
+
+Single-objective studies report the running aggregate after each surface, so
+the median pruner can stop a trial that is already hopeless on its first
+surfaces. Optional second objective: forward speed [m/s] (maximised; 0 on a
+fall), for a Pareto front.
+
+Storage: a journal file under ``runs/`` by default (no server), or any Optuna
+storage URL. Re-running a study resumes it; ``workers`` processes share one
+study. Every trial records its full parameter set (SI), so it is reproducible:
+the simulation is deterministic.
+"""
+
+from __future__ import annotations
+
+import math
+import multiprocessing as mp
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+import optuna
+from optuna.storages import JournalStorage
+from optuna.storages.journal import JournalFileBackend
+from optuna.trial import TrialState
+
+import gaits
+from gaits import ParamError, UnreachableTargetError
+
+from .metrics import summarize
+from .robot import load_robot
+from .simulate import Simulator
+from .study import StudySpec
+from .surfaces import load_surface
+
+__all__ = ["FALL_PENALTY_DEG", "Evaluator", "open_storage", "open_study", "enqueue_starts", "run_study",
+           "best_trial", "trial_params", "DONE_STATES"]
+
+FALL_PENALTY_DEG = 100.0
+DONE_STATES = (TrialState.COMPLETE, TrialState.PRUNED)
+
+
+def open_storage(spec: StudySpec, storage: str | None, runs_dir: Path) -> Any:
+    """The study's storage: a journal file ``runs/<name>.journal`` unless a URL is given."""
+    if storage:
+        return storage
+    runs_dir.mkdir(parents=True, exist_ok=True)
+    return JournalStorage(JournalFileBackend(str(runs_dir / f"{spec.name}.journal")))
+
+
+def _sampler(spec: StudySpec, seed: int) -> optuna.samplers.BaseSampler:
+    # the fall constraint is set on each trial (Trial.set_constraint, Optuna 5); TPE reads it
+    return optuna.samplers.TPESampler(seed=seed, multivariate=True, n_startup_trials=8)
+
+
+def open_study(spec: StudySpec, storage: Any, seed: int | None = None) -> optuna.Study:
+    pruner = (optuna.pruners.MedianPruner(n_startup_trials=6, n_warmup_steps=0)
+              if len(spec.objectives) == 1 and len(spec.surfaces) > 1 else optuna.pruners.NopPruner())
+    study = optuna.create_study(study_name=spec.name, storage=storage, load_if_exists=True,
+                                directions=spec.directions,
+                                sampler=_sampler(spec, spec.sampler_seed if seed is None else seed),
+                                pruner=pruner)
+    study.set_user_attr("gait", spec.gait)
+    study.set_user_attr("robot", spec.robot)
+    study.set_user_attr("surfaces", list(spec.surfaces))
+    study.set_user_attr("objectives", list(spec.objectives))
+    return study
+
+
+@dataclass
+class Evaluator:
+    """Walks trial parameters on the study's robot and surfaces (one Simulator per surface, reused)."""
+
+    spec: StudySpec
+
+    def __post_init__(self) -> None:
+        self.robot = load_robot(self.spec.robot)
+        self.sims = [Simulator(self.robot, load_surface(s)) for s in self.spec.surfaces]
+
+    def evaluate(self, params: gaits.GaitParams, report: Callable[[float, int], bool] | None = None
+                 ) -> dict[str, Any]:
+        """Per-surface metrics and the aggregate score of one parameter set."""
+        spec = self.spec
+        try:
+            traj = gaits.generate(params, self.robot.leg, self.sims[0].control_period)
+        except (ParamError, UnreachableTargetError) as exc:
+            return {"score": FALL_PENALTY_DEG * 2, "speed": 0.0, "fall_constraint": 1.0,
+                    "invalid": str(exc), "per_surface": {}}
+        planned = traj.duration - float(traj.t[np.flatnonzero(traj.support != 0)[0]]) \
+            if np.any(traj.support != 0) else traj.duration
+        scores, speeds, walked, per = [], [], [], {}
+        for i, (name, sim) in enumerate(zip(spec.surfaces, self.sims)):
+            m = summarize(sim.rollout(traj, duration=spec.duration))
+            frac = 1.0 if not m.fell else float(np.clip(m.walk_time_s / max(planned, 1e-9), 0, 1))
+            score = m.pitch_rms_deg + (FALL_PENALTY_DEG * (1.0 - frac) if m.fell else 0.0)
+            if m.fell and frac >= 1.0:
+                score += 1.0
+            scores.append(score)
+            speeds.append(0.0 if m.fell else m.speed_mps)
+            walked.append(frac if m.fell else 1.0 + 1e-9)
+            per[name] = m.to_dict()
+            if report is not None and report(self._aggregate(scores), i):
+                raise optuna.TrialPruned()
+        fell_any = any(v["fell"] for v in per.values())
+        return {"score": self._aggregate(scores), "speed": float(np.mean(speeds)),
+                "fall_constraint": (1.0 - min(walked) + 1e-3) if fell_any else -1.0,
+                "per_surface": per}
+
+    def _aggregate(self, scores: list[float]) -> float:
+        return float(max(scores) if self.spec.aggregate == "worst" else np.mean(scores))
+
+
+def _suggest(trial: optuna.Trial, spec: StudySpec) -> dict[str, Any]:
+    out = {}
+    for r in spec.space:
+        if r.integer:
+            out[r.name] = trial.suggest_int(r.name, int(math.ceil(r.low)), int(math.floor(r.high)), log=r.log)
+        else:
+            out[r.name] = trial.suggest_float(r.name, r.low, r.high, log=r.log)
+    return out
+
+
+def objective_for(spec: StudySpec, evaluator: Evaluator) -> Callable[[optuna.Trial], Any]:
+    def objective(trial: optuna.Trial):
+        sampled = _suggest(trial, spec)
+        try:
+            params = spec.params_for(sampled)
+        except ParamError as exc:
+            trial.set_constraint("fall", 1.0)
+            trial.set_user_attr("fall_constraint", 1.0)
+            trial.set_user_attr("invalid", str(exc))
+            trial.set_user_attr("fell", True)
+            return (2 * FALL_PENALTY_DEG, 0.0)[:len(spec.objectives)] if len(spec.objectives) > 1 \
+                else 2 * FALL_PENALTY_DEG
+
+        def report(value: float, step: int) -> bool:
+            if len(spec.objectives) > 1:
+                return False
+            trial.report(value, step)
+            return trial.should_prune()
+
+        res = evaluator.evaluate(params, report)
+        trial.set_constraint("fall", res["fall_constraint"])
+        trial.set_user_attr("params", params.to_mapping())
+        trial.set_user_attr("fall_constraint", res["fall_constraint"])
+        trial.set_user_attr("fell", res["fall_constraint"] > 0)
+        trial.set_user_attr("per_surface", res["per_surface"])
+        if "invalid" in res:
+            trial.set_user_attr("invalid", res["invalid"])
+        if len(spec.objectives) > 1:
+            return res["score"], res["speed"]
+        return res["score"]
+    return objective
+
+
+def _clip_to_space(spec: StudySpec, params: gaits.GaitParams) -> dict[str, Any]:
+    out = {}
+    for r in spec.space:
+        v = getattr(params, r.name)
+        v = min(max(v, r.low), r.high)
+        out[r.name] = int(round(v)) if r.integer else float(v)
+    return out
+
+
+def enqueue_starts(study: optuna.Study, spec: StudySpec) -> list[str]:
+    """Enqueue the CasADi seed and the baselines as the first trials (once per study)."""
+    if study.user_attrs.get("starts_enqueued"):
+        return []
+    done = []
+    if "casadi" in spec.enqueue:
+        from .seed import SeedInfeasible, seed_for
+        try:
+            seeded = seed_for(spec.gait, spec.base)
+            study.enqueue_trial(_clip_to_space(spec, seeded), user_attrs={"start": "casadi seed"})
+            done.append("casadi seed")
+        except (SeedInfeasible, ParamError) as exc:
+            done.append(f"casadi seed skipped: {exc}")
+    if "baselines" in spec.enqueue:
+        for i, b in enumerate((spec.base,) + spec.baselines):
+            study.enqueue_trial(_clip_to_space(spec, b), user_attrs={"start": f"baseline {i}"})
+            done.append(f"baseline {i}")
+    study.set_user_attr("starts_enqueued", True)
+    return done
+
+
+def _worker(spec: StudySpec, storage_arg: Any, storage_path: str | None, n_trials: int, seed: int) -> None:
+    """One process: open the study and run its share of the remaining trials."""
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    storage = JournalStorage(JournalFileBackend(storage_path)) if storage_path else storage_arg
+    study = open_study(spec, storage, seed)
+    evaluator = Evaluator(spec)
+    try:
+        study.optimize(objective_for(spec, evaluator), n_trials=n_trials, catch=(), gc_after_trial=False)
+    except KeyboardInterrupt:
+        pass
+
+
+def run_study(spec: StudySpec, storage: Any, storage_path: str | None, total: int, workers: int,
+              seed: int, on_progress: Callable[[optuna.Study], None] | None = None,
+              poll: float = 0.5) -> optuna.Study:
+    """Run until the study holds ``total`` finished trials, with ``workers`` processes."""
+    study = open_study(spec, storage, seed)
+    enqueue_starts(study, spec)
+    remaining = total - _n_done(study)
+    if remaining <= 0:
+        return study
+    workers = min(workers, remaining)
+    shares = [remaining // workers + (1 if i < remaining % workers else 0) for i in range(workers)]
+    ctx = mp.get_context("spawn")
+    procs = [ctx.Process(target=_worker, args=(spec, None if storage_path else storage, storage_path,
+                                                share, seed + 1000 * i), daemon=False)
+             for i, share in enumerate(shares)]
+    for p in procs:
+        p.start()
+    try:
+        while any(p.is_alive() for p in procs):
+            if on_progress is not None:
+                on_progress(study)
+            time.sleep(poll)
+    except KeyboardInterrupt:
+        for p in procs:
+            p.terminate()
+        for p in procs:
+            p.join(timeout=10)
+        raise
+    for p in procs:
+        p.join()
+    bad = [p.exitcode for p in procs if p.exitcode not in (0, None)]
+    if bad:
+        raise RuntimeError(f"{len(bad)} worker process(es) failed (exit codes {bad})")
+    if on_progress is not None:
+        on_progress(study)
+    return study
+
+
+def _n_done(study: optuna.Study) -> int:
+    return len(study.get_trials(deepcopy=False, states=DONE_STATES))
+
+
+def best_trial(study: optuna.Study, number: int | None = None) -> optuna.trial.FrozenTrial:
+    """A chosen trial, or the best feasible one (lowest pitch score; the Pareto point with the
+    lowest pitch for two objectives)."""
+    trials = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
+    if number is not None:
+        for t in trials:
+            if t.number == number:
+                return t
+        raise KeyError(f"study {study.study_name!r} has no completed trial {number}")
+    if not trials:
+        raise KeyError(f"study {study.study_name!r} has no completed trial yet")
+    feasible = [t for t in trials if t.user_attrs.get("fall_constraint", 1.0) <= 0] or trials
+    return min(feasible, key=lambda t: t.values[0])
+
+
+def trial_params(spec_gait: str, trial: optuna.trial.FrozenTrial) -> gaits.GaitParams:
+    """The full, validated parameter set a trial walked."""
+    data = trial.user_attrs.get("params")
+    if data is None:
+        raise KeyError(f"trial {trial.number} recorded no parameters (it was rejected: "
+                       f"{trial.user_attrs.get('invalid', 'unknown reason')})")
+    return gaits.params_from_mapping(spec_gait, data, f"trial {trial.number}")

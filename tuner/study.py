@@ -1,0 +1,213 @@
+"""Tuning-study definitions: a typed, validated spec read from ``studies/*.yaml``.
+
+A study tunes one gait family on one robot against one or several surfaces::
+
+    name: eros-grass50             # optional: the file name without .yaml
+    description: free text
+    robot: kidsize                 # built-in name or robot map YAML
+    surfaces: [grass50]            # several = a robust study
+    aggregate: worst               # robust studies: worst (max) or mean over surfaces
+    gait: eros
+    base: eros-x24-with            # baseline name or parameter file: the starting point
+    fixed: {n_steps: 8}            # overrides of the base, never searched
+    space:                         # searched parameters: low, high, optional log: true
+      heel_gain: {low: 0.0, high: 6.0}
+      t_mn: {low: 0.01, high: 0.05, log: true}
+    objectives: [pitch_rms]        # pitch_rms (minimised); add speed (maximised) for a Pareto front
+    trials: 60
+    duration: null                 # rollout length [s]; null: the whole gait
+    enqueue: [casadi, baselines]   # tried first: the CasADi seed and the base (+ `baselines`)
+    baselines: []                  # more parameter sets of the same family to try first
+    sampler_seed: 0
+
+Every mistake is a :class:`tuner.errors.UserError` naming the file, the key and
+the allowed values.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any, Mapping
+
+import yaml
+
+from gaits import GaitParams, family_class
+
+from .errors import UserError
+from .params_io import resolve_params
+from .surfaces import SURFACES, load_surface
+
+__all__ = ["ParamRange", "StudySpec", "load_study", "STUDY_DIR", "list_studies", "OBJECTIVES"]
+
+STUDY_DIR = Path(__file__).resolve().parents[1] / "studies"
+OBJECTIVES = {"pitch_rms": "minimize", "speed": "maximize"}
+_KEYS = ("name", "description", "robot", "surfaces", "aggregate", "gait", "base", "fixed", "space",
+         "objectives", "trials", "duration", "enqueue", "baselines", "sampler_seed")
+
+
+@dataclass(frozen=True)
+class ParamRange:
+    name: str
+    low: float
+    high: float
+    log: bool = False
+    integer: bool = False
+
+
+@dataclass(frozen=True)
+class StudySpec:
+    name: str
+    gait: str
+    base: GaitParams
+    space: tuple[ParamRange, ...]
+    surfaces: tuple[str, ...] = ("grass50",)
+    robot: str = "kidsize"
+    aggregate: str = "worst"
+    objectives: tuple[str, ...] = ("pitch_rms",)
+    trials: int = 60
+    duration: float | None = None
+    enqueue: tuple[str, ...] = ("casadi", "baselines")
+    baselines: tuple[GaitParams, ...] = ()
+    sampler_seed: int = 0
+    description: str = ""
+    source: str = ""
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def directions(self) -> list[str]:
+        return [OBJECTIVES[o] for o in self.objectives]
+
+    def params_for(self, sampled: Mapping[str, Any]) -> GaitParams:
+        """The base with the sampled values (TLIPFM: d2 follows as step_length - d1)."""
+        values = dict(sampled)
+        if self.gait == "tlipfm" and "d2" not in values and ("d1" in values or "step_length" in values):
+            sl = values.get("step_length", getattr(self.base, "step_length"))
+            values["d2"] = sl - values.get("d1", getattr(self.base, "d1"))
+        return self.base.replace(**values)
+
+
+def list_studies() -> list[Path]:
+    return sorted(STUDY_DIR.glob("*.yaml"))
+
+
+def _fail(source: str, msg: str) -> None:
+    raise UserError(f"{source}: {msg}")
+
+
+def load_study(path_or_name: str) -> StudySpec:
+    """Read and validate a study YAML (a path, or the name of a shipped study)."""
+    path = Path(path_or_name)
+    if not path.exists() and (STUDY_DIR / f"{path_or_name}.yaml").exists():
+        path = STUDY_DIR / f"{path_or_name}.yaml"
+    source = str(path)
+    if not path.is_file():
+        _fail(source, "no such study file (shipped studies: "
+              + ", ".join(p.stem for p in list_studies()) + ")")
+    try:
+        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except yaml.YAMLError:
+        _fail(source, "not valid YAML")
+    if not isinstance(doc, Mapping):
+        _fail(source, "expected a mapping of study keys")
+    for key in doc:
+        if key not in _KEYS:
+            _fail(source, f"unknown key {key!r} (allowed: {', '.join(_KEYS)})")
+    for key in ("gait", "space"):
+        if key not in doc:
+            _fail(source, f"missing {key!r}")
+    gait = doc["gait"]
+    try:
+        cls = family_class(str(gait))
+    except Exception as exc:
+        _fail(source, str(exc))
+    base_spec = doc.get("base")
+    try:
+        base = resolve_params(None if base_spec is None else str(base_spec), gait).params
+    except Exception as exc:
+        _fail(source, f"base: {exc}")
+    numeric = {f.name: f for f in fields(cls) if isinstance(f.default, (int, float))
+               and not isinstance(f.default, bool)}
+    fixed = doc.get("fixed") or {}
+    if not isinstance(fixed, Mapping):
+        _fail(source, "fixed must be a mapping of parameter: value")
+    for k in fixed:
+        if k not in {f.name for f in fields(cls)}:
+            _fail(source, f"fixed: unknown parameter {k!r} for gait {gait!r}")
+    fixed_values = dict(fixed)
+    if gait == "tlipfm" and "d2" not in fixed_values and {"step_length", "d1"} & set(fixed_values):
+        fixed_values["d2"] = (fixed_values.get("step_length", getattr(base, "step_length"))
+                              - fixed_values.get("d1", getattr(base, "d1")))      # keep d1 + d2 = S_L
+    try:
+        base = base.replace(**fixed_values)
+    except Exception as exc:
+        _fail(source, f"fixed: {exc}")
+    space_doc = doc["space"]
+    if not isinstance(space_doc, Mapping) or not space_doc:
+        _fail(source, "space must map at least one parameter to {low, high}")
+    space = []
+    for name, rng in space_doc.items():
+        if name not in numeric:
+            _fail(source, f"space: unknown or non-numeric parameter {name!r} for gait {gait!r} "
+                          f"(numeric parameters: {', '.join(numeric)})")
+        if name in fixed:
+            _fail(source, f"space: {name!r} is also fixed")
+        if not isinstance(rng, Mapping) or not {"low", "high"} <= set(rng) or not set(rng) <= {"low", "high", "log"}:
+            _fail(source, f"space: {name} must be {{low: ..., high: ..., log: false}}")
+        low, high, log = rng["low"], rng["high"], bool(rng.get("log", False))
+        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in (low, high)):
+            _fail(source, f"space: {name} bounds must be numbers, got {low!r}, {high!r}")
+        if not low < high:
+            _fail(source, f"space: {name} bounds reversed or empty: low = {low}, high = {high}")
+        meta = numeric[name].metadata
+        if low < meta["lo"] or high > meta["hi"]:
+            _fail(source, f"space: {name} range [{low}, {high}] leaves the parameter's allowed range "
+                          f"[{meta['lo']}, {meta['hi']}] {meta['unit']}")
+        if log and low <= 0:
+            _fail(source, f"space: {name} is log-scaled, so low must be > 0 (got {low})")
+        space.append(ParamRange(name, float(low), float(high), log,
+                                isinstance(numeric[name].default, int)))
+    surfaces = doc.get("surfaces", ["grass50"])
+    if isinstance(surfaces, str):
+        surfaces = [surfaces]
+    if not isinstance(surfaces, list) or not surfaces:
+        _fail(source, "surfaces must be a list of surface names or files")
+    for s in surfaces:
+        if s not in SURFACES:
+            try:
+                load_surface(str(s))
+            except UserError as exc:
+                _fail(source, f"surfaces: {exc}")
+    aggregate = doc.get("aggregate", "worst")
+    if aggregate not in ("worst", "mean"):
+        _fail(source, f"aggregate must be worst or mean, got {aggregate!r}")
+    objectives = doc.get("objectives", ["pitch_rms"])
+    if not isinstance(objectives, list) or not objectives or any(o not in OBJECTIVES for o in objectives) \
+            or objectives[0] != "pitch_rms" or len(set(objectives)) != len(objectives):
+        _fail(source, f"objectives must be [pitch_rms] or [pitch_rms, speed], got {objectives!r}")
+    trials = doc.get("trials", 60)
+    if not isinstance(trials, int) or isinstance(trials, bool) or not 1 <= trials <= 100_000:
+        _fail(source, f"trials must be an integer in [1, 100000], got {trials!r}")
+    duration = doc.get("duration")
+    if duration is not None and (not isinstance(duration, (int, float)) or duration <= 0):
+        _fail(source, f"duration must be a positive number of seconds or null, got {duration!r}")
+    enqueue = doc.get("enqueue", ["casadi", "baselines"])
+    if not isinstance(enqueue, list) or any(e not in ("casadi", "baselines") for e in enqueue):
+        _fail(source, f"enqueue must list casadi and/or baselines, got {enqueue!r}")
+    extra_sets = []
+    for b in doc.get("baselines") or []:
+        try:
+            gf = resolve_params(str(b), gait)
+        except Exception as exc:
+            _fail(source, f"baselines: {exc}")
+        extra_sets.append(gf.params)
+    seed = doc.get("sampler_seed", 0)
+    if not isinstance(seed, int) or isinstance(seed, bool):
+        _fail(source, f"sampler_seed must be an integer, got {seed!r}")
+    robot = doc.get("robot", "kidsize")
+    return StudySpec(name=str(doc.get("name") or path.stem), gait=str(gait), base=base,
+                     space=tuple(space), surfaces=tuple(str(s) for s in surfaces), robot=str(robot),
+                     aggregate=aggregate, objectives=tuple(objectives), trials=trials,
+                     duration=None if duration is None else float(duration), enqueue=tuple(enqueue),
+                     baselines=tuple(extra_sets), sampler_seed=seed,
+                     description=str(doc.get("description") or ""), source=source)
