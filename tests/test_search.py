@@ -60,7 +60,7 @@ def test_tune_export_simulate_reproduces(gait_tuner_cmd, run_env, tmp_path):
     assert r.returncode == 0, r.stderr
     assert out.exists() and (tmp_path / "best.joints.csv").exists()
     number = int(r.stdout.split()[1])
-    stored = next(t for t in done if t.number == number).user_attrs["per_surface"]["rigid"]
+    stored = next(t for t in done if t.number == number).user_attrs["result"]["per_surface"]["rigid"]
     r = run(gait_tuner_cmd, ["simulate", "--params", str(out), "--surface", "rigid", "--duration", "2.0",
                              "--json"], run_env)
     assert r.returncode == 0, r.stderr

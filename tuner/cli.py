@@ -215,7 +215,7 @@ def tune(study_file: str, trials: int | None, workers: int, storage: str | None,
     import optuna
     from tqdm import tqdm
 
-    from .search import DONE_STATES, best_trial, open_storage, run_study
+    from .search import DONE_STATES, best_trial, open_storage, run_study, trial_fell
     from .study import load_study
 
     spec = load_study(study_file)
@@ -232,7 +232,7 @@ def tune(study_file: str, trials: int | None, workers: int, storage: str | None,
     def progress(study) -> None:
         done = study.get_trials(deepcopy=False, states=DONE_STATES)
         bar.n = min(len(done), total)
-        falls = sum(1 for t in done if t.user_attrs.get("fell"))
+        falls = sum(1 for t in done if trial_fell(t))
         try:
             best = f"{best_trial(study).values[0]:.2f}"
         except KeyError:
@@ -249,10 +249,10 @@ def tune(study_file: str, trials: int | None, workers: int, storage: str | None,
         raise SystemExit(130)
     bar.close()
     t = best_trial(study)
-    n_fell = sum(1 for x in study.get_trials(deepcopy=False, states=DONE_STATES) if x.user_attrs.get("fell"))
+    n_fell = sum(1 for x in study.get_trials(deepcopy=False, states=DONE_STATES) if trial_fell(x))
     click.echo(f"best trial {t.number}: pitch score {t.values[0]:.3f} deg"
                + (f", speed {t.values[1]:.4f} m/s" if len(t.values) > 1 else "")
-               + f"; {'fell' if t.user_attrs.get('fell') else 'stayed up'}; falls in study: {n_fell}")
+               + f"; {'fell' if trial_fell(t) else 'stayed up'}; falls in study: {n_fell}")
     click.echo(f"export it with: gait-tuner export {study_file}"
                + (f" --storage {storage}" if storage else "") + " --out best.yaml")
 
@@ -273,7 +273,7 @@ def export(study_file: str, storage: str | None, runs_dir: Path, number: int | N
     """
     import optuna
 
-    from .search import best_trial, trial_params
+    from .search import best_trial, trial_fell, trial_params
     from .study import load_study
 
     spec = load_study(study_file)
@@ -292,7 +292,7 @@ def export(study_file: str, storage: str | None, runs_dir: Path, number: int | N
     except KeyError as exc:
         raise UserError(str(exc.args[0])) from None
     desc = (f"study {spec.name} trial {t.number}: score {t.values[0]:.6g}"
-            + ("" if not t.user_attrs.get("fell") else " (fell)")
+            + ("" if not trial_fell(t) else " (fell)")
             + f"; surfaces {', '.join(spec.surfaces)}; robot {spec.robot}")
     gaits.save_gait_file(out, params, desc)
     from .robot import load_robot

@@ -48,7 +48,7 @@ from .study import StudySpec
 from .surfaces import load_surface
 
 __all__ = ["FALL_PENALTY_DEG", "Evaluator", "open_storage", "open_study", "enqueue_starts", "run_study",
-           "best_trial", "trial_params", "DONE_STATES"]
+           "best_trial", "trial_params", "trial_result", "trial_fell", "DONE_STATES"]
 
 FALL_PENALTY_DEG = 100.0
 DONE_STATES = (TrialState.COMPLETE, TrialState.PRUNED)
@@ -74,10 +74,9 @@ def open_study(spec: StudySpec, storage: Any, seed: int | None = None) -> optuna
                                 directions=spec.directions,
                                 sampler=_sampler(spec, spec.sampler_seed if seed is None else seed),
                                 pruner=pruner)
-    study.set_user_attr("gait", spec.gait)
-    study.set_user_attr("robot", spec.robot)
-    study.set_user_attr("surfaces", list(spec.surfaces))
-    study.set_user_attr("objectives", list(spec.objectives))
+    if "spec" not in study.user_attrs:
+        study.set_user_attr("spec", {"gait": spec.gait, "robot": spec.robot,
+                                     "surfaces": list(spec.surfaces), "objectives": list(spec.objectives)})
     return study
 
 
@@ -141,9 +140,7 @@ def objective_for(spec: StudySpec, evaluator: Evaluator) -> Callable[[optuna.Tri
             params = spec.params_for(sampled)
         except ParamError as exc:
             trial.set_constraint("fall", 1.0)
-            trial.set_user_attr("fall_constraint", 1.0)
-            trial.set_user_attr("invalid", str(exc))
-            trial.set_user_attr("fell", True)
+            trial.set_user_attr("result", {"fell": True, "fall_constraint": 1.0, "invalid": str(exc)})
             return (2 * FALL_PENALTY_DEG, 0.0)[:len(spec.objectives)] if len(spec.objectives) > 1 \
                 else 2 * FALL_PENALTY_DEG
 
@@ -154,13 +151,12 @@ def objective_for(spec: StudySpec, evaluator: Evaluator) -> Callable[[optuna.Tri
             return trial.should_prune()
 
         res = evaluator.evaluate(params, report)
+        # two journal writes per trial (params, result): workers contend for the file lock
         trial.set_constraint("fall", res["fall_constraint"])
         trial.set_user_attr("params", params.to_mapping())
-        trial.set_user_attr("fall_constraint", res["fall_constraint"])
-        trial.set_user_attr("fell", res["fall_constraint"] > 0)
-        trial.set_user_attr("per_surface", res["per_surface"])
-        if "invalid" in res:
-            trial.set_user_attr("invalid", res["invalid"])
+        trial.set_user_attr("result", {"fell": res["fall_constraint"] > 0,
+                                       "fall_constraint": res["fall_constraint"],
+                                       "per_surface": res["per_surface"], "invalid": res.get("invalid")})
         if len(spec.objectives) > 1:
             return res["score"], res["speed"]
         return res["score"]
@@ -221,7 +217,8 @@ def run_study(spec: StudySpec, storage: Any, storage_path: str | None, total: in
         return study
     workers = min(workers, remaining)
     shares = [remaining // workers + (1 if i < remaining % workers else 0) for i in range(workers)]
-    ctx = mp.get_context("spawn")
+    # fork (Linux) starts a worker in milliseconds; spawn re-imports MuJoCo, Optuna and CasADi
+    ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
     procs = [ctx.Process(target=_worker, args=(spec, None if storage_path else storage, storage_path,
                                                 share, seed + 1000 * i), daemon=False)
              for i, share in enumerate(shares)]
@@ -231,7 +228,8 @@ def run_study(spec: StudySpec, storage: Any, storage_path: str | None, total: in
         while any(p.is_alive() for p in procs):
             if on_progress is not None:
                 on_progress(study)
-            time.sleep(poll)
+            for p in procs:
+                p.join(timeout=poll / len(procs))
     except KeyboardInterrupt:
         for p in procs:
             p.terminate()
@@ -263,7 +261,7 @@ def best_trial(study: optuna.Study, number: int | None = None) -> optuna.trial.F
         raise KeyError(f"study {study.study_name!r} has no completed trial {number}")
     if not trials:
         raise KeyError(f"study {study.study_name!r} has no completed trial yet")
-    feasible = [t for t in trials if t.user_attrs.get("fall_constraint", 1.0) <= 0] or trials
+    feasible = [t for t in trials if trial_result(t).get("fall_constraint", 1.0) <= 0] or trials
     return min(feasible, key=lambda t: t.values[0])
 
 
@@ -272,5 +270,14 @@ def trial_params(spec_gait: str, trial: optuna.trial.FrozenTrial) -> gaits.GaitP
     data = trial.user_attrs.get("params")
     if data is None:
         raise KeyError(f"trial {trial.number} recorded no parameters (it was rejected: "
-                       f"{trial.user_attrs.get('invalid', 'unknown reason')})")
+                       f"{trial_result(trial).get('invalid') or 'unknown reason'})")
+
+
+def trial_result(trial: optuna.trial.FrozenTrial) -> dict[str, Any]:
+    """What a trial recorded: fell, fall_constraint, per_surface metrics, invalid (reason)."""
+    return trial.user_attrs.get("result", {})
+
+
+def trial_fell(trial: optuna.trial.FrozenTrial) -> bool:
+    return bool(trial_result(trial).get("fell", True))
     return gaits.params_from_mapping(spec_gait, data, f"trial {trial.number}")
