@@ -271,6 +271,7 @@ def trial_params(spec_gait: str, trial: optuna.trial.FrozenTrial) -> gaits.GaitP
     if data is None:
         raise KeyError(f"trial {trial.number} recorded no parameters (it was rejected: "
                        f"{trial_result(trial).get('invalid') or 'unknown reason'})")
+    return gaits.params_from_mapping(spec_gait, data, f"trial {trial.number}")
 
 
 def trial_result(trial: optuna.trial.FrozenTrial) -> dict[str, Any]:
@@ -280,4 +281,3 @@ def trial_result(trial: optuna.trial.FrozenTrial) -> dict[str, Any]:
 
 def trial_fell(trial: optuna.trial.FrozenTrial) -> bool:
     return bool(trial_result(trial).get("fell", True))
-    return gaits.params_from_mapping(spec_gait, data, f"trial {trial.number}")
