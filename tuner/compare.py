@@ -76,7 +76,10 @@ def run_compare(specs: list[str], robot_name: str, surface_names: list[str], bas
     for label, params in sets:
         for surface in surfaces:
             sim = Simulator(robot, surface)
-            own = summarize(sim.rollout(gaits.generate(params, robot.leg, sim.control_period)))
+            traj = gaits.generate(params, robot.leg, sim.control_period)
+            own = summarize(sim.rollout(traj))
+            plan = float(traj.p_world_pelvis[-1, 0] - traj.p_world_pelvis[0, 0])
+            covered = 100.0 * own.distance_m / plan if abs(plan) > 1e-3 else float("nan")
             cells = []
             for direction, steps in EROS_STEPS_MM.items():
                 for mm in steps:
@@ -87,18 +90,18 @@ def run_compare(specs: list[str], robot_name: str, surface_names: list[str], bas
                     except (gaits.ParamError, gaits.UnreachableTargetError):
                         cells.append(False)
             rows.append({"set": label, "surface": surface.name, "cells": cells,
-                         "stability": 100.0 * sum(cells) / len(cells), "own": own})
+                         "stability": 100.0 * sum(cells) / len(cells), "own": own, "covered": covered})
     out_dir.mkdir(parents=True, exist_ok=True)
     lines = ["| set | surface | stability % | matrix fwd 0..24 / bwd 8..24 | pitch +- [deg] | pitch RMS [deg] "
-             "| ZMP err x/y [cm] | speed [m/s] | own walk |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "| ZMP err x/y [cm] | speed [m/s] | covered % of plan | own walk |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         o = r["own"]
         mat = "".join("S" if c else "." for c in r["cells"][:7]) + " / " + "".join(
             "S" if c else "." for c in r["cells"][7:])
         lines.append(f"| {r['set']} | {r['surface']} | {r['stability']:.0f} | `{mat}` | {o.pitch_pm_deg:.2f} "
                      f"| {o.pitch_rms_deg:.2f} | {o.zmp_error_x_cm:.2f}/{o.zmp_error_y_cm:.2f} "
-                     f"| {o.speed_mps:.4f} | {'fell' if o.fell else 'stable'} |")
+                     f"| {o.speed_mps:.4f} | {r['covered']:.0f} | {'fell' if o.fell else 'stable'} |")
     summary = ["", "| set | mean stability % |", "|---|---|"]
     for label, _ in sets:
         vals = [r["stability"] for r in rows if r["set"] == label]
@@ -106,7 +109,8 @@ def run_compare(specs: list[str], robot_name: str, surface_names: list[str], bas
     text = "\n".join(lines + summary)
     defs = ("\nStability %: cells of the 10-cell EROS grid walked without a fall. Pitch +-: half the "
             "peak-to-peak torso pitch per gait cycle (EROS). ZMP error: mean |measured - reference| "
-            "relative to the support foot.")
+            "relative to the support foot. Covered %: torso distance / planned distance of the own "
+            "walk (a gait that slides in place stays up but covers little).")
     (out_dir / "compare.md").write_text(text + "\n" + defs + "\n", encoding="utf-8")
     _plots(rows, sets, surfaces, out_dir)
     if study_file:

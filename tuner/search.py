@@ -11,6 +11,11 @@ that stayed up, if any did. A robust study aggregates the per-surface scores by
 their worst (max) or mean, as its file says. A parameter set the generators
 reject (e.g. t1 >= t2, an unreachable foot) scores the full penalty.
 
+Walking in place is not walking: a gait that stays up but covers less of its
+planned forward distance adds ``PROGRESS_PENALTY_DEG * (1 - covered fraction)``
+and is infeasible below ``MIN_PROGRESS`` (feet sliding instead of stepping was
+the first thing an unconstrained search found on soft grass).
+
 Single-objective studies report the running aggregate after each surface, so
 the median pruner can stop a trial that is already hopeless on its first
 surfaces. Optional second objective: forward speed [m/s] (maximised; 0 on a
@@ -51,6 +56,8 @@ __all__ = ["FALL_PENALTY_DEG", "Evaluator", "open_storage", "open_study", "enque
            "best_trial", "trial_params", "trial_result", "trial_fell", "DONE_STATES"]
 
 FALL_PENALTY_DEG = 100.0
+PROGRESS_PENALTY_DEG = 50.0     # per unit of the planned distance not covered
+MIN_PROGRESS = 0.5              # a gait covering less than this fraction of its plan is infeasible
 DONE_STATES = (TrialState.COMPLETE, TrialState.PRUNED)
 
 
@@ -101,13 +108,19 @@ class Evaluator:
                     "invalid": str(exc), "per_surface": {}}
         planned = traj.duration - float(traj.t[np.flatnonzero(traj.support != 0)[0]]) \
             if np.any(traj.support != 0) else traj.duration
+        plan_dist = float(traj.p_world_pelvis[-1, 0] - traj.p_world_pelvis[0, 0])
         scores, speeds, walked, per = [], [], [], {}
+        shortfall = 0.0
         for i, (name, sim) in enumerate(zip(spec.surfaces, self.sims)):
             m = summarize(sim.rollout(traj, duration=spec.duration))
             frac = 1.0 if not m.fell else float(np.clip(m.walk_time_s / max(planned, 1e-9), 0, 1))
             score = m.pitch_rms_deg + (FALL_PENALTY_DEG * (1.0 - frac) if m.fell else 0.0)
             if m.fell and frac >= 1.0:
                 score += 1.0
+            if not m.fell and abs(plan_dist) > 1e-3:
+                covered = float(np.clip(m.distance_m / plan_dist, 0.0, 1.0))
+                score += PROGRESS_PENALTY_DEG * (1.0 - covered)
+                shortfall = max(shortfall, MIN_PROGRESS - covered)
             scores.append(score)
             speeds.append(0.0 if m.fell else m.speed_mps)
             walked.append(frac if m.fell else 1.0 + 1e-9)
@@ -115,9 +128,9 @@ class Evaluator:
             if report is not None and report(self._aggregate(scores), i):
                 raise optuna.TrialPruned()
         fell_any = any(v["fell"] for v in per.values())
+        constraint = (1.0 - min(walked) + 1e-3) if fell_any else (shortfall if shortfall > 0 else -1.0)
         return {"score": self._aggregate(scores), "speed": float(np.mean(speeds)),
-                "fall_constraint": (1.0 - min(walked) + 1e-3) if fell_any else -1.0,
-                "per_surface": per}
+                "fall_constraint": constraint, "fell": fell_any, "per_surface": per}
 
     def _aggregate(self, scores: list[float]) -> float:
         return float(max(scores) if self.spec.aggregate == "worst" else np.mean(scores))
@@ -154,7 +167,7 @@ def objective_for(spec: StudySpec, evaluator: Evaluator) -> Callable[[optuna.Tri
         # two journal writes per trial (params, result): workers contend for the file lock
         trial.set_constraint("fall", res["fall_constraint"])
         trial.set_user_attr("params", params.to_mapping())
-        trial.set_user_attr("result", {"fell": res["fall_constraint"] > 0,
+        trial.set_user_attr("result", {"fell": res.get("fell", True),
                                        "fall_constraint": res["fall_constraint"],
                                        "per_surface": res["per_surface"], "invalid": res.get("invalid")})
         if len(spec.objectives) > 1:
