@@ -1,8 +1,31 @@
-"""gait-tuner's running half: command line, plots (and, in later issues, simulation and search)."""
+"""gait-tuner's running half: robots, surfaces, simulation, metrics, the CasADi seed and the search.
+
+``gaits`` holds the pure math; everything that steps physics or optimises lives here.
+"""
 
 from __future__ import annotations
 
 from .errors import UserError
+from .metrics import DEFINITIONS, Metrics, summarize
 from .params_io import resolve_params
+from .robot import RobotModel, RobotSpec, ServoSpec, load_robot
+from .simulate import FallCriteria, Simulator, Trace
+from .surfaces import SURFACES, Surface, load_surface
 
-__all__ = ["UserError", "resolve_params"]
+__all__ = [
+    "DEFINITIONS",
+    "FallCriteria",
+    "Metrics",
+    "RobotModel",
+    "RobotSpec",
+    "SURFACES",
+    "ServoSpec",
+    "Simulator",
+    "Surface",
+    "Trace",
+    "UserError",
+    "load_robot",
+    "load_surface",
+    "resolve_params",
+    "summarize",
+]
