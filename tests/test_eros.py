@@ -73,7 +73,7 @@ def test_landing_deceleration_lengthens_landing_monotonically():
         ref = eros.eros_references(p)
         kinds = [tr.kind for tr in eros.via_points(p)]
         lengths.append(ref.transition_ticks[kinds.index("land")])
-    assert lengths[0] == len(eros.angle_steps(WITH.t_mn)) == 60   # C_DC = 0: 90 / T_mn ticks (1.5 deg)
+    assert lengths[0] == len(eros.angle_steps(WITH.t_mn)) == 36   # C_DC = 0: 90 / T_mn ticks (2.5 deg)
     assert all(b >= a for a, b in zip(lengths, lengths[1:]))
     assert lengths[-1] > 2 * lengths[0]
     # more areas: the later, slower increments reach further back
@@ -82,7 +82,7 @@ def test_landing_deceleration_lengthens_landing_monotonically():
     # lift-offs keep their speed
     ref = eros.eros_references(WITH)
     kinds = [tr.kind for tr in eros.via_points(WITH)]
-    assert ref.transition_ticks[kinds.index("lift")] == 60
+    assert ref.transition_ticks[kinds.index("lift")] == 36
 
 
 def test_deceleration_slows_touchdown():

@@ -65,7 +65,7 @@ def evaluate(args: tuple) -> list[Candidate]:
     return out
 
 
-def calibrate(grid: dict = DEFAULT_GRID, gains: tuple = HEEL_GAINS, lift_scale: float = 0.25,
+def calibrate(grid: dict = DEFAULT_GRID, gains: tuple = HEEL_GAINS, lift_scale: float = 0.2,
               workers: int = 2, progress=None) -> tuple[float, dict[int, Candidate], list[Candidate]]:
     """Best heel gain, the best candidate per pedestal at that gain, and every candidate."""
     keys = list(grid)

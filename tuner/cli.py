@@ -131,10 +131,10 @@ def simulate(robot_name: str, surface_name: str, family: str | None, params_spec
 @click.option("--robot", "robot_name", default="kidsize", show_default=True, metavar="NAME|PATH")
 @click.option("--surface", "surface_name", default="rigid", show_default=True,
               help="tlipfm only: the surface of the Table 3 walk.")
-@click.option("--lift-scale", default=0.25, show_default=True, type=click.FloatRange(0.05, 1.0),
+@click.option("--lift-scale", default=0.2, show_default=True, type=click.FloatRange(0.05, 1.0),
               help="eros only: multiply the paper's foot lift (Z = 90-100 mm) by this. On the built-in "
                    "robot the full lift makes every EROS gait fall at its first step (measured), so "
-                   "the calibrated experiment uses 0.25 (22-26 mm).")
+                   "the calibrated experiment uses 0.2 (18-20 mm).")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path),
               help="Also write the report as Markdown (report.md) here.")
 def experiment(paper: str, robot_name: str, surface_name: str, lift_scale: float,
@@ -172,7 +172,7 @@ def experiment(paper: str, robot_name: str, surface_name: str, lift_scale: float
 
 @cli.command()
 @click.option("--workers", default=2, show_default=True, type=click.IntRange(1, 64))
-@click.option("--lift-scale", default=0.25, show_default=True, type=click.FloatRange(0.05, 1.0))
+@click.option("--lift-scale", default=0.2, show_default=True, type=click.FloatRange(0.05, 1.0))
 def calibrate(workers: int, lift_scale: float) -> None:
     """Re-derive the pedestals' contact numbers from the EROS Tables 7-8 (slow: minutes).
 

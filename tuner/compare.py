@@ -6,7 +6,7 @@ matrix: the same set at the paper's step distances (0-24 mm forward, 8-24 mm
 backward; EROS: step X, TLIPFM: S_L with d_1 = d_2 = S_L/2, cosine: S), STABLE
 when the walk ends without a fall. Stability % is stable cells / 10.
 EROS baselines are added as the calibrated experiment walks them (foot lift x
-0.25, see ``gait-tuner experiment eros``), labelled so.
+0.2, see ``gait-tuner experiment eros``), labelled so.
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ __all__ = ["with_step", "run_compare", "BASELINES_FOR"]
 
 BASELINES_FOR = {"eros": ("eros-x24-without", "eros-x24-with"), "tlipfm": ("tkux-table2",),
                  "cosine": ("cosine-setiono",)}
-EROS_LIFT_SCALE = 0.25
+EROS_LIFT_SCALE = 0.2
 
 
 def with_step(params: gaits.GaitParams, step: float) -> gaits.GaitParams:
