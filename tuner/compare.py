@@ -11,6 +11,7 @@ EROS baselines are added as the calibrated experiment walks them (foot lift x
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import matplotlib
@@ -154,7 +155,9 @@ def _study_plots(study_file: str, runs_dir: Path, out_dir: Path) -> None:
     notes = []
     for name, make in plots.items():
         try:
-            ax = make()
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")      # Optuna marks its matplotlib plots experimental
+                ax = make()
             fig = ax.figure if hasattr(ax, "figure") else ax[0].figure
             fig.set_size_inches(8, 5)
             fig.tight_layout()
