@@ -141,3 +141,37 @@ def test_shipped_studies_load(gait_tuner_cmd, run_env):
     assert r.returncode == 0
     for name in ("quickstart", "eros-grass50", "tlipfm-carpet4", "eros-robust", "eros-paper"):
         assert name in r.stdout
+
+
+def test_ctrl_c_stops_cleanly_and_keeps_trials(gait_tuner_cmd, run_env, tmp_path):
+    study = write_study(tmp_path, "interrupted")
+    proc = subprocess.Popen(gait_tuner_cmd + ["tune", str(study), "--trials", "500", "--workers", "2",
+                                              "--runs", str(tmp_path / "runs")],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=run_env,
+                            start_new_session=True)
+    deadline = time.time() + 120
+    while time.time() < deadline:
+        time.sleep(0.5)
+        try:
+            if len([t for t in load(tmp_path, "interrupted").trials if t.state.is_finished()]) >= 4:
+                break
+        except Exception:
+            pass
+    os.killpg(proc.pid, signal.SIGINT)                  # what Ctrl-C sends to the terminal's group
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert "interrupted: finished trials are kept" in err
+    assert "Traceback" not in err
+    done = [t for t in load(tmp_path, "interrupted").trials if t.state == optuna.trial.TrialState.COMPLETE]
+    assert len(done) >= 4
+
+
+def test_sqlite_storage_url(gait_tuner_cmd, run_env, tmp_path):
+    study = write_study(tmp_path, "sq")
+    url = f"sqlite:///{tmp_path / 'studies.db'}"
+    r = run(gait_tuner_cmd, ["tune", str(study), "--trials", "4", "--workers", "2", "--storage", url], run_env)
+    assert r.returncode == 0, r.stderr
+    s = optuna.load_study(study_name="sq", storage=url)
+    assert len([t for t in s.trials if t.state == optuna.trial.TrialState.COMPLETE]) == 4
+    r = run(gait_tuner_cmd, ["export", str(study), "--storage", url, "--out", str(tmp_path / "b.yaml")], run_env)
+    assert r.returncode == 0, r.stderr

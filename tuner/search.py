@@ -228,8 +228,27 @@ def run_study(spec: StudySpec, storage: Any, storage_path: str | None, total: in
     remaining = total - _n_done(study)
     if remaining <= 0:
         return study
-    workers = min(workers, remaining)
-    shares = [remaining // workers + (1 if i < remaining % workers else 0) for i in range(workers)]
+    # On URL storages the enqueued starts (seed, baselines) are walked by one worker first:
+    # two workers popping the same waiting trial race where rows are not locked (SQLite).
+    # The journal file serialises pops under its lock, so it needs no such phase.
+    waiting = len(study.get_trials(deepcopy=False, states=(TrialState.WAITING,)))
+    phases = []
+    if waiting and workers > 1 and storage_path is None:
+        first = min(waiting, remaining)
+        phases.append([first])
+        remaining -= first
+    if remaining > 0:
+        k = min(workers, remaining)
+        phases.append([remaining // k + (1 if i < remaining % k else 0) for i in range(k)])
+    for shares in phases:
+        _run_phase(spec, storage, storage_path, shares, seed, study, on_progress, poll)
+    if on_progress is not None:
+        on_progress(study)
+    return study
+
+
+def _run_phase(spec: StudySpec, storage: Any, storage_path: str | None, shares: list[int], seed: int,
+               study: optuna.Study, on_progress: Callable[[optuna.Study], None] | None, poll: float) -> None:
     # fork (Linux) starts a worker in milliseconds; spawn re-imports MuJoCo, Optuna and CasADi
     ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
     procs = [ctx.Process(target=_worker, args=(spec, None if storage_path else storage, storage_path,
@@ -254,9 +273,6 @@ def run_study(spec: StudySpec, storage: Any, storage_path: str | None, total: in
     bad = [p.exitcode for p in procs if p.exitcode not in (0, None)]
     if bad:
         raise RuntimeError(f"{len(bad)} worker process(es) failed (exit codes {bad})")
-    if on_progress is not None:
-        on_progress(study)
-    return study
 
 
 def _n_done(study: optuna.Study) -> int:
