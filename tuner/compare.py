@@ -120,14 +120,16 @@ def run_compare(specs: list[str], robot_name: str, surface_names: list[str], bas
 
 
 def _plots(rows, sets, surfaces, out_dir: Path) -> None:
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5))
+    fig, axes = plt.subplots(1, 3, figsize=(16, 4.5))
     width = 0.8 / max(len(sets), 1)
     x = np.arange(len(surfaces))
     for i, (label, _) in enumerate(sets):
         mine = [next(r for r in rows if r["set"] == label and r["surface"] == s.name) for s in surfaces]
         axes[0].bar(x + i * width, [r["stability"] for r in mine], width, label=label)
         axes[1].bar(x + i * width, [r["own"].pitch_rms_deg for r in mine], width, label=label)
-    for ax, title in zip(axes, ("stability % (10-cell EROS grid)", "torso pitch RMS of its own walk [deg]")):
+        axes[2].bar(x + i * width, [r["covered"] for r in mine], width, label=label)
+    for ax, title in zip(axes, ("stability % (10-cell EROS grid)", "torso pitch RMS of its own walk [deg]",
+                                "distance covered, % of plan")):
         ax.set_xticks(x + width * (len(sets) - 1) / 2, [s.name for s in surfaces])
         ax.set_title(title)
         ax.grid(alpha=0.3, axis="y")
