@@ -54,7 +54,6 @@ with zero roll and yaw (tested equal). The rolls stay at zero, as in the paper
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from gaits import ParamError, TlipfmParams, load_baseline
+from gaits import ParamError, load_baseline
 from gaits import tlipfm
 from gaits.trajectory import GRAVITY
 

@@ -246,7 +246,7 @@ def tune(study_file: str, trials: int | None, workers: int, storage: str | None,
         bar.close()
         click.echo(f"interrupted: finished trials are kept in {storage or journal}; "
                    f"run the same command to resume", err=True)
-        raise SystemExit(130)
+        raise SystemExit(130) from None
     bar.close()
     t = best_trial(study)
     n_fell = sum(1 for x in study.get_trials(deepcopy=False, states=DONE_STATES) if trial_fell(x))

@@ -383,7 +383,7 @@ def _load_map(path: Path) -> RobotModel:
     # leg geometry at the zero pose, from joint anchors and the foot geoms
     anchors = {ours: R_torso.T @ (d.xanchor[model.joint(n).id] - d.xpos[tb]) for ours, (n, _) in final.items()}
     soles = []
-    for side, key in (("left", "l_"), ("right", "r_")):
+    for side in ("left", "right"):
         fb = model.body(str(feet[side])).id
         lowest = _lowest_geom_point(model, d, fb)
         _require(lowest is not None, source, f"{side} foot body {feet[side]!r} has no collision geom")

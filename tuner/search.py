@@ -32,7 +32,6 @@ from __future__ import annotations
 import math
 import multiprocessing as mp
 import os
-import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable

@@ -100,7 +100,7 @@ def natural_zmp_function(layout: _Layout, first_support: int, t_stand: float) ->
     T, t1, t2, a, d = (th[i] for i in range(5))
     times, px, py, phase = [], [], [], []
     t_now = 0.0
-    for j in range(layout.n_pre):
+    for _ in range(layout.n_pre):
         times.append(t_now)
         px.append(0.0)
         py.append(0.0)
@@ -124,7 +124,7 @@ def natural_zmp_function(layout: _Layout, first_support: int, t_stand: float) ->
                 phase.append(ph)
                 t_now = t_now + dur / m
     last_x = sl * (layout.n_steps - 1)
-    for j in range(layout.n_post + 1):
+    for _ in range(layout.n_post + 1):
         times.append(t_now)
         px.append(last_x)
         py.append(0.0)
