@@ -12,6 +12,8 @@
 #   and Fig. 17: the landing with deceleration.
 # * Cosine law (Setiono et al. 2012) Tables 1-3: the triangle angles against the
 #   printed values.
+# * Simulated on the built-in robot: EROS Figs. 24-28 (pitch against distance)
+#   and TLIPFM Figs. 14-16 (ZMP responses).
 
 # %%
 import sys
@@ -24,7 +26,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from gaits import cosine_law as cl  # noqa: E402
-from gaits import eros, load_baseline, tlipfm  # noqa: E402
+from gaits import eros, generate, load_baseline, tlipfm  # noqa: E402
 
 OUT = Path(sys.argv[1] if len(sys.argv) > 1 else "runs/figures")
 OUT.mkdir(parents=True, exist_ok=True)
@@ -100,4 +102,35 @@ table1_hip = np.array([41.3, 48.5, 54.3, 59.1, 63.1, 68.6, 72.9, 76.3, 79.1])
 print("cosine law, Table 1 black-leg hip angle [deg], printed vs ours:")
 for a, b in zip(table1_hip, ang[:, 0]):
     print(f"   {a:6.1f} {b:6.1f}")
+
+# %% Simulated: EROS Figs. 24-28 (torso pitch against distance, without and with
+# the optimisation, 24 mm steps on 50 mm grass) and TLIPFM Figs. 14-16 (ZMP
+# response of LIPM, DLIPM and TLIPFM on the rigid floor). These walk the
+# built-in robot in MuJoCo (see the README for what the simulation reproduces).
+from tuner import experiments as ex  # noqa: E402
+from tuner.metrics import summarize  # noqa: E402
+from tuner.plots import plot_pitch, plot_zmp  # noqa: E402
+from tuner.robot import load_robot  # noqa: E402
+from tuner.simulate import Simulator  # noqa: E402
+from tuner.surfaces import SURFACES  # noqa: E402
+
+robot = load_robot("kidsize")
+sim = Simulator(robot, SURFACES["grass50"])
+traces = {}
+for optimised in (False, True):
+    pe = ex.eros_params(24, optimised)
+    pe = pe.replace(foot_lift=pe.foot_lift * 0.2)
+    traces["with optimisation" if optimised else "without"] = sim.rollout(
+        generate(pe, robot.leg, sim.control_period))
+plot_pitch(traces, OUT / "eros_pitch_grass50.png", "EROS, 24 mm steps on 50 mm grass (cf. Fig. 28)")
+for label, tr in traces.items():
+    m = summarize(tr)
+    print(f"EROS 24 mm on grass50, {label}: +-{m.pitch_pm_deg:.1f} deg, {tr.reason}")
+rigid = Simulator(robot, SURFACES["rigid"])
+for model in ("lipm", "dlipm", "tlipfm"):
+    pt = load_baseline("tkux-table2").params.replace(model=model)
+    tr = rigid.rollout(generate(pt, robot.leg, rigid.control_period))
+    plot_zmp(tr, OUT / f"zmp_{model}.png", robot.foot_size, f"{model.upper()} ZMP response (cf. Figs. 14-16)")
+    m = summarize(tr)
+    print(f"{model}: ZMP error {m.zmp_error_x_cm:.2f}/{m.zmp_error_y_cm:.2f} cm, {tr.reason}")
 print(f"figures in {OUT}")
