@@ -73,10 +73,11 @@ def run_compare(specs: list[str], robot_name: str, surface_names: list[str], bas
     robot = load_robot(robot_name)
     surfaces = [load_surface(s) for s in surface_names]
     sets = _sets(specs, baselines)
+    sims = {surface.name: Simulator(robot, surface) for surface in surfaces}   # built once, reused
     rows = []
     for label, params in sets:
         for surface in surfaces:
-            sim = Simulator(robot, surface)
+            sim = sims[surface.name]
             traj = gaits.generate(params, robot.leg, sim.control_period)
             own = summarize(sim.rollout(traj))
             plan = float(traj.p_world_pelvis[-1, 0] - traj.p_world_pelvis[0, 0])
