@@ -29,7 +29,7 @@ def bare_loop(sim: Simulator, q_ref: np.ndarray) -> None:
     m, d = sim.model, sim.data
     sim._place(q_ref[0], np.zeros(2))
     for k in range(1, len(q_ref)):
-        d.ctrl[:] = q_ref[k]
+        d.ctrl[:sim._n_servo] = q_ref[k]
         mujoco.mj_step(m, d, nstep=sim.nstep)
 
 

@@ -61,12 +61,13 @@ def test_toe_first_landing_sticks_on_tall_grass():
     for name in ("carpet4", "grass50"):
         tr = sim_for(name).landing_test(q0, pitch=math.radians(3.0), forward_speed=0.1)
         out[name] = (np.degrees(tr.pitch.max()), np.degrees(tr.pitch[-1]))
-    assert out["grass50"][0] > out["carpet4"][0] + 2.0       # measured 6.8 vs 3.7 deg
-    assert out["grass50"][1] > out["carpet4"][1] + 4.0       # stays pitched: 5.7 vs -1.9 deg
-    # the drag at its upper bound stays numerically stable
-    strong = Simulator(ROBOT, SURFACES["grass50"].replace(drag=120.0))
+    assert out["grass50"][0] > out["carpet4"][0] + 2.0       # measured 5.9 vs 3.3 deg
+    assert out["grass50"][1] > out["carpet4"][1] + 4.0       # stays pitched: 5.1 vs -1.8 deg
+    # the drag dampers are implicit: even at the bound the landing stays numerically calm
+    strong = Simulator(ROBOT, SURFACES["grass50"].replace(drag=5000.0))
     tr = strong.landing_test(q0, pitch=math.radians(3.0), forward_speed=0.1)
     assert not tr.fell and np.max(np.abs(np.degrees(tr.pitch))) < 15
+    assert np.all(np.isfinite(tr.pitch))
 
 
 def test_fall_is_detected_with_time_and_place():
@@ -90,7 +91,7 @@ def test_servo_speed_limit_makes_fast_gaits_lag():
 
 def test_diverging_simulation_ends_with_a_reason():
     bad = Surface(name="bad", layer_height=0.05, layer_timeconst=0.002, layer_dampratio=0.1,
-                  layer_dmin=0.9999, layer_dmax=0.9999, drag=120.0)
+                  layer_dmin=0.9999, layer_dmax=0.9999, drag=5000.0)
     sim = Simulator(ROBOT, bad)
     traj = gaits.generate(gaits.load_baseline("tkux-table2").params, ROBOT.leg, sim.control_period)
     trace = sim.rollout(traj, duration=2.0)

@@ -161,6 +161,27 @@ class Simulator:
             act.set_to_position(kp=servo.kp, kv=servo.kv)
             act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
             act.forcerange = [-servo.torque, servo.torque]
+        # in-layer drag: per sole corner, a damper along world x and y (site transmission with a
+        # world reference site): force = -drag * v * ctrl, computed by MuJoCo every physics step and
+        # integrated implicitly (implicitfast), so it is stable at any drag; ctrl gates it per tick
+        # to the corners that are inside the layer.
+        self._drag_names = []
+        if s.drag > 0.0:
+            spec.worldbody.add_site(name="drag_ref", pos=[0, 0, 0])
+            for side, fname, sole in zip("lr", r.feet, r.soles):
+                foot = spec.body(fname)
+                for k, (sx, sy) in enumerate(((1, 1), (1, -1), (-1, 1), (-1, -1))):
+                    site = f"{side}_corner{k}"
+                    foot.add_site(name=site, pos=[sole[0] + sx * fl / 2, sole[1] + sy * fw / 2, sole[2]],
+                                  group=4)
+                    for axis, gear in (("x", [1, 0, 0, 0, 0, 0]), ("y", [0, 1, 0, 0, 0, 0])):
+                        act = spec.add_actuator(name=f"drag_{site}_{axis}", target=site, refsite="drag_ref",
+                                                trntype=mujoco.mjtTrn.mjTRN_SITE)
+                        act.set_to_damper(kv=s.drag)
+                        act.gear = gear
+                        act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+                        act.ctrlrange = [0.0, 1.0]
+                        self._drag_names.append(act.name)
         # sensors, in this order (offsets below)
         add = spec.add_sensor
         add(name="imu_quat", type=mujoco.mjtSensor.mjSENS_FRAMEQUAT, objtype=mujoco.mjtObj.mjOBJ_SITE,
@@ -205,8 +226,6 @@ class Simulator:
         self._roots = m.body_rootid[self._feet]
         self._sign = np.array([r.joint_map[j][1] for j in self.joint_names], dtype=float)
         self._qadr = np.array([m.jnt_qposadr[m.joint(r.joint_map[j][0]).id] for j in self.joint_names])
-        self._act_lo = m.actuator_ctrlrange[:, 0].copy() if m.actuator_ctrllimited.any() else None
-        self._act_hi = m.actuator_ctrlrange[:, 1].copy() if m.actuator_ctrllimited.any() else None
         jr = np.array([m.jnt_range[m.joint(r.joint_map[j][0]).id] for j in self.joint_names])
         limited = np.array([m.jnt_limited[m.joint(r.joint_map[j][0]).id] for j in self.joint_names], bool)
         self._q_lo = np.where(limited, jr[:, 0], -np.inf)
@@ -220,6 +239,7 @@ class Simulator:
         self._corners = np.stack([corners + np.array(s) for s in r.soles])      # (2, 4, 3) in foot frame
         self._corners_T = np.ascontiguousarray(self._corners.transpose(0, 2, 1))  # (2, 3, 4)
         self._col_in_gait = np.array([JOINT_NAMES.index(j) for j in self.joint_names])
+        self._n_servo = len(self.joint_names)
 
     # --- one rollout ---------------------------------------------------------------
     def _lowest_sole_z(self) -> float:
@@ -266,7 +286,7 @@ class Simulator:
                               np.zeros((n, 2)), zeros3, zeros3, np.zeros(n, dtype=int))
         sens = np.empty((n, m.nsensordata))
         sens[0] = d.sensordata
-        d.ctrl[:] = q0
+        d.ctrl[:self._n_servo] = q0
         drag = self.surface.drag > 0.0
         k_end, reason = n, "completed"
         for k in range(1, n):
@@ -281,42 +301,13 @@ class Simulator:
         return self._trace(traj, sens[:k_end], cmds, cmds, reason, float(d.qpos[2]))
 
     def _drag(self) -> None:
-        """Horizontal drag on the sole corners inside the layer (module ``tuner.surfaces``).
-
-        Written for speed (it runs every control tick on grass): one matrix product
-        for the 8 corners and the cross products spelled out.
-        """
-        d, h = self.data, self.surface.layer_height
-        feet = self._feet
-        R = d.xmat[feet].reshape(2, 3, 3)
-        r = R @ self._corners_T                               # (2, 3, 4) corner offsets, world axes
-        pz = d.xpos[feet, 2:3] + r[:, 2, :]
-        inside = pz < h
-        if not inside.any():
-            d.xfrc_applied[feet] = 0.0
-            return
-        cvel = d.cvel[feet]
-        w, v0 = cvel[:, :3], cvel[:, 3:]
-        arm_c = d.xpos[feet] - d.subtree_com[self._roots]    # foot origin relative to the root's CoM
-        rx = r[:, 0, :] + arm_c[:, 0:1]
-        ry = r[:, 1, :] + arm_c[:, 1:2]
-        rz = r[:, 2, :] + arm_c[:, 2:3]
-        vx = v0[:, 0:1] + w[:, 1:2] * rz - w[:, 2:3] * ry     # v = v0 + w x (p - c)
-        vy = v0[:, 1:2] + w[:, 2:3] * rx - w[:, 0:1] * rz
-        g = -self.surface.drag * inside
-        fx, fy = g * vx, g * vy
-        # torque about the foot's CoM: (p - xipos) x f with f = (fx, fy, 0)
-        off = d.xpos[feet] - d.xipos[feet]
-        ax = r[:, 0, :] + off[:, 0:1]
-        ay = r[:, 1, :] + off[:, 1:2]
-        az = r[:, 2, :] + off[:, 2:3]
-        xf = d.xfrc_applied
-        xf[feet, 0] = fx.sum(axis=1)
-        xf[feet, 1] = fy.sum(axis=1)
-        xf[feet, 2] = 0.0
-        xf[feet, 3] = (-az * fy).sum(axis=1)
-        xf[feet, 4] = (az * fx).sum(axis=1)
-        xf[feet, 5] = (ax * fy - ay * fx).sum(axis=1)
+        """Switch on the drag dampers of the sole corners that are inside the layer (module
+        ``tuner.surfaces``); MuJoCo applies -drag * v at each of them every physics step."""
+        d = self.data
+        R = d.xmat[self._feet].reshape(2, 3, 3)
+        pz = d.xpos[self._feet, 2:3] + (R @ self._corners_T)[:, 2, :]      # (2, 4) corner heights
+        inside = (pz < self.surface.layer_height).astype(float).ravel()
+        d.ctrl[self._n_servo:] = np.repeat(inside, 2)                       # x and y per corner
 
     def rollout(self, traj: GaitTrajectory, *, duration: float | None = None) -> Trace:
         """Play a gait's joint table on the robot; stop at the end, a fall, or divergence."""
@@ -344,7 +335,7 @@ class Simulator:
         for k in range(1, n_ticks):
             cmd += np.clip(q_ref[k] - cmd, -step, step)
             np.clip(cmd, self._q_lo, self._q_hi, out=cmd)
-            d.ctrl[:] = cmd
+            d.ctrl[:self._n_servo] = cmd
             if drag:
                 self._drag()
             mujoco.mj_step(m, d, nstep=self.nstep)

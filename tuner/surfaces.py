@@ -5,16 +5,19 @@ the same height whose contact *margin* is the blade height: a sole point less
 than ``layer_height`` above the soil is in contact with the layer, whose
 support is soft (MuJoCo ``solref``/``solimp``: weak at the blade tips, stiffer
 deeper in). Blades also hold a foot that moves sideways inside them: every sole
-corner inside the layer feels a horizontal drag ``-drag * v`` from the tips
-down. It is computed once per control tick for the 8 sole corners (a few
-numpy operations) and held for the tick, not applied in a per-step callback,
-which keeps a rollout on grass within 2x of the rigid floor; the price is an
-explicit force that oscillates above ~120 N s/m at 10 ms ticks, hence its
-bound. Measured (``tests/test_simulation.py``, ``Simulator.landing_test``):
-the same toe-first landing pitches the robot 6.6 deg on grass50 and leaves it
-pitched forward (toe held), against 3.7 deg and rocking back on carpet4; at
-the drags we can apply stably, the soft, deep layer does most of that and the
-drag adds little (6.8 vs 6.6 deg without it).
+corner inside the layer feels a horizontal drag ``-drag * v``. Each corner has
+two MuJoCo damper actuators (site transmission along world x and y), so the
+force is computed by MuJoCo at every physics step and integrated implicitly
+(``implicitfast``): stable at any drag, with no per-step Python callback. Once
+per control tick the simulator switches on the dampers of the corners that are
+below the blade tips. A rollout on grass costs ~1.4x the rigid floor's
+(``benchmarks/bench_simulate.py``).
+
+Measured (``tests/test_simulation.py``, ``Simulator.landing_test``): the same
+toe-first landing pitches the robot more on grass50 than on carpet4 and leaves
+it pitched forward (toe held) while on carpet it rocks back. That comes from
+the soft, deep layer; a stronger drag plants the whole sole and *reduces* the
+pitch (e.g. 6.1 deg at drag 0, 5.5 at 300, 3.5 at 3000 N s/m in an ad-hoc run).
 
 The four built-in surfaces mirror the EROS paper's pedestals (Sec. 5, Figs
 20-23): grass50 (50 mm blades, sparse, irregular), grass30 (30 mm, dense,
@@ -50,8 +53,7 @@ class Surface(GaitParams):
     layer_dmin: float = param(0.5, "-", 0.0001, 0.9999, "constraint impedance at the blade tips (solimp[0])")
     layer_dmax: float = param(0.95, "-", 0.0001, 0.9999, "constraint impedance at the soil (solimp[1])")
     friction: float = param(0.9, "-", 0.05, 3.0, "sliding friction of the layer (or the rigid floor)")
-    drag: float = param(0.0, "N s/m", 0.0, 120.0, "horizontal drag on each sole corner inside the layer "
-                        "(held for a control tick: above ~120 it oscillates at 10 ms ticks, measured)")
+    drag: float = param(0.0, "N s/m", 0.0, 5000.0, "horizontal drag on each sole corner inside the layer")
     soil_friction: float = param(0.9, "-", 0.05, 3.0, "sliding friction of the soil below the layer")
     description: str = param("", "-", doc="where the numbers come from")
 
