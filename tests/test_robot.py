@@ -48,7 +48,7 @@ def test_bring_your_own_robot_walks_like_the_builtin(tmp_path):
     builtin = load_robot("kidsize")
     assert robot.joint_map["l_knee"] == ("J_l_knee", -1)     # sign found from the axis
     assert robot.joint_map["r_knee"] == ("J_r_knee", 1)
-    for f in ("hip_offset_y", "hip_offset_z", "thigh", "shank", "ankle_height"):
+    for f in ("hip_offset_y", "hip_offset_z", "thigh", "shank", "ankle_height", "com_above_pelvis"):
         assert getattr(robot.leg, f) == pytest.approx(getattr(builtin.leg, f), abs=1e-9)
     assert robot.foot_size == pytest.approx(builtin.foot_size)
     out = []

@@ -28,6 +28,7 @@ is wrong.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
@@ -241,31 +242,30 @@ def _kidsize_model(spec: RobotSpec = RobotSpec()) -> RobotModel:
     L = spec.leg
     jmap = {name: (name, 1) for name in JOINT_NAMES}
     sole = (0.0, 0.0, -L.ankle_height)
-    leg = LegGeometry(hip_offset_y=L.hip_offset_y, hip_offset_z=L.hip_offset_z, thigh=L.thigh,
-                      shank=L.shank, ankle_height=L.ankle_height,
-                      com_above_pelvis=_com_above_pelvis(kidsize_xml(spec), "torso", L))
+    com = _com_above_pelvis(mujoco.MjModel.from_xml_string(kidsize_xml(spec)), "torso", L, jmap)
+    leg = dataclasses.replace(L, com_above_pelvis=com)
     return RobotModel(spec.name, kidsize_xml(spec), jmap, "torso", ("l_foot", "r_foot"),
                       (sole, sole), (spec.foot_length, spec.foot_width), leg,
                       spec.leg_servo, spec.arm_servo)
 
 
-def _com_above_pelvis(xml: str, torso: str, leg: LegGeometry | None = None,
-                      crouch: float = 0.85) -> float:
-    """Whole-body CoM height above the torso frame [m], legs bent to ``crouch`` x the straight
-    hip height (a typical walking posture; the legs' CoM rises as the knees bend)."""
-    m = mujoco.MjModel.from_xml_string(xml)
-    d = mujoco.MjData(m)
-    if leg is not None:
-        from gaits import leg_ik
-        for side, prefix in ((1, "l_"), (-1, "r_")):
-            target = leg.hip_in_pelvis(side) + np.array([0.0, 0.0, -crouch * leg.max_hip_height])
-            q = leg_ik(target, 0.0, leg, side)
-            for name, value in zip(LEG_JOINTS, q):
-                d.qpos[m.jnt_qposadr[m.joint(prefix + name).id]] = value
-    mujoco.mj_kinematics(m, d)
-    mujoco.mj_comPos(m, d)
-    b = m.body(torso).id
-    return float(d.subtree_com[0][2] - d.xpos[b][2]) if m.body_rootid[b] == b else 0.0
+def _com_above_pelvis(model: mujoco.MjModel, torso: str, leg: LegGeometry,
+                      joint_map: Mapping[str, tuple[str, int]], crouch: float = 0.85) -> float:
+    """Whole-body CoM height above the torso frame [m], legs bent by the IK to ``crouch`` x the
+    straight hip height (a typical walking posture; the legs' CoM rises as the knees bend).
+    One definition for the built-in robot and for user robots (through their joint map)."""
+    from gaits import leg_ik
+    d = mujoco.MjData(model)
+    for side, prefix in ((1, "l_"), (-1, "r_")):
+        target = leg.hip_in_pelvis(side) + np.array([0.0, 0.0, -crouch * leg.max_hip_height])
+        q = leg_ik(target, 0.0, leg, side)
+        for name, value in zip(LEG_JOINTS, q):
+            theirs, sign = joint_map[prefix + name]
+            d.qpos[model.jnt_qposadr[model.joint(theirs).id]] = sign * value
+    mujoco.mj_kinematics(model, d)
+    mujoco.mj_comPos(model, d)
+    b = model.body(torso).id
+    return float(d.subtree_com[b][2] - d.xpos[b][2])
 
 
 BUILTIN_ROBOTS = {"kidsize": _kidsize_model}
@@ -397,6 +397,12 @@ def _load_map(path: Path) -> RobotModel:
         raise UserError(f"{source}: leg: {exc}") from None
     except ValueError as exc:
         raise UserError(f"{source}: {exc}") from None
+    if "com_above_pelvis" not in leg_over:
+        try:
+            com = _com_above_pelvis(model, torso, leg, final)
+        except ValueError as exc:          # the crouched pose is out of the derived legs' reach
+            raise UserError(f"{source}: leg: {exc}") from None
+        leg = dataclasses.replace(leg, com_above_pelvis=com)
     servo_over = doc.get("servo") or {}
     try:
         servo = ServoSpec(**dict(servo_over))
@@ -454,15 +460,9 @@ def _derive_leg(anchors: Mapping[str, np.ndarray], model: mujoco.MjModel, d: muj
         _require(np.linalg.norm(a - b) < 0.005, source,
                  f"the {what} axes must intersect (they are {np.linalg.norm(a - b) * 1000:.1f} mm apart); "
                  f"give the leg dimensions under 'leg:' if your IK convention differs")
-    com = _com_above_pelvis_model(model, d, tb)
     return {"hip_offset_y": float(abs(hip[1])), "hip_offset_z": float(-hip[2]),
             "thigh": float(np.linalg.norm(hip - knee)), "shank": float(np.linalg.norm(knee - ankle)),
-            "ankle_height": float(ankle[2] - sole[2]), "com_above_pelvis": com}
-
-
-def _com_above_pelvis_model(model: mujoco.MjModel, d: mujoco.MjData, tb: int) -> float:
-    mujoco.mj_comPos(model, d)
-    return float(d.subtree_com[tb][2] - d.xpos[tb][2])
+            "ankle_height": float(ankle[2] - sole[2])}
 
 
 def leg_geometry_report(robot: RobotModel) -> str:
