@@ -5,15 +5,20 @@ Usage: ``python benchmarks/bench_search.py [--seeds 5] [--max-trials 60] [--rate
 1. Trials to the first non-falling gait on grass50 at the paper's largest step
    (the ``quickstart`` study: EROS, 24 mm), with and without the CasADi seed
    enqueued first (no baselines in either arm, so the seed alone is measured);
+   also trials to the first *feasible* gait (stays up and walks at least half
+   its plan: the search's own constraint, since a gait that stays up by
+   shuffling in place is no answer);
    median over ``--seeds`` sampler seeds. A run that finds none within
    ``--max-trials`` counts as max-trials + 1 (stated in the output).
-2. Trials per hour of that study with 1 and 2 worker processes on one journal.
+2. Trials per hour of that study with 1 and 2 worker processes on one journal,
+   beside the same walks in a plain 2-process pool (the machine's own scaling).
 3. Seed solve time after the build (median of 20 solves), and the build time.
 """
 
 from __future__ import annotations
 
 import argparse
+import multiprocessing as mp
 import dataclasses
 import statistics
 import tempfile
@@ -22,12 +27,17 @@ from pathlib import Path
 
 import optuna
 
-from tuner.search import Evaluator, enqueue_starts, objective_for, open_storage, run_study, trial_fell
+from gaits.params import ParamError
+
+from tuner.search import (Evaluator, enqueue_starts, objective_for, open_storage, run_study,
+                          trial_feasible, trial_fell)
 from tuner.seed import SeedProblem
 from tuner.study import load_study
 
 
-def trials_to_first_stable(spec, with_seed: bool, seed: int, max_trials: int, evaluator: Evaluator) -> int:
+def trials_to_first_stable(spec, with_seed: bool, seed: int, max_trials: int,
+                           evaluator: Evaluator) -> tuple[int, int]:
+    """(first trial that did not fall, first feasible trial: no fall and >= half the plan walked)."""
     spec = dataclasses.replace(spec, enqueue=("casadi",) if with_seed else (), baselines=(),
                                name=f"bench-{with_seed}-{seed}")
     study = optuna.create_study(directions=spec.directions,
@@ -35,14 +45,35 @@ def trials_to_first_stable(spec, with_seed: bool, seed: int, max_trials: int, ev
                                                                    n_startup_trials=8))
     enqueue_starts(study, spec)
     objective = objective_for(spec, evaluator)
+    first_up = first_feasible = max_trials + 1
     for i in range(1, max_trials + 1):
         study.optimize(objective, n_trials=1)
-        if not trial_fell(study.trials[-1]):
-            return i
-    return max_trials + 1
+        trial = study.trials[-1]
+        if first_up > max_trials and not trial_fell(trial):
+            first_up = i
+        if first_feasible > max_trials and trial_feasible(trial):
+            first_feasible = i
+            break
+    return first_up, first_feasible
+
+
+_SPEC = None
+
+
+def _walk(params: dict) -> None:
+    """One trial's rollouts, no Optuna: the machine's own scaling for the same work."""
+    global _EVALUATOR
+    if "_EVALUATOR" not in globals():
+        _EVALUATOR = Evaluator(_SPEC)
+    try:
+        params = _SPEC.params_for(params)
+    except ParamError:
+        return                          # the study scores these without walking, too
+    _EVALUATOR.evaluate(params)
 
 
 def main() -> None:
+    global _SPEC
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--study", default="quickstart")
     ap.add_argument("--seeds", type=int, default=5)
@@ -50,19 +81,23 @@ def main() -> None:
     ap.add_argument("--rate-trials", type=int, default=24)
     args = ap.parse_args()
     optuna.logging.set_verbosity(optuna.logging.WARNING)
-    spec = load_study(args.study)
+    spec = _SPEC = load_study(args.study)
     evaluator = Evaluator(spec)
 
     print(f"1. trials to the first non-falling gait, study {spec.name} ({spec.gait} on "
           f"{', '.join(spec.surfaces)}), max {args.max_trials} (none found counts {args.max_trials + 1})")
     res = {}
     for with_seed in (False, True):
-        counts = [trials_to_first_stable(spec, with_seed, s, args.max_trials, evaluator)
-                  for s in range(args.seeds)]
-        res[with_seed] = counts
-        print(f"   {'with' if with_seed else 'without'} CasADi seed: {counts} -> median "
-              f"{statistics.median(counts)}")
-    print(f"   ratio (without / with): {statistics.median(res[False]) / statistics.median(res[True]):.2f}x")
+        res[with_seed] = [trials_to_first_stable(spec, with_seed, s, args.max_trials, evaluator)
+                          for s in range(args.seeds)]
+    for k, what in enumerate(("non-falling", "feasible (up, >= half the plan)")):
+        print(f"   first {what}:")
+        for with_seed in (False, True):
+            counts = [r[k] for r in res[with_seed]]
+            print(f"     {'with' if with_seed else 'without'} CasADi seed: {counts} -> median "
+                  f"{statistics.median(counts)}, mean {statistics.mean(counts):.1f}")
+        ratio = (statistics.median(r[k] for r in res[False]) / statistics.median(r[k] for r in res[True]))
+        print(f"     ratio of medians (without / with): {ratio:.2f}x")
 
     print(f"2. trials per hour: the {args.rate_trials} parameter sets a 1-worker TPE run of {spec.name} "
           f"chose, enqueued again and walked with 1 and with 2 workers (identical work)")
@@ -85,6 +120,18 @@ def main() -> None:
         rates[workers] = args.rate_trials / el * 3600
         print(f"   {workers} worker(s): {el:.1f} s -> {rates[workers]:,.0f} trials/hour")
     print(f"   2 workers / 1 worker: {rates[2] / rates[1]:.2f}x")
+    raw = {}
+    for procs in (1, 2):
+        t0 = time.perf_counter()
+        if procs == 1:
+            for params in fixed_sets:
+                _walk(params)
+        else:
+            with mp.get_context("fork").Pool(2) as pool:
+                pool.map(_walk, fixed_sets, chunksize=1)
+        raw[procs] = time.perf_counter() - t0
+    print(f"   the same walks without Optuna (a plain process pool): 1 process {raw[1]:.1f} s, "
+          f"2 processes {raw[2]:.1f} s -> {raw[1] / raw[2]:.2f}x, what these two cores give this work")
 
     t0 = time.perf_counter()
     problem = SeedProblem()

@@ -8,7 +8,7 @@ import pytest
 
 from gaits import load_baseline
 from gaits import tlipfm as tl
-from tuner.seed import SeedInfeasible, SeedProblem, lipm_interval_function, seed_for
+from tuner.seed import SWING_CLEARANCE_MARGIN, SeedInfeasible, SeedProblem, lipm_interval_function, seed_for
 
 TABLE2 = load_baseline("tkux-table2").params
 
@@ -84,3 +84,15 @@ def test_seed_maps_onto_the_other_families():
 
 def test_cost_block_is_a_named_function(problem):
     assert isinstance(problem.cost_terms, ca.Function) and problem.cost_terms.name() == "seed_cost"
+
+
+def test_seed_lifts_the_swing_foot_over_the_tallest_layer():
+    base = TABLE2.replace(h_z=0.02)
+    assert seed_for("tlipfm", base).h_z == 0.02                        # rigid floor: the base's lift
+    assert seed_for("tlipfm", base, layer_height=0.05).h_z == pytest.approx(0.05 + SWING_CLEARANCE_MARGIN)
+    assert seed_for("tlipfm", base.replace(h_z=0.08), layer_height=0.05).h_z == 0.08   # never lowered
+    assert seed_for("tlipfm", base, layer_height=0.10).h_z == 0.10     # clipped to the bound of H_z
+    eros = seed_for("eros", load_baseline("eros-x24-with").params.replace(foot_lift=0.02), layer_height=0.03)
+    assert eros.foot_lift == pytest.approx(0.04)
+    with pytest.raises(ValueError, match="layer_height"):
+        seed_for("tlipfm", base, layer_height=-0.01)

@@ -52,7 +52,8 @@ from .study import StudySpec
 from .surfaces import load_surface
 
 __all__ = ["FALL_PENALTY_DEG", "Evaluator", "open_storage", "open_study", "enqueue_starts", "run_study",
-           "best_trial", "trial_params", "trial_result", "trial_fell", "DONE_STATES"]
+           "best_trial", "trial_params", "trial_result", "trial_fell", "trial_feasible",
+           "DONE_STATES"]
 
 FALL_PENALTY_DEG = 100.0
 PROGRESS_PENALTY_DEG = 50.0     # per unit of the planned distance not covered
@@ -192,7 +193,9 @@ def enqueue_starts(study: optuna.Study, spec: StudySpec) -> list[str]:
     if "casadi" in spec.enqueue:
         from .seed import SeedInfeasible, seed_for
         try:
-            seeded = seed_for(spec.gait, spec.base)
+            from .surfaces import load_surface
+            layer = max(load_surface(name).layer_height for name in spec.surfaces)
+            seeded = seed_for(spec.gait, spec.base, layer_height=layer)
             study.enqueue_trial(_clip_to_space(spec, seeded), user_attrs={"start": "casadi seed"})
             done.append("casadi seed")
         except (SeedInfeasible, ParamError) as exc:
@@ -205,15 +208,26 @@ def enqueue_starts(study: optuna.Study, spec: StudySpec) -> list[str]:
     return done
 
 
-def _worker(spec: StudySpec, storage_arg: Any, storage_path: str | None, n_trials: int, seed: int) -> None:
-    """One process: open the study and run its share of the remaining trials."""
+def _worker(spec: StudySpec, storage_arg: Any, storage_path: str | None, tickets: Any, seed: int) -> None:
+    """One process: open the study and run trials while the phase has tickets left.
+
+    ``tickets`` is a counter shared by the phase's processes: a worker takes one
+    under its lock before each trial, so the phase runs exactly as many trials as
+    it holds, and a worker whose rollouts are short (early falls) simply runs more
+    of them than its neighbour (no idle core at the end of a phase).
+    """
     os.environ.setdefault("MPLBACKEND", "Agg")
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     storage = JournalStorage(JournalFileBackend(storage_path)) if storage_path else storage_arg
     study = open_study(spec, storage, seed)
-    evaluator = Evaluator(spec)
+    objective = objective_for(spec, Evaluator(spec))
     try:
-        study.optimize(objective_for(spec, evaluator), n_trials=n_trials, catch=(), gc_after_trial=False)
+        while True:
+            with tickets.get_lock():
+                if tickets.value <= 0:
+                    return
+                tickets.value -= 1
+            study.optimize(objective, n_trials=1, catch=(), gc_after_trial=False)
     except KeyboardInterrupt:
         pass
 
@@ -234,25 +248,26 @@ def run_study(spec: StudySpec, storage: Any, storage_path: str | None, total: in
     phases = []
     if waiting and workers > 1 and storage_path is None:
         first = min(waiting, remaining)
-        phases.append([first])
+        phases.append((first, 1))
         remaining -= first
     if remaining > 0:
-        k = min(workers, remaining)
-        phases.append([remaining // k + (1 if i < remaining % k else 0) for i in range(k)])
-    for shares in phases:
-        _run_phase(spec, storage, storage_path, shares, seed, study, on_progress, poll)
+        phases.append((remaining, min(workers, remaining)))
+    for n_trials, n_procs in phases:
+        _run_phase(spec, storage, storage_path, n_trials, n_procs, seed, study, on_progress, poll)
     if on_progress is not None:
         on_progress(study)
     return study
 
 
-def _run_phase(spec: StudySpec, storage: Any, storage_path: str | None, shares: list[int], seed: int,
-               study: optuna.Study, on_progress: Callable[[optuna.Study], None] | None, poll: float) -> None:
+def _run_phase(spec: StudySpec, storage: Any, storage_path: str | None, n_trials: int, n_procs: int,
+               seed: int, study: optuna.Study, on_progress: Callable[[optuna.Study], None] | None,
+               poll: float) -> None:
     # fork (Linux) starts a worker in milliseconds; spawn re-imports MuJoCo, Optuna and CasADi
     ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
+    tickets = ctx.Value("i", n_trials)
     procs = [ctx.Process(target=_worker, args=(spec, None if storage_path else storage, storage_path,
-                                                share, seed + 1000 * i), daemon=False)
-             for i, share in enumerate(shares)]
+                                                tickets, seed + 1000 * i), daemon=False)
+             for i in range(n_procs)]
     for p in procs:
         p.start()
     try:
@@ -309,3 +324,10 @@ def trial_result(trial: optuna.trial.FrozenTrial) -> dict[str, Any]:
 
 def trial_fell(trial: optuna.trial.FrozenTrial) -> bool:
     return bool(trial_result(trial).get("fell", True))
+
+
+def trial_feasible(trial: optuna.trial.FrozenTrial) -> bool:
+    """The search's own notion of a usable gait: it stayed up and walked at least
+    ``MIN_PROGRESS`` of its plan on every surface (constraint value <= 0)."""
+    constraint = trial_result(trial).get("fall_constraint")
+    return trial.state == TrialState.COMPLETE and constraint is not None and constraint <= 0.0

@@ -33,6 +33,7 @@ infeasible plan with the constraint that binds.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -44,7 +45,7 @@ import gaits
 from gaits import CosineLawParams, ErosParams, TlipfmParams
 from gaits import tlipfm as tl
 
-__all__ = ["SeedProblem", "SeedResult", "SeedInfeasible", "THETA_NAMES", "lipm_interval_function",
+__all__ = ["SWING_CLEARANCE_MARGIN", "SeedProblem", "SeedResult", "SeedInfeasible", "THETA_NAMES", "lipm_interval_function",
            "natural_zmp_function"]
 
 THETA_NAMES = ("period", "t1", "t2", "a", "d")
@@ -374,21 +375,46 @@ class SeedProblem:
         return float(m)
 
 
-def seed_for(family: str, base: gaits.GaitParams, problem: SeedProblem | None = None) -> gaits.GaitParams:
+#: [m] how far above the tallest surface layer the seed lifts the swing foot (ours)
+SWING_CLEARANCE_MARGIN = 0.01
+
+
+def seed_for(family: str, base: gaits.GaitParams, problem: SeedProblem | None = None,
+             layer_height: float = 0.0) -> gaits.GaitParams:
     """The CasADi seed mapped onto a family's parameters (TLIPFM directly; EROS and cosine by
-    correspondence, see :class:`SeedResult`)."""
+    correspondence, see :class:`SeedResult`).
+
+    ``layer_height`` [m] is the tallest carpet or grass layer the gait must walk on. The
+    CoM problem says nothing about the swing foot, but a foot that stays inside the
+    blades is held by them (the EROS paper's failure; ``tuner.surfaces``), so the seed
+    lifts the foot to the layer height plus ``SWING_CLEARANCE_MARGIN`` when the base
+    lifts it less. Measured on grass50 (TLIPFM seed at 24 mm steps): a 20-40 mm lift
+    stays up but covers 11-67% of the plan, 50-60 mm covers all of it.
+    """
+    if layer_height < 0:
+        raise ValueError(f"layer_height must be >= 0 m, got {layer_height!r}")
+    wanted = layer_height + SWING_CLEARANCE_MARGIN if layer_height > 0 else 0.0
+
+    def lift_of(cls: type, name: str) -> float:     # clipped to the family's own bound
+        hi = next(f.metadata["hi"] for f in dataclasses.fields(cls) if f.name == name)
+        return min(wanted, hi)
     if family == "tlipfm":
         assert isinstance(base, TlipfmParams)
         problem = problem or SeedProblem(base)
-        return problem.solve(base.step_length, base.half_width).tlipfm
+        out = problem.solve(base.step_length, base.half_width).tlipfm
+        lift = lift_of(TlipfmParams, "h_z")
+        return out.replace(h_z=lift) if lift > out.h_z else out
     problem = problem or SeedProblem()
     if family == "eros":
         assert isinstance(base, ErosParams)
         res = problem.solve(step_length=abs(base.step_x) if base.step_x else 0.02,
                             half_width=base.stance_width / 2)
-        out = res.eros(base)
-        return out.replace(step_x=base.step_x)
+        out = res.eros(base).replace(step_x=base.step_x)
+        lift = lift_of(ErosParams, "foot_lift")
+        return out.replace(foot_lift=lift) if lift > out.foot_lift else out
     if family == "cosine":
         assert isinstance(base, CosineLawParams)
-        return problem.solve(step_length=abs(base.step) or 0.02).cosine(base).replace(step=base.step)
+        out = problem.solve(step_length=abs(base.step) or 0.02).cosine(base).replace(step=base.step)
+        lift = lift_of(CosineLawParams, "swing_height")
+        return out.replace(swing_height=lift) if lift > out.swing_height else out
     raise ValueError(f"unknown family {family!r}")
