@@ -63,6 +63,9 @@ def test_toe_first_landing_sticks_on_tall_grass():
         out[name] = (np.degrees(tr.pitch.max()), np.degrees(tr.pitch[-1]))
     assert out["grass50"][0] > out["carpet4"][0] + 2.0       # measured 5.9 vs 3.3 deg
     assert out["grass50"][1] > out["carpet4"][1] + 4.0       # stays pitched: 5.1 vs -1.8 deg
+    # landing deceleration's premise: the same landing at half the speed pitches less (4.2 deg)
+    slow = sim_for("grass50").landing_test(q0, pitch=math.radians(3.0), forward_speed=0.05, sink_speed=0.15)
+    assert np.degrees(slow.pitch.max()) < out["grass50"][0] - 1.0
     # the drag dampers are implicit: even at the bound the landing stays numerically calm
     strong = Simulator(ROBOT, SURFACES["grass50"].replace(drag=5000.0))
     tr = strong.landing_test(q0, pitch=math.radians(3.0), forward_speed=0.1)
