@@ -85,3 +85,12 @@ def test_compare_writes_report(gait_tuner_cmd, run_env, tmp_path):
     assert (tmp_path / "compare.md").exists() and (tmp_path / "compare.png").stat().st_size > 10_000
     r = run(gait_tuner_cmd, ["compare", "nothing.yaml", "--out", str(tmp_path)], run_env)
     assert r.returncode == 2 and "no such file" in r.stderr
+
+
+def test_compare_rows_do_not_depend_on_workers(tmp_path):
+    from tuner.compare import run_compare
+    args = (["tkux-table2"], "kidsize", ["rigid", "carpet4"], False, None, tmp_path / "runs")
+    one = run_compare(*args, tmp_path / "w1", workers=1)
+    done = []
+    two = run_compare(*args, tmp_path / "w2", workers=2, progress=done.append)
+    assert one.replace("w1", "w2") == two and len(done) == 2

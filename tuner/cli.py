@@ -314,18 +314,25 @@ def export(study_file: str, storage: str | None, runs_dir: Path, number: int | N
               type=click.Path(file_okay=False, path_type=Path))
 @click.option("--out", "out_dir", default="runs/compare", show_default=True,
               type=click.Path(file_okay=False, path_type=Path))
+@click.option("--workers", type=click.IntRange(1, 64), default=2, show_default=True,
+              help="Processes walking the (set, surface) pairs; the results do not depend on it.")
 def compare(params_specs: tuple[str, ...], robot_name: str, surface_names: str, baselines: bool,
-            study_file: str | None, runs_dir: Path, out_dir: Path) -> None:
+            study_file: str | None, runs_dir: Path, out_dir: Path, workers: int) -> None:
     """Compare parameter sets side by side: stability matrix, stability %, pitch, ZMP error, speed.
 
     Each set walks every surface at the EROS experiment's step distances (0-24 mm
     forward, 8-24 mm backward) with its other parameters as they are. Prints a
     table and writes compare.md and PNG plots into --out.
     """
-    from .compare import run_compare
+    from tqdm import tqdm
 
-    text = run_compare(list(params_specs), robot_name, [s for s in surface_names.split(",") if s],
-                       baselines, study_file, runs_dir, out_dir)
+    from .compare import n_rows, run_compare
+
+    names = [s for s in surface_names.split(",") if s]
+    with tqdm(total=n_rows(list(params_specs), names, baselines), desc="compare", unit="set x surface",
+              disable=None) as bar:
+        text = run_compare(list(params_specs), robot_name, names, baselines, study_file, runs_dir, out_dir,
+                           workers=workers, progress=bar.update)
     click.echo(text)
 
 

@@ -11,8 +11,10 @@ EROS baselines are added as the calibrated experiment walks them (foot lift x
 
 from __future__ import annotations
 
+import multiprocessing as mp
 import warnings
 from pathlib import Path
+from typing import Callable
 
 import matplotlib
 
@@ -29,7 +31,7 @@ from .robot import load_robot  # noqa: E402
 from .simulate import Simulator  # noqa: E402
 from .surfaces import load_surface  # noqa: E402
 
-__all__ = ["with_step", "run_compare", "BASELINES_FOR"]
+__all__ = ["with_step", "n_rows", "run_compare", "BASELINES_FOR"]
 
 BASELINES_FOR = {"eros": ("eros-x24-without", "eros-x24-with"), "tlipfm": ("tkux-table2",),
                  "cosine": ("cosine-setiono",)}
@@ -68,31 +70,65 @@ def _sets(specs: list[str], baselines: bool) -> list[tuple[str, gaits.GaitParams
     return out
 
 
+_CACHE: dict = {}
+
+
+def _row(task: tuple) -> dict:
+    """One (set, surface): its own walk and the 10 EROS grid walks (runs in a worker process)."""
+    robot_name, surface, label, params = task
+    if _CACHE.get("robot_name") != robot_name:
+        _CACHE.clear()
+        _CACHE.update(robot_name=robot_name, robot=load_robot(robot_name), sims={})
+    robot = _CACHE["robot"]
+    sims = _CACHE["sims"]
+    if surface not in sims:
+        sims[surface] = Simulator(robot, surface)            # built once per process, reused
+    sim = sims[surface]
+    traj = gaits.generate(params, robot.leg, sim.control_period)
+    own = summarize(sim.rollout(traj))
+    plan = float(traj.p_world_pelvis[-1, 0] - traj.p_world_pelvis[0, 0])
+    covered = 100.0 * own.distance_m / plan if abs(plan) > 1e-3 else float("nan")
+    cells = []
+    for direction, steps in EROS_STEPS_MM.items():
+        for mm in steps:
+            p = with_step(params, (1 if direction == "forward" else -1) * mm / 1000)
+            try:
+                m = summarize(sim.rollout(gaits.generate(p, robot.leg, sim.control_period)))
+                cells.append(not m.fell)
+            except (gaits.ParamError, gaits.UnreachableTargetError):
+                cells.append(False)
+    return {"set": label, "surface": surface.name, "cells": cells,
+            "stability": 100.0 * sum(cells) / len(cells), "own": own, "covered": covered}
+
+
+def n_rows(specs: list[str], surface_names: list[str], baselines: bool) -> int:
+    """How many (set, surface) rows ``run_compare`` will walk (for a progress bar)."""
+    return len(_sets(specs, baselines)) * len(surface_names)
+
+
 def run_compare(specs: list[str], robot_name: str, surface_names: list[str], baselines: bool,
-                study_file: str | None, runs_dir: Path, out_dir: Path) -> str:
-    robot = load_robot(robot_name)
+                study_file: str | None, runs_dir: Path, out_dir: Path, workers: int = 1,
+                progress: Callable[[int], None] | None = None) -> str:
+    """Walk every set on every surface (``workers`` processes; the rows do not depend on it)
+    and write the table and plots; ``progress(1)`` after each (set, surface)."""
+    load_robot(robot_name)                                    # a bad robot fails here, once
     surfaces = [load_surface(s) for s in surface_names]
     sets = _sets(specs, baselines)
-    sims = {surface.name: Simulator(robot, surface) for surface in surfaces}   # built once, reused
-    rows = []
-    for label, params in sets:
-        for surface in surfaces:
-            sim = sims[surface.name]
-            traj = gaits.generate(params, robot.leg, sim.control_period)
-            own = summarize(sim.rollout(traj))
-            plan = float(traj.p_world_pelvis[-1, 0] - traj.p_world_pelvis[0, 0])
-            covered = 100.0 * own.distance_m / plan if abs(plan) > 1e-3 else float("nan")
-            cells = []
-            for direction, steps in EROS_STEPS_MM.items():
-                for mm in steps:
-                    p = with_step(params, (1 if direction == "forward" else -1) * mm / 1000)
-                    try:
-                        m = summarize(sim.rollout(gaits.generate(p, robot.leg, sim.control_period)))
-                        cells.append(not m.fell)
-                    except (gaits.ParamError, gaits.UnreachableTargetError):
-                        cells.append(False)
-            rows.append({"set": label, "surface": surface.name, "cells": cells,
-                         "stability": 100.0 * sum(cells) / len(cells), "own": own, "covered": covered})
+    tasks = [(robot_name, surface, label, params) for label, params in sets for surface in surfaces]
+    if workers > 1 and len(tasks) > 1:
+        ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
+        with ctx.Pool(min(workers, len(tasks))) as pool:
+            rows = []
+            for row in pool.imap(_row, tasks):
+                rows.append(row)
+                if progress is not None:
+                    progress(1)
+    else:
+        rows = []
+        for task in tasks:
+            rows.append(_row(task))
+            if progress is not None:
+                progress(1)
     out_dir.mkdir(parents=True, exist_ok=True)
     lines = ["| set | surface | stability % | matrix fwd 0..24 / bwd 8..24 | pitch +- [deg] | pitch RMS [deg] "
              "| ZMP err x/y [cm] | speed [m/s] | covered % of plan | own walk |",
