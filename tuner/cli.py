@@ -227,7 +227,9 @@ def tune(study_file: str, trials: int | None, workers: int, storage: str | None,
     click.echo(f"study {spec.name}: {spec.gait} on {spec.robot} / {', '.join(spec.surfaces)} "
                f"({spec.aggregate if len(spec.surfaces) > 1 else 'single surface'}), "
                f"{total} trials, {workers} worker(s), storage {storage or journal}")
-    bar = tqdm(total=total, unit="trial", dynamic_ncols=True, mininterval=0.5)
+    # a terminal gets a live bar; a log file (CI, nohup) a line every 15 s rather than every poll
+    bar = tqdm(total=total, unit="trial", dynamic_ncols=True,
+               mininterval=0.5 if sys.stderr.isatty() else 15.0)
 
     def progress(study) -> None:
         done = study.get_trials(deepcopy=False, states=DONE_STATES)
@@ -237,8 +239,8 @@ def tune(study_file: str, trials: int | None, workers: int, storage: str | None,
             best = f"{best_trial(study).values[0]:.2f}"
         except KeyError:
             best = "-"
-        bar.set_postfix_str(f"best {best}, falls {falls}")
-        bar.refresh()
+        bar.set_postfix_str(f"best {best}, falls {falls}", refresh=False)
+        bar.update(0)                                  # prints when mininterval has passed
 
     try:
         study = run_study(spec, store, journal, total, workers, sampler_seed, progress)
