@@ -73,13 +73,18 @@ def _sets(specs: list[str], baselines: bool) -> list[tuple[str, gaits.GaitParams
 _CACHE: dict = {}
 
 
-def _row(task: tuple) -> dict:
-    """One (set, surface): its own walk and the 10 EROS grid walks (runs in a worker process)."""
-    robot_name, surface, label, params = task
+def _robot(robot_name: str):
+    """The robot, loaded once per process (forked workers inherit it)."""
     if _CACHE.get("robot_name") != robot_name:
         _CACHE.clear()
         _CACHE.update(robot_name=robot_name, robot=load_robot(robot_name), sims={})
-    robot = _CACHE["robot"]
+    return _CACHE["robot"]
+
+
+def _row(task: tuple) -> dict:
+    """One (set, surface): its own walk and the 10 EROS grid walks (runs in a worker process)."""
+    robot_name, surface, label, params = task
+    robot = _robot(robot_name)
     sims = _CACHE["sims"]
     if surface not in sims:
         sims[surface] = Simulator(robot, surface)            # built once per process, reused
@@ -111,7 +116,7 @@ def run_compare(specs: list[str], robot_name: str, surface_names: list[str], bas
                 progress: Callable[[int], None] | None = None) -> str:
     """Walk every set on every surface (``workers`` processes; the rows do not depend on it)
     and write the table and plots; ``progress(1)`` after each (set, surface)."""
-    load_robot(robot_name)                                    # a bad robot fails here, once
+    _robot(robot_name)                                        # a bad robot fails here, once
     surfaces = [load_surface(s) for s in surface_names]
     sets = _sets(specs, baselines)
     tasks = [(robot_name, surface, label, params) for label, params in sets for surface in surfaces]
