@@ -58,12 +58,13 @@ def trials_to_first_stable(spec, with_seed: bool, seed: int, max_trials: int,
 
 
 _SPEC = None
+_EVALUATOR = None
 
 
 def _walk(params: dict) -> None:
     """One trial's rollouts, no Optuna: the machine's own scaling for the same work."""
     global _EVALUATOR
-    if "_EVALUATOR" not in globals():
+    if _EVALUATOR is None:
         _EVALUATOR = Evaluator(_SPEC)
     try:
         params = _SPEC.params_for(params)

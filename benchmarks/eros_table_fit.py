@@ -62,8 +62,14 @@ def _cell(sim: Simulator, robot, p: gaits.ErosParams) -> str:
     return "r" if abs(tr.roll[-1]) > abs(tr.pitch[-1]) else "p"
 
 
+_ROBOT = None
+
+
 def objective(trial: optuna.Trial) -> int:
-    robot = load_robot("kidsize")
+    global _ROBOT
+    if _ROBOT is None:
+        _ROBOT = load_robot("kidsize")                  # once per process
+    robot = _ROBOT
     tmn = trial.suggest_float("t_mn_deg", 2.0, 6.0, log=True)
     shared = dict(stance_width=trial.suggest_float("stance", 0.09, 0.12),
                   hip_height=trial.suggest_float("hip", 0.19, 0.22),

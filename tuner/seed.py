@@ -379,6 +379,21 @@ class SeedProblem:
 SWING_CLEARANCE_MARGIN = 0.01
 
 
+#: each family's swing-foot lift parameter
+_LIFT_FIELD = {"tlipfm": "h_z", "eros": "foot_lift", "cosine": "swing_height"}
+
+
+def _clear_layer(params: gaits.GaitParams, layer_height: float) -> gaits.GaitParams:
+    """``params`` with the swing foot lifted ``SWING_CLEARANCE_MARGIN`` over the layer
+    (never lowered; clipped to the family's own bound for its lift)."""
+    if layer_height <= 0:
+        return params
+    name = _LIFT_FIELD[params.FAMILY]
+    hi = next(f.metadata["hi"] for f in dataclasses.fields(params) if f.name == name)
+    lift = min(layer_height + SWING_CLEARANCE_MARGIN, hi)
+    return params.replace(**{name: lift}) if lift > getattr(params, name) else params
+
+
 def seed_for(family: str, base: gaits.GaitParams, problem: SeedProblem | None = None,
              layer_height: float = 0.0) -> gaits.GaitParams:
     """The CasADi seed mapped onto a family's parameters (TLIPFM directly; EROS and cosine by
@@ -393,28 +408,18 @@ def seed_for(family: str, base: gaits.GaitParams, problem: SeedProblem | None = 
     """
     if layer_height < 0:
         raise ValueError(f"layer_height must be >= 0 m, got {layer_height!r}")
-    wanted = layer_height + SWING_CLEARANCE_MARGIN if layer_height > 0 else 0.0
-
-    def lift_of(cls: type, name: str) -> float:     # clipped to the family's own bound
-        hi = next(f.metadata["hi"] for f in dataclasses.fields(cls) if f.name == name)
-        return min(wanted, hi)
     if family == "tlipfm":
         assert isinstance(base, TlipfmParams)
         problem = problem or SeedProblem(base)
-        out = problem.solve(base.step_length, base.half_width).tlipfm
-        lift = lift_of(TlipfmParams, "h_z")
-        return out.replace(h_z=lift) if lift > out.h_z else out
+        return _clear_layer(problem.solve(base.step_length, base.half_width).tlipfm, layer_height)
     problem = problem or SeedProblem()
     if family == "eros":
         assert isinstance(base, ErosParams)
         res = problem.solve(step_length=abs(base.step_x) if base.step_x else 0.02,
                             half_width=base.stance_width / 2)
-        out = res.eros(base).replace(step_x=base.step_x)
-        lift = lift_of(ErosParams, "foot_lift")
-        return out.replace(foot_lift=lift) if lift > out.foot_lift else out
+        return _clear_layer(res.eros(base).replace(step_x=base.step_x), layer_height)
     if family == "cosine":
         assert isinstance(base, CosineLawParams)
         out = problem.solve(step_length=abs(base.step) or 0.02).cosine(base).replace(step=base.step)
-        lift = lift_of(CosineLawParams, "swing_height")
-        return out.replace(swing_height=lift) if lift > out.swing_height else out
+        return _clear_layer(out, layer_height)
     raise ValueError(f"unknown family {family!r}")
