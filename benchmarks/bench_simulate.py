@@ -20,7 +20,7 @@ import mujoco
 import numpy as np
 
 import gaits
-from tuner.robot import load_robot
+from tuner.robots import load_robot
 from tuner.simulate import Simulator
 from tuner.surfaces import SURFACES
 

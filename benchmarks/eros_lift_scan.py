@@ -24,7 +24,7 @@ import numpy as np
 import gaits
 from tuner import experiments as ex
 from tuner.metrics import summarize
-from tuner.robot import load_robot
+from tuner.robots import load_robot
 from tuner.simulate import Simulator
 from tuner.surfaces import SURFACES
 

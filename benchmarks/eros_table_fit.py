@@ -40,7 +40,7 @@ from optuna.storages.journal import JournalFileBackend
 
 import gaits
 from tuner import experiments as ex
-from tuner.robot import load_robot
+from tuner.robots import load_robot
 from tuner.simulate import Simulator
 from tuner.surfaces import SURFACES
 

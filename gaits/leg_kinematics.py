@@ -62,7 +62,7 @@ class UnreachableTargetError(ValueError):
 class LegGeometry:
     """Lengths the leg IK and the gait generators need (EROS Table 5 names in brackets).
 
-    Defaults are the built-in kid-size robot (52 cm, like EROS): see ``tuner.robot``.
+    Defaults are the built-in kid-size robot (52 cm, like EROS): see ``tuner.robots``.
     """
 
     hip_offset_y: float = 0.037    # [m] pelvis centre to each hip-joint centre, lateral (d_y1)

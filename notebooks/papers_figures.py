@@ -110,7 +110,7 @@ for a, b in zip(table1_hip, ang[:, 0]):
 from tuner import experiments as ex  # noqa: E402
 from tuner.metrics import summarize  # noqa: E402
 from tuner.plots import plot_pitch, plot_zmp  # noqa: E402
-from tuner.robot import load_robot  # noqa: E402
+from tuner.robots import load_robot  # noqa: E402
 from tuner.simulate import Simulator  # noqa: E402
 from tuner.surfaces import SURFACES  # noqa: E402
 

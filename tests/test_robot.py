@@ -9,7 +9,7 @@ import gaits
 from gaits import JOINT_NAMES
 from tuner.errors import UserError
 from tuner.metrics import summarize
-from tuner.robot import RobotSpec, kidsize_xml, load_robot
+from tuner.robots import RobotSpec, kidsize_xml, load_robot
 from tuner.simulate import Simulator
 from tuner.surfaces import SURFACES
 

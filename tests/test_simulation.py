@@ -7,7 +7,7 @@ import pytest
 
 import gaits
 from tuner.metrics import summarize
-from tuner.robot import load_robot
+from tuner.robots import load_robot
 from tuner.simulate import Simulator
 from tuner.surfaces import SURFACES, Surface
 

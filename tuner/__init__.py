@@ -8,7 +8,7 @@ from __future__ import annotations
 from .errors import UserError
 from .metrics import DEFINITIONS, Metrics, summarize
 from .params_io import resolve_params
-from .robot import RobotModel, RobotSpec, ServoSpec, load_robot
+from .robots import RobotModel, RobotSpec, ServoSpec, load_robot
 from .simulate import FallCriteria, Simulator, Trace
 from .surfaces import SURFACES, Surface, load_surface
 

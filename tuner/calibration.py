@@ -20,7 +20,7 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
 from . import experiments as ex
-from .robot import load_robot
+from .robots import load_robot
 from .surfaces import SURFACES
 
 __all__ = ["DEFAULT_GRID", "HEEL_GAINS", "Candidate", "evaluate", "calibrate"]

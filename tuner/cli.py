@@ -93,7 +93,7 @@ def simulate(robot_name: str, surface_name: str, family: str | None, params_spec
     import json
 
     from .metrics import DEFINITIONS, summarize
-    from .robot import load_robot
+    from .robots import load_robot
     from .simulate import Simulator
     from .surfaces import load_surface
 
@@ -148,7 +148,7 @@ def experiment(paper: str, robot_name: str, surface_name: str, lift_scale: float
     from tqdm import tqdm
 
     from . import experiments as ex
-    from .robot import load_robot
+    from .robots import load_robot
     from .surfaces import SURFACES, load_surface
 
     robot = load_robot(robot_name)
@@ -297,7 +297,7 @@ def export(study_file: str, storage: str | None, runs_dir: Path, number: int | N
             + ("" if not trial_fell(t) else " (fell)")
             + f"; surfaces {', '.join(spec.surfaces)}; robot {spec.robot}")
     gaits.save_gait_file(out, params, desc)
-    from .robot import load_robot
+    from .robots import load_robot
     robot = load_robot(spec.robot)
     table = gaits.generate(params, robot.leg, 0.01).to_csv(out.with_suffix(".joints.csv"))
     click.echo(f"trial {t.number} (score {t.values[0]:.4f}) -> {out} and {table}")

@@ -27,7 +27,7 @@ import gaits  # noqa: E402
 from .experiments import EROS_STEPS_MM  # noqa: E402
 from .metrics import summarize  # noqa: E402
 from .params_io import resolve_params  # noqa: E402
-from .robot import load_robot  # noqa: E402
+from .robots import load_robot  # noqa: E402
 from .simulate import Simulator  # noqa: E402
 from .surfaces import load_surface  # noqa: E402
 

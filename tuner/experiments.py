@@ -16,7 +16,7 @@ import gaits
 from gaits import ErosParams, load_baseline
 
 from .metrics import Metrics, summarize
-from .robot import RobotModel
+from .robots import RobotModel
 from .simulate import Simulator
 from .surfaces import Surface
 

@@ -46,7 +46,7 @@ import gaits
 from gaits import ParamError, UnreachableTargetError
 
 from .metrics import summarize
-from .robot import load_robot
+from .robots import load_robot
 from .simulate import Simulator
 from .study import StudySpec
 from .surfaces import load_surface

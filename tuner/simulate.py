@@ -24,7 +24,7 @@ import numpy as np
 from gaits import JOINT_NAMES, GaitTrajectory
 
 from .centre_of_pressure import centre_of_pressure
-from .robot import RobotModel
+from .robots import RobotModel
 from .surfaces import Surface
 
 __all__ = ["FallCriteria", "Trace", "Simulator"]

@@ -40,7 +40,7 @@ import yaml
 from gaits import JOINT_NAMES, LegGeometry
 from gaits.leg_kinematics import LEG_JOINTS
 
-from .errors import UserError
+from ..errors import UserError
 
 __all__ = ["ServoSpec", "RobotSpec", "RobotModel", "kidsize_spec", "kidsize_xml", "load_robot",
            "BUILTIN_ROBOTS", "LEG_AXES", "leg_geometry_report"]
