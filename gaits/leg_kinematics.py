@@ -63,6 +63,13 @@ class LegGeometry:
     """Lengths the leg IK and the gait generators need (EROS Table 5 names in brackets).
 
     Defaults are the built-in kid-size robot (52 cm, like EROS): see ``tuner.robots``.
+
+    The last four fields are ours, not the paper's: where a robot's CoM and sole centre sit
+    relative to its pelvis and ankle (read off a user's MJCF by ``tuner.robots``). The
+    generators plan the CoM and the sole centres; :func:`gaits.trajectory.assemble` shifts the
+    pelvis and the IK's ankle targets by these offsets, so a robot whose CoM sits behind its
+    hips, or whose sole centre lies ahead of its ankle, does not walk leaning. All zero for a
+    robot built like EROS.
     """
 
     hip_offset_y: float = 0.037    # [m] pelvis centre to each hip-joint centre, lateral (d_y1)
@@ -71,8 +78,16 @@ class LegGeometry:
     shank: float = 0.110           # [m] knee axis to ankle pitch axis (d_z4)
     ankle_height: float = 0.035    # [m] ankle roll axis to sole (d_z6)
     com_above_pelvis: float = 0.020  # [m] CoM height above the pelvis origin, upright pose
+    com_forward: float = 0.0       # [m] CoM ahead of the pelvis origin at the walking crouch (ours)
+    com_lateral: float = 0.0       # [m] CoM left of the pelvis origin (ours)
+    sole_forward: float = 0.0      # [m] sole centre ahead of the ankle axes (ours)
+    sole_outward: float = 0.0      # [m] sole centre outboard of the ankle axes, mirrored per side (ours)
 
     def __post_init__(self) -> None:
+        for name in ("com_forward", "com_lateral", "sole_forward", "sole_outward"):
+            value = getattr(self, name)
+            if not (-0.1 <= value <= 0.1):
+                raise ParamError(f"leg.{name} = {value!r} m is out of range [-0.1, 0.1] m")
         for name in ("thigh", "shank", "ankle_height"):
             value = getattr(self, name)
             if not (0.0 < value < 1.0):
@@ -88,6 +103,15 @@ class LegGeometry:
     def hip_in_pelvis(self, side: int) -> np.ndarray:
         """Hip-joint centre in the pelvis frame; side = +1 left, -1 right."""
         return np.array([0.0, side * self.hip_offset_y, -self.hip_offset_z])
+
+    def sole_in_ankle(self, side: int) -> np.ndarray:
+        """Sole centre relative to the point of the sole straight below the ankle [m] (3,)."""
+        return np.array([self.sole_forward, side * self.sole_outward, 0.0])
+
+    @property
+    def com_in_pelvis(self) -> np.ndarray:
+        """CoM relative to the pelvis origin [m] (3,)."""
+        return np.array([self.com_forward, self.com_lateral, self.com_above_pelvis])
 
 
 def rot_x(a: np.ndarray) -> np.ndarray:

@@ -150,10 +150,13 @@ def assemble(family: str, t: np.ndarray, leg: LegGeometry, *,
                       ("p_world_foot_r", p_world_foot_r)):
         if np.shape(arr) != (n, 3):
             raise ValueError(f"{name} must have shape ({n}, 3) to match t, got {np.shape(arr)}")
-    p_world_com = p_world_pelvis + np.array([0.0, 0.0, leg.com_above_pelvis])
+    # The family's pelvis path is where it wants the CoM (horizontally): the pelvis itself is
+    # moved by the robot's CoM offset, and each ankle by its sole offset (LegGeometry, ours).
+    p_world_pelvis = np.asarray(p_world_pelvis, dtype=float) - np.array([leg.com_forward, leg.com_lateral, 0.0])
+    p_world_com = p_world_pelvis + leg.com_in_pelvis
     q = np.zeros((n, len(JOINT_NAMES)))
-    q_l = leg_ik(p_world_foot_l - p_world_pelvis, 0.0, leg, "left", t=t)
-    q_r = leg_ik(p_world_foot_r - p_world_pelvis, 0.0, leg, "right", t=t)
+    q_l = leg_ik(p_world_foot_l - leg.sole_in_ankle(1) - p_world_pelvis, 0.0, leg, "left", t=t)
+    q_r = leg_ik(p_world_foot_r - leg.sole_in_ankle(-1) - p_world_pelvis, 0.0, leg, "right", t=t)
     if ankle_pitch_offset is not None:
         off = np.asarray(ankle_pitch_offset, dtype=float)
         if off.shape != (n, 2):

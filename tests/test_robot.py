@@ -62,12 +62,12 @@ def test_bring_your_own_robot_walks_like_the_builtin(tmp_path):
 
 @pytest.mark.parametrize("edit,match", [
     (lambda m: m.replace("  l_knee: J_l_knee\n", ""), "leg joints missing from the map: l_knee"),
-    (lambda m: m.replace("l_knee: J_l_knee", "l_knee: J_l_kne"), "joint l_knee: 'J_l_kne' is not a joint"),
+    (lambda m: m.replace("l_knee: J_l_knee", "l_knee: J_l_kne"), "joints.l_knee: 'J_l_kne' is not a joint"),
     (lambda m: m.replace("l_knee: J_l_knee", "l_knee: TMP").replace("l_hip_roll: J_l_hip_roll", "l_hip_roll: J_l_knee")
      .replace("l_knee: TMP", "l_knee: J_l_hip_roll"),
-     r"joint l_hip_roll: 'J_l_knee' turns about \[0.0, -1.0, 0.0\] in the torso frame; a hip_roll joint"),
+     r"joints.l_hip_roll and joints.l_hip_pitch look swapped"),
     (lambda m: m.replace("l_knee: J_l_knee", "l_knee: {name: J_l_knee, sign: 1}"),
-     "sign 1 contradicts the axis of 'J_l_knee'"),
+     "joints.l_knee.sign = 1 contradicts the axis of 'J_l_knee'"),
     (lambda m: m.replace("r_knee: J_r_knee", "r_knee: J_l_knee"), "mapped twice: J_l_knee"),
     (lambda m: m + "  l_toe: J_l_knee\n", "unknown joint 'l_toe'"),
 ])

@@ -89,7 +89,7 @@ def test_servo_speed_limit_makes_fast_gaits_lag():
     lag = np.abs(trace.q_cmd - trace.q_ref)
     assert lag.max() > 0.05                                   # the commanded targets could not keep up
     rate = np.abs(np.diff(trace.q_cmd, axis=0)) / sim.control_period
-    assert rate.max() <= ROBOT.leg_servo.speed + 1e-9
+    assert rate.max() <= ROBOT.servo_of("l_knee").speed + 1e-9
 
 
 def test_diverging_simulation_ends_with_a_reason():

@@ -15,6 +15,7 @@ sensors per sole; the measured ZMP is their centre of pressure.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -24,7 +25,8 @@ import numpy as np
 from gaits import JOINT_NAMES, GaitTrajectory
 
 from .centre_of_pressure import centre_of_pressure
-from .robots import RobotModel
+from .robots import RobotModel, SimOptions, build_scene
+from .robots.scene import CORNERS
 from .surfaces import Surface
 
 __all__ = ["FallCriteria", "Trace", "Simulator"]
@@ -88,158 +90,67 @@ def _quat_pitch_roll(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 class Simulator:
     """One compiled MuJoCo model of a robot on a surface, reused across rollouts."""
 
-    def __init__(self, robot: RobotModel, surface: Surface, *, control_period: float = 0.01,
-                 timestep: float = 0.002, fall: FallCriteria = FallCriteria()) -> None:
+    def __init__(self, robot: RobotModel, surface: Surface, *, control_period: float | None = None,
+                 timestep: float | None = None, fall: FallCriteria | None = None) -> None:
         self.robot = robot
         self.surface = surface
-        self.fall = fall
-        self.control_period = control_period
-        self.nstep = int(round(control_period / timestep))
-        if self.nstep < 1 or abs(self.nstep * timestep - control_period) > 1e-9:
-            raise ValueError(f"control_period {control_period} s must be a multiple of timestep {timestep} s")
-        spec = robot.spec()
-        self._build(spec, timestep)
+        opts = robot.sim
+        if control_period is not None or timestep is not None:
+            opts = SimOptions(control_period=opts.control_period if control_period is None else control_period,
+                              timestep=opts.timestep if timestep is None else timestep,
+                              max_tilt_deg=opts.max_tilt_deg, min_height_ratio=opts.min_height_ratio)
+            robot = dataclasses.replace(robot, sim=opts)
+        self.fall = fall if fall is not None else FallCriteria(math.radians(opts.max_tilt_deg), opts.min_height_ratio)
+        self.control_period = opts.control_period
+        self.nstep = int(round(opts.control_period / opts.timestep))
+        spec, self.layout = build_scene(robot, surface)
+        self.spec = spec
         self.model = spec.compile()
         self.data = mujoco.MjData(self.model)
         self._index()
 
-    # --- model assembly ------------------------------------------------------------
-    def _build(self, spec: mujoco.MjSpec, timestep: float) -> None:
-        r, s = self.robot, self.surface
-        spec.option.timestep = timestep
-        spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-        for g in list(spec.worldbody.geoms):           # the robot file's own floor, if any
-            if g.type == mujoco.mjtGeom.mjGEOM_PLANE:
-                spec.delete(g)
-        for a in list(spec.actuators):                 # our servo model replaces the file's actuators
-            spec.delete(a)
-        for sn in list(spec.sensors):
-            spec.delete(sn)
-        soil = spec.worldbody.add_geom(name="soil", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05])
-        soil.friction = [s.soil_friction, 0.005, 0.0001]
-        soil.priority = 2
-        soil.contype = 0
-        soil.conaffinity = 1
-        soil.rgba = [0.45, 0.35, 0.25, 1]
-        if not s.rigid:
-            layer = spec.worldbody.add_geom(name="layer", type=mujoco.mjtGeom.mjGEOM_PLANE,
-                                            size=[0, 0, 0.05])
-            layer.margin = s.layer_height
-            layer.friction = [s.friction, 0.005, 0.0001]
-            layer.solref = [s.layer_timeconst, s.layer_dampratio]
-            layer.solimp = [s.layer_dmin, s.layer_dmax, s.layer_height, 0.5, 2.0]
-            layer.priority = 2
-            layer.contype = 0
-            layer.conaffinity = 1
-            layer.group = 1
-            layer.rgba = [0.2, 0.6, 0.2, 0.3]
-        torso = spec.body(r.torso)
-        torso.add_site(name="imu", pos=[0, 0, 0.05])
-        fl, fw = r.foot_size
-        depth = s.layer_height + 0.03
-        for side, fname, sole in zip("lr", r.feet, r.soles):
-            foot = spec.body(fname)
-            foot.add_site(name=f"{side}_sole", pos=list(sole))
-            pad = 0.005       # reach past the sole's edge so corner contacts are not lost
-            for k, (sx, sy) in enumerate(((1, 1), (1, -1), (-1, 1), (-1, -1))):
-                foot.add_site(name=f"{side}_touch{k}", type=mujoco.mjtGeom.mjGEOM_BOX,
-                              pos=[sole[0] + sx * (fl / 4 + pad / 2), sole[1] + sy * (fw / 4 + pad / 2),
-                                   sole[2] - depth / 2 + 0.004],
-                              size=[fl / 4 + pad / 2, fw / 4 + pad / 2, depth / 2 + 0.004], group=4)
-        # joints: armature, damping and friction of the servos; actuators for every mapped joint
-        self.joint_names = tuple(n for n in JOINT_NAMES if n in r.joint_map)
-        for ours in self.joint_names:
-            theirs, _ = r.joint_map[ours]
-            servo = r.leg_servo if ours[2:] in ("hip_yaw", "hip_roll", "hip_pitch", "knee",
-                                                "ankle_pitch", "ankle_roll") else r.arm_servo
-            j = spec.joint(theirs)
-            j.armature = servo.armature
-            j.damping = [servo.damping, 0.0, 0.0]
-            j.frictionloss = servo.frictionloss
-            act = spec.add_actuator(name=f"act_{ours}", target=theirs,
-                                    trntype=mujoco.mjtTrn.mjTRN_JOINT)
-            act.set_to_position(kp=servo.kp, kv=servo.kv)
-            act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
-            act.forcerange = [-servo.torque, servo.torque]
-        # in-layer drag: per sole corner, a damper along world x and y (site transmission with a
-        # world reference site): force = -drag * v * ctrl, computed by MuJoCo every physics step and
-        # integrated implicitly (implicitfast), so it is stable at any drag; ctrl gates it per tick
-        # to the corners that are inside the layer.
-        self._drag_names = []
-        if s.drag > 0.0:
-            spec.worldbody.add_site(name="drag_ref", pos=[0, 0, 0])
-            for side, fname, sole in zip("lr", r.feet, r.soles):
-                foot = spec.body(fname)
-                for k, (sx, sy) in enumerate(((1, 1), (1, -1), (-1, 1), (-1, -1))):
-                    site = f"{side}_corner{k}"
-                    foot.add_site(name=site, pos=[sole[0] + sx * fl / 2, sole[1] + sy * fw / 2, sole[2]],
-                                  group=4)
-                    for axis, gear in (("x", [1, 0, 0, 0, 0, 0]), ("y", [0, 1, 0, 0, 0, 0])):
-                        act = spec.add_actuator(name=f"drag_{site}_{axis}", target=site, refsite="drag_ref",
-                                                trntype=mujoco.mjtTrn.mjTRN_SITE)
-                        act.set_to_damper(kv=s.drag)
-                        act.gear = gear
-                        act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
-                        act.ctrlrange = [0.0, 1.0]
-                        self._drag_names.append(act.name)
-        # sensors, in this order (offsets below)
-        add = spec.add_sensor
-        add(name="imu_quat", type=mujoco.mjtSensor.mjSENS_FRAMEQUAT, objtype=mujoco.mjtObj.mjOBJ_SITE,
-            objname="imu")
-        add(name="imu_pos", type=mujoco.mjtSensor.mjSENS_FRAMEPOS, objtype=mujoco.mjtObj.mjOBJ_SITE,
-            objname="imu")
-        add(name="com", type=mujoco.mjtSensor.mjSENS_SUBTREECOM, objtype=mujoco.mjtObj.mjOBJ_BODY,
-            objname=r.torso)
-        for side in "lr":
-            add(name=f"{side}_sole_pos", type=mujoco.mjtSensor.mjSENS_FRAMEPOS,
-                objtype=mujoco.mjtObj.mjOBJ_SITE, objname=f"{side}_sole")
-        for side in "lr":
-            for k in range(4):
-                add(name=f"{side}_touch{k}", type=mujoco.mjtSensor.mjSENS_TOUCH,
-                    objtype=mujoco.mjtObj.mjOBJ_SITE, objname=f"{side}_touch{k}")
-        for side in "lr":
-            for k in range(4):
-                add(name=f"{side}_touch{k}_pos", type=mujoco.mjtSensor.mjSENS_FRAMEPOS,
-                    objtype=mujoco.mjtObj.mjOBJ_SITE, objname=f"{side}_touch{k}")
-        for ours in self.joint_names:
-            add(name=f"q_{ours}", type=mujoco.mjtSensor.mjSENS_ACTUATORPOS,
-                objtype=mujoco.mjtObj.mjOBJ_ACTUATOR, objname=f"act_{ours}")
-        for ours in self.joint_names:
-            add(name=f"tau_{ours}", type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
-                objtype=mujoco.mjtObj.mjOBJ_ACTUATOR, objname=f"act_{ours}")
-
     def _index(self) -> None:
-        m, r = self.model, self.robot
-        n = len(self.joint_names)
-        o = 0
-        self._s_quat = slice(o, o + 4); o += 4
-        self._s_pos = slice(o, o + 3); o += 3
-        self._s_com = slice(o, o + 3); o += 3
-        self._s_sole = slice(o, o + 6); o += 6
-        self._s_touch = slice(o, o + 8); o += 8
-        self._s_touchpos = slice(o, o + 24); o += 24
-        self._s_q = slice(o, o + n); o += n
-        self._s_tau = slice(o, o + n); o += n
+        m, r, lay = self.model, self.robot, self.layout
+        self.joint_names = lay.servo_joints
+        o, blocks = 0, {}
+        for name, width in lay.sensors:
+            blocks[name] = slice(o, o + width)
+            o += width
         assert o == m.nsensordata, (o, m.nsensordata)
+        self._s_quat, self._s_pos, self._s_com = blocks["quat"], blocks["pos"], blocks["com"]
+        self._s_sole, self._s_touch, self._s_touchpos = blocks["sole"], blocks["touch"], blocks["touchpos"]
+        self._s_q, self._s_tau = blocks["q"], blocks["tau"]
         self._torso = m.body(r.torso).id
         self._feet = np.array([m.body(f).id for f in r.feet])
-        self._roots = m.body_rootid[self._feet]
+        theirs = [r.joint_map[j][0] for j in self.joint_names]
         self._sign = np.array([r.joint_map[j][1] for j in self.joint_names], dtype=float)
-        self._qadr = np.array([m.jnt_qposadr[m.joint(r.joint_map[j][0]).id] for j in self.joint_names])
-        jr = np.array([m.jnt_range[m.joint(r.joint_map[j][0]).id] for j in self.joint_names])
-        limited = np.array([m.jnt_limited[m.joint(r.joint_map[j][0]).id] for j in self.joint_names], bool)
+        # non-leg joints move about their held pose (the gait's arm and head columns are offsets)
+        self._offset = np.array([r.pose.get(t, 0.0) for t in theirs])
+        self._qadr = np.array([m.jnt_qposadr[m.joint(t).id] for t in theirs])
+        held = lay.held_joints
+        self._held_qadr = np.array([m.jnt_qposadr[m.joint(t).id] for t in held], dtype=int)
+        self._held_pose = np.array([r.pose.get(t, 0.0) for t in held])
+        jr = np.array([m.jnt_range[m.joint(t).id] for t in theirs])
+        limited = np.array([m.jnt_limited[m.joint(t).id] for t in theirs], bool)
         self._q_lo = np.where(limited, jr[:, 0], -np.inf)
         self._q_hi = np.where(limited, jr[:, 1], np.inf)
-        speeds = np.array([(r.leg_servo if j[2:] in ("hip_yaw", "hip_roll", "hip_pitch", "knee",
-                                                     "ankle_pitch", "ankle_roll") else r.arm_servo).speed
-                           for j in self.joint_names])
+        speeds = np.array([r.servos[t].speed for t in theirs])
         self._max_step = speeds * self.control_period
         fl, fw = r.foot_size
-        corners = np.array([[sx * fl / 2, sy * fw / 2, 0.0] for sx in (1, -1) for sy in (1, -1)])
+        corners = np.array([[sx * fl / 2, sy * fw / 2, 0.0] for sx, sy in CORNERS])
         self._corners = np.stack([corners + np.array(s) for s in r.soles])      # (2, 4, 3) in foot frame
         self._corners_T = np.ascontiguousarray(self._corners.transpose(0, 2, 1))  # (2, 3, 4)
         self._col_in_gait = np.array([JOINT_NAMES.index(j) for j in self.joint_names])
         self._n_servo = len(self.joint_names)
+        self._n_act = self._n_servo + len(held)
+
+    def to_robot(self, q_gait: np.ndarray) -> np.ndarray:
+        """Joint targets in gait-tuner order and signs (..., 20) -> the robot's servos (..., n)."""
+        return np.asarray(q_gait, dtype=float)[..., self._col_in_gait] * self._sign + self._offset
+
+    def from_robot(self, q: np.ndarray) -> np.ndarray:
+        """The robot's servo angles (..., n) -> gait-tuner signs (..., n), columns ``joint_names``."""
+        return (np.asarray(q, dtype=float) - self._offset) * self._sign
 
     # --- one rollout ---------------------------------------------------------------
     def _lowest_sole_z(self) -> float:
@@ -255,6 +166,8 @@ class Simulator:
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
         d.qpos[self._qadr] = q0
+        d.qpos[self._held_qadr] = self._held_pose
+        d.ctrl[self._n_servo:self._n_act] = self._held_pose
         d.qpos[0:3] = [xy[0], xy[1], 1.0]
         d.qpos[3:7] = [1.0, 0.0, 0.0, 0.0]
         d.qpos[2] = 1.0 - self._lowest_sole_z() + self.surface.layer_height + 0.0005
@@ -271,7 +184,7 @@ class Simulator:
         Returns the trace (time from the release).
         """
         m, d = self.model, self.data
-        q0 = np.asarray(q0, dtype=float)[self._col_in_gait] * self._sign
+        q0 = self.to_robot(q0)
         self._place(q0, np.zeros(2))
         d.qpos[3:7] = [math.cos(pitch / 2), 0.0, math.sin(pitch / 2), 0.0]
         d.qpos[2] += self.surface.layer_height + drop - self._lowest_sole_z()
@@ -307,7 +220,7 @@ class Simulator:
         R = d.xmat[self._feet].reshape(2, 3, 3)
         pz = d.xpos[self._feet, 2:3] + (R @ self._corners_T)[:, 2, :]      # (2, 4) corner heights
         inside = (pz < self.surface.layer_height).astype(float).ravel()
-        d.ctrl[self._n_servo:] = np.repeat(inside, 2)                       # x and y per corner
+        d.ctrl[self._n_act:] = np.repeat(inside, 2)                       # x and y per corner
 
     def rollout(self, traj: GaitTrajectory, *, duration: float | None = None) -> Trace:
         """Play a gait's joint table on the robot; stop at the end, a fall, or divergence."""
@@ -315,7 +228,7 @@ class Simulator:
             raise ValueError(f"the joint table's dt ({traj.dt:g} s) must equal the control period "
                              f"({self.control_period:g} s)")
         m, d = self.model, self.data
-        q_ref = traj.q_ref[:, self._col_in_gait] * self._sign        # into the robot's joint signs
+        q_ref = self.to_robot(traj.q_ref)                            # into the robot's joints
         n_ticks = len(traj.t)
         if duration is not None:
             n_ticks = min(n_ticks, int(round(duration / self.control_period)) + 1)
@@ -382,7 +295,8 @@ class Simulator:
                      p_sole_r=sens[:, self._s_sole][:, 3:], force=force, p_touch=p_touch, zmp=zmp,
                      zmp_ref=traj.p_world_zmp_ref[:k], zmp_local=zmp - anchor,
                      zmp_ref_local=traj.p_world_zmp_ref[:k] - anchor_ref, support=traj.support[:k],
-                     q=sens[:, self._s_q] * self._sign, q_cmd=cmds * self._sign, q_ref=q_ref * self._sign,
+                     q=self.from_robot(sens[:, self._s_q]), q_cmd=self.from_robot(cmds),
+                     q_ref=self.from_robot(q_ref),
                      tau=sens[:, self._s_tau] * self._sign, joint_names=self.joint_names, fell=fell,
                      t_fall=t_fall, p_fall=p_fall, reason=reason, walk_start=walk_start,
                      cycle_time=float(traj.meta.get("cycle_time", 1.0)),

@@ -30,13 +30,13 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, Mapping
 
-import yaml
 
 from gaits import GaitParams, family_class
 
 from .errors import UserError
 from .params_io import resolve_params
 from .surfaces import SURFACES, load_surface
+from .yaml_input import read_yaml_file
 
 __all__ = ["ParamRange", "StudySpec", "load_study", "STUDY_DIR", "list_studies", "OBJECTIVES"]
 
@@ -104,10 +104,7 @@ def load_study(path_or_name: str) -> StudySpec:
     if not path.is_file():
         _fail(source, "no such study file (shipped studies: "
               + ", ".join(p.stem for p in list_studies()) + ")")
-    try:
-        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except yaml.YAMLError:
-        _fail(source, "not valid YAML")
+    doc = read_yaml_file(path, "study")
     if not isinstance(doc, Mapping):
         _fail(source, "expected a mapping of study keys")
     for key in doc:

@@ -32,11 +32,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
 
-import yaml
 
 from gaits.params import GaitParams, ParamError, param
 
 from .errors import UserError
+from .yaml_input import read_yaml_file
 
 __all__ = ["Surface", "SURFACES", "load_surface", "surface_names"]
 
@@ -100,10 +100,7 @@ def load_surface(name_or_path: str) -> Surface:
     if not path.exists():
         raise UserError(f"--surface {name_or_path!r}: not a built-in surface "
                         f"({', '.join(SURFACES)}) and no such file")
-    try:
-        doc: Any = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except yaml.YAMLError:
-        raise UserError(f"{path}: not valid YAML") from None
+    doc: Any = read_yaml_file(path, "surface")
     if not isinstance(doc, Mapping):
         raise UserError(f"{path}: expected a mapping of surface fields")
     known = [row["name"] for row in Surface.field_table()]

@@ -1,0 +1,167 @@
+"""Third-party-style robot files, written here for the tests (not copied from any collection).
+
+A 20-DoF kid-size humanoid of ~0.5 m and ~3 kg built the way public MJCFs often are, and
+unlike our built-in robot: hinge anchors away from the axis intersections (each joint sits
+at its own link's origin, offset along and across the axes), a file ``<default>`` with
+position-actuator settings (``ctrlrange``, ``forcerange``, ``kp``) and joint damping/armature,
+a site called ``imu`` and a sensor called ``imu_quat``, a keyframe sized for its own 20
+actuators, mirrored joint axes on the right leg, a torso whose CoM sits behind the hips, its
+own servo numbers (kp 21, 5 N m), and feet of two boxes or of two capsules.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+LEG = ("hip_yaw", "hip_roll", "hip_pitch", "knee", "ankle_pitch", "ankle_roll")
+ARM = ("sho_pitch", "sho_roll", "elbow")
+
+
+def joint_name(kind: str, side: str) -> str:
+    """The file's naming: ``HipYaw_L`` and so on."""
+    return "".join(w.capitalize() for w in kind.split("_")) + "_" + side.upper()
+
+
+def mjcf(feet: str = "two_box", torso_com_x: float = -0.015, kp: float = 21.1, torque: float = 5.0,
+         key_ctrl: int = 20, swap_lr: bool = False) -> str:
+    """The MJCF text. ``feet``: "two_box" or "capsule"."""
+    def foot(s: int) -> str:
+        if feet == "two_box":
+            return (f'<geom class="foot" pos="0.024 {s * 0.013:.4f} -0.0265" size="0.0635 0.028 0.004"/>\n'
+                    f'          <geom class="foot" pos="0.024 {s * 0.0125:.4f} -0.0265" size="0.057 0.039 0.004"/>')
+        if feet == "capsule":
+            return (f'<geom class="foot" type="capsule" fromto="-0.035 {s * 0.038:.4f} -0.0225 0.08 {s * 0.038:.4f} -0.0225" size="0.01"/>\n'
+                    f'          <geom class="foot" type="capsule" fromto="-0.035 {s * -0.016:.4f} -0.0225 0.08 {s * -0.016:.4f} -0.0225" size="0.01"/>')
+        raise ValueError(feet)
+
+    def leg(side: str, s: int) -> str:
+        n = {k: joint_name(k, side) for k in LEG}
+        return f"""
+    <body name="hip_yaw_link_{side}" pos="0 {s * 0.035} 0">
+      <inertial pos="-0.0016 0 -0.0077" mass="0.012" diaginertia="4e-6 4e-6 1.5e-6"/>
+      <joint name="{n['hip_yaw']}" axis="0 0 -1" range="-1 1"/>
+      <body name="hip_roll_link_{side}" pos="-0.024 0 -0.0285">
+        <inertial pos="0.004 0 -0.012" mass="0.18" diaginertia="1.2e-4 1.1e-4 4.7e-5"/>
+        <joint name="{n['hip_roll']}" axis="-1 0 0" range="-0.8 0.8"/>
+        <body name="thigh_{side}" pos="0.0241 {s * 0.019} 0">
+          <inertial pos="0.0006 {-s * 0.019} -0.084" mass="0.115" diaginertia="1.05e-4 9.6e-5 2.5e-5"/>
+          <joint name="{n['hip_pitch']}" axis="0 {s} 0" range="-2 2"/>
+          <geom class="collision" type="capsule" fromto="0 {-s * 0.019} -0.02 0 {-s * 0.019} -0.09" size="0.02"/>
+          <body name="shank_{side}" pos="0 0 -0.11015">
+            <inertial pos="0 {-s * 0.0215} -0.055" mass="0.04" diaginertia="3.7e-5 2.8e-5 1.5e-5"/>
+            <joint name="{n['knee']}" axis="0 {s} 0" range="-2.6 2.6"/>
+            <body name="ankle_link_{side}" pos="0 0 -0.11">
+              <inertial pos="-0.02 {-s * 0.0187} 0.012" mass="0.18" diaginertia="1.2e-4 1.1e-4 4.7e-5"/>
+              <joint name="{n['ankle_pitch']}" axis="0 {-s} 0" range="-1.5 1.5"/>
+              <body name="foot_{side}" pos="-0.0241 {-s * 0.019} 0">
+                <inertial pos="0.024 {s * 0.0104} -0.0276" mass="0.07" diaginertia="1.2e-4 8.5e-5 4e-5"/>
+                <joint name="{n['ankle_roll']}" axis="1 0 0" range="-0.8 0.8"/>
+                {foot(s)}
+              </body>
+            </body>
+          </body>
+        </body>
+      </body>
+    </body>"""
+
+    def arm(side: str, s: int) -> str:
+        n = {k: joint_name(k, side) for k in ARM}
+        return f"""
+    <body name="shoulder_{side}" pos="-0.001 {s * 0.06} 0.111">
+      <inertial pos="0 {s * 0.008} -0.002" mass="0.012" diaginertia="4e-6 3.6e-6 1.7e-6"/>
+      <joint name="{n['sho_pitch']}" axis="0 {s} 0" range="-3.1 3.1"/>
+      <body name="upper_arm_{side}" pos="0.019 {s * 0.0285} -0.01">
+        <inertial pos="-0.018 {s * 0.045} 0" mass="0.178" diaginertia="2.3e-4 2.2e-4 3e-5"/>
+        <joint name="{n['sho_roll']}" axis="-1 0 0" range="-2 2"/>
+        <geom class="collision" type="capsule" fromto="-0.018 {s * 0.01} 0 -0.018 {s * 0.08} 0" size="0.015"/>
+        <body name="forearm_{side}" pos="0 {s * 0.0904} 0">
+          <inertial pos="-0.019 {s * 0.07} 0.004" mass="0.041" diaginertia="6.9e-5 6.2e-5 1.2e-5"/>
+          <joint name="{n['elbow']}" axis="1 0 0" range="-2.5 2.5"/>
+        </body>
+      </body>
+    </body>"""
+
+    legs = leg("l", 1) + leg("r", -1)
+    if swap_lr:      # the right leg's bodies named as the left and the other way round
+        legs = legs.replace("_l\"", "_TMP\"").replace("_r\"", "_l\"").replace("_TMP\"", "_r\"")
+    names = [joint_name("head_pan", "c"), joint_name("head_tilt", "c")]
+    names += [joint_name(k, s) for s in "lr" for k in ARM] + [joint_name(k, s) for s in "lr" for k in LEG]
+    actuators = "\n".join(f'    <position name="{j}_act" joint="{j}"/>' for j in names)
+    arms_down = {"sho_roll": 1.25}
+    qpos = ["0 0 0.3 1 0 0 0", "0 0"]
+    for s, sign in (("l", 1), ("r", -1)):
+        qpos.append(" ".join(f"{sign * arms_down.get(k, 0.0):g}" for k in ARM))
+    qpos.append(" ".join(["0"] * 12))
+    ctrl = " ".join(["0"] * key_ctrl)
+    return f"""<mujoco model="third_party_kid">
+  <compiler angle="radian" autolimits="true"/>
+  <option timestep="0.005"/>
+  <default>
+    <joint damping="1.084" armature="0.045" frictionloss="0.03"/>
+    <position kp="{kp}" ctrlrange="-3.141592 3.141592" forcerange="-{torque} {torque}"/>
+    <geom margin="0.001" solref="0.004 1"/>
+    <site group="5" type="sphere" size="0.01"/>
+    <default class="collision">
+      <geom group="3"/>
+      <default class="foot">
+        <geom mass="0" type="box"/>
+      </default>
+    </default>
+  </default>
+  <worldbody>
+    <geom name="floor" type="plane" size="2 2 0.1"/>
+    <body name="body_link" pos="0 0 0.3">
+      <inertial pos="{torso_com_x} 0.0001 0.066" mass="1.35" diaginertia="3.4e-3 3.2e-3 3e-3"/>
+      <freejoint/>
+      <geom class="collision" type="box" pos="-0.01 0 0.07" size="0.045 0.06 0.06"/>
+      <site name="imu" pos="0 0 0.05"/>
+      <body name="head_pan_link" pos="-0.001 0 0.1365">
+        <inertial pos="0.002 0 0.008" mass="0.012" diaginertia="4e-6 3.6e-6 1.7e-6"/>
+        <joint name="{names[0]}" axis="0 0 1" range="-2 2"/>
+        <body name="head_tilt_link" pos="0.01 0.019 0.0285">
+          <inertial pos="0.002 -0.019 0.028" mass="0.136" diaginertia="1.1e-4 8.7e-5 4.4e-5"/>
+          <joint name="{names[1]}" axis="0 -1 0" range="-1 1"/>
+        </body>
+      </body>{arm("l", 1)}{arm("r", -1)}{legs}
+    </body>
+  </worldbody>
+  <actuator>
+{actuators}
+  </actuator>
+  <sensor>
+    <framequat name="imu_quat" objtype="site" objname="imu"/>
+    <jointpos name="com" joint="{joint_name('knee', 'l')}"/>
+  </sensor>
+  <keyframe>
+    <key name="stand" qpos="{' '.join(qpos)}" ctrl="{ctrl}"/>
+  </keyframe>
+</mujoco>
+"""
+
+
+def joint_map(legs_only: bool = False, arms_and_head: bool = True) -> dict[str, str]:
+    out = {f"{s}_{k}": joint_name(k, s) for s in "lr" for k in LEG}
+    if arms_and_head and not legs_only:
+        out.update({"head_yaw": joint_name("head_pan", "c"), "head_pitch": joint_name("head_tilt", "c")})
+        for s in "lr":
+            out.update({f"{s}_shoulder_pitch": joint_name("sho_pitch", s),
+                        f"{s}_shoulder_roll": joint_name("sho_roll", s), f"{s}_elbow": joint_name("elbow", s)})
+    return out
+
+
+def map_yaml(jmap: dict[str, str] | None = None, mjcf_name: str = "robot.xml", extra: str = "",
+             feet: tuple[str, str] = ("foot_l", "foot_r")) -> str:
+    jmap = joint_map() if jmap is None else jmap
+    joints = "\n".join(f"  {k}: {v}" for k, v in jmap.items())
+    return (f"mjcf: {mjcf_name}\ntorso: body_link\nfeet: {{left: {feet[0]}, right: {feet[1]}}}\n"
+            f"joints:\n{joints}\n{extra}")
+
+
+def write(tmp: Path, xml: str | None = None, yaml_text: str | None = None, subdir: str = "") -> Path:
+    """Write robot.xml (in ``subdir``) and map.yaml; returns the map's path."""
+    folder = tmp / subdir if subdir else tmp
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "robot.xml").write_text(mjcf() if xml is None else xml)
+    mjcf_rel = f"{subdir}/robot.xml" if subdir else "robot.xml"
+    (tmp / "map.yaml").write_text(map_yaml(mjcf_name=mjcf_rel) if yaml_text is None else yaml_text)
+    return tmp / "map.yaml"

@@ -1,0 +1,198 @@
+"""What the gait needs to know of a robot, read off its MJCF at the zero pose.
+
+* Joint axes are *lines*: a hinge may be anchored anywhere on its axis, so two axes
+  "intersect" when the closest distance between their lines is small
+  (:func:`axis_line_distance`), and the hip centre is the point where the hip roll and
+  hip pitch lines meet, the ankle centre where the ankle pitch and roll lines meet.
+* Thigh and shank are the distances between the parallel pitch axes (hip-knee, knee-ankle).
+* The sole is the convex hull of the lowest points of every collision geom of the foot body
+  (boxes, capsules, cylinders, spheres, ellipsoids, meshes), in the foot frame
+  (:func:`sole_polygon`).
+* The whole-body CoM offset from the torso origin is taken with the legs bent by the IK to a
+  walking crouch (:func:`com_offset`): the generators plan the CoM, not the pelvis.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping
+
+import mujoco
+import numpy as np
+
+__all__ = ["axis_line_distance", "SolePolygon", "sole_polygon", "com_offset", "body_chain",
+           "foot_geoms", "CROUCH"]
+
+#: The walking crouch at which the CoM offset is taken: hip height as a fraction of the
+#: straight leg's (ours; a typical kid-size walking posture).
+CROUCH = 0.85
+
+
+def axis_line_distance(p1: np.ndarray, a1: np.ndarray, p2: np.ndarray,
+                       a2: np.ndarray) -> tuple[float, np.ndarray]:
+    """Closest distance [m] between the lines p1 + s a1 and p2 + t a2, and the midpoint of the
+    closest points (for parallel lines: the distance, and the midpoint of p1 and its foot on
+    line 2). Shapes: points and axes (3,)."""
+    a1 = np.asarray(a1, float) / np.linalg.norm(a1)
+    a2 = np.asarray(a2, float) / np.linalg.norm(a2)
+    p1, p2 = np.asarray(p1, float), np.asarray(p2, float)
+    w = p2 - p1
+    n = np.cross(a1, a2)
+    nn = float(n @ n)
+    if nn < 1e-12:                                 # parallel
+        perp = w - (w @ a1) * a1
+        return float(np.linalg.norm(perp)), p1 + perp / 2
+    s = float(np.cross(w, a2) @ n) / nn
+    t = float(np.cross(w, a1) @ n) / nn
+    c1, c2 = p1 + s * a1, p2 + t * a2
+    return float(np.linalg.norm(c1 - c2)), (c1 + c2) / 2
+
+
+def foot_geoms(model: mujoco.MjModel, body: int) -> list[int]:
+    """Collision geoms (contype or conaffinity set) of a body."""
+    return [g for g in range(model.ngeom) if model.geom_bodyid[g] == body
+            and (model.geom_contype[g] or model.geom_conaffinity[g])]
+
+
+def _geom_points(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> np.ndarray:
+    """Points on a geom's surface, world frame, dense enough to find its lowest face (K, 3)."""
+    c = data.geom_xpos[g]
+    R = data.geom_xmat[g].reshape(3, 3)
+    size = model.geom_size[g]
+    kind = model.geom_type[g]
+    G = mujoco.mjtGeom
+    ring = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+    if kind == G.mjGEOM_BOX:
+        local = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * size
+    elif kind == G.mjGEOM_SPHERE:
+        u = np.array([[0, 0, -1], [0, 0, 1], [1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0]], float)
+        return c + size[0] * u                       # a sphere's lowest point is straight below
+    elif kind in (G.mjGEOM_CAPSULE, G.mjGEOM_CYLINDER):
+        r, h = size[0], size[1]
+        ends = []
+        for z in (-h, h):
+            circle = np.column_stack([r * np.cos(ring), r * np.sin(ring), np.full_like(ring, z)])
+            ends.append(circle)
+        local = np.vstack(ends)
+        if kind == G.mjGEOM_CAPSULE:                  # hemispherical caps: lowest point of each
+            pts = c + local @ R.T
+            axis = R[:, 2]
+            caps = [c + z * axis - np.array([0, 0, r]) for z in (-h, h)]
+            return np.vstack([pts, caps])
+    elif kind == G.mjGEOM_ELLIPSOID:
+        th, ph = np.meshgrid(np.linspace(0, np.pi, 13), ring)
+        u = np.column_stack([(np.sin(th) * np.cos(ph)).ravel(), (np.sin(th) * np.sin(ph)).ravel(),
+                             np.cos(th).ravel()])
+        local = u * size
+    elif kind == G.mjGEOM_MESH:
+        m = model.geom_dataid[g]
+        start, count = model.mesh_vertadr[m], model.mesh_vertnum[m]
+        local = model.mesh_vert[start:start + count].astype(float)
+    else:                                             # planes, height fields: not a foot
+        lo = model.geom_aabb[g][:3] - model.geom_aabb[g][3:]
+        hi = model.geom_aabb[g][:3] + model.geom_aabb[g][3:]
+        local = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    return c + local @ R.T
+
+
+def _cross2(a: np.ndarray, b: np.ndarray) -> float:
+    return float(a[0] * b[1] - a[1] * b[0])
+
+
+def _hull(points: np.ndarray) -> np.ndarray:
+    """Convex hull of 2-D points, counter-clockwise, by the monotone chain (M, 2)."""
+    pts = np.unique(np.round(points, 9), axis=0)
+    if len(pts) < 3:
+        return pts
+    pts = pts[np.lexsort((pts[:, 1], pts[:, 0]))]
+
+    def half(seq):
+        out: list[np.ndarray] = []
+        for p in seq:
+            while len(out) >= 2 and _cross2(out[-1] - out[-2], p - out[-2]) <= 0:
+                out.pop()
+            out.append(p)
+        return out
+    lower, upper = half(pts), half(pts[::-1])
+    return np.array(lower[:-1] + upper[:-1])
+
+
+@dataclass(frozen=True)
+class SolePolygon:
+    """A foot's sole in its body frame: the hull of its collision geoms' lowest points."""
+
+    hull: np.ndarray            # (M, 2) [m] counter-clockwise, foot-body frame x, y
+    z: float                    # [m] height of the sole plane in the foot-body frame
+    geoms: tuple[str, ...]      # the collision geoms it came from
+
+    @property
+    def centre(self) -> np.ndarray:
+        """Centre of the hull's bounding rectangle (x, y, z) in the foot frame [m]."""
+        lo, hi = self.hull.min(axis=0), self.hull.max(axis=0)
+        return np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, self.z])
+
+    @property
+    def size(self) -> tuple[float, float]:
+        """Length (x) and width (y) of the hull's bounding rectangle [m]."""
+        ext = self.hull.max(axis=0) - self.hull.min(axis=0)
+        return float(ext[0]), float(ext[1])
+
+    @property
+    def area(self) -> float:
+        x, y = self.hull[:, 0], self.hull[:, 1]
+        return float(0.5 * abs(x @ np.roll(y, -1) - y @ np.roll(x, -1)))
+
+
+def sole_polygon(model: mujoco.MjModel, data: mujoco.MjData, body: int,
+                 tolerance: float = 0.002) -> SolePolygon | None:
+    """The sole of a foot body at the current pose (kinematics must be up to date): every
+    collision-geom point within ``tolerance`` [m] of the lowest one, as a hull in the foot
+    frame. None when the body has no collision geom."""
+    geoms = foot_geoms(model, body)
+    if not geoms:
+        return None
+    pts = np.vstack([_geom_points(model, data, g) for g in geoms])
+    low = pts[:, 2].min()
+    near = pts[pts[:, 2] <= low + tolerance]
+    R = data.xmat[body].reshape(3, 3)
+    local = (near - data.xpos[body]) @ R
+    z_local = float(((np.array([0.0, 0.0, low]) - data.xpos[body]) @ R)[2])
+    names = tuple(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or f"geom#{g}" for g in geoms)
+    return SolePolygon(_hull(local[:, :2]), z_local, names)
+
+
+def body_chain(model: mujoco.MjModel, body: int) -> list[int]:
+    """Bodies from ``body`` up to the world (inclusive of ``body``, exclusive of the world)."""
+    out = []
+    while body > 0:
+        out.append(body)
+        body = int(model.body_parentid[body])
+    return out
+
+
+def com_offset(model: mujoco.MjModel, torso: str, leg_q: Mapping[str, float]) -> np.ndarray:
+    """Whole-body CoM in the torso frame [m] (3,), at the zero pose but for the joints in
+    ``leg_q`` (MJCF joint name -> angle [rad]), typically the legs bent to the walking crouch."""
+    d = mujoco.MjData(model)
+    for name, value in leg_q.items():
+        d.qpos[model.jnt_qposadr[model.joint(name).id]] = value
+    mujoco.mj_kinematics(model, d)
+    mujoco.mj_comPos(model, d)
+    b = model.body(torso).id
+    R = d.xmat[b].reshape(3, 3)
+    return R.T @ (d.subtree_com[b] - d.xpos[b])
+
+
+def crouch_angles(leg, joint_map: Mapping[str, tuple[str, int]], crouch: float = CROUCH) -> dict[str, float]:
+    """MJCF joint name -> angle [rad] of both legs bent by the IK so the hips stand ``crouch`` x
+    the straight hip height over the soles (a walking posture), through the map's signs."""
+    from gaits import leg_ik
+    from gaits.leg_kinematics import LEG_JOINTS
+    out = {}
+    for side, prefix in ((1, "l_"), (-1, "r_")):
+        target = leg.hip_in_pelvis(side) + np.array([0.0, 0.0, -crouch * leg.max_hip_height])
+        q = leg_ik(target, 0.0, leg, side)
+        for name, value in zip(LEG_JOINTS, q):
+            theirs, sign = joint_map[prefix + name]
+            out[theirs] = sign * float(value)
+    return out

@@ -1,0 +1,394 @@
+"""Bring your own robot: a YAML map that names the parts of an unedited MJCF.
+
+Format (paths relative to the map file)::
+
+    mjcf: my_robot.xml            # the robot file, unedited
+    name: my_robot                # optional; default: the map file's stem
+    torso: base_link              # the body with the free joint; its frame is the IK's pelvis frame
+    feet: {left: l_foot, right: r_foot}
+    joints:                       # our name: MJCF joint name, or {name: ..., sign: -1}
+      l_hip_yaw: LHipYaw
+      l_knee: {name: LKnee, sign: -1}
+      ...                         # all 12 leg joints; head and arm joints optional
+    leg: {thigh: 0.11}            # optional: LegGeometry fields, derived from the model otherwise
+    servo:                        # optional: per group (legs, arms, head, other) a preset name or
+      legs: {speed: 5.5}          #   fields over the file's own servo (or over {preset: MX-64, ...})
+    pose: {LShoulderRoll: 1.3}    # optional: held angle [rad] of non-leg joints (default: the file's
+                                  #   first keyframe, else zero)
+    sim: {control_period: 0.01, timestep: 0.002, max_tilt_deg: 50, min_height_ratio: 0.6}
+
+What is derived, and every check, is described in ``tuner/robots/mjcf_geometry.py`` and
+below; every mistake is a :class:`tuner.errors.UserError` naming the field, the value and
+what is allowed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from typing import Any, Mapping
+
+import mujoco
+import numpy as np
+
+from gaits import JOINT_NAMES, LegGeometry, ParamError
+from gaits.leg_kinematics import LEG_JOINTS
+
+from ..errors import UserError
+from ..yaml_input import read_yaml_file
+from .mjcf_geometry import axis_line_distance, body_chain, com_offset, crouch_angles, sole_polygon
+from .robot_model import GROUPS, RobotModel, SimOptions, joint_group
+from .servo import SERVO_FIELDS, SERVO_PRESETS, servo_from_file, servo_from_mapping
+
+__all__ = ["load_map", "LEG_AXES", "MAP_KEYS", "AXIS_TOLERANCE"]
+
+#: Expected joint axis of each leg joint in the torso frame at the zero pose.
+LEG_AXES = {"hip_yaw": (0, 0, 1), "hip_roll": (1, 0, 0), "hip_pitch": (0, 1, 0),
+            "knee": (0, 1, 0), "ankle_pitch": (0, 1, 0), "ankle_roll": (1, 0, 0)}
+MAP_KEYS = ("mjcf", "name", "torso", "feet", "joints", "leg", "servo", "pose", "sim")
+#: How far apart two axis lines that must meet may be, and how far the straight leg's
+#: centres may stray from a vertical line [m] (ours).
+AXIS_TOLERANCE = 0.005
+_DEFAULT_PRESET = {"legs": "MX-64", "arms": "MX-28", "head": "MX-28", "other": "MX-28"}
+_SIDES = (("left", "l_", 1), ("right", "r_", -1))
+
+
+def _require(cond: bool, source: str, msg: str) -> None:
+    if not cond:
+        raise UserError(f"{source}: {msg}")
+
+
+def _has(model: mujoco.MjModel, obj: Any, name: Any) -> bool:
+    return isinstance(name, str) and mujoco.mj_name2id(model, obj, name) >= 0
+
+
+def _mm(x: float) -> str:
+    return f"{x * 1000:.1f} mm"
+
+
+def load_map(path: Path) -> RobotModel:
+    """Read a robot map YAML and check it against its MJCF (see the module docstring)."""
+    source = str(path)
+    doc = read_yaml_file(path, "robot map")
+    _require(isinstance(doc, Mapping), source, f"expected a mapping with keys {', '.join(MAP_KEYS)}")
+    for key in doc:
+        _require(key in MAP_KEYS, source, f"unknown key {key!r} (allowed: {', '.join(MAP_KEYS)})")
+    for key in ("mjcf", "torso", "feet", "joints"):
+        _require(key in doc, source, f"missing {key!r}")
+    _require(isinstance(doc["mjcf"], str), source, f"mjcf = {doc['mjcf']!r}: expected a file path")
+    mjcf = (path.parent / doc["mjcf"]).resolve()
+    _require(mjcf.is_file(), source, f"mjcf file {str(mjcf)!r} not found")
+    try:
+        xml = mjcf.read_text(encoding="utf-8")
+        model = mujoco.MjModel.from_xml_path(str(mjcf))
+    except UnicodeDecodeError:
+        raise UserError(f"{source}: mjcf file {mjcf.name} is not UTF-8 text") from None
+    except Exception as exc:
+        raise UserError(f"{source}: {mjcf.name} does not load in MuJoCo: {str(exc).splitlines()[0]}") from None
+    name = doc.get("name", path.stem)
+    _require(isinstance(name, str) and name.strip() != "", source, f"name = {name!r}: expected a non-empty string")
+
+    torso = doc["torso"]
+    _require(_has(model, mujoco.mjtObj.mjOBJ_BODY, torso), source, f"torso body {torso!r} not in {mjcf.name}")
+    tb = model.body(torso).id
+    _require(model.body_jntnum[tb] >= 1 and model.jnt_type[model.body_jntadr[tb]] == mujoco.mjtJoint.mjJNT_FREE,
+             source, f"torso body {torso!r} must carry the model's free joint")
+    feet = doc["feet"]
+    _require(isinstance(feet, Mapping) and set(feet) == {"left", "right"}, source,
+             "feet must be {left: BODY, right: BODY}")
+    for side, _, _ in _SIDES:
+        _require(_has(model, mujoco.mjtObj.mjOBJ_BODY, feet[side]), source,
+                 f"feet.{side}: body {feet[side]!r} not in {mjcf.name}")
+    _require(feet["left"] != feet["right"], source, f"feet: left and right are the same body {feet['left']!r}")
+    jmap = _read_joints(doc["joints"], model, source, mjcf.name)
+
+    d = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, d)
+    R_t, p_t = d.xmat[tb].reshape(3, 3), d.xpos[tb].copy()
+
+    def in_torso(p: np.ndarray) -> np.ndarray:
+        return R_t.T @ (np.asarray(p) - p_t)
+
+    foot_ids = {side: model.body(feet[side]).id for side, _, _ in _SIDES}
+    for side, _, s in _SIDES:
+        y = in_torso(d.xpos[foot_ids[side]])[1]
+        _require(s * y > 0, source, f"feet.{side}: body {feet[side]!r} lies at y = {_mm(y)} in the torso frame "
+                 f"(the {'right' if s > 0 else 'left'} side; +y is left): left and right feet swapped?")
+    _check_chains(model, jmap, foot_ids, tb, source)
+    final = _signs(model, d, jmap, R_t, source)
+
+    # geometry from the axis lines at the zero pose, in the torso frame
+    def line(ours: str) -> tuple[np.ndarray, np.ndarray]:
+        j = model.joint(final[ours][0]).id
+        return in_torso(d.xanchor[j]), R_t.T @ d.xaxis[j]
+
+    geo: dict[str, dict[str, float]] = {}
+    soles, hulls, sources = [], [], {}
+    for side, p, s in _SIDES:
+        hip_dist, hip = axis_line_distance(*line(p + "hip_roll"), *line(p + "hip_pitch"))
+        _require(hip_dist < AXIS_TOLERANCE, source,
+                 f"the {side} hip roll and hip pitch axes must intersect: their lines pass {_mm(hip_dist)} apart "
+                 f"(allowed {_mm(AXIS_TOLERANCE)})")
+        yaw_dist = float(np.linalg.norm(np.cross(hip - line(p + "hip_yaw")[0], line(p + "hip_yaw")[1])))
+        _require(yaw_dist < AXIS_TOLERANCE, source,
+                 f"the {side} hip yaw axis must pass through the hip centre: it passes {_mm(yaw_dist)} from it "
+                 f"(allowed {_mm(AXIS_TOLERANCE)})")
+        ank_dist, ankle = axis_line_distance(*line(p + "ankle_pitch"), *line(p + "ankle_roll"))
+        _require(ank_dist < AXIS_TOLERANCE, source,
+                 f"the {side} ankle pitch and ankle roll axes must intersect: their lines pass {_mm(ank_dist)} apart "
+                 f"(allowed {_mm(AXIS_TOLERANCE)})")
+        knee_p, knee_a = line(p + "knee")
+        thigh, _ = axis_line_distance(*line(p + "hip_pitch"), knee_p, knee_a)
+        shank, _ = axis_line_distance(knee_p, knee_a, *line(p + "ankle_pitch"))
+        knee = knee_p - ((knee_p - hip) @ knee_a) * knee_a     # the knee line's point in the hip's plane
+        for what, point in (("knee axis", knee), ("ankle centre", ankle)):
+            off = point[:2] - hip[:2]
+            _require(abs(off[0]) < AXIS_TOLERANCE and abs(off[1]) < AXIS_TOLERANCE, source,
+                     f"the {side} {what} is {_mm(off[0])} ahead of and {_mm(off[1])} left of the hip centre at "
+                     f"the zero pose; the leg IK needs straight legs at the zero pose (allowed {_mm(AXIS_TOLERANCE)})")
+        _require(abs(hip[0]) < AXIS_TOLERANCE, source,
+                 f"the {side} hip centre is {_mm(hip[0])} ahead of the torso origin; the leg IK needs the hips "
+                 f"under the torso origin (allowed {_mm(AXIS_TOLERANCE)}): use a torso body whose origin lies "
+                 f"between the hips")
+        fb = foot_ids[side]
+        sole = sole_polygon(model, d, fb)
+        _require(sole is not None, source, f"feet.{side}: body {feet[side]!r} has no collision geom")
+        centre_world = d.xpos[fb] + d.xmat[fb].reshape(3, 3) @ sole.centre
+        c = in_torso(centre_world)
+        geo[side] = {"hip_offset_y": float(s * hip[1]), "hip_offset_z": float(-hip[2]), "thigh": thigh,
+                     "shank": shank, "ankle_height": float(ankle[2] - c[2]),
+                     "sole_forward": float(c[0] - ankle[0]), "sole_outward": float(s * (c[1] - ankle[1]))}
+        soles.append(tuple(float(v) for v in sole.centre))
+        hulls.append(sole.hull)
+        sources[f"sole.{side}"] = f"hull of {len(sole.geoms)} collision geom(s): {', '.join(sole.geoms)}"
+    derived = geo["left"]
+    notes = []
+    for key, value in derived.items():
+        if abs(geo["right"][key] - value) > 0.002:
+            notes.append(f"legs differ: {key} left {_mm(value)}, right {_mm(geo['right'][key])}; the IK uses the "
+                         f"left leg's (give leg.{key} to choose)")
+    sizes = [_sole_size(h) for h in hulls]
+
+    leg_over = doc.get("leg") or {}
+    _require(isinstance(leg_over, Mapping), source, "leg must be a mapping of LegGeometry fields")
+    allowed = [f.name for f in dataclasses.fields(LegGeometry)]
+    for k, v in leg_over.items():
+        _require(k in allowed, source, f"leg: unknown field {k!r} (allowed: {', '.join(allowed)})")
+        _require(isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v), source,
+                 f"leg.{k} = {v!r}: expected a number [m]")
+    try:
+        leg = LegGeometry(**{**derived, **{k: float(v) for k, v in leg_over.items()}})
+    except ParamError as exc:
+        raise UserError(f"{source}: {exc}") from None
+    if not {"com_above_pelvis", "com_forward", "com_lateral"} <= set(leg_over):
+        try:
+            com = com_offset(model, torso, crouch_angles(leg, final))
+        except ValueError as exc:          # the crouched pose is out of the derived legs' reach
+            raise UserError(f"{source}: leg: {exc}") from None
+        leg = dataclasses.replace(leg, **{k: float(v) for k, v in
+                                          zip(("com_forward", "com_lateral", "com_above_pelvis"), com)
+                                          if k not in leg_over})
+    sources["leg"] = "joint axis lines at the zero pose" + (f"; overridden: {', '.join(leg_over)}" if leg_over else "")
+    sources["com"] = "the model's masses, legs at the walking crouch"
+
+    sim_doc = doc.get("sim") or {}
+    _require(isinstance(sim_doc, Mapping), source, "sim must be a mapping of " +
+             ", ".join(f.name for f in dataclasses.fields(SimOptions)))
+    sim_fields = [f.name for f in dataclasses.fields(SimOptions)]
+    for k in sim_doc:
+        _require(k in sim_fields, source, f"sim: unknown field {k!r} (allowed: {', '.join(sim_fields)})")
+    try:
+        sim = SimOptions(**dict(sim_doc))
+    except UserError as exc:
+        raise UserError(f"{source}: {exc}") from None
+
+    servos, servo_sources = _servos(model, final, doc.get("servo"), source)
+    sources.update(servo_sources)
+    pose, pose_source = _pose(model, final, servos, doc.get("pose"), source)
+    sources["pose"] = pose_source
+    notes += _keyframe_notes(model)
+    if model.nu:
+        notes.append(f"the file's {model.nu} actuator(s) are replaced by our servo model of the same numbers "
+                     f"(see servos), with a speed limit")
+    if model.nsensor:
+        notes.append(f"the file's {model.nsensor} sensor(s) are left out of the simulation")
+    return RobotModel(name, xml, final, torso, (str(feet["left"]), str(feet["right"])),
+                      (soles[0], soles[1]), sizes[0], leg, servos, pose, tuple(hulls), sources,
+                      tuple(notes), sim, str(mjcf), str(path.resolve()))
+
+
+def _sole_size(hull: np.ndarray) -> tuple[float, float]:
+    ext = hull.max(axis=0) - hull.min(axis=0)
+    return float(ext[0]), float(ext[1])
+
+
+def _read_joints(joints: Any, model: mujoco.MjModel, source: str, fname: str) -> dict[str, tuple[str, int | None]]:
+    _require(isinstance(joints, Mapping), source, "joints must be a mapping of our name: MJCF joint")
+    jmap: dict[str, tuple[str, int | None]] = {}
+    for ours, theirs in joints.items():
+        _require(ours in JOINT_NAMES, source, f"joints: unknown joint {ours!r} (ours are: {', '.join(JOINT_NAMES)})")
+        sign = None
+        if isinstance(theirs, Mapping):
+            _require(set(theirs) <= {"name", "sign"} and "name" in theirs, source,
+                     f"joints.{ours}: expected {{name: ..., sign: 1 or -1}}")
+            sign = theirs.get("sign")
+            _require(sign is None or (sign in (1, -1) and not isinstance(sign, bool)), source,
+                     f"joints.{ours}.sign = {sign!r}: must be 1 or -1")
+            theirs = theirs["name"]
+        _require(_has(model, mujoco.mjtObj.mjOBJ_JOINT, theirs), source,
+                 f"joints.{ours}: {theirs!r} is not a joint of {fname}")
+        _require(model.jnt_type[model.joint(theirs).id] == mujoco.mjtJoint.mjJNT_HINGE, source,
+                 f"joints.{ours}: {theirs!r} is not a hinge joint")
+        jmap[ours] = (theirs, sign)
+    missing = [j for j in JOINT_NAMES if j[2:] in LEG_JOINTS and j not in jmap]
+    _require(not missing, source, f"joints: leg joints missing from the map: {', '.join(missing)}")
+    used = [v[0] for v in jmap.values()]
+    dup = sorted({u for u in used if used.count(u) > 1})
+    _require(not dup, source, f"joints: MJCF joint(s) mapped twice: {', '.join(dup)}")
+    return jmap
+
+
+def _check_chains(model: mujoco.MjModel, jmap: Mapping[str, tuple[str, int | None]],
+                  foot_ids: Mapping[str, int], tb: int, source: str) -> None:
+    """Each leg joint lies on the chain from the torso to its own foot, in the IK's order."""
+    chains = {side: body_chain(model, foot_ids[side]) for side in foot_ids}
+    for side, p, _ in _SIDES:
+        other = "right" if side == "left" else "left"
+        _require(tb in chains[side], source, f"feet.{side}: body {model.body(foot_ids[side]).name!r} is not "
+                 f"below the torso {model.body(tb).name!r}")
+        ranks = []
+        for kind in LEG_JOINTS:
+            theirs = jmap[p + kind][0]
+            j = model.joint(theirs).id
+            b = int(model.jnt_bodyid[j])
+            if b not in chains[side]:
+                where = (f"on the {other} leg (the chain to {model.body(foot_ids[other]).name!r}): left and right "
+                         f"swapped?" if b in chains[other] else
+                         f"not on the chain from the torso to the {side} foot {model.body(foot_ids[side]).name!r}")
+                raise UserError(f"{source}: joints.{p}{kind}: {theirs!r} is {where}")
+            ranks.append((-chains[side].index(b), j))
+        for k in range(len(LEG_JOINTS) - 1):
+            if ranks[k] >= ranks[k + 1]:
+                a, b = LEG_JOINTS[k], LEG_JOINTS[k + 1]
+                raise UserError(
+                    f"{source}: joints.{p}{a} and joints.{p}{b} look swapped: {jmap[p + b][0]!r} comes before "
+                    f"{jmap[p + a][0]!r} going from the torso to the {side} foot (the IK's order is "
+                    f"{', '.join(x.replace('_', ' ') for x in LEG_JOINTS)})")
+
+
+def _signs(model: mujoco.MjModel, d: mujoco.MjData, jmap: Mapping[str, tuple[str, int | None]],
+           R_t: np.ndarray, source: str) -> dict[str, tuple[str, int]]:
+    """Leg joint signs from their axes (a given sign must agree); others keep theirs (default 1)."""
+    final: dict[str, tuple[str, int]] = {}
+    for ours, (theirs, sign) in jmap.items():
+        j = model.joint(theirs).id
+        kind = ours[2:] if ours[:2] in ("l_", "r_") else ours
+        if kind in LEG_AXES:
+            axis = R_t.T @ d.xaxis[j]
+            expected = np.array(LEG_AXES[kind], dtype=float)
+            dot = float(axis @ expected)
+            _require(abs(dot) > 0.95, source,
+                     f"joints.{ours}: {theirs!r} turns about {np.round(axis, 3).tolist()} in the torso frame; "
+                     f"a {kind.replace('_', ' ')} joint must turn about +-{list(LEG_AXES[kind])}")
+            natural = 1 if dot > 0 else -1
+            _require(sign is None or sign == natural, source,
+                     f"joints.{ours}.sign = {sign} contradicts the axis of {theirs!r} "
+                     f"({np.round(axis, 3).tolist()}); use sign {natural} or leave it out")
+            sign = natural
+        final[ours] = (theirs, 1 if sign is None else int(sign))
+    return final
+
+
+def _servos(model: mujoco.MjModel, final: Mapping[str, tuple[str, int]], doc: Any,
+            source: str) -> tuple[dict[str, Any], dict[str, str]]:
+    """A servo for every hinge joint but the free one: the file's own position actuator, else
+    the group's default preset, then the map's ``servo:`` fields on top."""
+    doc = doc or {}
+    _require(isinstance(doc, Mapping), source, f"servo must be a mapping with keys {', '.join(GROUPS)}")
+    if doc and set(doc) <= set(SERVO_FIELDS) | {"preset"}:
+        doc = {"legs": dict(doc)}            # the first map format: flat fields meant the legs
+    for k in doc:
+        _require(k in GROUPS, source, f"servo: unknown group {k!r} (allowed: {', '.join(GROUPS)})")
+    ours_of = {theirs: ours for ours, (theirs, _) in final.items()}
+    servos, by_group = {}, {g: [] for g in GROUPS}
+    for j in range(model.njnt):
+        if model.jnt_type[j] != mujoco.mjtJoint.mjJNT_HINGE:
+            continue
+        theirs = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j)
+        _require(theirs is not None, source, f"joint #{j} of the MJCF has no name; every hinge needs one "
+                 f"(the tool holds unmapped joints by name)")
+        group = joint_group(ours_of.get(theirs))
+        preset = SERVO_PRESETS[_DEFAULT_PRESET[group]]
+        spec, why = servo_from_file(model, theirs, preset.speed)
+        if spec is None:
+            spec = preset
+        if group in doc:
+            spec = servo_from_mapping(doc[group], f"servo.{group}", spec)
+        servos[theirs] = spec
+        by_group[group].append((theirs, why if spec is not preset else None))
+    sources = {}
+    for g, items in by_group.items():
+        if not items:
+            continue
+        from_file = [n for n, why in items if why and why.startswith("actuator")]
+        parts = []
+        if from_file:
+            parts.append(f"the file's actuators on {len(from_file)} joint(s)")
+        rest = len(items) - len(from_file)
+        if rest:
+            parts.append(f"preset {_DEFAULT_PRESET[g]} on {rest} joint(s) (no position actuator with a force "
+                         f"range in the file)")
+        speed_src = (f"speed from the map" if g in doc and isinstance(doc[g], Mapping) and "speed" in doc[g]
+                     else f"speed {SERVO_PRESETS[_DEFAULT_PRESET[g]].speed:g} rad/s from preset "
+                          f"{_DEFAULT_PRESET[g]} (a file states none)")
+        over = f"; map servo.{g} on top" if g in doc else ""
+        sources[f"servos.{g}"] = "; ".join(parts) + f"; {speed_src}{over}"
+    return servos, sources
+
+
+def _pose(model: mujoco.MjModel, final: Mapping[str, tuple[str, int]], servos: Mapping[str, Any], doc: Any,
+          source: str) -> tuple[dict[str, float], str]:
+    """Held angle of every actuated non-leg joint: the map's ``pose:``, else the file's first
+    keyframe, else zero (clipped into the joint's range)."""
+    doc = doc or {}
+    _require(isinstance(doc, Mapping), source, "pose must be a mapping of MJCF joint name: angle [rad]")
+    legs = {theirs for ours, (theirs, _) in final.items() if joint_group(ours) == "legs"}
+    for k, v in doc.items():
+        _require(k in servos and k not in legs, source,
+                 f"pose: {k!r} is not a non-leg hinge joint of the file (leg joints follow the gait)")
+        _require(isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v), source,
+                 f"pose.{k} = {v!r}: expected an angle [rad]")
+    use_key = model.nkey > 0
+    pose, clipped = {}, []
+    for theirs in servos:
+        if theirs in legs:
+            continue
+        j = model.joint(theirs).id
+        if theirs in doc:
+            value = float(doc[theirs])
+        elif use_key:
+            value = float(model.key_qpos[0, model.jnt_qposadr[j]])
+        else:
+            value = 0.0
+        if model.jnt_limited[j]:
+            lo, hi = model.jnt_range[j]
+            if not lo <= value <= hi:
+                clipped.append(theirs)
+                _require(theirs not in doc, source, f"pose.{theirs} = {value!r} rad is out of the joint's range "
+                         f"[{lo:g}, {hi:g}] rad")
+                value = float(np.clip(value, lo, hi))
+        pose[theirs] = value
+    key_name = (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_KEY, 0) or "#0") if use_key else None
+    src = ("map pose:" if doc else "") + (f" the others from keyframe {key_name!r}" if use_key else
+                                           " the others at zero (the file has no keyframe)")
+    if clipped:
+        src += f"; clipped into their range: {', '.join(clipped)}"
+    return pose, src.strip()
+
+
+def _keyframe_notes(model: mujoco.MjModel) -> list[str]:
+    out = []
+    for k in range(model.nkey):
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_KEY, k) or f"#{k}"
+        out.append(f"keyframe {name!r}: its ctrl is rebuilt for our servos from its qpos")
+    return out

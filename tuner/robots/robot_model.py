@@ -1,0 +1,108 @@
+"""A robot ready for the simulator: its MJCF, joint map, key bodies, leg geometry, servos, held pose."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Mapping
+
+import mujoco
+import numpy as np
+
+from gaits import LegGeometry
+from gaits.leg_kinematics import LEG_JOINTS
+
+from ..errors import UserError
+from .servo import ServoSpec
+
+__all__ = ["RobotModel", "SimOptions", "joint_group", "GROUPS"]
+
+#: Servo groups a map can configure (``servo: {legs: ..., arms: ..., head: ..., other: ...}``).
+GROUPS = ("legs", "arms", "head", "other")
+
+
+def joint_group(ours: str | None) -> str:
+    """The servo group of one of our joint names (None: a joint the map does not name)."""
+    if ours is None:
+        return "other"
+    if ours[2:] in LEG_JOINTS:
+        return "legs"
+    if ours.startswith("head_"):
+        return "head"
+    return "arms"
+
+
+@dataclass(frozen=True)
+class SimOptions:
+    """Per-robot simulation options (a map's ``sim:``); defaults are the built-in robot's."""
+
+    control_period: float = 0.01      # [s] servo target update period
+    timestep: float = 0.002           # [s] physics step
+    max_tilt_deg: float = 50.0        # [deg] torso tilt from upright that counts as a fall
+    min_height_ratio: float = 0.6     # [-] torso below this fraction of its start height: a fall
+
+    def __post_init__(self) -> None:
+        ranges = {"control_period": (0.001, 0.1, "s"), "timestep": (0.0001, 0.01, "s"),
+                  "max_tilt_deg": (5.0, 90.0, "deg"), "min_height_ratio": (0.1, 0.95, "")}
+        for name, (lo, hi, unit) in ranges.items():
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (lo <= v <= hi) or not math.isfinite(v):
+                raise UserError(f"sim.{name} = {v!r} {unit} is out of range [{lo:g}, {hi:g}] {unit}".replace("  ", " "))
+            object.__setattr__(self, name, float(v))
+        n = self.control_period / self.timestep
+        if abs(n - round(n)) > 1e-6:
+            raise UserError(f"sim.control_period = {self.control_period:g} s must be a whole multiple of "
+                            f"sim.timestep = {self.timestep:g} s")
+
+
+@dataclass(frozen=True)
+class RobotModel:
+    """A robot ready for the simulator.
+
+    ``joint_map`` maps each of our joint names (:data:`gaits.JOINT_NAMES`) the robot has to
+    (MJCF joint name, sign): legs required, head and arms optional. ``servos`` gives every
+    hinge joint we actuate (mapped or held) its servo, keyed by MJCF joint name; ``pose``
+    holds the angle [rad, the file's convention] at which every non-leg joint is held.
+    ``feet`` names the foot bodies, ``soles`` their sole centres in the foot frame and
+    ``sole_hulls`` their sole polygons (M, 2) in the foot frame. ``sources`` says where each
+    derived number came from, ``notes`` what the adapter changed (both for ``robot check``).
+    """
+
+    name: str
+    xml: str
+    joint_map: Mapping[str, tuple[str, int]]
+    torso: str
+    feet: tuple[str, str]
+    soles: tuple[tuple[float, float, float], tuple[float, float, float]]
+    foot_size: tuple[float, float]               # [m] length, width of the sole's bounding box
+    leg: LegGeometry
+    servos: Mapping[str, ServoSpec]
+    pose: Mapping[str, float] = field(default_factory=dict)
+    sole_hulls: tuple[np.ndarray, ...] = ()
+    sources: Mapping[str, str] = field(default_factory=dict)
+    notes: tuple[str, ...] = ()
+    sim: SimOptions = SimOptions()
+    mjcf_path: str | None = None                  # set for user robots: meshes resolve beside it
+    map_path: str | None = None
+
+    def spec(self) -> mujoco.MjSpec:
+        """A fresh, editable MjSpec of the robot as its file gives it."""
+        try:
+            if self.mjcf_path is not None:
+                return mujoco.MjSpec.from_file(self.mjcf_path)
+            return mujoco.MjSpec.from_string(self.xml)
+        except Exception as exc:  # mujoco raises ValueError with the parser's message
+            raise UserError(f"robot {self.name!r}: MJCF does not load: {str(exc).splitlines()[0]}") from None
+
+    def servo_of(self, ours: str) -> ServoSpec:
+        """The servo of one of our (mapped) joint names."""
+        return self.servos[self.joint_map[ours][0]]
+
+    @property
+    def held_joints(self) -> tuple[str, ...]:
+        """MJCF names of the actuated joints the map does not name (held at ``pose``)."""
+        mapped = {theirs for theirs, _ in self.joint_map.values()}
+        return tuple(j for j in self.servos if j not in mapped)
+
+    def their_joint_names(self, ours: tuple[str, ...]) -> tuple[str, ...]:
+        return tuple(self.joint_map[j][0] for j in ours)

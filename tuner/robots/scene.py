@@ -1,0 +1,211 @@
+"""The one adapter between a robot's MJCF and our simulation: the robot on a surface, with our
+servos, instruments and grass drag added in a namespace and a default class of their own.
+
+Everything added is named ``gt/...`` and created from the default class ``gt``, whose
+actuator, geom and site settings are MuJoCo's own defaults (copied from a fresh element),
+so a file's top-level ``<default>`` (a ``ctrlrange``, a ``forcerange``, a contact ``margin``)
+never leaks into what we add, and a file's own names (a site called ``imu``) never clash.
+
+What the adapter changes in the file, and why (``robot check`` lists it per robot):
+
+* its ground planes are removed (the surface is ours);
+* its actuators are removed: every hinge joint gets our position servo with the numbers the
+  robot model carries (by default read from those same actuators, see ``servo.py``), so all
+  robots share one servo model with a speed limit; its sensors are removed with them;
+* its joints' armature, damping and friction loss are set from the servo model;
+* its keyframes get a ``ctrl`` rebuilt for our actuators from their ``qpos`` (the servo
+  targets that hold the keyframe's pose), or are dropped when their ``qpos`` no longer fits.
+
+Actuator order: the mapped joints in :data:`gaits.JOINT_NAMES` order, then the held joints,
+then the drag dampers. Sensor order: see :class:`SceneLayout`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from gaits import JOINT_NAMES
+
+from ..surfaces import Surface
+from .robot_model import RobotModel
+
+__all__ = ["PREFIX", "SceneLayout", "build_scene", "CORNERS"]
+
+PREFIX = "gt/"
+#: Sole corners and touch quadrants, (sign x, sign y): toe-left, toe-right, heel-left, heel-right.
+CORNERS = ((1, 1), (1, -1), (-1, 1), (-1, -1))
+
+
+@dataclass(frozen=True)
+class SceneLayout:
+    """Where our pieces sit in the compiled model's control and sensor vectors."""
+
+    servo_joints: tuple[str, ...]      # our names of the mapped joints, JOINT_NAMES order
+    held_joints: tuple[str, ...]       # MJCF names of the other actuated joints
+    n_drag: int                        # drag dampers (2 per sole corner, 0 on rigid/carpet)
+    sensors: tuple[tuple[str, int], ...]   # (block name, width) in sensordata order
+
+
+def _our_default(spec: mujoco.MjSpec) -> mujoco.MjsDefault:
+    """A default class ``gt`` holding MuJoCo's own actuator, geom and site defaults."""
+    fresh = mujoco.MjSpec()
+    body = fresh.worldbody.add_body()
+    pristine = {"actuator": fresh.add_actuator(), "geom": body.add_geom(), "site": body.add_site()}
+    ours = spec.add_default(PREFIX + "default", spec.default)
+    skip = {"plugin", "classname", "name", "info", "target", "refsite", "slidersite", "userdata",
+            "material", "meshname", "hfieldname", "frame", "parent", "id", "signature", "compiler"}
+    for kind, element in pristine.items():
+        dst = getattr(ours, kind)
+        for attr in dir(dst):
+            if attr.startswith("_") or attr in skip or not hasattr(element, attr):
+                continue
+            value = getattr(element, attr)
+            if not callable(value):
+                setattr(dst, attr, value)
+    return ours
+
+
+def _nq(spec: mujoco.MjSpec) -> int:
+    sizes = {mujoco.mjtJoint.mjJNT_FREE: 7, mujoco.mjtJoint.mjJNT_BALL: 4,
+             mujoco.mjtJoint.mjJNT_SLIDE: 1, mujoco.mjtJoint.mjJNT_HINGE: 1}
+    return sum(sizes[j.type] for j in spec.joints)
+
+
+def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, SceneLayout]:
+    """The editable model of ``robot`` on ``surface`` with our servos, sensors and drag."""
+    r, s = robot, surface
+    spec = r.spec()
+    spec.option.timestep = r.sim.timestep
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    nq = _nq(spec)
+    for g in list(spec.worldbody.geoms):           # the robot file's own floor, if any
+        if g.type == mujoco.mjtGeom.mjGEOM_PLANE:
+            spec.delete(g)
+    for a in list(spec.actuators):                 # our servo model replaces the file's actuators
+        spec.delete(a)
+    for sn in list(spec.sensors):
+        spec.delete(sn)
+    gt = _our_default(spec)
+
+    soil = spec.worldbody.add_geom(default=gt, name=PREFIX + "soil", type=mujoco.mjtGeom.mjGEOM_PLANE,
+                                   size=[0, 0, 0.05])
+    soil.friction = [s.soil_friction, 0.005, 0.0001]
+    soil.priority = 2
+    soil.contype = 0
+    soil.conaffinity = 1
+    soil.rgba = [0.45, 0.35, 0.25, 1]
+    if not s.rigid:
+        layer = spec.worldbody.add_geom(default=gt, name=PREFIX + "layer", type=mujoco.mjtGeom.mjGEOM_PLANE,
+                                        size=[0, 0, 0.05])
+        layer.margin = s.layer_height
+        layer.friction = [s.friction, 0.005, 0.0001]
+        layer.solref = [s.layer_timeconst, s.layer_dampratio]
+        layer.solimp = [s.layer_dmin, s.layer_dmax, s.layer_height, 0.5, 2.0]
+        layer.priority = 2
+        layer.contype = 0
+        layer.conaffinity = 1
+        layer.group = 1
+        layer.rgba = [0.2, 0.6, 0.2, 0.3]
+
+    spec.body(r.torso).add_site(default=gt, name=PREFIX + "imu", pos=[0, 0, 0.05])
+    fl, fw = r.foot_size
+    depth = s.layer_height + 0.03
+    for side, fname, sole in zip("lr", r.feet, r.soles):
+        foot = spec.body(fname)
+        foot.add_site(default=gt, name=f"{PREFIX}{side}_sole", pos=list(sole))
+        pad = 0.005       # reach past the sole's edge so corner contacts are not lost
+        for k, (sx, sy) in enumerate(CORNERS):    # four quadrants of the sole's bounding box
+            foot.add_site(default=gt, name=f"{PREFIX}{side}_touch{k}", type=mujoco.mjtGeom.mjGEOM_BOX,
+                          pos=[sole[0] + sx * (fl / 4 + pad / 2), sole[1] + sy * (fw / 4 + pad / 2),
+                               sole[2] - depth / 2 + 0.004],
+                          size=[fl / 4 + pad / 2, fw / 4 + pad / 2, depth / 2 + 0.004], group=4)
+
+    servo_joints = tuple(n for n in JOINT_NAMES if n in r.joint_map)
+    held = r.held_joints
+    targets = [r.joint_map[n][0] for n in servo_joints] + list(held)
+    for theirs, label in zip(targets, [f"servo/{n}" for n in servo_joints] + [f"hold/{h}" for h in held]):
+        servo = r.servos[theirs]
+        j = spec.joint(theirs)
+        j.armature = servo.armature
+        j.damping = [servo.damping, 0.0, 0.0]
+        j.frictionloss = servo.frictionloss
+        act = spec.add_actuator(default=gt, name=PREFIX + label, target=theirs, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        act.set_to_position(kp=servo.kp, kv=servo.kv)
+        act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+        act.forcerange = [-servo.torque, servo.torque]
+
+    # in-layer drag: per sole corner, a damper along world x and y (site transmission with a
+    # world reference site): force = -drag * v * ctrl, computed by MuJoCo every physics step and
+    # integrated implicitly (implicitfast), so it is stable at any drag; ctrl gates it per tick
+    # to the corners that are inside the layer (tuner.simulate).
+    n_drag = 0
+    if s.drag > 0.0:
+        spec.worldbody.add_site(default=gt, name=PREFIX + "drag_ref", pos=[0, 0, 0])
+        for side, fname, sole in zip("lr", r.feet, r.soles):
+            foot = spec.body(fname)
+            for k, (sx, sy) in enumerate(CORNERS):
+                site = f"{PREFIX}{side}_corner{k}"
+                foot.add_site(default=gt, name=site, pos=[sole[0] + sx * fl / 2, sole[1] + sy * fw / 2, sole[2]],
+                              group=4)
+                for axis, gear in (("x", [1, 0, 0, 0, 0, 0]), ("y", [0, 1, 0, 0, 0, 0])):
+                    act = spec.add_actuator(default=gt, name=f"{PREFIX}drag/{side}{k}_{axis}", target=site,
+                                            refsite=PREFIX + "drag_ref", trntype=mujoco.mjtTrn.mjTRN_SITE)
+                    act.set_to_damper(kv=s.drag)
+                    act.gear = gear
+                    act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+                    act.ctrlrange = [0.0, 1.0]
+                    n_drag += 1
+
+    # sensors, in this order
+    S, O = mujoco.mjtSensor, mujoco.mjtObj
+    add = spec.add_sensor
+    blocks = []
+
+    def sensor(block: str, width: int, **kw) -> None:
+        add(**kw)
+        if blocks and blocks[-1][0] == block:
+            blocks[-1] = (block, blocks[-1][1] + width)
+        else:
+            blocks.append((block, width))
+    sensor("quat", 4, name=PREFIX + "imu_quat", type=S.mjSENS_FRAMEQUAT, objtype=O.mjOBJ_SITE, objname=PREFIX + "imu")
+    sensor("pos", 3, name=PREFIX + "imu_pos", type=S.mjSENS_FRAMEPOS, objtype=O.mjOBJ_SITE, objname=PREFIX + "imu")
+    sensor("com", 3, name=PREFIX + "com", type=S.mjSENS_SUBTREECOM, objtype=O.mjOBJ_BODY, objname=r.torso)
+    for side in "lr":
+        sensor("sole", 3, name=f"{PREFIX}{side}_sole_pos", type=S.mjSENS_FRAMEPOS, objtype=O.mjOBJ_SITE,
+               objname=f"{PREFIX}{side}_sole")
+    for side in "lr":
+        for k in range(4):
+            sensor("touch", 1, name=f"{PREFIX}{side}_touch{k}", type=S.mjSENS_TOUCH, objtype=O.mjOBJ_SITE,
+                   objname=f"{PREFIX}{side}_touch{k}")
+    for side in "lr":
+        for k in range(4):
+            sensor("touchpos", 3, name=f"{PREFIX}{side}_touch{k}_pos", type=S.mjSENS_FRAMEPOS,
+                   objtype=O.mjOBJ_SITE, objname=f"{PREFIX}{side}_touch{k}")
+    for ours in servo_joints:
+        sensor("q", 1, name=f"{PREFIX}q/{ours}", type=S.mjSENS_ACTUATORPOS, objtype=O.mjOBJ_ACTUATOR,
+               objname=f"{PREFIX}servo/{ours}")
+    for ours in servo_joints:
+        sensor("tau", 1, name=f"{PREFIX}tau/{ours}", type=S.mjSENS_ACTUATORFRC, objtype=O.mjOBJ_ACTUATOR,
+               objname=f"{PREFIX}servo/{ours}")
+
+    # keyframes: ctrl rebuilt from qpos (the targets that hold the pose), or dropped
+    adr = {}
+    i = 0
+    for jt in spec.joints:
+        adr[jt.name] = i
+        i += {mujoco.mjtJoint.mjJNT_FREE: 7, mujoco.mjtJoint.mjJNT_BALL: 4}.get(jt.type, 1)
+    for key in list(spec.keys):
+        qpos = np.array(key.qpos)
+        if len(qpos) not in (0, nq):
+            spec.delete(key)
+            continue
+        if len(qpos) == 0:
+            ctrl = [0.0] * len(targets)
+        else:
+            ctrl = [float(qpos[adr[t]]) for t in targets]
+        key.ctrl = ctrl + [0.0] * n_drag
+        key.act = []
+    return spec, SceneLayout(servo_joints, held, n_drag, tuple(blocks))
