@@ -93,14 +93,17 @@ class GaitTrajectory:
         cols["support[-]"] = self.support
         return cols
 
-    def to_csv(self, path: str | Path) -> Path:
-        """Write the joint table and references as CSV (one row per sample)."""
+    def to_csv(self, path: str | Path, comment: str | None = None) -> Path:
+        """Write the joint table and references as CSV (one row per sample); ``comment`` goes
+        first as a ``#`` line (what robot, study and surfaces the table is for)."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         cols = self.columns()
         names = list(cols)
         data = np.column_stack([np.asarray(cols[n], dtype=float) for n in names])
         with path.open("w", newline="", encoding="utf-8") as fh:
+            if comment:
+                fh.write("# " + " ".join(comment.split()) + "\n")
             w = csv.writer(fh)
             w.writerow(names)
             for row in data:

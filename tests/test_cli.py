@@ -19,7 +19,9 @@ def test_trajectory_writes_table_plot_and_params(gait_tuner_cmd, run_env, tmp_pa
     assert r.returncode == 0, r.stderr
     assert (out / "references.png").stat().st_size > 10_000
     with (out / "joints.csv").open() as fh:
+        first = fh.readline()
         rows = list(csv.reader(fh))
+    assert first.startswith("# gait-tuner joint table for robot kidsize")
     header = rows[0]
     assert header[0] == "t[s]"
     assert [h[:-5] for h in header[1:21]] == list(JOINT_NAMES)
@@ -29,7 +31,9 @@ def test_trajectory_writes_table_plot_and_params(gait_tuner_cmd, run_env, tmp_pa
     r2 = run(gait_tuner_cmd, ["trajectory", "--params", str(out / "params.yaml"),
                               "--out", str(tmp_path / "again"), "--no-plot"], run_env)
     assert r2.returncode == 0, r2.stderr
-    assert (tmp_path / "again" / "joints.csv").read_text() == (out / "joints.csv").read_text()
+    again = (tmp_path / "again" / "joints.csv").read_text().split("\n", 1)
+    assert again[1] == (out / "joints.csv").read_text().split("\n", 1)[1]
+    assert again[0].endswith(f"gait {out / 'params.yaml'}")
 
 
 def test_model_override_and_baseline_name(gait_tuner_cmd, run_env, tmp_path):

@@ -32,45 +32,67 @@ def cli() -> None:
     """
 
 
+JOINT_NAMES_OPTION = click.option(
+    "--joint-names", "joint_names", type=click.Choice(["robot", "ours"]), default="robot", show_default=True,
+    help="Joint table columns in the robot's own MJCF joint names and signs (with held joints), "
+         "or in gait-tuner's names and signs.")
+
+
+def write_joint_table(traj: "gaits.GaitTrajectory", robot, path: Path, joint_names: str, comment: str) -> Path:
+    """The joint table of ``traj`` for ``robot`` as CSV, headed by a comment naming what it is for."""
+    from .robots.joint_table import robot_joint_table
+    if joint_names == "robot":
+        traj = robot_joint_table(traj, robot)
+    return traj.to_csv(path, comment=f"gait-tuner joint table for robot {robot.name} "
+                                     f"({joint_names} joint names and signs; angles in rad); {comment}")
+
+
 @cli.command()
 @click.option("--gait", "family", type=click.Choice(["eros", "tlipfm", "cosine"]),
               help="Gait family (taken from the parameter file if omitted).")
 @click.option("--params", "params_spec", metavar="PATH|BASELINE",
               help="Parameter YAML file or shipped baseline name (see `gait-tuner baselines`). "
                    "Default: the family's paper baseline.")
+@click.option("--robot", "robot_name", default="kidsize", show_default=True, metavar="NAME|PATH",
+              help="Built-in robot name or a robot map YAML: its legs set the IK.")
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False, path_type=Path),
               help="Directory for joints.csv, references.png and params.yaml.")
 @click.option("--dt", default=0.01, show_default=True, type=float,
               help="Control period of the joint table [s].")
 @click.option("--model", type=click.Choice(["lipm", "dlipm", "tlipfm"]),
               help="tlipfm only: override the parameter file's CoM model.")
+@JOINT_NAMES_OPTION
 @click.option("--no-plot", is_flag=True, help="Skip the PNG.")
-def trajectory(family: str | None, params_spec: str | None, out_dir: Path, dt: float,
-               model: str | None, no_plot: bool) -> None:
-    """Generate a gait's joint table q_ref(t) and its Cartesian references.
+def trajectory(family: str | None, params_spec: str | None, robot_name: str, out_dir: Path, dt: float,
+               model: str | None, joint_names: str, no_plot: bool) -> None:
+    """Generate a gait's joint table q_ref(t) and its Cartesian references for a robot.
 
-    Writes OUT/joints.csv (time, 20 joint targets [rad], CoM, ZMP reference,
-    pelvis and feet [m], support phase), OUT/params.yaml (the exact parameters
-    used) and OUT/references.png.
+    Writes OUT/joints.csv (a comment line naming the robot, then time, the joint targets
+    [rad], CoM, ZMP reference, pelvis and feet [m], support phase), OUT/params.yaml (the
+    exact parameters used) and OUT/references.png.
     """
+    from .robots import load_robot
+
     gait_file = resolve_params(params_spec, family)
     params = gait_file.params
     if model is not None:
         if params.FAMILY != "tlipfm":
             raise UserError("--model applies to the tlipfm family only")
         params = params.replace(model=model)
-    traj = gaits.generate(params, dt=dt)
+    robot = load_robot(robot_name)
+    traj = gaits.generate(params, robot.leg, dt=dt)
     out_dir.mkdir(parents=True, exist_ok=True)
-    csv_path = traj.to_csv(out_dir / "joints.csv")
+    label = params_spec or DEFAULT_BASELINE[params.FAMILY]
+    csv_path = write_joint_table(traj, robot, out_dir / "joints.csv", joint_names, f"gait {label}")
     yaml_path = gaits.save_gait_file(out_dir / "params.yaml", params, gait_file.description)
-    click.echo(f"{traj.family}: {len(traj.t)} samples every {dt:g} s, {traj.duration:.2f} s, "
-               f"walked {traj.p_world_com[-1, 0] - traj.p_world_com[0, 0]:+.3f} m")
+    click.echo(f"{traj.family} for robot {robot.name}: {len(traj.t)} samples every {dt:g} s, "
+               f"{traj.duration:.2f} s, walked {traj.p_world_com[-1, 0] - traj.p_world_com[0, 0]:+.3f} m")
     click.echo(f"wrote {csv_path}")
     click.echo(f"wrote {yaml_path}")
     if not no_plot:
         from .plots import plot_references
         png = plot_references(traj, out_dir / "references.png",
-                              title=f"{traj.family} ({params_spec or DEFAULT_BASELINE[params.FAMILY]})")
+                              title=f"{traj.family} ({label}), robot {robot.name}")
         click.echo(f"wrote {png}")
 
 
@@ -267,7 +289,9 @@ def tune(study_file: str, trials: int | None, workers: int, storage: str | None,
 @click.option("--trial", "number", type=int, help="Export this trial instead of the best one.")
 @click.option("--out", default="best.yaml", show_default=True, type=click.Path(dir_okay=False, path_type=Path),
               help="Parameter file to write; the joint table goes beside it (<out>.joints.csv).")
-def export(study_file: str, storage: str | None, runs_dir: Path, number: int | None, out: Path) -> None:
+@JOINT_NAMES_OPTION
+def export(study_file: str, storage: str | None, runs_dir: Path, number: int | None, out: Path,
+           joint_names: str) -> None:
     """Write a study's best (or a chosen) trial as a parameter YAML plus its joint table.
 
     STUDY is the study file (or shipped study name). The YAML is accepted as it
@@ -296,16 +320,19 @@ def export(study_file: str, storage: str | None, runs_dir: Path, number: int | N
     desc = (f"study {spec.name} trial {t.number}: score {t.values[0]:.6g}"
             + ("" if not trial_fell(t) else " (fell)")
             + f"; surfaces {', '.join(spec.surfaces)}; robot {spec.robot}")
-    gaits.save_gait_file(out, params, desc)
     from .robots import load_robot
     robot = load_robot(spec.robot)
-    table = gaits.generate(params, robot.leg, 0.01).to_csv(out.with_suffix(".joints.csv"))
+    gaits.save_gait_file(out, params, desc)
+    traj = gaits.generate(params, robot.leg, robot.sim.control_period)
+    table = write_joint_table(traj, robot, out.with_suffix(".joints.csv"), joint_names,
+                              f"study {spec.name} trial {t.number}; surfaces {', '.join(spec.surfaces)}")
     click.echo(f"trial {t.number} (score {t.values[0]:.4f}) -> {out} and {table}")
 
 
 @cli.command()
 @click.argument("params_specs", nargs=-1, required=True, metavar="PARAMS...")
-@click.option("--robot", "robot_name", default="kidsize", show_default=True)
+@click.option("--robot", "robot_name", metavar="NAME|PATH",
+              help="Built-in robot name or robot map YAML. Default: the --study's robot, else kidsize.")
 @click.option("--surfaces", "surface_names", default="grass50,grass30,grass10,carpet4", show_default=True,
               help="Comma-separated surfaces (names or files).")
 @click.option("--baselines/--no-baselines", default=True, show_default=True,
@@ -318,7 +345,7 @@ def export(study_file: str, storage: str | None, runs_dir: Path, number: int | N
               type=click.Path(file_okay=False, path_type=Path))
 @click.option("--workers", type=click.IntRange(1, 64), default=2, show_default=True,
               help="Processes walking the (set, surface) pairs; the results do not depend on it.")
-def compare(params_specs: tuple[str, ...], robot_name: str, surface_names: str, baselines: bool,
+def compare(params_specs: tuple[str, ...], robot_name: str | None, surface_names: str, baselines: bool,
             study_file: str | None, runs_dir: Path, out_dir: Path, workers: int) -> None:
     """Compare parameter sets side by side: stability matrix, stability %, pitch, ZMP error, speed.
 
@@ -331,11 +358,47 @@ def compare(params_specs: tuple[str, ...], robot_name: str, surface_names: str, 
     from .compare import n_rows, run_compare
 
     names = [s for s in surface_names.split(",") if s]
+    if not names:
+        raise UserError("--surfaces: give at least one surface name or file")
+    if robot_name is None:
+        if study_file is not None:
+            from .study import load_study
+            robot_name = load_study(study_file).robot
+        else:
+            robot_name = "kidsize"
     with tqdm(total=n_rows(list(params_specs), names, baselines), desc="compare", unit="set x surface",
               disable=None) as bar:
         text = run_compare(list(params_specs), robot_name, names, baselines, study_file, runs_dir, out_dir,
                            workers=workers, progress=bar.update)
     click.echo(text)
+
+
+@cli.group()
+def robot() -> None:
+    """Check a robot before you tune for it (the built-in `kidsize` or your robot map YAML)."""
+
+
+@robot.command(name="check")
+@click.argument("robot_spec", metavar="MAP|NAME")
+@click.option("--json", "as_json", is_flag=True, help="Print the report as strict JSON.")
+@click.option("--no-stand", is_flag=True, help="Skip the 2 s stand test on the rigid floor.")
+@click.option("--duration", default=2.0, show_default=True, type=click.FloatRange(0.1, 30.0),
+              help="Length of the stand test [s].")
+def robot_check(robot_spec: str, as_json: bool, no_stand: bool, duration: float) -> None:
+    """Load a robot and print what was derived and from where.
+
+    Leg geometry (from the joint axis lines), joint signs, mass and CoM, sole polygon and
+    sensor coverage, the servo model and its source, held poses, what the adapter changed in
+    the file, and a stand test: the robot held for 2 s in the walking crouch on the rigid floor.
+    Exit 0 when the map is valid (also when the stand test falls: the report says why).
+    """
+    import json
+
+    from .robots import load_robot
+    from .robots.robot_check import format_report, robot_report
+
+    report = robot_report(load_robot(robot_spec), stand=not no_stand, duration=duration)
+    click.echo(json.dumps(report, indent=2, allow_nan=False) if as_json else format_report(report))
 
 
 @cli.command(name="studies")

@@ -116,7 +116,7 @@ def run_compare(specs: list[str], robot_name: str, surface_names: list[str], bas
                 progress: Callable[[int], None] | None = None) -> str:
     """Walk every set on every surface (``workers`` processes; the rows do not depend on it)
     and write the table and plots; ``progress(1)`` after each (set, surface)."""
-    _robot(robot_name)                                        # a bad robot fails here, once
+    robot = _robot(robot_name)                                # a bad robot fails here, once
     surfaces = [load_surface(s) for s in surface_names]
     sets = _sets(specs, baselines)
     tasks = [(robot_name, surface, label, params) for label, params in sets for surface in surfaces]
@@ -149,19 +149,22 @@ def run_compare(specs: list[str], robot_name: str, surface_names: list[str], bas
     for label, _ in sets:
         vals = [r["stability"] for r in rows if r["set"] == label]
         summary.append(f"| {label} | {np.mean(vals):.0f} |")
-    text = "\n".join(lines + summary)
+    study_label = f"study {Path(study_file).stem}" if study_file else "no study"
+    heading = (f"Robot {robot.name} ({robot_name}); surfaces {', '.join(s.name for s in surfaces)}; "
+               f"{study_label}.\n")
+    text = heading + "\n" + "\n".join(lines + summary)
     defs = ("\nStability %: cells of the 10-cell EROS grid walked without a fall. Pitch +-: half the "
             "peak-to-peak torso pitch per gait cycle (EROS). ZMP error: mean |measured - reference| "
             "relative to the support foot. Covered %: torso distance / planned distance of the own "
             "walk (a gait that slides in place stays up but covers little).")
     (out_dir / "compare.md").write_text(text + "\n" + defs + "\n", encoding="utf-8")
-    _plots(rows, sets, surfaces, out_dir)
+    _plots(rows, sets, surfaces, out_dir, f"robot {robot.name}, {study_label}")
     if study_file:
         _study_plots(study_file, runs_dir, out_dir)
     return text + "\n" + defs + f"\nwrote {out_dir / 'compare.md'} and PNG plots"
 
 
-def _plots(rows, sets, surfaces, out_dir: Path) -> None:
+def _plots(rows, sets, surfaces, out_dir: Path, title: str) -> None:
     fig, axes = plt.subplots(1, 3, figsize=(16, 4.5))
     width = 0.8 / max(len(sets), 1)
     x = np.arange(len(surfaces))
@@ -176,6 +179,7 @@ def _plots(rows, sets, surfaces, out_dir: Path) -> None:
         ax.set_title(title)
         ax.grid(alpha=0.3, axis="y")
     axes[0].legend(fontsize=7)
+    fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(out_dir / "compare.png", dpi=110)
     plt.close(fig)

@@ -95,6 +95,23 @@ def _fail(source: str, msg: str) -> None:
     raise UserError(f"{source}: {msg}")
 
 
+def _study_robot(robot: Any, path: Path, source: str) -> str:
+    """The study's robot: a built-in name, or a map path resolved against the study file's folder
+    (returned absolute); loaded once here so a bad robot is one line before any worker starts."""
+    from .robots import BUILTIN_ROBOTS, load_robot
+    if not isinstance(robot, str) or not robot.strip():
+        _fail(source, f"robot = {robot!r}: expected a built-in robot name ({', '.join(BUILTIN_ROBOTS)}) "
+              f"or a robot map YAML path")
+    if robot not in BUILTIN_ROBOTS:
+        p = Path(robot)
+        robot = str((p if p.is_absolute() else path.parent / p).resolve())
+    try:
+        load_robot(robot)
+    except UserError as exc:
+        _fail(source, f"robot: {exc}")
+    return robot
+
+
 def load_study(path_or_name: str) -> StudySpec:
     """Read and validate a study YAML (a path, or the name of a shipped study)."""
     path = Path(path_or_name)
@@ -201,7 +218,7 @@ def load_study(path_or_name: str) -> StudySpec:
     seed = doc.get("sampler_seed", 0)
     if not isinstance(seed, int) or isinstance(seed, bool):
         _fail(source, f"sampler_seed must be an integer, got {seed!r}")
-    robot = doc.get("robot", "kidsize")
+    robot = _study_robot(doc.get("robot", "kidsize"), path, source)
     return StudySpec(name=str(doc.get("name") or path.stem), gait=str(gait), base=base,
                      space=tuple(space), surfaces=tuple(str(s) for s in surfaces), robot=str(robot),
                      aggregate=aggregate, objectives=tuple(objectives), trials=trials,

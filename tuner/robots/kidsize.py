@@ -26,7 +26,7 @@ import numpy as np
 
 from gaits import JOINT_NAMES, LegGeometry
 
-from .mjcf_geometry import com_offset, crouch_angles, sole_polygon
+from .mjcf_geometry import CROUCH, com_offset, crouch_angles, sole_polygon
 from .robot_model import RobotModel, joint_group
 from .servo import SERVO_PRESETS, ServoSpec
 
@@ -198,4 +198,5 @@ def kidsize_model(spec: RobotSpec = RobotSpec()) -> RobotModel:
                       sole_hulls=(sole.hull, sole.hull),
                       sources={"robot": "built-in (tuner/robots/kidsize.py)",
                                "leg": "RobotSpec.leg", "servos": "presets MX-64 (legs), MX-28 (arms, head)",
-                               "com": "model, legs at the walking crouch"})
+                               "com": f"the model's masses, legs at the walking crouch ({CROUCH:g} x straight hip height); "
+                                      f"horizontal offset not planned (see kidsize_model)"})

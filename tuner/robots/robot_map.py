@@ -36,7 +36,7 @@ from gaits.leg_kinematics import LEG_JOINTS
 
 from ..errors import UserError
 from ..yaml_input import read_yaml_file
-from .mjcf_geometry import axis_line_distance, body_chain, com_offset, crouch_angles, sole_polygon
+from .mjcf_geometry import CROUCH, axis_line_distance, body_chain, com_offset, crouch_angles, sole_polygon
 from .robot_model import GROUPS, RobotModel, SimOptions, joint_group
 from .servo import SERVO_FIELDS, SERVO_PRESETS, servo_from_file, servo_from_mapping
 
@@ -189,7 +189,7 @@ def load_map(path: Path) -> RobotModel:
                                           zip(("com_forward", "com_lateral", "com_above_pelvis"), com)
                                           if k not in leg_over})
     sources["leg"] = "joint axis lines at the zero pose" + (f"; overridden: {', '.join(leg_over)}" if leg_over else "")
-    sources["com"] = "the model's masses, legs at the walking crouch"
+    sources["com"] = f"the model's masses, legs at the walking crouch ({CROUCH:g} x straight hip height)"
 
     sim_doc = doc.get("sim") or {}
     _require(isinstance(sim_doc, Mapping), source, "sim must be a mapping of " +
