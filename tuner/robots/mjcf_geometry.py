@@ -59,32 +59,30 @@ def _geom_points(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> np.ndarr
     c = data.geom_xpos[g]
     R = data.geom_xmat[g].reshape(3, 3)
     size = model.geom_size[g]
-    kind = model.geom_type[g]
+    kind = int(model.geom_type[g])
     G = mujoco.mjtGeom
     ring = np.linspace(0, 2 * np.pi, 24, endpoint=False)
-    if kind == G.mjGEOM_BOX:
+    if kind == int(G.mjGEOM_BOX):
         local = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * size
-    elif kind == G.mjGEOM_SPHERE:
+    elif kind == int(G.mjGEOM_SPHERE):
         u = np.array([[0, 0, -1], [0, 0, 1], [1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0]], float)
         return c + size[0] * u                       # a sphere's lowest point is straight below
-    elif kind in (G.mjGEOM_CAPSULE, G.mjGEOM_CYLINDER):
+    elif kind in (int(G.mjGEOM_CAPSULE), int(G.mjGEOM_CYLINDER)):
         r, h = size[0], size[1]
         ends = []
         for z in (-h, h):
             circle = np.column_stack([r * np.cos(ring), r * np.sin(ring), np.full_like(ring, z)])
             ends.append(circle)
         local = np.vstack(ends)
-        if kind == G.mjGEOM_CAPSULE:                  # hemispherical caps: lowest point of each
-            pts = c + local @ R.T
+        if kind == int(G.mjGEOM_CAPSULE):   # hemispherical caps: the lowest points are the caps' lowest
             axis = R[:, 2]
-            caps = [c + z * axis - np.array([0, 0, r]) for z in (-h, h)]
-            return np.vstack([pts, caps])
-    elif kind == G.mjGEOM_ELLIPSOID:
+            return np.array([c + z * axis - np.array([0, 0, r]) for z in (-h, h)])
+    elif kind == int(G.mjGEOM_ELLIPSOID):
         th, ph = np.meshgrid(np.linspace(0, np.pi, 13), ring)
         u = np.column_stack([(np.sin(th) * np.cos(ph)).ravel(), (np.sin(th) * np.sin(ph)).ravel(),
                              np.cos(th).ravel()])
         local = u * size
-    elif kind == G.mjGEOM_MESH:
+    elif kind == int(G.mjGEOM_MESH):
         m = model.geom_dataid[g]
         start, count = model.mesh_vertadr[m], model.mesh_vertnum[m]
         local = model.mesh_vert[start:start + count].astype(float)
@@ -144,7 +142,7 @@ class SolePolygon:
 
 
 def sole_polygon(model: mujoco.MjModel, data: mujoco.MjData, body: int,
-                 tolerance: float = 0.002) -> SolePolygon | None:
+                 tolerance: float = 0.001) -> SolePolygon | None:
     """The sole of a foot body at the current pose (kinematics must be up to date): every
     collision-geom point within ``tolerance`` [m] of the lowest one, as a hull in the foot
     frame. None when the body has no collision geom."""
