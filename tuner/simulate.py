@@ -138,9 +138,11 @@ class Simulator:
         self._max_step = speeds * self.control_period
         fl, fw = r.foot_size
         corners = np.array([[sx * fl / 2, sy * fw / 2, 0.0] for sx, sy in CORNERS])
-        self._corners = np.stack([corners + np.array(s) for s in r.soles])      # (2, 4, 3) in foot frame
+        self._corners = np.stack([r.sole_points(i, corners) for i in range(2)])  # (2, 4, 3) in foot frame
         self._corners_T = np.ascontiguousarray(self._corners.transpose(0, 2, 1))  # (2, 3, 4)
         self._col_in_gait = np.array([JOINT_NAMES.index(j) for j in self.joint_names])
+        self._touch_sum = np.zeros((len(lay.touch_quadrant), 8))
+        self._touch_sum[np.arange(len(lay.touch_quadrant)), list(lay.touch_quadrant)] = 1.0
         self._n_servo = len(self.joint_names)
         self._n_act = self._n_servo + len(held)
 
@@ -269,7 +271,7 @@ class Simulator:
         k = len(sens)
         t = traj.t[:k]
         pitch, roll = _quat_pitch_roll(sens[:, self._s_quat])
-        force = sens[:, self._s_touch]
+        force = sens[:, self._s_touch] @ self._touch_sum
         p_touch = sens[:, self._s_touchpos].reshape(k, 8, 3)
         weight = float(np.sum(self.model.body_mass)) * 9.81
         zmp = centre_of_pressure(force, p_touch, min_total=0.1 * weight)

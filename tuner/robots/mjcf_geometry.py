@@ -6,7 +6,8 @@
   hip pitch lines meet, the ankle centre where the ankle pitch and roll lines meet.
 * Thigh and shank are the distances between the parallel pitch axes (hip-knee, knee-ankle).
 * The sole is the convex hull of the lowest points of every collision geom of the foot body
-  (boxes, capsules, cylinders, spheres, ellipsoids, meshes), in the foot frame
+  and of the bodies welded to it (cleats, plates): boxes, capsules, cylinders, spheres,
+  ellipsoids, meshes; in the foot frame
   (:func:`sole_polygon`).
 * The whole-body CoM offset from the torso origin is taken with the legs bent by the IK to a
   walking crouch (:func:`com_offset`): the generators plan the CoM, not the pelvis.
@@ -21,7 +22,7 @@ import mujoco
 import numpy as np
 
 __all__ = ["axis_line_distance", "SolePolygon", "sole_polygon", "com_offset", "body_chain",
-           "foot_geoms", "CROUCH"]
+           "foot_geoms", "welded_bodies", "CROUCH"]
 
 #: The walking crouch at which the CoM offset is taken: hip height as a fraction of the
 #: straight leg's (ours; a typical kid-size walking posture).
@@ -48,9 +49,19 @@ def axis_line_distance(p1: np.ndarray, a1: np.ndarray, p2: np.ndarray,
     return float(np.linalg.norm(c1 - c2)), (c1 + c2) / 2
 
 
+def welded_bodies(model: mujoco.MjModel, body: int) -> list[int]:
+    """A body and every descendant joined to it without a joint (cleats, sole plates)."""
+    out = [body]
+    for b in range(body + 1, model.nbody):
+        if model.body_jntnum[b] == 0 and int(model.body_parentid[b]) in out:
+            out.append(b)
+    return out
+
+
 def foot_geoms(model: mujoco.MjModel, body: int) -> list[int]:
-    """Collision geoms (contype or conaffinity set) of a body."""
-    return [g for g in range(model.ngeom) if model.geom_bodyid[g] == body
+    """Collision geoms (contype or conaffinity set) of a foot body and the bodies welded to it."""
+    bodies = set(welded_bodies(model, body))
+    return [g for g in range(model.ngeom) if int(model.geom_bodyid[g]) in bodies
             and (model.geom_contype[g] or model.geom_conaffinity[g])]
 
 
@@ -117,17 +128,27 @@ def _hull(points: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class SolePolygon:
-    """A foot's sole in its body frame: the hull of its collision geoms' lowest points."""
+    """A foot's sole: the hull of its collision geoms' lowest points.
 
-    hull: np.ndarray            # (M, 2) [m] counter-clockwise, foot-body frame x, y
-    z: float                    # [m] height of the sole plane in the foot-body frame
+    The *sole frame* has its origin at the foot body's origin and the torso's axes at the
+    zero pose (x forward, y left, z up), whatever way the foot body's own frame is turned.
+    """
+
+    hull: np.ndarray            # (M, 2) [m] counter-clockwise, sole-frame x, y
+    z: float                    # [m] height of the sole plane in the sole frame
+    R_sole_foot: np.ndarray     # (3, 3) foot-frame vectors -> sole-frame vectors
     geoms: tuple[str, ...]      # the collision geoms it came from
 
     @property
-    def centre(self) -> np.ndarray:
-        """Centre of the hull's bounding rectangle (x, y, z) in the foot frame [m]."""
+    def centre_sole(self) -> np.ndarray:
+        """Centre of the hull's bounding rectangle (x, y, z) in the sole frame [m]."""
         lo, hi = self.hull.min(axis=0), self.hull.max(axis=0)
         return np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, self.z])
+
+    @property
+    def centre(self) -> np.ndarray:
+        """The same centre in the foot body's frame [m] (3,)."""
+        return self.R_sole_foot.T @ self.centre_sole
 
     @property
     def size(self) -> tuple[float, float]:
@@ -135,28 +156,25 @@ class SolePolygon:
         ext = self.hull.max(axis=0) - self.hull.min(axis=0)
         return float(ext[0]), float(ext[1])
 
-    @property
-    def area(self) -> float:
-        x, y = self.hull[:, 0], self.hull[:, 1]
-        return float(0.5 * abs(x @ np.roll(y, -1) - y @ np.roll(x, -1)))
 
-
-def sole_polygon(model: mujoco.MjModel, data: mujoco.MjData, body: int,
+def sole_polygon(model: mujoco.MjModel, data: mujoco.MjData, body: int, R_world_torso: np.ndarray | None = None,
                  tolerance: float = 0.001) -> SolePolygon | None:
     """The sole of a foot body at the current pose (kinematics must be up to date): every
-    collision-geom point within ``tolerance`` [m] of the lowest one, as a hull in the foot
-    frame. None when the body has no collision geom."""
+    collision-geom point within ``tolerance`` [m] of the lowest one, as a hull in the sole
+    frame (the torso's axes ``R_world_torso``, default the world's). None when the body has
+    no collision geom."""
     geoms = foot_geoms(model, body)
     if not geoms:
         return None
+    R_t = np.eye(3) if R_world_torso is None else np.asarray(R_world_torso)
     pts = np.vstack([_geom_points(model, data, g) for g in geoms])
     low = pts[:, 2].min()
     near = pts[pts[:, 2] <= low + tolerance]
-    R = data.xmat[body].reshape(3, 3)
-    local = (near - data.xpos[body]) @ R
-    z_local = float(((np.array([0.0, 0.0, low]) - data.xpos[body]) @ R)[2])
+    local = (near - data.xpos[body]) @ R_t                     # sole-frame coordinates
+    z_local = float(((np.array([0.0, 0.0, low]) - data.xpos[body]) @ R_t)[2])
+    R_sole_foot = R_t.T @ data.xmat[body].reshape(3, 3)
     names = tuple(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or f"geom#{g}" for g in geoms)
-    return SolePolygon(_hull(local[:, :2]), z_local, names)
+    return SolePolygon(_hull(local[:, :2]), z_local, R_sole_foot, names)
 
 
 def body_chain(model: mujoco.MjModel, body: int) -> list[int]:

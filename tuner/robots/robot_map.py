@@ -36,7 +36,8 @@ from gaits.leg_kinematics import LEG_JOINTS
 
 from ..errors import UserError
 from ..yaml_input import read_yaml_file
-from .mjcf_geometry import CROUCH, axis_line_distance, body_chain, com_offset, crouch_angles, sole_polygon
+from .mjcf_geometry import (CROUCH, axis_line_distance, body_chain, com_offset, crouch_angles, foot_geoms,
+                            sole_polygon)
 from .robot_model import GROUPS, RobotModel, SimOptions, joint_group
 from .servo import SERVO_FIELDS, SERVO_PRESETS, servo_from_file, servo_from_mapping
 
@@ -123,7 +124,7 @@ def load_map(path: Path) -> RobotModel:
         return in_torso(d.xanchor[j]), R_t.T @ d.xaxis[j]
 
     geo: dict[str, dict[str, float]] = {}
-    soles, hulls, sources = [], [], {}
+    soles, hulls, axes, bodies, sources = [], [], [], [], {}
     for side, p, s in _SIDES:
         hip_dist, hip = axis_line_distance(*line(p + "hip_roll"), *line(p + "hip_pitch"))
         _require(hip_dist < AXIS_TOLERANCE, source,
@@ -151,15 +152,19 @@ def load_map(path: Path) -> RobotModel:
                  f"under the torso origin (allowed {_mm(AXIS_TOLERANCE)}): use a torso body whose origin lies "
                  f"between the hips")
         fb = foot_ids[side]
-        sole = sole_polygon(model, d, fb)
+        sole = sole_polygon(model, d, fb, R_t)
         _require(sole is not None, source, f"feet.{side}: body {feet[side]!r} has no collision geom")
-        centre_world = d.xpos[fb] + d.xmat[fb].reshape(3, 3) @ sole.centre
-        c = in_torso(centre_world)
+        c = in_torso(d.xpos[fb]) + sole.centre_sole
         geo[side] = {"hip_offset_y": float(s * hip[1]), "hip_offset_z": float(-hip[2]), "thigh": thigh,
                      "shank": shank, "ankle_height": float(ankle[2] - c[2]),
                      "sole_forward": float(c[0] - ankle[0]), "sole_outward": float(s * (c[1] - ankle[1]))}
         soles.append(tuple(float(v) for v in sole.centre))
         hulls.append(sole.hull)
+        axes.append(sole.R_sole_foot)
+        R_f = d.xmat[fb].reshape(3, 3)
+        carriers = sorted({int(model.geom_bodyid[g]) for g in foot_geoms(model, fb)})
+        bodies.append(tuple((model.body(b).name, R_f.T @ d.xmat[b].reshape(3, 3), R_f.T @ (d.xpos[b] - d.xpos[fb]))
+                            for b in carriers))
         sources[f"sole.{side}"] = f"hull of {len(sole.geoms)} collision geom(s): {', '.join(sole.geoms)}"
     derived = geo["left"]
     notes = []
@@ -214,7 +219,7 @@ def load_map(path: Path) -> RobotModel:
         notes.append(f"the file's {model.nsensor} sensor(s) are left out of the simulation")
     return RobotModel(name, xml, final, torso, (str(feet["left"]), str(feet["right"])),
                       (soles[0], soles[1]), sizes[0], leg, servos, pose, tuple(hulls), sources,
-                      tuple(notes), sim, str(mjcf), str(path.resolve()))
+                      tuple(notes), sim, str(mjcf), str(path.resolve()), tuple(axes), tuple(bodies))
 
 
 def _sole_size(hull: np.ndarray) -> tuple[float, float]:

@@ -63,8 +63,9 @@ class RobotModel:
     (MJCF joint name, sign): legs required, head and arms optional. ``servos`` gives every
     hinge joint we actuate (mapped or held) its servo, keyed by MJCF joint name; ``pose``
     holds the angle [rad, the file's convention] at which every non-leg joint is held.
-    ``feet`` names the foot bodies, ``soles`` their sole centres in the foot frame and
-    ``sole_hulls`` their sole polygons (M, 2) in the foot frame. ``sources`` says where each
+    ``feet`` names the foot bodies, ``soles`` their sole centres in the foot frame,
+    ``sole_hulls`` their sole polygons (M, 2) in the sole frame (foot origin, torso axes at the
+    zero pose) and ``sole_axes`` the rotation from each foot frame into its sole frame. ``sources`` says where each
     derived number came from, ``notes`` what the adapter changed (both for ``robot check``).
     """
 
@@ -84,6 +85,22 @@ class RobotModel:
     sim: SimOptions = SimOptions()
     mjcf_path: str | None = None                  # set for user robots: meshes resolve beside it
     map_path: str | None = None
+    sole_axes: tuple[np.ndarray, ...] = (np.eye(3), np.eye(3))
+    #: per foot, the bodies that carry its sole geoms (the foot and bodies welded to it, e.g.
+    #: cleats) with their pose in the foot frame (name, R_foot_body (3, 3), p_foot_body (3,));
+    #: empty: the foot body alone. Touch sensors are per body, so each gets its own sites.
+    sole_bodies: tuple[tuple[tuple[str, np.ndarray, np.ndarray], ...], ...] = ()
+
+    def touch_bodies(self, side: int) -> tuple[tuple[str, np.ndarray, np.ndarray], ...]:
+        if self.sole_bodies:
+            return self.sole_bodies[side]
+        return ((self.feet[side], np.eye(3), np.zeros(3)),)
+
+    def sole_points(self, side: int, points_sole: np.ndarray) -> np.ndarray:
+        """Offsets from a sole centre given in sole-frame axes (K, 3) -> points in the foot frame
+        (K, 3); side 0 left, 1 right."""
+        R = np.asarray(self.sole_axes[side])
+        return np.asarray(self.soles[side]) + np.asarray(points_sole, dtype=float) @ R
 
     def spec(self) -> mujoco.MjSpec:
         """A fresh, editable MjSpec of the robot as its file gives it."""

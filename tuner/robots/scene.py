@@ -47,6 +47,7 @@ class SceneLayout:
     held_joints: tuple[str, ...]       # MJCF names of the other actuated joints
     n_drag: int                        # drag dampers (2 per sole corner, 0 on rigid/carpet)
     sensors: tuple[tuple[str, int], ...]   # (block name, width) in sensordata order
+    touch_quadrant: tuple[int, ...]    # per touch sensor, its sole quadrant 0..7 (left 0-3, right 4-7)
 
 
 def _our_default(spec: mujoco.MjSpec) -> mujoco.MjsDefault:
@@ -113,15 +114,24 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
     spec.body(r.torso).add_site(default=gt, name=PREFIX + "imu", pos=[0, 0, 0.05])
     fl, fw = r.foot_size
     depth = s.layer_height + 0.03
-    for side, fname, sole in zip("lr", r.feet, r.soles):
+    pad = 0.005           # reach past the sole's edge so corner contacts are not lost
+    for i, (side, fname) in enumerate(zip("lr", r.feet)):
         foot = spec.body(fname)
-        foot.add_site(default=gt, name=f"{PREFIX}{side}_sole", pos=list(sole))
-        pad = 0.005       # reach past the sole's edge so corner contacts are not lost
+        quat = np.zeros(4)
+        mujoco.mju_mat2Quat(quat, np.ascontiguousarray(np.asarray(r.sole_axes[i]).T).ravel())
+        foot.add_site(default=gt, name=f"{PREFIX}{side}_sole", pos=list(r.soles[i]), quat=list(quat))
+        R_foot_site = np.asarray(r.sole_axes[i]).T
         for k, (sx, sy) in enumerate(CORNERS):    # four quadrants of the sole's bounding box
-            foot.add_site(default=gt, name=f"{PREFIX}{side}_touch{k}", type=mujoco.mjtGeom.mjGEOM_BOX,
-                          pos=[sole[0] + sx * (fl / 4 + pad / 2), sole[1] + sy * (fw / 4 + pad / 2),
-                               sole[2] - depth / 2 + 0.004],
-                          size=[fl / 4 + pad / 2, fw / 4 + pad / 2, depth / 2 + 0.004], group=4)
+            offset = [sx * (fl / 4 + pad / 2), sy * (fw / 4 + pad / 2), -depth / 2 + 0.004]
+            p_foot = r.sole_points(i, [offset])[0]
+            # a touch sensor sees the contacts of its site's body: one site per sole-carrying body
+            for j, (bname, R_fb, p_fb) in enumerate(r.touch_bodies(i)):
+                q = np.zeros(4)
+                mujoco.mju_mat2Quat(q, np.ascontiguousarray(R_fb.T @ R_foot_site).ravel())
+                spec.body(bname).add_site(default=gt, name=f"{PREFIX}{side}_touch{k}_{j}",
+                                          type=mujoco.mjtGeom.mjGEOM_BOX, pos=list(R_fb.T @ (p_foot - p_fb)),
+                                          quat=list(q), size=[fl / 4 + pad / 2, fw / 4 + pad / 2, depth / 2 + 0.004],
+                                          group=4)
 
     servo_joints = tuple(n for n in JOINT_NAMES if n in r.joint_map)
     held = r.held_joints
@@ -144,11 +154,11 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
     n_drag = 0
     if s.drag > 0.0:
         spec.worldbody.add_site(default=gt, name=PREFIX + "drag_ref", pos=[0, 0, 0])
-        for side, fname, sole in zip("lr", r.feet, r.soles):
+        for i, (side, fname) in enumerate(zip("lr", r.feet)):
             foot = spec.body(fname)
             for k, (sx, sy) in enumerate(CORNERS):
                 site = f"{PREFIX}{side}_corner{k}"
-                foot.add_site(default=gt, name=site, pos=[sole[0] + sx * fl / 2, sole[1] + sy * fw / 2, sole[2]],
+                foot.add_site(default=gt, name=site, pos=list(r.sole_points(i, [[sx * fl / 2, sy * fw / 2, 0.0]])[0]),
                               group=4)
                 for axis, gear in (("x", [1, 0, 0, 0, 0, 0]), ("y", [0, 1, 0, 0, 0, 0])):
                     act = spec.add_actuator(default=gt, name=f"{PREFIX}drag/{side}{k}_{axis}", target=site,
@@ -176,14 +186,17 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
     for side in "lr":
         sensor("sole", 3, name=f"{PREFIX}{side}_sole_pos", type=S.mjSENS_FRAMEPOS, objtype=O.mjOBJ_SITE,
                objname=f"{PREFIX}{side}_sole")
-    for side in "lr":
+    touch_quadrant = []                     # which of the 8 quadrants each touch sensor adds to
+    for i, side in enumerate("lr"):
         for k in range(4):
-            sensor("touch", 1, name=f"{PREFIX}{side}_touch{k}", type=S.mjSENS_TOUCH, objtype=O.mjOBJ_SITE,
-                   objname=f"{PREFIX}{side}_touch{k}")
+            for j in range(len(r.touch_bodies(i))):
+                sensor("touch", 1, name=f"{PREFIX}{side}_touch{k}_{j}", type=S.mjSENS_TOUCH, objtype=O.mjOBJ_SITE,
+                       objname=f"{PREFIX}{side}_touch{k}_{j}")
+                touch_quadrant.append(4 * i + k)
     for side in "lr":
         for k in range(4):
             sensor("touchpos", 3, name=f"{PREFIX}{side}_touch{k}_pos", type=S.mjSENS_FRAMEPOS,
-                   objtype=O.mjOBJ_SITE, objname=f"{PREFIX}{side}_touch{k}")
+                   objtype=O.mjOBJ_SITE, objname=f"{PREFIX}{side}_touch{k}_0")
     for ours in servo_joints:
         sensor("q", 1, name=f"{PREFIX}q/{ours}", type=S.mjSENS_ACTUATORPOS, objtype=O.mjOBJ_ACTUATOR,
                objname=f"{PREFIX}servo/{ours}")
@@ -208,4 +221,4 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
             ctrl = [float(qpos[adr[t]]) for t in targets]
         key.ctrl = ctrl + [0.0] * n_drag
         key.act = []
-    return spec, SceneLayout(servo_joints, held, n_drag, tuple(blocks))
+    return spec, SceneLayout(servo_joints, held, n_drag, tuple(blocks), tuple(touch_quadrant))
