@@ -33,7 +33,7 @@ def test_axis_line_distance_hand_checked():
     assert mid == pytest.approx([0.0001, 0.035, -0.0285])
 
 
-@pytest.fixture(scope="module", params=["two_box", "capsule"])
+@pytest.fixture(scope="module", params=["two_box", "capsule", "cleats"])
 def robot(request, tmp_path_factory):
     path = T.write(tmp_path_factory.mktemp(request.param), T.mjcf(feet=request.param))
     return request.param, load_robot(str(path))
@@ -52,6 +52,12 @@ def test_geometry_derived_from_axis_lines_and_all_foot_geoms(robot):
         assert L.sole_outward == pytest.approx(0.0125, abs=1e-9)
         assert len(r.sole_hulls[0]) == 8
         assert L.sole_forward == pytest.approx(-0.0001, abs=1e-9)
+    elif feet == "cleats":  # spheres on four welded bodies at x -30..80 mm, y -20..40 mm, in a turned foot frame
+        assert r.foot_size == pytest.approx((0.110, 0.060), abs=1e-6)
+        assert L.ankle_height == pytest.approx(0.0305, abs=1e-9)
+        assert L.sole_outward == pytest.approx(0.010, abs=1e-6)
+        assert r.soles[0] == pytest.approx((0.025, -0.0305, -0.010), abs=1e-9)   # the foot frame's y is up
+        assert len(r.touch_bodies(0)) == 4
     else:   # two capsules (r 10 mm) along x -35..80 mm at y 38 and -16 mm: they touch along their bottom lines
         assert r.foot_size == pytest.approx((0.115, 0.054), abs=1e-6)
         assert L.ankle_height == pytest.approx(0.0325, abs=1e-9)
@@ -132,12 +138,12 @@ def test_tlipfm_baseline_walks_on_the_third_party_robot(robot, surface):
 
 
 def test_robot_check_stand_test_sees_the_whole_weight(robot):
-    _, r = robot
+    feet, r = robot
     rep = robot_report(r)
     json.dumps(rep, allow_nan=False)
     assert rep["stand"]["stays_up"]
     assert rep["stand"]["sensed_weight_fraction"] == pytest.approx(1.0, abs=0.02)
-    assert rep["mass_kg"] == pytest.approx(3.158, abs=0.01)
+    assert rep["mass_kg"] == pytest.approx(3.158 + (0.04 if feet == "cleats" else 0.0), abs=0.01)
     assert rep["servos"]["legs"]["kp"] == pytest.approx(21.1)
 
 

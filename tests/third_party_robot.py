@@ -32,7 +32,17 @@ def mjcf(feet: str = "two_box", torso_com_x: float = -0.015, kp: float = 21.1, t
         if feet == "capsule":
             return (f'<geom class="foot" type="capsule" fromto="-0.035 {s * 0.038:.4f} -0.0225 0.08 {s * 0.038:.4f} -0.0225" size="0.01"/>\n'
                     f'          <geom class="foot" type="capsule" fromto="-0.035 {s * -0.016:.4f} -0.0225 0.08 {s * -0.016:.4f} -0.0225" size="0.01"/>')
+        if feet == "cleats":      # four spherical cleats on bodies welded to a foot frame turned 90 deg
+            out = []
+            for k, (x, y) in enumerate(((-0.03, -0.02), (-0.03, 0.04), (0.08, -0.02), (0.08, 0.04))):
+                # world (x, s*y, z) -> local (x, z, -s*y) in a frame turned +90 deg about x
+                out.append(f'<body name="cleat_{k}_{"l" if s > 0 else "r"}" pos="{x} -0.0225 {-s * y:.4f}">'
+                           f'<inertial pos="0 0 0" mass="0.005" diaginertia="1e-7 1e-7 1e-7"/>'
+                           f'<geom class="collision" type="sphere" size="0.008"/></body>')
+            return "\n          ".join(out)
         raise ValueError(feet)
+
+    turn = ' quat="0.7071068 0.7071068 0 0"' if feet == "cleats" else ""
 
     def leg(side: str, s: int) -> str:
         n = {k: joint_name(k, side) for k in LEG}
@@ -53,7 +63,7 @@ def mjcf(feet: str = "two_box", torso_com_x: float = -0.015, kp: float = 21.1, t
             <body name="ankle_link_{side}" pos="0 0 -0.11">
               <inertial pos="-0.02 {-s * 0.0187} 0.012" mass="0.18" diaginertia="1.2e-4 1.1e-4 4.7e-5"/>
               <joint name="{n['ankle_pitch']}" axis="0 {-s} 0" range="-1.5 1.5"/>
-              <body name="foot_{side}" pos="-0.0241 {-s * 0.019} 0">
+              <body name="foot_{side}" pos="-0.0241 {-s * 0.019} 0"{turn}>
                 <inertial pos="0.024 {s * 0.0104} -0.0276" mass="0.07" diaginertia="1.2e-4 8.5e-5 4e-5"/>
                 <joint name="{n['ankle_roll']}" axis="1 0 0" range="-0.8 0.8"/>
                 {foot(s)}
