@@ -308,3 +308,13 @@ def test_bad_map_inputs_in_process(tmp_path):
     path.write_text(T.map_yaml().replace("torso: body_link", "torso: shank_l"))
     with pytest.raises(UserError, match="must carry the model's free joint"):
         load_robot(str(path))
+
+
+def test_shipped_example_robot_checks_and_stands(gait_tuner_cmd, run_env):
+    from conftest import ROOT
+    r = _run(gait_tuner_cmd, ["robot", "check", str(ROOT / "examples" / "robots" / "kid3kg" / "kid3kg.yaml"),
+                              "--json"], run_env)
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(r.stdout)
+    assert doc["robot"] == "kid3kg" and doc["stand"]["stays_up"]
+    assert "speed from the map" in doc["sources"]["servos.legs"]
