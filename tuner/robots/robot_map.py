@@ -212,6 +212,11 @@ def load_map(path: Path) -> RobotModel:
     pose, pose_source = _pose(model, final, servos, doc.get("pose"), source)
     sources["pose"] = pose_source
     notes += _keyframe_notes(model)
+    from .scene import solver_differences
+    differ = solver_differences(mujoco.MjSpec.from_file(str(mjcf)))
+    if differ:
+        notes.append("the file's solver options are replaced by MuJoCo's defaults, with which the surfaces "
+                     "were calibrated: " + ", ".join(differ))
     if model.nu:
         notes.append(f"the file's {model.nu} actuator(s) are replaced by our servo model of the same numbers "
                      f"(see servos), with a speed limit")

@@ -69,6 +69,29 @@ def _our_default(spec: mujoco.MjSpec) -> mujoco.MjsDefault:
     return ours
 
 
+#: Solver options the surfaces were calibrated with (MuJoCo's defaults); a file's own are replaced.
+SOLVER_OPTIONS = ("iterations", "ls_iterations", "tolerance", "ls_tolerance", "noslip_iterations",
+                  "noslip_tolerance", "cone", "impratio", "solver", "jacobian", "gravity", "wind", "density",
+                  "viscosity", "disableflags", "enableflags")
+
+
+def solver_differences(spec: mujoco.MjSpec) -> list[str]:
+    """The file's solver options that differ from MuJoCo's defaults (ours), as 'name value'."""
+    fresh = mujoco.MjSpec().option
+    out = []
+    for name in SOLVER_OPTIONS:
+        theirs, ours = getattr(spec.option, name), getattr(fresh, name)
+        if not np.array_equal(np.asarray(theirs), np.asarray(ours)):
+            out.append(f"{name} {np.asarray(theirs).tolist()}")
+    return out
+
+
+def _reset_solver(spec: mujoco.MjSpec) -> None:
+    fresh = mujoco.MjSpec()
+    for name in SOLVER_OPTIONS:
+        setattr(spec.option, name, getattr(fresh.option, name))
+
+
 def _nq(spec: mujoco.MjSpec) -> int:
     sizes = {mujoco.mjtJoint.mjJNT_FREE: 7, mujoco.mjtJoint.mjJNT_BALL: 4,
              mujoco.mjtJoint.mjJNT_SLIDE: 1, mujoco.mjtJoint.mjJNT_HINGE: 1}
@@ -79,6 +102,7 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
     """The editable model of ``robot`` on ``surface`` with our servos, sensors and drag."""
     r, s = robot, surface
     spec = r.spec()
+    _reset_solver(spec)
     spec.option.timestep = r.sim.timestep
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     nq = _nq(spec)
