@@ -318,3 +318,15 @@ def test_shipped_example_robot_checks_and_stands(gait_tuner_cmd, run_env):
     doc = json.loads(r.stdout)
     assert doc["robot"] == "kid3kg" and doc["stand"]["stays_up"]
     assert "speed from the map" in doc["sources"]["servos.legs"]
+
+
+def test_a_robot_whose_hips_turn_in_another_order_is_told_so(tmp_path):
+    xml = T.mjcf()
+    for side in "LR":                      # hip pitch joint in the first hip body, hip yaw in the thigh
+        yaw = next(line for line in xml.splitlines() if f'name="HipYaw_{side}"' in line).strip()
+        pitch = next(line for line in xml.splitlines() if f'name="HipPitch_{side}"' in line).strip()
+        xml = xml.replace(yaw, "@@").replace(pitch, yaw).replace("@@", pitch)
+    path = T.write(tmp_path, xml)
+    with pytest.raises(UserError, match=r"this robot's left leg turns hip pitch, hip roll, hip yaw, knee, .* "
+                                        r"so this robot is not supported"):
+        load_robot(str(path))

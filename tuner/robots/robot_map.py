@@ -115,7 +115,7 @@ def load_map(path: Path) -> RobotModel:
         y = in_torso(d.xpos[foot_ids[side]])[1]
         _require(s * y > 0, source, f"feet.{side}: body {feet[side]!r} lies at y = {_mm(y)} in the torso frame "
                  f"(the {'right' if s > 0 else 'left'} side; +y is left): left and right feet swapped?")
-    _check_chains(model, jmap, foot_ids, tb, source)
+    _check_chains(model, d, R_t, jmap, foot_ids, tb, source)
     final = _signs(model, d, jmap, R_t, source)
 
     # geometry from the axis lines at the zero pose, in the torso frame
@@ -258,9 +258,17 @@ def _read_joints(joints: Any, model: mujoco.MjModel, source: str, fname: str) ->
     return jmap
 
 
-def _check_chains(model: mujoco.MjModel, jmap: Mapping[str, tuple[str, int | None]],
-                  foot_ids: Mapping[str, int], tb: int, source: str) -> None:
-    """Each leg joint lies on the chain from the torso to its own foot, in the IK's order."""
+def _axis_fits(model: mujoco.MjModel, d: mujoco.MjData, R_t: np.ndarray, joint: str, kind: str) -> bool:
+    axis = R_t.T @ d.xaxis[model.joint(joint).id]
+    return abs(float(axis @ np.array(LEG_AXES[kind], dtype=float))) > 0.95
+
+
+def _check_chains(model: mujoco.MjModel, d: mujoco.MjData, R_t: np.ndarray,
+                  jmap: Mapping[str, tuple[str, int | None]], foot_ids: Mapping[str, int], tb: int,
+                  source: str) -> None:
+    """Each leg joint lies on the chain from the torso to its own foot, in the IK's order. A
+    wrong order whose joints all turn about their kind's axis is the robot's own build (e.g.
+    hips pitch-roll-yaw), which the EROS IK cannot drive; otherwise two names look swapped."""
     chains = {side: body_chain(model, foot_ids[side]) for side in foot_ids}
     for side, p, _ in _SIDES:
         other = "right" if side == "left" else "left"
@@ -280,6 +288,14 @@ def _check_chains(model: mujoco.MjModel, jmap: Mapping[str, tuple[str, int | Non
         for k in range(len(LEG_JOINTS) - 1):
             if ranks[k] >= ranks[k + 1]:
                 a, b = LEG_JOINTS[k], LEG_JOINTS[k + 1]
+                hips_first = max(ranks[:3]) < ranks[3] < ranks[4] < ranks[5]
+                if hips_first and all(_axis_fits(model, d, R_t, jmap[p + kind][0], kind) for kind in LEG_JOINTS):
+                    order = sorted(LEG_JOINTS, key=lambda kind: ranks[LEG_JOINTS.index(kind)])
+                    raise UserError(
+                        f"{source}: this robot's {side} leg turns {', '.join(x.replace('_', ' ') for x in order)} "
+                        f"going from the torso ({', '.join(jmap[p + x][0] for x in order)}); gait-tuner's leg IK "
+                        f"(EROS eqs 9-35) needs hip yaw, hip roll, hip pitch, knee, ankle pitch, ankle roll, so "
+                        f"this robot is not supported")
                 raise UserError(
                     f"{source}: joints.{p}{a} and joints.{p}{b} look swapped: {jmap[p + b][0]!r} comes before "
                     f"{jmap[p + a][0]!r} going from the torso to the {side} foot (the IK's order is "
