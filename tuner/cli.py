@@ -141,7 +141,7 @@ def simulate(robot_name: str, surface_name: str, family: str | None, params_spec
             click.echo(f"  {key:16s} {shown:>10s}   {text}")
     if plot_dir is not None:
         from .plots import plot_pitch, plot_zmp
-        title = f"{gait_file.family} ({label}) on {surface.name}"
+        title = f"{gait_file.family} ({label}), robot {robot.name} on {surface.name}"
         p1 = plot_pitch({label: trace}, plot_dir / "pitch.png", title)
         p2 = plot_zmp(trace, plot_dir / "zmp.png", robot.foot_size, title)
         if not as_json:
@@ -180,11 +180,11 @@ def experiment(paper: str, robot_name: str, surface_name: str, lift_scale: float
         with tqdm(total=n, desc="EROS matrix", unit="walk", disable=None) as bar:
             without = ex.eros_matrix(robot, surfaces, False, lift_scale=lift_scale, progress=bar.update)
             with_ = ex.eros_matrix(robot, surfaces, True, lift_scale=lift_scale, progress=bar.update)
-        text = (f"foot lift: the paper's Z x {lift_scale:g}\n" + ex.format_eros(without, False)
+        text = (f"robot {robot.name}; foot lift: the paper's Z x {lift_scale:g}\n" + ex.format_eros(without, False)
                 + "\n\n" + ex.format_eros(with_, True))
     else:
         surface = load_surface(surface_name)
-        text = ex.format_table3(ex.tlipfm_table3(robot, surface), surface.name)
+        text = f"robot {robot.name}\n" + ex.format_table3(ex.tlipfm_table3(robot, surface), surface.name)
     click.echo(text)
     if out_dir is not None:
         out_dir.mkdir(parents=True, exist_ok=True)
