@@ -12,6 +12,7 @@ from . import cosine_law, eros, tlipfm
 from .baselines import list_baselines, load_baseline
 from .cosine_law import CosineLawParams
 from .eros import ErosParams
+from .imu_stabiliser import StabiliserParams, stabiliser_corrections
 from .leg_kinematics import LegGeometry, UnreachableTargetError, leg_fk, leg_ik
 from .limb_kinematics import ArmGeometry, HeadGeometry, arm_fk, head_fk
 from .params import (GaitFile, GaitParams, ParamError, families, family_class, load_gait_file,
@@ -30,6 +31,7 @@ __all__ = [
     "JOINT_NAMES",
     "LegGeometry",
     "ParamError",
+    "StabiliserParams",
     "TlipfmParams",
     "UnreachableTargetError",
     "arm_fk",
@@ -44,6 +46,7 @@ __all__ = [
     "load_gait_file",
     "params_from_mapping",
     "save_gait_file",
+    "stabiliser_corrections",
 ]
 
 _GENERATORS: dict[str, Callable[..., GaitTrajectory]] = {

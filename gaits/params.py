@@ -179,13 +179,14 @@ class GaitFile:
 
     params: GaitParams
     description: str = ""
+    stabiliser: Any = None          # gaits.imu_stabiliser.StabiliserParams, or None (open loop)
 
     @property
     def family(self) -> str:
         return self.params.FAMILY
 
 
-_TOP_KEYS = ("gait", "description", "params")
+_TOP_KEYS = ("gait", "description", "params", "stabiliser")
 
 
 def load_gait_file(path: str | Path) -> GaitFile:
@@ -222,13 +223,18 @@ def load_gait_file(path: str | Path) -> GaitFile:
     description = doc.get("description") or ""
     if not isinstance(description, str):
         raise ParamError(f"{source}: 'description' must be text")
-    return GaitFile(params_from_mapping(family, doc.get("params"), source), description)
+    stabiliser = None
+    if doc.get("stabiliser") is not None:
+        from .imu_stabiliser import stabiliser_from_mapping
+        stabiliser = stabiliser_from_mapping(doc["stabiliser"], f"{source}: stabiliser")
+    return GaitFile(params_from_mapping(family, doc.get("params"), source), description, stabiliser)
 
 
-def save_gait_file(path: str | Path, params: GaitParams, description: str = "") -> Path:
+def save_gait_file(path: str | Path, params: GaitParams, description: str = "", stabiliser: Any = None) -> Path:
     """Write a parameter file that :func:`load_gait_file` reads back identically.
 
-    Each value carries its unit and meaning as a YAML comment.
+    Each value carries its unit and meaning as a YAML comment; the IMU stabiliser's gains
+    (``gaits/imu_stabiliser.py`` gives the formula) follow when one is given.
     """
     path = Path(path)
     lines = [f"gait: {params.FAMILY}"]
@@ -244,6 +250,11 @@ def save_gait_file(path: str | Path, params: GaitParams, description: str = "") 
         paper = f" ({row['paper']})" if row["paper"] else ""
         unit = f"[{row['unit']}] " if row["unit"] and row["unit"] != "-" else ""
         lines.append(f"  {row['name']}: {text}  # {unit}{row['doc']}{paper}")
+    if stabiliser is not None:
+        lines.append("stabiliser:  # IMU feedback, ours: see gaits/imu_stabiliser.py for the formula")
+        for name, value in stabiliser.to_mapping().items():
+            text = yaml.safe_dump(value, default_flow_style=True).strip().split("\n")[0]
+            lines.append(f"  {name}: {text}")
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return path

@@ -22,14 +22,15 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from gaits import JOINT_NAMES, GaitTrajectory
+from gaits import JOINT_NAMES, GaitTrajectory, StabiliserParams, stabiliser_corrections
 
 from .centre_of_pressure import centre_of_pressure
-from .robots import RobotModel, SimOptions, build_scene
+from .randomisation import Perturbation
+from .robots import PREFIX, RobotModel, SimOptions, build_scene
 from .robots.scene import CORNERS
 from .surfaces import Surface
 
-__all__ = ["FallCriteria", "Trace", "Simulator"]
+__all__ = ["FallCriteria", "Trace", "Simulator", "dead_band"]
 
 
 @dataclass(frozen=True)
@@ -70,10 +71,18 @@ class Trace:
     walk_start: float           # [s] first planned single support
     cycle_time: float           # [s] one gait cycle (two steps), for the +- amplitude
     meta: dict = field(default_factory=dict)
+    q_sent: np.ndarray | None = None   # (K, n) [rad] targets the servos received (after latency, backlash)
 
     @property
     def completed(self) -> bool:
         return self.reason == "completed"
+
+
+def dead_band(target: np.ndarray, q: np.ndarray, half_width: np.ndarray) -> np.ndarray:
+    """Backlash as a dead band: the target a servo acts on when errors below ``half_width`` [rad]
+    move nothing and larger ones move it by what exceeds the band (shapes (n,))."""
+    e = target - q
+    return q + np.sign(e) * np.maximum(np.abs(e) - half_width, 0.0)
 
 
 def _quat_pitch_roll(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -108,6 +117,22 @@ class Simulator:
         self.model = spec.compile()
         self.data = mujoco.MjData(self.model)
         self._index()
+        self._layer_h = surface.layer_height
+        m = self.model
+        self._nominal = {name: getattr(m, name).copy() for name in
+                         ("body_mass", "body_subtreemass", "body_inertia", "body_ipos", "actuator_gainprm", "actuator_biasprm",
+                          "actuator_forcerange", "geom_friction", "geom_margin", "geom_solref", "geom_solimp")}
+        self._nominal_gravity = m.opt.gravity.copy()
+        self._ground = [m.geom(PREFIX + "soil").id] + ([m.geom(PREFIX + "layer").id] if not surface.rigid else [])
+        self._layer = m.geom(PREFIX + "layer").id if not surface.rigid else None
+        # stabiliser: which servo columns each of its four corrections moves, with the joint's sign
+        self._stab = np.zeros((self._n_servo, 4))
+        for c, kind in enumerate(("ankle_pitch", "hip_pitch", "ankle_roll", "hip_roll")):
+            for side in "lr":
+                name = f"{side}_{kind}"
+                if name in self.joint_names:
+                    i = self.joint_names.index(name)
+                    self._stab[i, c] = self._sign[i]
 
     def _index(self) -> None:
         m, r, lay = self.model, self.robot, self.layout
@@ -172,7 +197,7 @@ class Simulator:
         d.ctrl[self._n_servo:self._n_act] = self._held_pose
         d.qpos[0:3] = [xy[0], xy[1], 1.0]
         d.qpos[3:7] = [1.0, 0.0, 0.0, 0.0]
-        d.qpos[2] = 1.0 - self._lowest_sole_z() + self.surface.layer_height + 0.0005
+        d.qpos[2] = 1.0 - self._lowest_sole_z() + self._layer_h + 0.0005
         mujoco.mj_forward(m, d)
         return float(d.qpos[2])
 
@@ -221,14 +246,69 @@ class Simulator:
         d = self.data
         R = d.xmat[self._feet].reshape(2, 3, 3)
         pz = d.xpos[self._feet, 2:3] + (R @ self._corners_T)[:, 2, :]      # (2, 4) corner heights
-        inside = (pz < self.surface.layer_height).astype(float).ravel()
+        inside = (pz < self._layer_h).astype(float).ravel()
         d.ctrl[self._n_act:] = np.repeat(inside, 2)                       # x and y per corner
 
-    def rollout(self, traj: GaitTrajectory, *, duration: float | None = None) -> Trace:
-        """Play a gait's joint table on the robot; stop at the end, a fall, or divergence."""
+    def n_random(self) -> tuple[int, int, int]:
+        """(bodies, servo actuators incl. held joints, mapped servos): the sizes a perturbation draws."""
+        return self.model.nbody, self._n_act, self._n_servo
+
+    def _apply(self, p: Perturbation) -> None:
+        """Set the model's numbers to one perturbation's (undone by :meth:`_restore`)."""
+        m, nom = self.model, self._nominal
+        f = p.body_mass.copy()
+        f[0] = 1.0                                     # the world
+        m.body_mass[:] = nom["body_mass"] * f
+        sub = m.body_mass.copy()                       # the subtree masses the CoM sensor divides by
+        for b in range(m.nbody - 1, 0, -1):
+            sub[m.body_parentid[b]] += sub[b]
+        m.body_subtreemass[:] = sub
+        m.body_inertia[:] = nom["body_inertia"] * f[:, None]
+        m.body_ipos[:] = nom["body_ipos"] + np.where(np.arange(m.nbody)[:, None] == 0, 0.0, p.body_com)
+        a = slice(0, self._n_act)
+        m.actuator_gainprm[a, 0] = nom["actuator_gainprm"][a, 0] * p.kp
+        m.actuator_biasprm[a, 1] = nom["actuator_biasprm"][a, 1] * p.kp
+        m.actuator_forcerange[a] = nom["actuator_forcerange"][a] * p.torque[:, None]
+        for g in self._ground:
+            m.geom_friction[g, 0] = nom["geom_friction"][g, 0] * p.friction
+        if self._layer is not None:
+            g = self._layer
+            self._layer_h = self.surface.layer_height * p.layer_height
+            m.geom_margin[g] = nom["geom_margin"][g] * p.layer_height
+            m.geom_solimp[g, 2] = nom["geom_solimp"][g, 2] * p.layer_height
+            m.geom_solref[g, 0] = nom["geom_solref"][g, 0] * p.layer_timeconst
+        drag = slice(self._n_act, m.nu)
+        m.actuator_gainprm[drag, 2] = nom["actuator_gainprm"][drag, 2] * p.drag
+        m.opt.gravity[:] = np.linalg.norm(self._nominal_gravity) * p.gravity_dir
+
+    def _restore(self) -> None:
+        m = self.model
+        for name, value in self._nominal.items():
+            getattr(m, name)[:] = value
+        m.opt.gravity[:] = self._nominal_gravity
+        self._layer_h = self.surface.layer_height
+
+    def rollout(self, traj: GaitTrajectory, *, duration: float | None = None, perturb: Perturbation | None = None,
+                stabiliser: StabiliserParams | None = None) -> Trace:
+        """Play a gait's joint table on the robot; stop at the end, a fall, or divergence.
+
+        ``perturb`` (see ``tuner/randomisation.py``) changes the model for this rollout only and
+        adds backlash, command and IMU latency, IMU noise, a start-pose error and a push;
+        ``stabiliser`` closes the IMU loop of ``gaits/imu_stabiliser.py`` every tick.
+        """
         if abs(traj.dt - self.control_period) > 1e-9:
             raise ValueError(f"the joint table's dt ({traj.dt:g} s) must equal the control period "
                              f"({self.control_period:g} s)")
+        if perturb is None:
+            return self._rollout(traj, duration, None, stabiliser)
+        self._apply(perturb)
+        try:
+            return self._rollout(traj, duration, perturb, stabiliser)
+        finally:
+            self._restore()
+
+    def _rollout(self, traj: GaitTrajectory, duration: float | None, pert: Perturbation | None,
+                 stabiliser: StabiliserParams | None) -> Trace:
         m, d = self.model, self.data
         q_ref = self.to_robot(traj.q_ref)                            # into the robot's joints
         n_ticks = len(traj.t)
@@ -238,8 +318,10 @@ class Simulator:
         cmd = q_ref[0].copy()
         sens = np.empty((n_ticks, m.nsensordata))
         cmds = np.empty((n_ticks, len(cmd)))
+        sent_log = np.empty((n_ticks, len(cmd)))
         sens[0] = d.sensordata
         cmds[0] = cmd
+        sent_log[0] = cmd
         cos_tilt = math.cos(self.fall.max_tilt)
         z_min = self.fall.min_height_ratio * z0
         drag = self.surface.drag > 0.0
@@ -247,13 +329,54 @@ class Simulator:
         reason, k_end = "completed", n_ticks
         torso = self._torso
         step = self._max_step
+        stab = stabiliser is not None and stabiliser.enabled
+        latency = imu_latency = 0
+        backlash = None
+        push_tick = -1
+        if pert is not None:
+            step = step * pert.speed
+            d.qpos[self._qadr] += pert.initial_pose
+            mujoco.mj_forward(m, d)
+            latency, imu_latency = pert.latency, pert.imu_latency
+            backlash = pert.backlash / 2 if np.any(pert.backlash > 0) else None
+            noise = np.random.default_rng(pert.noise_seed)
+            if pert.push_impulse > 0:
+                walking = np.flatnonzero(traj.support[:n_ticks] != 0)
+                first = int(walking[0]) if len(walking) else 1
+                push_tick = first + int(pert.push_time * max(n_ticks - 1 - first, 1))
+                push = (pert.push_impulse / self.control_period) * np.array(
+                    [math.cos(pert.push_angle), math.sin(pert.push_angle), 0.0])
+        sent = [cmd.copy() for _ in range(latency)]       # commands on their way to the servos
+        imu = [np.zeros(4) for _ in range(imu_latency)]   # readings on their way from the IMU
         for k in range(1, n_ticks):
-            cmd += np.clip(q_ref[k] - cmd, -step, step)
+            target = q_ref[k]
+            if stab:
+                pitch, roll = _quat_pitch_roll(d.sensordata[self._s_quat][None, :])
+                reading = np.array([pitch[0], roll[0], d.qvel[4], d.qvel[3]])
+                if pert is not None:
+                    reading += noise.normal(0.0, 1.0, 4) * [pert.imu_noise, pert.imu_noise,
+                                                            pert.gyro_noise, pert.gyro_noise]
+                imu.append(reading)
+                p_, r_, pr, rr = imu.pop(0)
+                target = target + self._stab @ stabiliser_corrections(stabiliser, p_, r_, pr, rr)
+            cmd += np.clip(target - cmd, -step, step)
             np.clip(cmd, self._q_lo, self._q_hi, out=cmd)
-            d.ctrl[:self._n_servo] = cmd
+            if latency:
+                sent.append(cmd.copy())
+                out = sent.pop(0)
+            else:
+                out = cmd
+            if backlash is not None:
+                out = dead_band(out, d.qpos[self._qadr], backlash)
+            d.ctrl[:self._n_servo] = out
+            sent_log[k] = out
             if drag:
                 self._drag()
+            if k == push_tick:
+                d.xfrc_applied[torso, :3] = push
             mujoco.mj_step(m, d, nstep=self.nstep)
+            if k == push_tick:
+                d.xfrc_applied[torso, :3] = 0.0
             sens[k] = d.sensordata
             cmds[k] = cmd
             if d.warning[warn].number or not math.isfinite(d.qacc[0]):
@@ -264,7 +387,13 @@ class Simulator:
                 reason = "fell"
                 break
         sens = sens[:k_end]
-        return self._trace(traj, sens, cmds[:k_end], q_ref[:k_end], reason, z0)
+        trace = self._trace(traj, sens, cmds[:k_end], q_ref[:k_end], reason, z0)
+        trace.q_sent = self.from_robot(sent_log[:k_end])
+        if pert is not None:
+            trace.meta.update({"seed": pert.seed, "namespace": pert.namespace,
+                               "push_t": None if push_tick < 0 else float(traj.t[push_tick]),
+                               "push_impulse": pert.push_impulse})
+        return trace
 
     def _trace(self, traj: GaitTrajectory, sens: np.ndarray, cmds: np.ndarray, q_ref: np.ndarray,
                reason: str, z0: float) -> Trace:
