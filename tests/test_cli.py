@@ -45,7 +45,7 @@ def test_model_override_and_baseline_name(gait_tuner_cmd, run_env, tmp_path):
 
 
 @pytest.mark.parametrize("args,message", [
-    (["trajectory", "--params", "no-such-set", "--out", "X"], "not a baseline"),
+    (["trajectory", "--params", "no-such-set", "--out", "X"], "not a shipped set"),
     (["trajectory", "--gait", "eros", "--params", "tkux-table2", "--out", "X"],
      "holds 'tlipfm' parameters, but --gait is 'eros'"),
     (["trajectory", "--gait", "eros", "--model", "lipm", "--out", "X"], "--model applies to the tlipfm"),

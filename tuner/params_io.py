@@ -1,4 +1,6 @@
-"""Resolve a ``--params`` argument: a YAML file path or a shipped baseline name."""
+"""Resolve a ``--params`` argument: a YAML file path, a shipped baseline (the papers' sets, in
+``gaits/baselines/``) or a shipped tuned result (``studies/results/``: each file says which study,
+trial and commit produced it)."""
 
 from __future__ import annotations
 
@@ -8,7 +10,14 @@ from gaits import GaitFile, list_baselines, load_baseline, load_gait_file
 
 from .errors import UserError
 
-__all__ = ["DEFAULT_BASELINE", "resolve_params"]
+__all__ = ["DEFAULT_BASELINE", "RESULTS_DIR", "list_results", "resolve_params"]
+
+#: Tuned parameter sets shipped with the studies that produced them.
+RESULTS_DIR = Path(__file__).resolve().parents[1] / "studies" / "results"
+
+
+def list_results() -> list[str]:
+    return sorted(p.stem for p in RESULTS_DIR.glob("*.yaml"))
 
 #: The parameter set each family uses when ``--params`` is not given.
 DEFAULT_BASELINE = {"tlipfm": "tkux-table2", "eros": "eros-x8-without", "cosine": "cosine-setiono"}
@@ -25,9 +34,11 @@ def resolve_params(spec: str | None, family: str | None) -> GaitFile:
         gait_file = load_gait_file(path)
     elif spec in list_baselines():
         gait_file = load_baseline(spec)
+    elif spec in list_results():
+        gait_file = load_gait_file(RESULTS_DIR / f"{spec}.yaml")
     else:
-        raise UserError(f"--params {spec!r}: no such file, and not a baseline "
-                        f"(baselines: {', '.join(list_baselines())})")
+        raise UserError(f"--params {spec!r}: no such file, and not a shipped set "
+                        f"(baselines: {', '.join(list_baselines())}; tuned: {', '.join(list_results()) or 'none'})")
     if family is not None and gait_file.family != family:
         raise UserError(f"--params {spec!r} holds {gait_file.family!r} parameters, "
                         f"but --gait is {family!r}")

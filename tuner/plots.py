@@ -12,7 +12,7 @@ import numpy as np  # noqa: E402
 
 from gaits import GaitTrajectory  # noqa: E402
 
-__all__ = ["plot_references", "plot_pitch", "plot_zmp"]
+__all__ = ["plot_references", "plot_pitch", "plot_zmp", "plot_robustness"]
 
 
 def plot_references(traj: GaitTrajectory, path: str | Path, title: str = "") -> Path:
@@ -102,5 +102,44 @@ def plot_zmp(trace, path: str | Path, foot_size: tuple[float, float], title: str
     fig.suptitle(title or "ZMP response, relative to the support foot")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_robustness(report, out_dir: str | Path) -> Path:
+    """Survival per push size, time to fall and pitch RMS of a robustness report, in one PNG."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    d = report.to_dict()
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.2))
+    sizes = [0.0] + [float(k) for k in d["push_survival"]]
+    surv = [d["survival"]] + list(d["push_survival"].values())
+    axes[0].bar([f"{s:g}" for s in sizes], [100 * v for v in surv], color="tab:blue")
+    axes[0].axhline(90, color="k", lw=0.8, ls="--", label="90 %")
+    for i, v in enumerate(surv):
+        axes[0].text(i, max(100 * v, 2), f"{100 * v:.0f}", ha="center", va="bottom", fontsize=8)
+    axes[0].set_xlabel("push impulse [N s] (0: randomisation only)")
+    axes[0].set_ylabel("survival [%]")
+    axes[0].set_ylim(0, 110)
+    axes[0].legend(fontsize=8)
+    axes[0].set_title("survival")
+    falls = [r["t_fall_s"] for r in report.rollouts if r["fell"]]
+    if falls:
+        axes[1].hist(falls, bins=20, color="tab:red")
+    else:
+        axes[1].text(0.5, 0.5, "no falls", ha="center", transform=axes[1].transAxes)
+    axes[1].set_xlabel("time of the fall [s]")
+    axes[1].set_ylabel("rollouts")
+    axes[1].set_title(f"time to fall ({len(falls)} of {len(report.rollouts)} fell)")
+    pitch = [r["pitch_rms_deg"] for r in report.rollouts if not r["fell"]]
+    if pitch:
+        axes[2].hist(pitch, bins=20, color="tab:green")
+    axes[2].set_xlabel("torso pitch RMS [deg]")
+    axes[2].set_title("pitch vibration of the rollouts that stayed up")
+    fig.suptitle(f"robustness: {report.params} on robot {report.robot} / {report.surface}, "
+                 f"stabiliser {'on' if report.stabiliser else 'off'}")
+    fig.tight_layout()
+    path = out_dir / "robustness.png"
+    fig.savefig(path, dpi=100)
     plt.close(fig)
     return path

@@ -120,7 +120,7 @@ def randomisation_from_mapping(doc: Any, source: str) -> Randomisation:
 class Perturbation:
     """The concrete perturbation of one rollout (drawn by :func:`draw`)."""
 
-    seed: int
+    seed: Any                    # the seed it was drawn from (int or tuple of ints)
     namespace: int
     body_mass: np.ndarray        # (nbody,) factor
     body_com: np.ndarray         # (nbody, 3) [m] shift
@@ -144,11 +144,15 @@ class Perturbation:
     noise_seed: int              # for the per-tick IMU noise stream
 
 
-def draw(r: Randomisation, seed: int, n_body: int, n_act: int, n_servo: int, namespace: int = TUNE) -> Perturbation:
-    """One perturbation: the same arguments give the same values in any process."""
-    if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or seed < 0:
-        raise UserError(f"seed = {seed!r}: expected a whole number >= 0")
-    rng = np.random.default_rng(np.random.SeedSequence([int(namespace), int(seed)]))
+def draw(r: Randomisation, seed: int | tuple[int, ...], n_body: int, n_act: int, n_servo: int,
+         namespace: int = TUNE) -> Perturbation:
+    """One perturbation: the same arguments give the same values in any process. ``seed`` is a
+    whole number >= 0 or a tuple of them (e.g. (user seed, rollout index))."""
+    parts = seed if isinstance(seed, tuple) else (seed,)
+    for v in parts:
+        if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < 0:
+            raise UserError(f"seed = {seed!r}: expected a whole number >= 0")
+    rng = np.random.default_rng(np.random.SeedSequence([int(namespace)] + [int(v) for v in parts]))
 
     def scale(a: float, n: int | None = None) -> Any:
         v = rng.uniform(1 - a, 1 + a, size=n)
@@ -170,6 +174,6 @@ def draw(r: Randomisation, seed: int, n_body: int, n_act: int, n_servo: int, nam
     push_time = float(rng.uniform(0.1, 0.8))
     push_angle = float(rng.uniform(0.0, 2 * math.pi))
     noise_seed = int(rng.integers(0, 2 ** 63 - 1))
-    return Perturbation(int(seed), int(namespace), body_mass, body_com, kp, torque, speed, backlash, latency,
+    return Perturbation(parts[-1] if len(parts) == 1 else tuple(int(v) for v in parts), int(namespace), body_mass, body_com, kp, torque, speed, backlash, latency,
                         math.radians(r.imu_noise_deg), r.gyro_noise, imu_latency, friction, timeconst, height,
                         drag, gravity_dir, initial, r.push, push_time, push_angle, noise_seed)

@@ -48,11 +48,12 @@ from gaits import ParamError, UnreachableTargetError
 from .metrics import summarize
 from .robots import load_robot
 from .simulate import Simulator
-from .study import StudySpec
+from .randomisation import TUNE, draw
+from .study import STAB_PREFIX, StudySpec
 from .surfaces import load_surface
 
 __all__ = ["FALL_PENALTY_DEG", "Evaluator", "open_storage", "open_study", "enqueue_starts", "run_study",
-           "best_trial", "trial_params", "trial_result", "trial_fell", "trial_feasible",
+           "best_trial", "trial_params", "trial_stabiliser", "trial_result", "rollout_score", "trial_fell", "trial_feasible",
            "DONE_STATES"]
 
 FALL_PENALTY_DEG = 100.0
@@ -97,8 +98,8 @@ class Evaluator:
         self.robot = load_robot(self.spec.robot)
         self.sims = [Simulator(self.robot, load_surface(s)) for s in self.spec.surfaces]
 
-    def evaluate(self, params: gaits.GaitParams, report: Callable[[float, int], bool] | None = None
-                 ) -> dict[str, Any]:
+    def evaluate(self, params: gaits.GaitParams, report: Callable[[float, int], bool] | None = None,
+                 stabiliser: Any = None) -> dict[str, Any]:
         """Per-surface metrics and the aggregate score of one parameter set."""
         spec = self.spec
         try:
@@ -109,17 +110,14 @@ class Evaluator:
         planned = traj.duration - float(traj.t[np.flatnonzero(traj.support != 0)[0]]) \
             if np.any(traj.support != 0) else traj.duration
         plan_dist = float(traj.p_world_pelvis[-1, 0] - traj.p_world_pelvis[0, 0])
+        if spec.robust is not None:
+            return self._evaluate_robust(traj, planned, plan_dist, stabiliser)
         scores, speeds, walked, per = [], [], [], {}
         shortfall = 0.0
         for i, (name, sim) in enumerate(zip(spec.surfaces, self.sims)):
-            m = summarize(sim.rollout(traj, duration=spec.duration))
-            frac = 1.0 if not m.fell else float(np.clip(m.walk_time_s / max(planned, 1e-9), 0, 1))
-            score = m.pitch_rms_deg + (FALL_PENALTY_DEG * (1.0 - frac) if m.fell else 0.0)
-            if m.fell and frac >= 1.0:
-                score += 1.0
-            if not m.fell and abs(plan_dist) > 1e-3:
-                covered = float(np.clip(m.distance_m / plan_dist, 0.0, 1.0))
-                score += PROGRESS_PENALTY_DEG * (1.0 - covered)
+            m = summarize(sim.rollout(traj, duration=spec.duration, stabiliser=stabiliser))
+            score, frac, covered = rollout_score(m, planned, plan_dist)
+            if covered is not None:
                 shortfall = max(shortfall, MIN_PROGRESS - covered)
             scores.append(score)
             speeds.append(0.0 if m.fell else m.speed_mps)
@@ -132,8 +130,70 @@ class Evaluator:
         return {"score": self._aggregate(scores), "speed": float(np.mean(speeds)),
                 "fall_constraint": constraint, "fell": fell_any, "per_surface": per}
 
+    def _evaluate_robust(self, traj: gaits.GaitTrajectory, planned: float, plan_dist: float,
+                         stabiliser: Any) -> dict[str, Any]:
+        """K randomised rollouts per surface (tuning seeds 0..K-1, common to all trials), scored by
+        the study's risk measure; survival below ``min_survival`` is infeasible, and a trial whose
+        falls already exceed what that allows stops early (``hopeless``)."""
+        rb = self.spec.robust
+        total = rb.rollouts * len(self.sims)
+        allowed = math.floor((1.0 - rb.min_survival) * total + 1e-9)
+        scores, speeds, covered_all, per = [], [], [], {}
+        falls = 0
+        hopeless = False
+        for name, sim in zip(self.spec.surfaces, self.sims):
+            rows = []
+            for i in range(rb.rollouts):
+                p = draw(rb.randomisation, i, *sim.n_random(), namespace=TUNE)
+                m = summarize(sim.rollout(traj, duration=self.spec.duration, perturb=p, stabiliser=stabiliser))
+                score, _, covered = rollout_score(m, planned, plan_dist)
+                scores.append(score)
+                if m.fell:
+                    falls += 1
+                else:
+                    speeds.append(m.speed_mps)
+                    if covered is not None:
+                        covered_all.append(covered)
+                rows.append({"fell": m.fell, "pitch_rms_deg": m.pitch_rms_deg, "speed_mps": m.speed_mps,
+                             "t_fall_s": m.t_fall_s})
+                if falls > allowed:
+                    hopeless = True
+                    break
+            per[name] = {"survival": float(np.mean([not r["fell"] for r in rows])), "rollouts": len(rows),
+                         "fell": any(r["fell"] for r in rows),
+                         "pitch_rms_deg": float(np.median([r["pitch_rms_deg"] for r in rows]))}
+            if hopeless:
+                break
+        survival = 1.0 - falls / total if not hopeless else 1.0 - falls / max(len(scores), 1)
+        worst = sorted(scores, reverse=True)
+        risk = {"worst": worst[0], "mean": float(np.mean(scores)),
+                "cvar25": float(np.mean(worst[:max(1, len(worst) // 4)]))}[rb.risk]
+        progress = float(np.median(covered_all)) if covered_all else (0.0 if abs(plan_dist) > 1e-3 else 1.0)
+        if survival < rb.min_survival or hopeless:
+            constraint = rb.min_survival - min(survival, 1.0 - falls / total) + 1e-3
+        elif progress < MIN_PROGRESS:
+            constraint = MIN_PROGRESS - progress
+        else:
+            constraint = -1.0
+        return {"score": risk, "speed": float(np.mean(speeds)) if speeds else 0.0, "fall_constraint": constraint,
+                "fell": falls > 0, "survival": survival, "hopeless": hopeless, "per_surface": per}
+
     def _aggregate(self, scores: list[float]) -> float:
         return float(max(scores) if self.spec.aggregate == "worst" else np.mean(scores))
+
+
+def rollout_score(m: Any, planned: float, plan_dist: float) -> tuple[float, float, float | None]:
+    """One rollout's score [deg] (see the module docstring), its walked fraction and, when it
+    stayed up and had somewhere to go, the covered fraction of its planned distance."""
+    frac = 1.0 if not m.fell else float(np.clip(m.walk_time_s / max(planned, 1e-9), 0, 1))
+    score = m.pitch_rms_deg + (FALL_PENALTY_DEG * (1.0 - frac) if m.fell else 0.0)
+    if m.fell and frac >= 1.0:
+        score += 1.0
+    covered = None
+    if not m.fell and abs(plan_dist) > 1e-3:
+        covered = float(np.clip(m.distance_m / plan_dist, 0.0, 1.0))
+        score += PROGRESS_PENALTY_DEG * (1.0 - covered)
+    return score, frac, covered
 
 
 def _suggest(trial: optuna.Trial, spec: StudySpec) -> dict[str, Any]:
@@ -151,6 +211,7 @@ def objective_for(spec: StudySpec, evaluator: Evaluator) -> Callable[[optuna.Tri
         sampled = _suggest(trial, spec)
         try:
             params = spec.params_for(sampled)
+            stabiliser = spec.stabiliser_for(sampled)
         except ParamError as exc:
             trial.set_constraint("fall", 1.0)
             trial.set_user_attr("result", {"fell": True, "fall_constraint": 1.0, "invalid": str(exc)})
@@ -163,13 +224,17 @@ def objective_for(spec: StudySpec, evaluator: Evaluator) -> Callable[[optuna.Tri
             trial.report(value, step)
             return trial.should_prune()
 
-        res = evaluator.evaluate(params, report)
+        res = evaluator.evaluate(params, report, stabiliser)
         # two journal writes per trial (params, result): workers contend for the file lock
         trial.set_constraint("fall", res["fall_constraint"])
-        trial.set_user_attr("params", params.to_mapping())
+        trial.set_user_attr("params", params.to_mapping() if stabiliser is None else
+                            {**params.to_mapping(), "stabiliser": stabiliser.to_mapping()})
         trial.set_user_attr("result", {"fell": res.get("fell", True),
                                        "fall_constraint": res["fall_constraint"],
-                                       "per_surface": res["per_surface"], "invalid": res.get("invalid")})
+                                       "per_surface": res["per_surface"], "invalid": res.get("invalid"),
+                                       "survival": res.get("survival"), "hopeless": res.get("hopeless")})
+        if res.get("hopeless"):
+            raise optuna.TrialPruned(f"survival already below {spec.robust.min_survival:.0%}")
         if len(spec.objectives) > 1:
             return res["score"], res["speed"]
         return res["score"]
@@ -179,7 +244,10 @@ def objective_for(spec: StudySpec, evaluator: Evaluator) -> Callable[[optuna.Tri
 def _clip_to_space(spec: StudySpec, params: gaits.GaitParams) -> dict[str, Any]:
     out = {}
     for r in spec.space:
-        v = getattr(params, r.name)
+        if r.name.startswith(STAB_PREFIX):
+            v = getattr(spec.stabiliser, r.name[len(STAB_PREFIX):])
+        else:
+            v = getattr(params, r.name)
         v = min(max(v, r.low), r.high)
         out[r.name] = int(round(v)) if r.integer else float(v)
     return out
@@ -314,7 +382,14 @@ def trial_params(spec_gait: str, trial: optuna.trial.FrozenTrial) -> gaits.GaitP
     if data is None:
         raise KeyError(f"trial {trial.number} recorded no parameters (it was rejected: "
                        f"{trial_result(trial).get('invalid') or 'unknown reason'})")
+    data = {k: v for k, v in data.items() if k != "stabiliser"}
     return gaits.params_from_mapping(spec_gait, data, f"trial {trial.number}")
+
+
+def trial_stabiliser(trial: optuna.trial.FrozenTrial) -> gaits.StabiliserParams | None:
+    """The IMU stabiliser a trial walked with, or None (open loop)."""
+    data = (trial.user_attrs.get("params") or {}).get("stabiliser")
+    return None if data is None else gaits.StabiliserParams(**data)
 
 
 def trial_result(trial: optuna.trial.FrozenTrial) -> dict[str, Any]:

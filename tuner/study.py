@@ -19,6 +19,13 @@ A study tunes one gait family on one robot against one or several surfaces::
     enqueue: [casadi, baselines]   # tried first: the CasADi seed and the base (+ `baselines`)
     baselines: []                  # more parameter sets of the same family to try first
     sampler_seed: 0
+    robust:                        # optional: K randomised rollouts per surface per trial
+      rollouts: 8                  #   seeds 0..K-1 of the tuning stream, the same for every trial
+      risk: cvar25                 #   cvar25 (mean of the worst quarter), worst, or mean of the scores
+      min_survival: 0.95           #   below this fraction of rollouts standing: infeasible (pruned early)
+      randomisation: {}            #   overrides of tuner/randomisation.py's defaults, or none
+    stabiliser: {enabled: true}    # optional: the IMU stabiliser's fixed values; its gains may be
+                                   #   searched as space keys stabiliser.k_ankle_pitch etc.
 
 Every mistake is a :class:`tuner.errors.UserError` naming the file, the key and
 the allowed values.
@@ -26,6 +33,7 @@ the allowed values.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, Mapping
@@ -43,7 +51,19 @@ __all__ = ["ParamRange", "StudySpec", "load_study", "STUDY_DIR", "list_studies",
 STUDY_DIR = Path(__file__).resolve().parents[1] / "studies"
 OBJECTIVES = {"pitch_rms": "minimize", "speed": "maximize"}
 _KEYS = ("name", "description", "robot", "surfaces", "aggregate", "gait", "base", "fixed", "space",
-         "objectives", "trials", "duration", "enqueue", "baselines", "sampler_seed")
+         "objectives", "trials", "duration", "enqueue", "baselines", "sampler_seed", "robust", "stabiliser")
+RISKS = ("cvar25", "worst", "mean")
+STAB_PREFIX = "stabiliser."
+
+
+@dataclass(frozen=True)
+class RobustSpec:
+    """A robust study's evaluation: K randomised rollouts per surface (see tuner/randomisation.py)."""
+
+    rollouts: int = 8                 # K per surface per trial
+    risk: str = "cvar25"              # cvar25 | worst | mean over all rollouts' scores
+    min_survival: float = 0.95        # [-] fraction of rollouts that must stay up
+    randomisation: Any = None         # tuner.randomisation.Randomisation
 
 
 @dataclass(frozen=True)
@@ -73,14 +93,23 @@ class StudySpec:
     description: str = ""
     source: str = ""
     extra: dict = field(default_factory=dict)
+    robust: RobustSpec | None = None
+    stabiliser: Any = None            # gaits.StabiliserParams: the fixed values, or None (open loop)
 
     @property
     def directions(self) -> list[str]:
         return [OBJECTIVES[o] for o in self.objectives]
 
+    def stabiliser_for(self, sampled: Mapping[str, Any]) -> Any:
+        """The study's stabiliser with the sampled gains (keys ``stabiliser.NAME``), or None."""
+        if self.stabiliser is None:
+            return None
+        gains = {k[len(STAB_PREFIX):]: v for k, v in sampled.items() if k.startswith(STAB_PREFIX)}
+        return dataclasses.replace(self.stabiliser, **gains)
+
     def params_for(self, sampled: Mapping[str, Any]) -> GaitParams:
         """The base with the sampled values (TLIPFM: d2 follows as step_length - d1)."""
-        values = dict(sampled)
+        values = {k: v for k, v in sampled.items() if not k.startswith(STAB_PREFIX)}
         if self.gait == "tlipfm" and "d2" not in values and ("d1" in values or "step_length" in values):
             sl = values.get("step_length", getattr(self.base, "step_length"))
             values["d2"] = sl - values.get("d1", getattr(self.base, "d1"))
@@ -159,8 +188,12 @@ def load_study(path_or_name: str) -> StudySpec:
     space_doc = doc["space"]
     if not isinstance(space_doc, Mapping) or not space_doc:
         _fail(source, "space must map at least one parameter to {low, high}")
+    stabiliser = _study_stabiliser(doc.get("stabiliser"), source)
     space = []
     for name, rng in space_doc.items():
+        if isinstance(name, str) and name.startswith(STAB_PREFIX):
+            space.append(_stabiliser_range(name, rng, stabiliser, source))
+            continue
         if name not in numeric:
             _fail(source, f"space: unknown or non-numeric parameter {name!r} for gait {gait!r} "
                           f"(numeric parameters: {', '.join(numeric)})")
@@ -219,9 +252,70 @@ def load_study(path_or_name: str) -> StudySpec:
     if not isinstance(seed, int) or isinstance(seed, bool):
         _fail(source, f"sampler_seed must be an integer, got {seed!r}")
     robot = _study_robot(doc.get("robot", "kidsize"), path, source)
+    robust = _study_robust(doc.get("robust"), source)
     return StudySpec(name=str(doc.get("name") or path.stem), gait=str(gait), base=base,
                      space=tuple(space), surfaces=tuple(str(s) for s in surfaces), robot=str(robot),
                      aggregate=aggregate, objectives=tuple(objectives), trials=trials,
                      duration=None if duration is None else float(duration), enqueue=tuple(enqueue),
                      baselines=tuple(extra_sets), sampler_seed=seed,
-                     description=str(doc.get("description") or ""), source=source)
+                     description=str(doc.get("description") or ""), source=source, robust=robust,
+                     stabiliser=stabiliser)
+
+
+def _study_stabiliser(doc: Any, source: str) -> Any:
+    if doc is None:
+        return None
+    from gaits import ParamError
+    from gaits.imu_stabiliser import stabiliser_from_mapping
+    try:
+        return stabiliser_from_mapping(doc, "stabiliser")
+    except ParamError as exc:
+        _fail(source, str(exc))
+
+
+def _stabiliser_range(name: str, rng: Any, stabiliser: Any, source: str) -> ParamRange:
+    from gaits.imu_stabiliser import _RANGES
+    field_name = name[len(STAB_PREFIX):]
+    if stabiliser is None:
+        _fail(source, f"space: {name!r} needs a stabiliser: section (e.g. stabiliser: {{enabled: true}})")
+    if field_name not in _RANGES:
+        _fail(source, f"space: unknown stabiliser gain {field_name!r} (allowed: {', '.join(_RANGES)})")
+    if not isinstance(rng, Mapping) or not {"low", "high"} <= set(rng) or not set(rng) <= {"low", "high", "log"}:
+        _fail(source, f"space: {name} must be {{low: ..., high: ..., log: false}}")
+    low, high, log = rng["low"], rng["high"], rng.get("log", False)
+    if not isinstance(log, bool):
+        _fail(source, f"space: {name}.log = {log!r}: expected true or false")
+    if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in (low, high)) or not low < high:
+        _fail(source, f"space: {name} bounds must be numbers with low < high, got {low!r}, {high!r}")
+    lo, hi, unit = _RANGES[field_name]
+    if low < lo or high > hi:
+        _fail(source, f"space: {name} range [{low}, {high}] leaves the allowed range [{lo}, {hi}] {unit}")
+    if log and low <= 0:
+        _fail(source, f"space: {name} is log-scaled, so low must be > 0 (got {low})")
+    return ParamRange(name, float(low), float(high), log, False)
+
+
+def _study_robust(doc: Any, source: str) -> RobustSpec | None:
+    if doc is None:
+        return None
+    from .randomisation import randomisation_from_mapping
+    allowed = ("rollouts", "risk", "min_survival", "randomisation")
+    if not isinstance(doc, Mapping):
+        _fail(source, f"robust must be a mapping of {', '.join(allowed)}")
+    for k in doc:
+        if k not in allowed:
+            _fail(source, f"robust: unknown key {k!r} (allowed: {', '.join(allowed)})")
+    k = doc.get("rollouts", 8)
+    if not isinstance(k, int) or isinstance(k, bool) or not 1 <= k <= 1000:
+        _fail(source, f"robust.rollouts = {k!r}: expected a whole number in [1, 1000]")
+    risk = doc.get("risk", "cvar25")
+    if risk not in RISKS:
+        _fail(source, f"robust.risk = {risk!r}: expected one of {', '.join(RISKS)}")
+    ms = doc.get("min_survival", 0.95)
+    if not isinstance(ms, (int, float)) or isinstance(ms, bool) or not 0.0 <= ms <= 1.0:
+        _fail(source, f"robust.min_survival = {ms!r}: expected a fraction in [0, 1]")
+    try:
+        rnd = randomisation_from_mapping(doc.get("randomisation"), "robust.randomisation")
+    except UserError as exc:
+        _fail(source, str(exc))
+    return RobustSpec(k, risk, float(ms), rnd)

@@ -1,0 +1,101 @@
+"""The robust objective, the robustness command and shipped robust results, through the real CLI."""
+
+import json
+import subprocess
+
+import pytest
+
+import gaits
+from tuner.errors import UserError
+from tuner.study import load_study
+
+
+def run(cmd, args, env, cwd=None):
+    return subprocess.run(cmd + args, capture_output=True, text=True, env=env, timeout=600, cwd=cwd)
+
+
+def test_robustness_command_strict_json_and_plot(gait_tuner_cmd, run_env, tmp_path):
+    r = run(gait_tuner_cmd, ["robustness", "--params", "tkux-table2", "--surface", "rigid", "--rollouts", "4",
+                             "--pushes", "0.5,3", "--push-rollouts", "2", "--seed", "3", "--json",
+                             "--plot", str(tmp_path)], run_env)
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(r.stdout)             # strict: no NaN
+    assert 0.0 <= doc["survival"] <= 1.0 and doc["rollouts"] == 4
+    assert set(doc["push_survival"]) == {"0.5", "3"}
+    assert doc["push_survival"]["3"] <= doc["push_survival"]["0.5"]
+    assert (tmp_path / "robustness.png").stat().st_size > 10_000
+    # the same seed again, with another number of workers: the same numbers
+    r2 = run(gait_tuner_cmd, ["robustness", "--params", "tkux-table2", "--surface", "rigid", "--rollouts", "4",
+                              "--pushes", "0.5,3", "--push-rollouts", "2", "--seed", "3", "--json",
+                              "--workers", "1"], run_env)
+    assert json.loads(r2.stdout) == doc
+
+
+@pytest.mark.parametrize("args,message", [
+    (["--pushes", "abc"], "--pushes 'abc': expected comma-separated impulses"),
+    (["--pushes", "0,1"], "each impulse must be in (0, 50] N s"),
+    (["--stabiliser"], "holds no stabiliser section"),
+    (["--randomisation", "RND"], "unknown field 'masses' (allowed: mass_scale"),
+])
+def test_robustness_bad_input_is_one_line(gait_tuner_cmd, run_env, tmp_path, args, message):
+    (tmp_path / "rnd.yaml").write_text("masses: 0.1\n")
+    args = [str(tmp_path / "rnd.yaml") if a == "RND" else a for a in args]
+    r = run(gait_tuner_cmd, ["robustness", "--params", "tkux-table2", "--rollouts", "1"] + args, run_env)
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert r.stderr.count("\n") == 1 and message in r.stderr
+
+
+STUDY = """gait: tlipfm
+surfaces: [rigid]
+trials: 3
+duration: 2.0
+base: tkux-table2
+enqueue: [baselines]
+space:
+  t1: {low: 0.12, high: 0.18}
+  stabiliser.k_ankle_pitch: {low: 0.0, high: 1.0}
+robust:
+  rollouts: 2
+  risk: cvar25
+  min_survival: 0.5
+stabiliser: {enabled: true, d_ankle_pitch: 0.05}
+"""
+
+
+def test_a_small_robust_study_end_to_end(gait_tuner_cmd, run_env, tmp_path):
+    study = tmp_path / "tiny-robust.yaml"
+    study.write_text(STUDY)
+    spec = load_study(str(study))
+    assert spec.robust.rollouts == 2 and spec.stabiliser.enabled
+    r = run(gait_tuner_cmd, ["tune", str(study), "--runs", str(tmp_path / "runs"), "--workers", "2"], run_env)
+    assert r.returncode == 0, r.stderr
+    r = run(gait_tuner_cmd, ["export", str(study), "--runs", str(tmp_path / "runs"), "--out",
+                             str(tmp_path / "best.yaml")], run_env)
+    assert r.returncode == 0, r.stderr
+    best = gaits.load_gait_file(tmp_path / "best.yaml")
+    assert best.stabiliser is not None and best.stabiliser.enabled
+    assert best.stabiliser.d_ankle_pitch == pytest.approx(0.05)            # the study's fixed value
+    assert 0.0 <= best.stabiliser.k_ankle_pitch <= 1.0                      # a searched gain
+    r = run(gait_tuner_cmd, ["robustness", "--params", str(tmp_path / "best.yaml"), "--surface", "rigid",
+                             "--rollouts", "2", "--pushes", "", "--json"], run_env)
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout)["stabiliser"] is True
+
+
+@pytest.mark.parametrize("edit,message", [
+    (lambda s: s.replace("rollouts: 2", "rollouts: 0"), "robust.rollouts = 0: expected a whole number in [1, 1000]"),
+    (lambda s: s.replace("risk: cvar25", "risk: cvar10"), "robust.risk = 'cvar10': expected one of cvar25, worst, mean"),
+    (lambda s: s.replace("min_survival: 0.5", "min_survival: '0.9'"), "robust.min_survival = '0.9': expected a fraction"),
+    (lambda s: s.replace("stabiliser.k_ankle_pitch", "stabiliser.k_knee"), "unknown stabiliser gain 'k_knee'"),
+    (lambda s: s.replace("high: 1.0}\nrobust", "high: 9.0}\nrobust"), "leaves the allowed range [0.0, 5.0] rad/rad"),
+    (lambda s: s.replace("stabiliser: {enabled: true, d_ankle_pitch: 0.05}", ""), "needs a stabiliser: section"),
+    (lambda s: s.replace("stabiliser: {enabled: true,", "stabiliser: {enabled: 'yes',"), "stabiliser.enabled = 'yes'"),
+    (lambda s: s.replace("  risk: cvar25", "  risk: cvar25\n  randomisation: {tilt_deg: 30}"),
+     "robust.randomisation: randomisation.tilt_deg = 30"),
+])
+def test_robust_study_fields_are_checked(tmp_path, edit, message):
+    study = tmp_path / "s.yaml"
+    study.write_text(edit(STUDY))
+    with pytest.raises(UserError) as err:
+        load_study(str(study))
+    assert message in str(err.value)

@@ -1,0 +1,158 @@
+"""Robustness of a gait: many randomised rollouts with evaluation seeds, and a push sweep.
+
+``evaluate`` walks a parameter set ``rollouts`` times on one robot and surface, each rollout
+with its own perturbation drawn from the :data:`tuner.randomisation.EVALUATE` namespace
+(seeds ``(seed, i)``, never used in tuning), then ``push_rollouts`` times per push size with
+the same randomisation plus one push. Reported (definitions in ``DEFINITIONS``):
+
+* ``survival``: fraction of the randomised rollouts that did not fall;
+* time to fall: the fall times of those that fell (quartiles);
+* pitch RMS and speed: 10th, 50th and 90th percentiles over the rollouts that stayed up;
+* per push size, the survival fraction; ``largest_push_ns``: the largest size survived in
+  at least 90% of its rollouts (and of every smaller size).
+Workers are forked processes, each with its own simulator; the numbers do not depend on how
+many there are.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import numpy as np
+
+import gaits
+from gaits import GaitFile, StabiliserParams
+
+from .metrics import summarize
+from .randomisation import EVALUATE, Randomisation, draw
+from .robots import load_robot
+from .simulate import Simulator
+from .surfaces import load_surface
+
+__all__ = ["evaluate", "RobustnessReport", "DEFINITIONS", "DEFAULT_PUSHES", "PUSH_SURVIVAL"]
+
+DEFAULT_PUSHES = (0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 4.0)    # [N s]
+PUSH_SURVIVAL = 0.9
+DEFINITIONS = {
+    "survival": "fraction of randomised rollouts (default randomisation, evaluation seeds) that did not fall",
+    "t_fall_s": "quartiles of the fall time of the rollouts that fell [s]",
+    "pitch_rms_deg": "10/50/90th percentiles of torso pitch RMS over rollouts that stayed up [deg]",
+    "speed_mps": "10/50/90th percentiles of forward speed over rollouts that stayed up [m/s]",
+    "push_survival": "per push impulse [N s]: fraction of rollouts with one push of that size that did not fall",
+    "largest_push_ns": f"largest push impulse survived in >= {PUSH_SURVIVAL:.0%} of its rollouts, and so "
+                       f"every smaller one [N s] (null: not even the smallest)",
+}
+
+_CACHE: dict[str, Any] = {}
+
+
+def _sim(robot: str, surface: str) -> Simulator:
+    key = (robot, surface)
+    if _CACHE.get("key") != key:
+        _CACHE.update(key=key, sim=Simulator(load_robot(robot), load_surface(surface)))
+    return _CACHE["sim"]
+
+
+def _one(task: tuple) -> dict[str, Any]:
+    robot, surface, params, stabiliser, randomisation, seed, push = task
+    sim = _sim(robot, surface)
+    traj = gaits.generate(params, sim.robot.leg, sim.control_period)
+    p = draw(randomisation.with_push(push), seed, *sim.n_random(), namespace=EVALUATE)
+    m = summarize(sim.rollout(traj, perturb=p, stabiliser=stabiliser))
+    return {"push": push, "seed": list(seed), "fell": m.fell, "t_fall_s": m.t_fall_s,
+            "pitch_rms_deg": m.pitch_rms_deg, "speed_mps": m.speed_mps, "distance_m": m.distance_m}
+
+
+@dataclass
+class RobustnessReport:
+    robot: str
+    surface: str
+    params: str
+    stabiliser: bool
+    rollouts: list[dict[str, Any]]
+    pushes: dict[float, list[dict[str, Any]]]
+
+    @property
+    def survival(self) -> float:
+        return float(np.mean([not r["fell"] for r in self.rollouts])) if self.rollouts else 0.0
+
+    def _pct(self, key: str) -> list[float] | None:
+        vals = [r[key] for r in self.rollouts if not r["fell"]]
+        return [float(v) for v in np.percentile(vals, [10, 50, 90])] if vals else None
+
+    @property
+    def push_survival(self) -> dict[float, float]:
+        return {size: float(np.mean([not r["fell"] for r in rows])) for size, rows in sorted(self.pushes.items())}
+
+    @property
+    def largest_push(self) -> float | None:
+        best = None
+        for size, frac in self.push_survival.items():
+            if frac < PUSH_SURVIVAL:
+                break
+            best = size
+        return best
+
+    def to_dict(self) -> dict[str, Any]:
+        falls = [r["t_fall_s"] for r in self.rollouts if r["fell"]]
+        return {"robot": self.robot, "surface": self.surface, "params": self.params,
+                "stabiliser": self.stabiliser, "rollouts": len(self.rollouts), "survival": self.survival,
+                "falls": len(falls),
+                "t_fall_s": [float(v) for v in np.percentile(falls, [25, 50, 75])] if falls else None,
+                "pitch_rms_deg": self._pct("pitch_rms_deg"), "speed_mps": self._pct("speed_mps"),
+                "push_survival": {f"{k:g}": v for k, v in self.push_survival.items()},
+                "largest_push_ns": self.largest_push, "definitions": DEFINITIONS}
+
+    def format(self) -> str:
+        d = self.to_dict()
+
+        def pct(v, fmt):
+            return "-" if v is None else " / ".join(format(x, fmt) for x in v)
+        lines = [f"robustness of {self.params} on robot {self.robot} / {self.surface} "
+                 f"(stabiliser {'on' if self.stabiliser else 'off'})",
+                 f"  survival        {d['survival']:.1%} of {d['rollouts']} randomised rollouts ({d['falls']} fell)",
+                 f"  time to fall    {pct(d['t_fall_s'], '.2f')} s (quartiles of those that fell)",
+                 f"  pitch RMS       {pct(d['pitch_rms_deg'], '.2f')} deg (10/50/90th pct, stayed up)",
+                 f"  speed           {pct(d['speed_mps'], '.3f')} m/s (10/50/90th pct, stayed up)"]
+        if self.pushes:
+            n = len(next(iter(self.pushes.values())))
+            row = ", ".join(f"{k} N s {v:.0%}" for k, v in d["push_survival"].items())
+            lines.append(f"  pushes          {row} ({n} rollouts each)")
+            lp = d["largest_push_ns"]
+            lines.append(f"  largest push survived in >= {PUSH_SURVIVAL:.0%}: " + ("none" if lp is None else f"{lp:g} N s"))
+        return "\n".join(lines)
+
+
+def evaluate(robot: str, surface: str, gait_file: GaitFile, label: str, *, rollouts: int, seed: int,
+             randomisation: Randomisation = Randomisation(), stabiliser: StabiliserParams | None = None,
+             pushes: tuple[float, ...] = DEFAULT_PUSHES, push_rollouts: int = 20, workers: int = 2,
+             progress: Callable[[int], None] | None = None) -> RobustnessReport:
+    """Walk a parameter set under randomisation; see the module docstring."""
+    load_robot(robot)                       # a bad robot fails here, once, in the parent
+    load_surface(surface)
+    base = (robot, surface, gait_file.params, stabiliser, randomisation)
+    tasks = [base + ((seed, i), 0.0) for i in range(rollouts)]
+    for size in pushes:
+        tasks += [base + ((seed, 1_000_000 + i), float(size)) for i in range(push_rollouts)]
+    if workers > 1 and len(tasks) > 1:
+        ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
+        with ctx.Pool(min(workers, len(tasks))) as pool:
+            rows = []
+            for row in pool.imap(_one, tasks, chunksize=4):
+                rows.append(row)
+                if progress is not None:
+                    progress(1)
+    else:
+        rows = []
+        for task in tasks:
+            rows.append(_one(task))
+            if progress is not None:
+                progress(1)
+    plain = rows[:rollouts]
+    by_push: dict[float, list] = {}
+    for r in rows[rollouts:]:
+        by_push.setdefault(r["push"], []).append(r)
+    return RobustnessReport(load_robot(robot).name, surface, label, bool(stabiliser and stabiliser.enabled),
+                            plain, by_push)
