@@ -17,6 +17,7 @@ from gaits import ParamError, UnreachableTargetError, families, family_class, li
 
 from .errors import EXIT_INTERNAL, EXIT_USAGE, UserError
 from .params_io import DEFAULT_BASELINE, resolve_params
+from .randomisation import DEFAULT_PUSHES
 
 __all__ = ["cli", "main"]
 
@@ -345,8 +346,10 @@ def export(study_file: str, storage: str | None, runs_dir: Path, number: int | N
               type=click.Path(file_okay=False, path_type=Path))
 @click.option("--workers", type=click.IntRange(1, 64), default=2, show_default=True,
               help="Processes walking the (set, surface) pairs; the results do not depend on it.")
+@click.option("--random-rollouts", type=click.IntRange(0, 1000), default=10, show_default=True,
+              help="Randomised walks per (set, surface) for the survival column (0: none).")
 def compare(params_specs: tuple[str, ...], robot_name: str | None, surface_names: str, baselines: bool,
-            study_file: str | None, runs_dir: Path, out_dir: Path, workers: int) -> None:
+            study_file: str | None, runs_dir: Path, out_dir: Path, workers: int, random_rollouts: int) -> None:
     """Compare parameter sets side by side: stability matrix, stability %, pitch, ZMP error, speed.
 
     Each set walks every surface at the EROS experiment's step distances (0-24 mm
@@ -369,7 +372,7 @@ def compare(params_specs: tuple[str, ...], robot_name: str | None, surface_names
     with tqdm(total=n_rows(list(params_specs), names, baselines), desc="compare", unit="set x surface",
               disable=None) as bar:
         text = run_compare(list(params_specs), robot_name, names, baselines, study_file, runs_dir, out_dir,
-                           workers=workers, progress=bar.update)
+                           workers=workers, progress=bar.update, random_rollouts=random_rollouts)
     click.echo(text)
 
 
@@ -384,7 +387,7 @@ def compare(params_specs: tuple[str, ...], robot_name: str | None, surface_names
               help="Evaluation seed: rollout i uses seed (SEED, i) of the evaluation stream, never the tuning one.")
 @click.option("--randomisation", "randomisation_spec", metavar="PATH|none",
               help="YAML mapping overriding the default distributions (see tuner/randomisation.py), or 'none'.")
-@click.option("--pushes", default=",".join(f"{p:g}" for p in (0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 4.0)), show_default=True,
+@click.option("--pushes", default=",".join(f"{p:g}" for p in DEFAULT_PUSHES), show_default=True,
               help="Comma-separated push impulses [N s] for the push sweep ('' for none).")
 @click.option("--push-rollouts", default=20, show_default=True, type=click.IntRange(1, 10_000),
               help="Rollouts per push size.")

@@ -27,6 +27,7 @@ import gaits  # noqa: E402
 from .experiments import EROS_STEPS_MM  # noqa: E402
 from .metrics import summarize  # noqa: E402
 from .params_io import resolve_params  # noqa: E402
+from .randomisation import EVALUATE, Randomisation, draw  # noqa: E402
 from .robots import load_robot  # noqa: E402
 from .simulate import Simulator  # noqa: E402
 from .surfaces import load_surface  # noqa: E402
@@ -49,12 +50,13 @@ def with_step(params: gaits.GaitParams, step: float) -> gaits.GaitParams:
     return params.replace(step=step)
 
 
-def _sets(specs: list[str], baselines: bool) -> list[tuple[str, gaits.GaitParams]]:
+def _sets(specs: list[str], baselines: bool) -> list[tuple[str, gaits.GaitParams, object]]:
+    """(label, parameters, IMU stabiliser or None) of every compared set."""
     out = []
     families = []
     for s in specs:
         gf = resolve_params(s, None)
-        out.append((s, gf.params))
+        out.append((s, gf.params, gf.stabiliser))
         families.append(gf.family)
     if baselines:
         for fam in dict.fromkeys(families):
@@ -66,7 +68,7 @@ def _sets(specs: list[str], baselines: bool) -> list[tuple[str, gaits.GaitParams
                 if fam == "eros":
                     p = p.replace(foot_lift=p.foot_lift * EROS_LIFT_SCALE)
                     label += f" (Z x{EROS_LIFT_SCALE:g})"
-                out.append((label, p))
+                out.append((label, p, None))
     return out
 
 
@@ -83,14 +85,18 @@ def _robot(robot_name: str):
 
 def _row(task: tuple) -> dict:
     """One (set, surface): its own walk and the 10 EROS grid walks (runs in a worker process)."""
-    robot_name, surface, label, params = task
+    robot_name, surface, label, params, stabiliser, n_random = task
     robot = _robot(robot_name)
     sims = _CACHE["sims"]
     if surface not in sims:
         sims[surface] = Simulator(robot, surface)            # built once per process, reused
     sim = sims[surface]
     traj = gaits.generate(params, robot.leg, sim.control_period)
-    own = summarize(sim.rollout(traj))
+    own = summarize(sim.rollout(traj, stabiliser=stabiliser))
+    # robustness: the own walk under the default randomisation, evaluation seeds (0, i)
+    survived = [not summarize(sim.rollout(traj, stabiliser=stabiliser, perturb=draw(
+        Randomisation(), (0, i), *sim.n_random(), namespace=EVALUATE))).fell for i in range(n_random)]
+    survival = 100.0 * float(np.mean(survived)) if survived else float("nan")
     plan = float(traj.p_world_pelvis[-1, 0] - traj.p_world_pelvis[0, 0])
     covered = 100.0 * own.distance_m / plan if abs(plan) > 1e-3 else float("nan")
     cells = []
@@ -98,12 +104,13 @@ def _row(task: tuple) -> dict:
         for mm in steps:
             p = with_step(params, (1 if direction == "forward" else -1) * mm / 1000)
             try:
-                m = summarize(sim.rollout(gaits.generate(p, robot.leg, sim.control_period)))
+                m = summarize(sim.rollout(gaits.generate(p, robot.leg, sim.control_period), stabiliser=stabiliser))
                 cells.append(not m.fell)
             except (gaits.ParamError, gaits.UnreachableTargetError):
                 cells.append(False)
     return {"set": label, "surface": surface.name, "cells": cells,
-            "stability": 100.0 * sum(cells) / len(cells), "own": own, "covered": covered}
+            "stability": 100.0 * sum(cells) / len(cells), "own": own, "covered": covered,
+            "survival": survival, "n_random": n_random}
 
 
 def n_rows(specs: list[str], surface_names: list[str], baselines: bool) -> int:
@@ -113,13 +120,14 @@ def n_rows(specs: list[str], surface_names: list[str], baselines: bool) -> int:
 
 def run_compare(specs: list[str], robot_name: str, surface_names: list[str], baselines: bool,
                 study_file: str | None, runs_dir: Path, out_dir: Path, workers: int = 1,
-                progress: Callable[[int], None] | None = None) -> str:
+                progress: Callable[[int], None] | None = None, random_rollouts: int = 10) -> str:
     """Walk every set on every surface (``workers`` processes; the rows do not depend on it)
     and write the table and plots; ``progress(1)`` after each (set, surface)."""
     robot = _robot(robot_name)                                # a bad robot fails here, once
     surfaces = [load_surface(s) for s in surface_names]
     sets = _sets(specs, baselines)
-    tasks = [(robot_name, surface, label, params) for label, params in sets for surface in surfaces]
+    tasks = [(robot_name, surface, label, params, stab, random_rollouts) for label, params, stab in sets
+             for surface in surfaces]
     if workers > 1 and len(tasks) > 1:
         ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
         with ctx.Pool(min(workers, len(tasks))) as pool:
@@ -136,17 +144,18 @@ def run_compare(specs: list[str], robot_name: str, surface_names: list[str], bas
                 progress(1)
     out_dir.mkdir(parents=True, exist_ok=True)
     lines = ["| set | surface | stability % | matrix fwd 0..24 / bwd 8..24 | pitch +- [deg] | pitch RMS [deg] "
-             "| ZMP err x/y [cm] | speed [m/s] | covered % of plan | own walk |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+             "| ZMP err x/y [cm] | speed [m/s] | covered % of plan | own walk | survival % randomised |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         o = r["own"]
         mat = "".join("S" if c else "." for c in r["cells"][:7]) + " / " + "".join(
             "S" if c else "." for c in r["cells"][7:])
         lines.append(f"| {r['set']} | {r['surface']} | {r['stability']:.0f} | `{mat}` | {o.pitch_pm_deg:.2f} "
                      f"| {o.pitch_rms_deg:.2f} | {o.zmp_error_x_cm:.2f}/{o.zmp_error_y_cm:.2f} "
-                     f"| {o.speed_mps:.4f} | {r['covered']:.0f} | {'fell' if o.fell else 'stable'} |")
+                     f"| {o.speed_mps:.4f} | {r['covered']:.0f} | {'fell' if o.fell else 'stable'} "
+                     f"| {'-' if r['n_random'] == 0 else format(r['survival'], '.0f')} |")
     summary = ["", "| set | mean stability % |", "|---|---|"]
-    for label, _ in sets:
+    for label, _, _ in sets:
         vals = [r["stability"] for r in rows if r["set"] == label]
         summary.append(f"| {label} | {np.mean(vals):.0f} |")
     study_label = f"study {Path(study_file).stem}" if study_file else "no study"
@@ -156,7 +165,9 @@ def run_compare(specs: list[str], robot_name: str, surface_names: list[str], bas
     defs = ("\nStability %: cells of the 10-cell EROS grid walked without a fall. Pitch +-: half the "
             "peak-to-peak torso pitch per gait cycle (EROS). ZMP error: mean |measured - reference| "
             "relative to the support foot. Covered %: torso distance / planned distance of the own "
-            "walk (a gait that slides in place stays up but covers little).")
+            "walk (a gait that slides in place stays up but covers little). Survival % randomised: of "
+            f"{random_rollouts} walks under the default randomisation (tuner/randomisation.py, evaluation seeds), "
+            "the share that did not fall (`gait-tuner robustness` gives more).")
     (out_dir / "compare.md").write_text(text + "\n" + defs + "\n", encoding="utf-8")
     _plots(rows, sets, surfaces, out_dir, f"robot {robot.name}, {study_label}")
     if study_file:
@@ -168,7 +179,7 @@ def _plots(rows, sets, surfaces, out_dir: Path, title: str) -> None:
     fig, axes = plt.subplots(1, 3, figsize=(16, 4.5))
     width = 0.8 / max(len(sets), 1)
     x = np.arange(len(surfaces))
-    for i, (label, _) in enumerate(sets):
+    for i, (label, _, _) in enumerate(sets):
         mine = [next(r for r in rows if r["set"] == label and r["surface"] == s.name) for s in surfaces]
         axes[0].bar(x + i * width, [r["stability"] for r in mine], width, label=label)
         axes[1].bar(x + i * width, [r["own"].pitch_rms_deg for r in mine], width, label=label)

@@ -40,7 +40,10 @@ import numpy as np
 
 from .errors import UserError
 
-__all__ = ["Randomisation", "Perturbation", "draw", "TUNE", "EVALUATE", "NONE", "randomisation_from_mapping"]
+__all__ = ["DEFAULT_PUSHES", "Randomisation", "Perturbation", "draw", "TUNE", "EVALUATE", "NONE", "randomisation_from_mapping"]
+
+#: Push impulses [N s] of the robustness command's sweep (a 5 kg robot: 0.05-0.6 m/s).
+DEFAULT_PUSHES = (0.25, 0.5, 0.75, 1.0, 1.25, 1.5, 2.0, 3.0)
 
 #: Seed namespaces: tuning and evaluation draw from disjoint streams.
 TUNE = 0x7E57

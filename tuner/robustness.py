@@ -26,14 +26,13 @@ import gaits
 from gaits import GaitFile, StabiliserParams
 
 from .metrics import summarize
-from .randomisation import EVALUATE, Randomisation, draw
+from .randomisation import DEFAULT_PUSHES, EVALUATE, Randomisation, draw
 from .robots import load_robot
 from .simulate import Simulator
 from .surfaces import load_surface
 
 __all__ = ["evaluate", "RobustnessReport", "DEFINITIONS", "DEFAULT_PUSHES", "PUSH_SURVIVAL"]
 
-DEFAULT_PUSHES = (0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 4.0)    # [N s]
 PUSH_SURVIVAL = 0.9
 DEFINITIONS = {
     "survival": "fraction of randomised rollouts (default randomisation, evaluation seeds) that did not fall",

@@ -21,6 +21,15 @@ the median pruner can stop a trial that is already hopeless on its first
 surfaces. Optional second objective: forward speed [m/s] (maximised; 0 on a
 fall), for a Pareto front.
 
+Robust studies (a ``robust:`` section) walk each trial K times per surface under domain
+randomisation (``tuner/randomisation.py``; seeds 0..K-1 of the tuning stream, the same for
+every trial, so trials are compared on the same draws), score each walk as above and
+aggregate all of them by the study's risk measure (``cvar25``: the mean of the worst quarter;
+``worst``; ``mean``). Survival below ``min_survival`` is infeasible, and a trial whose falls
+already exceed what that allows stops at once and is recorded as pruned. A study with a
+``stabiliser:`` section walks every trial with the IMU stabiliser, its gains in the space as
+``stabiliser.NAME``; the trial records them and ``export`` writes them into the gait file.
+
 Storage: a journal file under ``runs/`` by default (no server), or any Optuna
 storage URL. Re-running a study resumes it; ``workers`` processes share one
 study. Every trial records its full parameter set (SI), so it is reproducible:
