@@ -282,6 +282,23 @@ def tune(study_file: str, trials: int | None, workers: int, storage: str | None,
                + (f" --storage {storage}" if storage else "") + " --out best.yaml")
 
 
+def _commit_of(path: str) -> str:
+    """' (commit abc1234)' when the study file sits in a git checkout ('+ local changes' if it
+    differs from that commit), else ''."""
+    import subprocess
+    try:
+        folder = str(Path(path).resolve().parent)
+        head = subprocess.run(["git", "-C", folder, "rev-parse", "--short", "HEAD"], capture_output=True,
+                              text=True, timeout=10)
+        if head.returncode != 0:
+            return ""
+        dirty = subprocess.run(["git", "-C", folder, "status", "--porcelain", "--", str(Path(path).resolve())],
+                               capture_output=True, text=True, timeout=10).stdout.strip()
+        return f" (commit {head.stdout.strip()}{' + local changes' if dirty else ''})"
+    except (OSError, subprocess.SubprocessError):
+        return ""
+
+
 @cli.command()
 @click.argument("study_file", metavar="STUDY")
 @click.option("--storage", help="Optuna storage URL (default: the journal under --runs).")
@@ -318,7 +335,7 @@ def export(study_file: str, storage: str | None, runs_dir: Path, number: int | N
         params = trial_params(spec.gait, t)
     except KeyError as exc:
         raise UserError(str(exc.args[0])) from None
-    desc = (f"study {spec.name} trial {t.number}: score {t.values[0]:.6g}"
+    desc = (f"study {spec.name} trial {t.number}{_commit_of(spec.source)}: score {t.values[0]:.6g}"
             + ("" if not trial_fell(t) else " (fell)")
             + f"; surfaces {', '.join(spec.surfaces)}; robot {spec.robot}")
     from .robots import load_robot
