@@ -99,3 +99,23 @@ def test_robust_study_fields_are_checked(tmp_path, edit, message):
     with pytest.raises(UserError) as err:
         load_study(str(study))
     assert message in str(err.value)
+
+
+def test_shipped_robust_results_load_and_say_where_they_come_from():
+    from tuner.params_io import list_results, resolve_params
+    assert {"kidsize-robust-grass50", "kidsize-robust-fb-grass50"} <= set(list_results())
+    open_loop = resolve_params("kidsize-robust-grass50", None)
+    closed = resolve_params("kidsize-robust-fb-grass50", None)
+    assert open_loop.stabiliser is None and closed.stabiliser.enabled
+    for gf, study in ((open_loop, "kidsize-robust-grass50"), (closed, "kidsize-robust-fb-grass50")):
+        assert gf.description.startswith(f"study {study} trial ") and "(commit " in gf.description
+        assert "+ local changes" not in gf.description
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["kidsize-robust-grass50", "kidsize-robust-fb-grass50"])
+def test_shipped_robust_results_survive_randomisation(gait_tuner_cmd, run_env, name):
+    r = run(gait_tuner_cmd, ["robustness", "--params", name, "--surface", "grass50", "--rollouts", "100",
+                             "--pushes", "", "--json"], run_env)
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout)["survival"] >= 0.95

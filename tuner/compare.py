@@ -11,7 +11,6 @@ EROS baselines are added as the calibrated experiment walks them (foot lift x
 
 from __future__ import annotations
 
-import multiprocessing as mp
 import warnings
 from pathlib import Path
 from typing import Callable
@@ -27,6 +26,7 @@ import gaits  # noqa: E402
 from .experiments import EROS_STEPS_MM  # noqa: E402
 from .metrics import summarize  # noqa: E402
 from .params_io import resolve_params  # noqa: E402
+from .process_pool import map_in_order  # noqa: E402
 from .randomisation import EVALUATE, Randomisation, draw  # noqa: E402
 from .robots import load_robot  # noqa: E402
 from .simulate import Simulator  # noqa: E402
@@ -128,20 +128,7 @@ def run_compare(specs: list[str], robot_name: str, surface_names: list[str], bas
     sets = _sets(specs, baselines)
     tasks = [(robot_name, surface, label, params, stab, random_rollouts) for label, params, stab in sets
              for surface in surfaces]
-    if workers > 1 and len(tasks) > 1:
-        ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
-        with ctx.Pool(min(workers, len(tasks))) as pool:
-            rows = []
-            for row in pool.imap(_row, tasks):
-                rows.append(row)
-                if progress is not None:
-                    progress(1)
-    else:
-        rows = []
-        for task in tasks:
-            rows.append(_row(task))
-            if progress is not None:
-                progress(1)
+    rows = map_in_order(_row, tasks, workers, progress)
     out_dir.mkdir(parents=True, exist_ok=True)
     lines = ["| set | surface | stability % | matrix fwd 0..24 / bwd 8..24 | pitch +- [deg] | pitch RMS [deg] "
              "| ZMP err x/y [cm] | speed [m/s] | covered % of plan | own walk | survival % randomised |",

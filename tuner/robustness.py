@@ -16,7 +16,6 @@ many there are.
 
 from __future__ import annotations
 
-import multiprocessing as mp
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -26,6 +25,7 @@ import gaits
 from gaits import GaitFile, StabiliserParams
 
 from .metrics import summarize
+from .process_pool import map_in_order
 from .randomisation import DEFAULT_PUSHES, EVALUATE, Randomisation, draw
 from .robots import load_robot
 from .simulate import Simulator
@@ -135,20 +135,7 @@ def evaluate(robot: str, surface: str, gait_file: GaitFile, label: str, *, rollo
     tasks = [base + ((seed, i), 0.0) for i in range(rollouts)]
     for size in pushes:
         tasks += [base + ((seed, 1_000_000 + i), float(size)) for i in range(push_rollouts)]
-    if workers > 1 and len(tasks) > 1:
-        ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
-        with ctx.Pool(min(workers, len(tasks))) as pool:
-            rows = []
-            for row in pool.imap(_one, tasks, chunksize=4):
-                rows.append(row)
-                if progress is not None:
-                    progress(1)
-    else:
-        rows = []
-        for task in tasks:
-            rows.append(_one(task))
-            if progress is not None:
-                progress(1)
+    rows = map_in_order(_one, tasks, workers, progress, chunksize=4)
     plain = rows[:rollouts]
     by_push: dict[float, list] = {}
     for r in rows[rollouts:]:

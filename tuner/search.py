@@ -39,7 +39,6 @@ the simulation is deterministic.
 from __future__ import annotations
 
 import math
-import multiprocessing as mp
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -57,6 +56,7 @@ from gaits import ParamError, UnreachableTargetError
 from .metrics import summarize
 from .robots import load_robot
 from .simulate import Simulator
+from .process_pool import mp_context
 from .randomisation import TUNE, draw
 from .study import STAB_PREFIX, StudySpec
 from .surfaces import load_surface
@@ -340,7 +340,7 @@ def _run_phase(spec: StudySpec, storage: Any, storage_path: str | None, n_trials
                seed: int, study: optuna.Study, on_progress: Callable[[optuna.Study], None] | None,
                poll: float) -> None:
     # fork (Linux) starts a worker in milliseconds; spawn re-imports MuJoCo, Optuna and CasADi
-    ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
+    ctx = mp_context()
     tickets = ctx.Value("i", n_trials)
     procs = [ctx.Process(target=_worker, args=(spec, None if storage_path else storage, storage_path,
                                                 tickets, seed + 1000 * i), daemon=False)
