@@ -6,8 +6,9 @@ Usage: ``python benchmarks/bench_robustness.py [--rollouts 200] [--push-rollouts
    seed: the same trials every time) into a temporary folder and exports its best: a gait
    tuned on one deterministic simulation.
 2. Evaluates it and the shipped ``kidsize-robust-grass50`` (open loop) and
-   ``kidsize-robust-fb-grass50`` (with the IMU stabiliser) on every pedestal: ``--rollouts``
-   randomised walks with evaluation seeds (never used in tuning) and the push sweep.
+   ``kidsize-robust-fb-grass50`` (with the IMU stabiliser, and the same gait with it switched
+   off) on every pedestal: ``--rollouts`` randomised walks with evaluation seeds (never used in
+   tuning) and the push sweep.
 3. Times one trial's evaluation in each study kind (deterministic: 1 walk; robust: K walks),
    side by side in this run.
 Prints survival % and the largest push survived in >= 90% per set and pedestal.
@@ -66,18 +67,21 @@ def main() -> None:
         t0 = time.perf_counter()
         qs = quickstart_best(Path(tmp))
         print(f"quick-start study re-run and exported in {time.perf_counter() - t0:.1f} s: {qs.name}")
-        sets = {"quick-start best (deterministic)": str(qs), "kidsize-robust-grass50": "kidsize-robust-grass50",
-                "kidsize-robust-fb-grass50": "kidsize-robust-fb-grass50"}
+        sets = {"quick-start best (deterministic)": (str(qs), True),
+                "kidsize-robust-grass50": ("kidsize-robust-grass50", True),
+                "kidsize-robust-fb-grass50": ("kidsize-robust-fb-grass50", True),
+                "  the same, stabiliser off": ("kidsize-robust-fb-grass50", False)}
         print(f"\n{args.rollouts} randomised rollouts per pedestal (evaluation seed {args.seed}), "
               f"pushes {', '.join(f'{p:g}' for p in DEFAULT_PUSHES)} N s x {args.push_rollouts}")
         print(f"{'set':34s} " + " ".join(f"{p:>20s}" for p in PEDESTALS) + "   wall")
-        for label, spec in sets.items():
+        for label, (spec, stabilised) in sets.items():
             gf = resolve_params(spec, None)
             cells = []
             t0 = time.perf_counter()
             for surface in PEDESTALS:
                 rep = evaluate("kidsize", surface, gf, spec, rollouts=args.rollouts, seed=args.seed,
-                               stabiliser=gf.stabiliser, push_rollouts=args.push_rollouts, workers=args.workers)
+                               stabiliser=gf.stabiliser if stabilised else None, push_rollouts=args.push_rollouts,
+                               workers=args.workers)
                 lp = rep.largest_push
                 cells.append(f"{rep.survival:6.1%} push {'-' if lp is None else format(lp, 'g'):>4s}")
             print(f"{label:34s} " + " ".join(f"{c:>20s}" for c in cells) + f"   {time.perf_counter() - t0:.0f} s")
