@@ -12,7 +12,7 @@ from gaits import StabiliserParams
 from tuner.errors import UserError
 from tuner.randomisation import EVALUATE, NONE, TUNE, Randomisation, draw, randomisation_from_mapping
 from tuner.robots import load_robot
-from tuner.robots.robot_check import _stand_trajectory
+from tuner.robots.robot_check import stand_trajectory
 from tuner.simulate import Simulator
 from tuner.surfaces import SURFACES
 
@@ -112,9 +112,9 @@ def test_backlash_is_a_dead_band():
     from tuner.simulate import dead_band
     assert dead_band(np.array([0.10, 0.10, 0.10]), np.array([0.095, 0.12, 0.05]), np.full(3, 0.015)) == \
         pytest.approx([0.095, 0.115, 0.085])     # inside the band: hold; outside: move by the excess
-    tr = sim.rollout(_stand_trajectory(ROBOT, 1.0, sim.control_period), perturb=p)
+    tr = sim.rollout(stand_trajectory(ROBOT, 1.0, sim.control_period), perturb=p)
     assert np.max(np.abs(tr.q_sent - tr.q_cmd)) <= b / 2 + 1e-3
-    ref = sim.rollout(_stand_trajectory(ROBOT, 1.0, sim.control_period))
+    ref = sim.rollout(stand_trajectory(ROBOT, 1.0, sim.control_period))
     # standing, the load-bearing knees give way by about half the band more
     k = tr.joint_names.index("l_knee")
     extra = abs(tr.q[-1, k] - tr.q_cmd[-1, k]) - abs(ref.q[-1, k] - ref.q_cmd[-1, k])
@@ -159,7 +159,7 @@ def test_tilt_friction_and_layer_reach_the_model():
 
 def test_stabiliser_reduces_torso_pitch_after_a_push():
     sim = sim_for()
-    traj = _stand_trajectory(ROBOT, 3.0, sim.control_period)
+    traj = stand_trajectory(ROBOT, 3.0, sim.control_period)
     p = pert(sim, NONE, push_impulse=1.0, push_time=0.3, push_angle=np.pi)          # pushed backward
     traj = dataclasses.replace(traj, support=np.ones_like(traj.support))      # push time counts from t = 0
     off = sim.rollout(traj, perturb=p)

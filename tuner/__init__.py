@@ -8,6 +8,7 @@ from __future__ import annotations
 from .errors import UserError
 from .metrics import DEFINITIONS, Metrics, summarize
 from .params_io import resolve_params
+from .randomisation import Randomisation
 from .robots import RobotModel, RobotSpec, ServoSpec, load_robot
 from .simulate import FallCriteria, Simulator, Trace
 from .surfaces import SURFACES, Surface, load_surface
@@ -16,6 +17,7 @@ __all__ = [
     "DEFINITIONS",
     "FallCriteria",
     "Metrics",
+    "Randomisation",
     "RobotModel",
     "RobotSpec",
     "SURFACES",

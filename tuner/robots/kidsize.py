@@ -22,7 +22,6 @@ from dataclasses import dataclass, field
 from typing import Mapping
 
 import mujoco
-import numpy as np
 
 from gaits import JOINT_NAMES, LegGeometry
 

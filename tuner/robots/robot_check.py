@@ -9,7 +9,6 @@ sensing covers the whole sole).
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import mujoco
@@ -21,10 +20,11 @@ from gaits.trajectory import assemble
 from .mjcf_geometry import CROUCH
 from .robot_model import GROUPS, RobotModel, joint_group
 
-__all__ = ["robot_report", "stand_test", "format_report"]
+__all__ = ["robot_report", "stand_test", "stand_trajectory", "format_report"]
 
 
-def _stand_trajectory(robot: RobotModel, duration: float, dt: float) -> GaitTrajectory:
+def stand_trajectory(robot: RobotModel, duration: float, dt: float) -> GaitTrajectory:
+    """The walking crouch held still for ``duration`` [s]: soles under the hips, CoM over them."""
     L = robot.leg
     n = int(round(duration / dt)) + 1
     t = np.arange(n) * dt
@@ -40,7 +40,7 @@ def stand_test(robot: RobotModel, duration: float = 2.0) -> dict[str, Any]:
     from ..simulate import Simulator
     from ..surfaces import SURFACES
     sim = Simulator(robot, SURFACES["rigid"])
-    trace = sim.rollout(_stand_trajectory(robot, duration, sim.control_period))
+    trace = sim.rollout(stand_trajectory(robot, duration, sim.control_period))
     weight = float(np.sum(sim.model.body_mass)) * 9.81
     last = max(1, int(round(0.5 / sim.control_period)))
     feet_x = (trace.p_sole_l[-last:, 0] + trace.p_sole_r[-last:, 0]) / 2

@@ -364,7 +364,7 @@ def _servos(model: mujoco.MjModel, final: Mapping[str, tuple[str, int]], doc: An
         if rest:
             parts.append(f"preset {_DEFAULT_PRESET[g]} on {rest} joint(s) (no position actuator with a force "
                          f"range in the file)")
-        speed_src = (f"speed from the map" if g in doc and isinstance(doc[g], Mapping) and "speed" in doc[g]
+        speed_src = ("speed from the map" if g in doc and isinstance(doc[g], Mapping) and "speed" in doc[g]
                      else f"speed {SERVO_PRESETS[_DEFAULT_PRESET[g]].speed:g} rad/s from preset "
                           f"{_DEFAULT_PRESET[g]} (a file states none)")
         over = f"; map servo.{g} on top" if g in doc else ""
