@@ -94,3 +94,14 @@ def test_compare_rows_do_not_depend_on_workers(tmp_path):
     done = []
     two = run_compare(*args, tmp_path / "w2", workers=2, progress=done.append)
     assert one.replace("w1", "w2") == two and len(done) == 2
+
+
+def test_simulate_json_is_strict_when_a_metric_is_undefined(gait_tuner_cmd, run_env):
+    import json as _json
+    r = subprocess.run(gait_tuner_cmd + ["simulate", "--params", "tkux-table2", "--surface", "grass50",
+                                         "--duration", "0.01", "--json"], capture_output=True, text=True,
+                       env=run_env, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert "NaN" not in r.stdout
+    m = _json.loads(r.stdout)["metrics"]
+    assert m["zmp_error_x_cm"] is None and "sole sensors" in m["undefined"]["zmp_error_x_cm"]

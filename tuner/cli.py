@@ -133,7 +133,7 @@ def simulate(robot_name: str, surface_name: str, family: str | None, params_spec
     if as_json:
         click.echo(json.dumps({"robot": robot.name, "surface": surface.name, "gait": gait_file.family,
                                "params": label, "metrics": metrics.to_dict(),
-                               "definitions": DEFINITIONS}, indent=2))
+                               "definitions": DEFINITIONS}, indent=2, allow_nan=False))
     else:
         click.echo(f"{gait_file.family} ({label}) on {robot.name} / {surface.name}: {metrics.reason}")
         for key, text in DEFINITIONS.items():

@@ -64,7 +64,16 @@ class Metrics:
     reason: str
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        """The metrics for strict JSON: a value that is not a number (the ZMP error of a walk
+        with no sample that loads the soles, e.g. an early fall) is null, and ``undefined``
+        says why."""
+        out = asdict(self)
+        undefined = {k: "no sample with at least 10% of the robot's weight on its sole sensors"
+                     for k, v in out.items() if isinstance(v, float) and not math.isfinite(v)}
+        for k in undefined:
+            out[k] = None
+        out["undefined"] = undefined
+        return out
 
 
 def pitch_rms(pitch: np.ndarray) -> float:
