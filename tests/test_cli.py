@@ -89,3 +89,21 @@ def test_baselines_and_params_listing(gait_tuner_cmd, run_env):
     assert r.returncode == 0 and "tkux-table2" in r.stdout and "eros-x24-with" in r.stdout
     r = run(gait_tuner_cmd, ["params", "tlipfm"], run_env)
     assert r.returncode == 0 and "S_L" in r.stdout and "[0.08, 0.5] m" in r.stdout
+
+
+@pytest.mark.parametrize("content,message", [
+    (b"a: " + b"[" * 20000 + b"]" * 20000 + b"\n", "nested too deeply"),
+    (b"\x00\x01binary", "is a binary file"),
+    ("mjcf: caf\xe9\n".encode("latin-1"), "is not UTF-8 text"),
+    (None, "is a directory"),
+])
+@pytest.mark.parametrize("verb", [["tune"], ["robot", "check"], ["simulate", "--gait", "tlipfm", "--surface"]])
+def test_bad_yaml_files_are_one_line_exit_2(gait_tuner_cmd, run_env, tmp_path, content, message, verb):
+    path = tmp_path / "bad.yaml"
+    if content is None:
+        path.mkdir()
+    else:
+        path.write_bytes(content)
+    r = run(gait_tuner_cmd, verb + [str(path)], run_env)
+    assert r.returncode == 2, r.stderr
+    assert r.stderr.count("\n") == 1 and message in r.stderr

@@ -147,7 +147,7 @@ def load_study(path_or_name: str) -> StudySpec:
     if not path.exists() and (STUDY_DIR / f"{path_or_name}.yaml").exists():
         path = STUDY_DIR / f"{path_or_name}.yaml"
     source = str(path)
-    if not path.is_file():
+    if not path.exists():
         _fail(source, "no such study file (shipped studies: "
               + ", ".join(p.stem for p in list_studies()) + ")")
     doc = read_yaml_file(path, "study")
