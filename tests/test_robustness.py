@@ -119,3 +119,26 @@ def test_shipped_robust_results_survive_randomisation(gait_tuner_cmd, run_env, n
                              "--pushes", "", "--json"], run_env)
     assert r.returncode == 0, r.stderr
     assert json.loads(r.stdout)["survival"] >= 0.95
+
+
+def test_trials_lists_a_study_and_exactly_optunas_best(gait_tuner_cmd, run_env, tmp_path):
+    import optuna
+    from tuner.search import open_storage
+    study_file = tmp_path / "listed.yaml"
+    study_file.write_text(STUDY.replace("trials: 3", "trials: 4"))
+    r = run(gait_tuner_cmd, ["tune", str(study_file), "--runs", str(tmp_path / "runs")], run_env)
+    assert r.returncode == 0, r.stderr
+    r = run(gait_tuner_cmd, ["trials", str(study_file), "--runs", str(tmp_path / "runs"), "--json",
+                             "--sort", "number"], run_env)
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(r.stdout)
+    assert [row["number"] for row in doc["shown"]] == [0, 1, 2, 3]
+    assert all(0.0 <= row["params"]["stabiliser.k_ankle_pitch"] <= 1.0 for row in doc["shown"])
+    r = run(gait_tuner_cmd, ["trials", str(study_file), "--runs", str(tmp_path / "runs"), "--json", "--pareto"],
+            run_env)
+    spec = load_study(str(study_file))
+    study = optuna.load_study(study_name=spec.name, storage=open_storage(spec, None, tmp_path / "runs"))
+    assert sorted(row["number"] for row in json.loads(r.stdout)["shown"]) == \
+        sorted(t.number for t in study.best_trials)
+    r = run(gait_tuner_cmd, ["trials", str(study_file), "--runs", str(tmp_path / "none")], run_env)
+    assert r.returncode == 2 and "run `gait-tuner tune` first" in r.stderr

@@ -299,6 +299,90 @@ def _commit_of(path: str) -> str:
         return ""
 
 
+def _tuned_study(study_file: str, storage: str | None, runs_dir: Path):
+    """(spec, optuna study) of a study that has been tuned; a one-line error if it has not."""
+    import optuna
+
+    from .search import open_storage
+    from .study import load_study
+
+    spec = load_study(study_file)
+    journal = runs_dir / f"{spec.name}.journal"
+    if not storage and not journal.exists():
+        raise UserError(f"no runs of study {spec.name!r} in {journal} (run `gait-tuner tune` first)")
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    try:
+        study = optuna.load_study(study_name=spec.name, storage=open_storage(spec, storage, runs_dir))
+    except KeyError:
+        raise UserError(f"storage holds no study named {spec.name!r}") from None
+    return spec, study
+
+
+@cli.command()
+@click.argument("study_file", metavar="STUDY")
+@click.option("--storage", help="Optuna storage URL (default: the journal under --runs).")
+@click.option("--runs", "runs_dir", default="runs", show_default=True,
+              type=click.Path(file_okay=False, path_type=Path))
+@click.option("--pareto", is_flag=True, help="Only Optuna's best trials (the Pareto front of feasible "
+              "trials for two objectives, the best feasible one for one).")
+@click.option("--sort", "sort_key", type=click.Choice(["number", "score", "speed"]), default="score",
+              show_default=True, help="Order of the rows (score ascending, speed descending).")
+@click.option("--limit", type=click.IntRange(1, 100_000), default=20, show_default=True)
+@click.option("--json", "as_json", is_flag=True, help="Print the rows as strict JSON.")
+def trials(study_file: str, storage: str | None, runs_dir: Path, pareto: bool, sort_key: str, limit: int,
+           as_json: bool) -> None:
+    """List a study's trials: state, objectives, feasibility, survival, searched parameters.
+
+    score: the pitch score [deg] minimised (see tuner/search.py); speed [m/s] when the study
+    has it; feasible: stayed up (robust: survival >= the study's minimum) and walked at
+    least half its plan; survival: robust studies' share of randomised walks that stayed up.
+    """
+    import json
+
+    from optuna.trial import TrialState
+
+    from .search import trial_feasible, trial_result
+
+    spec, study = _tuned_study(study_file, storage, runs_dir)
+    rows_src = study.best_trials if pareto else study.get_trials(deepcopy=False)
+    rows = []
+    for t in rows_src:
+        res = trial_result(t)
+        values = list(t.values) if t.values is not None else []
+        rows.append({"number": t.number, "state": t.state.name.lower(),
+                     "score": values[0] if values else None,
+                     "speed": values[1] if len(values) > 1 else None,
+                     "feasible": trial_feasible(t), "survival": res.get("survival"),
+                     "start": t.user_attrs.get("start"),
+                     "params": {r.name: t.params.get(r.name) for r in spec.space}})
+    keys = {"number": lambda r: r["number"],
+            "score": lambda r: (r["score"] is None, r["score"] if r["score"] is not None else 0.0),
+            "speed": lambda r: (r["speed"] is None, -(r["speed"] or 0.0))}
+    rows.sort(key=keys[sort_key])
+    shown = rows[:limit]
+    if as_json:
+        click.echo(json.dumps({"study": spec.name, "trials": len(study.trials), "shown": shown,
+                               "pareto": pareto}, indent=2, allow_nan=False))
+        return
+    done = sum(1 for t in study.trials if t.state in (TrialState.COMPLETE, TrialState.PRUNED))
+    click.echo(f"study {spec.name}: {len(study.trials)} trials ({done} finished), showing {len(shown)}"
+               + (" of Optuna's best" if pareto else f" by {sort_key}"))
+    names = [r.name for r in spec.space]
+    head = f"{'#':>5s} {'state':9s} {'score':>8s} " + (f"{'speed':>7s} " if len(spec.objectives) > 1 else "") \
+        + f"{'feasible':8s} {'surv.':>5s}  " + " ".join(f"{n:>{max(len(n), 9)}s}" for n in names)
+    click.echo(head)
+    for r in shown:
+        cells = [f"{r['number']:5d}", f"{r['state']:9s}",
+                 f"{r['score']:8.3f}" if r["score"] is not None else f"{'-':>8s}"]
+        if len(spec.objectives) > 1:
+            cells.append(f"{r['speed']:7.4f}" if r["speed"] is not None else f"{'-':>7s}")
+        cells.append(f"{'yes' if r['feasible'] else 'no':8s}")
+        cells.append(f"{r['survival']:5.0%}" if r["survival"] is not None else f"{'-':>5s}")
+        params = " ".join(f"{r['params'][n]:>{max(len(n), 9)}.4g}" if r["params"][n] is not None
+                          else f"{'-':>{max(len(n), 9)}s}" for n in names)
+        click.echo(" ".join(cells) + "  " + params)
+
+
 @cli.command()
 @click.argument("study_file", metavar="STUDY")
 @click.option("--storage", help="Optuna storage URL (default: the journal under --runs).")
@@ -315,21 +399,9 @@ def export(study_file: str, storage: str | None, runs_dir: Path, number: int | N
     STUDY is the study file (or shipped study name). The YAML is accepted as it
     is by `simulate` and `trajectory`.
     """
-    import optuna
-
     from .search import best_trial, trial_fell, trial_params, trial_stabiliser
-    from .study import load_study
 
-    spec = load_study(study_file)
-    journal = runs_dir / f"{spec.name}.journal"
-    if not storage and not journal.exists():
-        raise UserError(f"no runs of study {spec.name!r} in {journal} (run `gait-tuner tune` first)")
-    optuna.logging.set_verbosity(optuna.logging.WARNING)
-    from .search import open_storage
-    try:
-        study = optuna.load_study(study_name=spec.name, storage=open_storage(spec, storage, runs_dir))
-    except KeyError:
-        raise UserError(f"storage holds no study named {spec.name!r}") from None
+    spec, study = _tuned_study(study_file, storage, runs_dir)
     try:
         t = best_trial(study, number)
         params = trial_params(spec.gait, t)
