@@ -73,7 +73,7 @@ def test_tuning_and_evaluation_seeds_are_disjoint_streams():
 def test_added_torso_mass_moves_the_com():
     sim = sim_for()
     m = sim.model
-    torso = ROBOT_torso = m.body(ROBOT.torso).id
+    torso = m.body(ROBOT.torso).id
     f = np.ones(m.nbody)
     f[torso] = 1.5
     p = pert(sim, NONE, body_mass=f)
@@ -84,7 +84,7 @@ def test_added_torso_mass_moves_the_com():
     try:
         d1 = mujoco.MjData(m)
         mujoco.mj_forward(m, d1)
-        dm = 0.5 * sim._nominal["body_mass"][ROBOT_torso]
+        dm = 0.5 * sim._nominal["body_mass"][torso]
         expected = com0 + dm * (d0.xipos[torso] - com0) / (M + dm)
         assert d1.subtree_com[torso] == pytest.approx(expected, abs=1e-9)
         assert m.body_subtreemass[torso] == pytest.approx(M + dm)

@@ -506,13 +506,9 @@ def robustness(params_spec: str, robot_name: str, surface_name: str, rollouts: i
     from .yaml_input import read_yaml_file
 
     gait_file = resolve_params(params_spec, None)
-    if randomisation_spec is None:
-        rnd = randomisation_from_mapping(None, "--randomisation")
-    elif randomisation_spec == "none":
-        rnd = randomisation_from_mapping("none", "--randomisation")
-    else:
-        rnd = randomisation_from_mapping(read_yaml_file(Path(randomisation_spec), "randomisation"),
-                                         randomisation_spec)
+    doc = randomisation_spec if randomisation_spec in (None, "none") else \
+        read_yaml_file(Path(randomisation_spec), "randomisation")
+    rnd = randomisation_from_mapping(doc, randomisation_spec or "--randomisation")
     try:
         sizes = tuple(float(v) for v in pushes.split(",") if v.strip())
     except ValueError:

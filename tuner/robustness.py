@@ -54,10 +54,17 @@ def _sim(robot: str, surface: str) -> Simulator:
     return _CACHE["sim"]
 
 
+def _traj(sim: Simulator, params: gaits.GaitParams) -> gaits.GaitTrajectory:
+    """The joint table of ``params`` for the cached simulator, generated once per process."""
+    if _CACHE.get("params") != (params, sim):
+        _CACHE.update(params=(params, sim), traj=gaits.generate(params, sim.robot.leg, sim.control_period))
+    return _CACHE["traj"]
+
+
 def _one(task: tuple) -> dict[str, Any]:
     robot, surface, params, stabiliser, randomisation, seed, push = task
     sim = _sim(robot, surface)
-    traj = gaits.generate(params, sim.robot.leg, sim.control_period)
+    traj = _traj(sim, params)
     p = draw(randomisation.with_push(push), seed, *sim.n_random(), namespace=EVALUATE)
     m = summarize(sim.rollout(traj, perturb=p, stabiliser=stabiliser))
     return {"push": push, "seed": list(seed), "fell": m.fell, "t_fall_s": m.t_fall_s,

@@ -173,13 +173,13 @@ class Evaluator:
                          "pitch_rms_deg": float(np.median([r["pitch_rms_deg"] for r in rows]))}
             if hopeless:
                 break
-        survival = 1.0 - falls / total if not hopeless else 1.0 - falls / max(len(scores), 1)
+        survival = 1.0 - falls / len(scores)            # of the walks run (all of them unless hopeless)
         worst = sorted(scores, reverse=True)
         risk = {"worst": worst[0], "mean": float(np.mean(scores)),
                 "cvar25": float(np.mean(worst[:max(1, len(worst) // 4)]))}[rb.risk]
         progress = float(np.median(covered_all)) if covered_all else (0.0 if abs(plan_dist) > 1e-3 else 1.0)
         if survival < rb.min_survival or hopeless:
-            constraint = rb.min_survival - min(survival, 1.0 - falls / total) + 1e-3
+            constraint = rb.min_survival - (1.0 - falls / total) + 1e-3     # > 0: falls already exceed it
         elif progress < MIN_PROGRESS:
             constraint = MIN_PROGRESS - progress
         else:

@@ -124,7 +124,7 @@ def load_map(path: Path) -> RobotModel:
         return in_torso(d.xanchor[j]), R_t.T @ d.xaxis[j]
 
     geo: dict[str, dict[str, float]] = {}
-    soles, hulls, axes, bodies, sources = [], [], [], [], {}
+    soles, hulls, axes, bodies, sizes, sources = [], [], [], [], [], {}
     for side, p, s in _SIDES:
         hip_dist, hip = axis_line_distance(*line(p + "hip_roll"), *line(p + "hip_pitch"))
         _require(hip_dist < AXIS_TOLERANCE, source,
@@ -160,6 +160,7 @@ def load_map(path: Path) -> RobotModel:
                      "sole_forward": float(c[0] - ankle[0]), "sole_outward": float(s * (c[1] - ankle[1]))}
         soles.append(tuple(float(v) for v in sole.centre))
         hulls.append(sole.hull)
+        sizes.append(sole.size)
         axes.append(sole.R_sole_foot)
         R_f = d.xmat[fb].reshape(3, 3)
         carriers = sorted({int(model.geom_bodyid[g]) for g in foot_geoms(model, fb)})
@@ -172,7 +173,6 @@ def load_map(path: Path) -> RobotModel:
         if abs(geo["right"][key] - value) > 0.002:
             notes.append(f"legs differ: {key} left {_mm(value)}, right {_mm(geo['right'][key])}; the IK uses the "
                          f"left leg's (give leg.{key} to choose)")
-    sizes = [_sole_size(h) for h in hulls]
 
     leg_over = doc.get("leg") or {}
     _require(isinstance(leg_over, Mapping), source, "leg must be a mapping of LegGeometry fields")
@@ -213,7 +213,7 @@ def load_map(path: Path) -> RobotModel:
     sources["pose"] = pose_source
     notes += _keyframe_notes(model)
     from .scene import solver_differences
-    differ = solver_differences(mujoco.MjSpec.from_file(str(mjcf)))
+    differ = solver_differences(model.opt)
     if differ:
         notes.append("the file's solver options are replaced by MuJoCo's defaults, with which the surfaces "
                      "were calibrated: " + ", ".join(differ))
@@ -225,11 +225,6 @@ def load_map(path: Path) -> RobotModel:
     return RobotModel(name, xml, final, torso, (str(feet["left"]), str(feet["right"])),
                       (soles[0], soles[1]), sizes[0], leg, servos, pose, tuple(hulls), sources,
                       tuple(notes), sim, str(mjcf), str(path.resolve()), tuple(axes), tuple(bodies))
-
-
-def _sole_size(hull: np.ndarray) -> tuple[float, float]:
-    ext = hull.max(axis=0) - hull.min(axis=0)
-    return float(ext[0]), float(ext[1])
 
 
 def _read_joints(joints: Any, model: mujoco.MjModel, source: str, fname: str) -> dict[str, tuple[str, int | None]]:

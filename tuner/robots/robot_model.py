@@ -120,6 +120,3 @@ class RobotModel:
         """MJCF names of the actuated joints the map does not name (held at ``pose``)."""
         mapped = {theirs for theirs, _ in self.joint_map.values()}
         return tuple(j for j in self.servos if j not in mapped)
-
-    def their_joint_names(self, ours: tuple[str, ...]) -> tuple[str, ...]:
-        return tuple(self.joint_map[j][0] for j in ours)

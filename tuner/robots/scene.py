@@ -23,6 +23,7 @@ then the drag dampers. Sensor order: see :class:`SceneLayout`.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -75,12 +76,13 @@ SOLVER_OPTIONS = ("iterations", "ls_iterations", "tolerance", "ls_tolerance", "n
                   "viscosity", "disableflags", "enableflags")
 
 
-def solver_differences(spec: mujoco.MjSpec) -> list[str]:
-    """The file's solver options that differ from MuJoCo's defaults (ours), as 'name value'."""
+def solver_differences(option: Any) -> list[str]:
+    """The solver options of a file (its compiled ``MjModel.opt`` or its ``MjSpec.option``: the
+    fields have the same names) that differ from MuJoCo's defaults (ours), as 'name value'."""
     fresh = mujoco.MjSpec().option
     out = []
     for name in SOLVER_OPTIONS:
-        theirs, ours = getattr(spec.option, name), getattr(fresh, name)
+        theirs, ours = getattr(option, name), getattr(fresh, name)
         if not np.array_equal(np.asarray(theirs), np.asarray(ours)):
             out.append(f"{name} {np.asarray(theirs).tolist()}")
     return out
