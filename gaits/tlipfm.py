@@ -57,6 +57,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .footstep_planner import FootstepPlan, StepLimits, plan_footsteps, swing_fraction
 from .leg_kinematics import LegGeometry
 from .params import GaitParams, ParamError, param, register_family
 from .trajectory import GRAVITY, GaitTrajectory, assemble
@@ -72,6 +73,7 @@ __all__ = [
     "com_trajectory",
     "cycloid_swing",
     "generate",
+    "command_zmp_segments",
 ]
 
 
@@ -195,23 +197,70 @@ def zmp_segments(p: TlipfmParams) -> tuple[np.ndarray, np.ndarray, np.ndarray, n
     return np.array([0.0, t1, t2]), (Lx, Kx), (Ly, Ky), pc
 
 
+def command_zmp_segments(p: TlipfmParams, plan: FootstepPlan):
+    """The natural ZMP (eqs 10-11) along a footstep plan, per world axis (ours).
+
+    Each step keeps the paper's three segments and times (0, t1, t2, T): in double
+    support the ZMP moves in a straight line from the previous step's boundary point
+    to a behind the support foot's centre, in single support from a behind to a
+    ahead of it *along the foot's heading*, then to the next boundary point. The
+    boundary point between support feet F_n and F_n+1 is, in F_n's frame,
+    (rho dx, dy / 2) of their offset (dx, dy), with rho = d2 / (d1 + d2) (0.5 when
+    both are 0): for a straight walk it is the paper's p^c_n + d_2 on the mid-line,
+    so a constant command gives eqs 10-11 exactly (tested). The first step starts and
+    the last ends between the feet, as in :func:`zmp_segments`.
+
+    Returns breaks (3,), (Lx, Kx), (Ly, Ky) of shape (n_steps, 3), and the support
+    headings (n_steps,).
+    """
+    t1, t2, T = p.t1, p.t2, p.period
+    total = p.d1 + p.d2
+    rho = p.d2 / total if abs(total) > 1e-12 else 0.5
+    F = plan.support
+    c, s = np.cos(F[:, 2]), np.sin(F[:, 2])
+    heading = np.column_stack([c, s])
+    lateral = np.column_stack([-s, c])
+    ahead = F[:, :2] + p.a * heading
+    behind = F[:, :2] - p.a * heading
+    nxt = plan.swing_target[:, :2] - F[:, :2]
+    fwd = np.sum(nxt * heading, axis=1)
+    side = np.sum(nxt * lateral, axis=1)
+    boundary = F[:, :2] + (rho * fwd)[:, None] * heading + (0.5 * side)[:, None] * lateral
+    first = (plan.start_left[:2] + plan.start_right[:2]) / 2.0
+    start = np.vstack([first, boundary[:-1]])
+    K0 = (behind - start) / t1
+    K1 = (ahead - behind) / (t2 - t1)
+    K2 = (boundary - ahead) / (T - t2)
+    L0, L1, L2 = start, behind - K1 * t1, ahead - K2 * t2
+    Lx = np.column_stack([L0[:, 0], L1[:, 0], L2[:, 0]])
+    Ly = np.column_stack([L0[:, 1], L1[:, 1], L2[:, 1]])
+    Kx = np.column_stack([K0[:, 0], K1[:, 0], K2[:, 0]])
+    Ky = np.column_stack([K0[:, 1], K1[:, 1], K2[:, 1]])
+    return np.array([0.0, t1, t2]), (Lx, Kx), (Ly, Ky), F[:, 2].copy()
+
+
 def _segment_index(s: np.ndarray, breaks: np.ndarray) -> np.ndarray:
     return np.clip(np.searchsorted(breaks, s, side="right") - 1, 0, len(breaks) - 1)
 
 
-def natural_zmp(p: TlipfmParams, t: np.ndarray) -> np.ndarray:
+def natural_zmp(p: TlipfmParams, t: np.ndarray, plan: FootstepPlan | None = None) -> np.ndarray:
     """Natural moving-ZMP reference (eqs 10-11) at absolute times t, shape (len(t), 2).
 
     Absolute time starts with ``t_start`` of standing; the reference holds its
-    first and last values while standing.
+    first and last values while standing. With a footstep ``plan``, the reference of
+    :func:`command_zmp_segments`.
     """
-    breaks, (Lx, Kx), (Ly, Ky), _ = zmp_segments(p)
+    if plan is None:
+        breaks, (Lx, Kx), (Ly, Ky), _ = zmp_segments(p)
+    else:
+        breaks, (Lx, Kx), (Ly, Ky), _ = command_zmp_segments(p, plan)
+    n_steps = len(Lx)
     t = np.asarray(t, dtype=float)
     s_all = t - p.t_start
-    n = np.clip(np.floor(s_all / p.period).astype(int), 0, p.n_steps - 1)
+    n = np.clip(np.floor(s_all / p.period).astype(int), 0, n_steps - 1)
     s = np.clip(s_all - n * p.period, 0.0, p.period)
     s = np.where(s_all < 0, 0.0, s)
-    s = np.where(s_all >= p.n_steps * p.period, p.period, s)
+    s = np.where(s_all >= n_steps * p.period, p.period, s)
     i = _segment_index(s, breaks)
     return np.column_stack([Lx[n, i] + Kx[n, i] * s, Ly[n, i] + Ky[n, i] * s])
 
@@ -264,58 +313,85 @@ class ComTrajectory:
     constants: PendulumConstants
 
 
-def com_trajectory(p: TlipfmParams, t: np.ndarray, model: str | None = None) -> ComTrajectory:
+def _com_axis(t: np.ndarray, t_start: float, period: float, breaks: np.ndarray, L: np.ndarray,
+              K: np.ndarray, shift: np.ndarray, T: float) -> tuple[np.ndarray, ...]:
+    """One horizontal axis of the CoM for per-step linear ZMP segments (eqs 23-26).
+
+    ``L``, ``K`` (n_steps, 3) as in :func:`zmp_segments`; ``shift`` (n_steps,) the flywheel's
+    ZMP offset of each step along this axis. Returns position, velocity (len(t),) and the
+    per-step initial position and velocity (n_steps,).
+    """
+    n_steps = len(L)
+    pos = np.empty(len(t))
+    vel = np.empty(len(t))
+    x0s = np.empty(n_steps)
+    v0s = np.empty(n_steps)
+    # backward pass of the divergent component, from rest at the end
+    p_end = L[-1, 2] + K[-1, 2] * period + shift[-1]
+    xi_start = np.empty(n_steps)
+    xi = p_end
+    for n in range(n_steps - 1, -1, -1):
+        xi = _dcm_backward(xi, breaks, L[n], K[n], period, T, shift[n])
+        xi_start[n] = xi
+    p0 = L[0, 0] + shift[0]
+    # standing before the walk: constant ZMP p0; start at rest at x = xi(0)
+    xi_0 = p0 + (xi_start[0] - p0) * math.exp(-t_start / T)
+    x, v = xi_0, 0.0
+    s_all = t - t_start
+    mask = s_all < 0
+    if np.any(mask):
+        xs, vs = com_closed_form(t[mask], x, v, np.array([0.0]), np.array([p0 - shift[0]]),
+                                 np.array([0.0]), T, shift[0])
+        pos[mask], vel[mask] = xs, vs
+    xe, _ = com_closed_form(np.array([t_start]), x, v, np.array([0.0]),
+                            np.array([p0 - shift[0]]), np.array([0.0]), T, shift[0])
+    x = float(xe[0])
+    for n in range(n_steps):
+        v = (xi_start[n] - x) / T
+        x0s[n], v0s[n] = x, v
+        lo, hi = n * period, (n + 1) * period
+        mask = (s_all >= lo) & ((s_all < hi) | ((n == n_steps - 1) & (s_all <= hi)))
+        if np.any(mask):
+            xs, vs = com_closed_form(s_all[mask] - lo, x, v, breaks, L[n], K[n], T, shift[n])
+            pos[mask], vel[mask] = xs, vs
+        xe, _ = com_closed_form(np.array([period]), x, v, breaks, L[n], K[n], T, shift[n])
+        x = float(xe[0])
+    # standing after the walk
+    v = (p_end - x) / T
+    mask = s_all > n_steps * period
+    if np.any(mask):
+        xs, vs = com_closed_form(s_all[mask] - n_steps * period, x, v, np.array([0.0]),
+                                 np.array([p_end - shift[-1]]), np.array([0.0]), T, shift[-1])
+        pos[mask], vel[mask] = xs, vs
+    return pos, vel, x0s, v0s
+
+
+def com_trajectory(p: TlipfmParams, t: np.ndarray, model: str | None = None,
+                   plan: FootstepPlan | None = None) -> ComTrajectory:
     """CoM (x, y) and velocity at absolute times t for the natural ZMP (eqs 23-26).
 
     Standing phases before and after the walk are the same closed form with a
-    constant ZMP. See the module docstring for the choice of initial states.
+    constant ZMP. See the module docstring for the choice of initial states. With a
+    footstep ``plan`` (a walk command), the ZMP of :func:`command_zmp_segments` is used:
+    the LIPM is isotropic, so the closed form holds per *world* axis for any piecewise-
+    linear ZMP, turning or not (tested against a numerical integration).
     """
     const = pendulum_constants(p, model)
-    T = const.T
-    breaks, segx, segy, _ = zmp_segments(p)
+    if plan is None:
+        breaks, segx, segy, _ = zmp_segments(p)
+        shifts = np.column_stack([np.full(p.n_steps, const.zmp_shift), np.zeros(p.n_steps)])
+    else:
+        breaks, segx, segy, heading = command_zmp_segments(p, plan)
+        shifts = const.zmp_shift * np.column_stack([np.cos(heading), np.sin(heading)])
     t = np.asarray(t, dtype=float)
+    n_steps = len(segx[0])
     pos = np.empty((len(t), 2))
     vel = np.empty((len(t), 2))
-    x0s = np.empty((p.n_steps, 2))
-    v0s = np.empty((p.n_steps, 2))
-    for axis, ((L, K), shift) in enumerate(((segx, const.zmp_shift), (segy, 0.0))):
-        # backward pass of the divergent component, from rest at the end
-        p_end = L[-1, 2] + K[-1, 2] * p.period + shift
-        xi_start = np.empty(p.n_steps)
-        xi = p_end
-        for n in range(p.n_steps - 1, -1, -1):
-            xi = _dcm_backward(xi, breaks, L[n], K[n], p.period, T, shift)
-            xi_start[n] = xi
-        p0 = L[0, 0] + shift
-        # standing before the walk: constant ZMP p0; start at rest at x = xi(0)
-        xi_0 = p0 + (xi_start[0] - p0) * math.exp(-p.t_start / T)
-        x, v = xi_0, 0.0
-        s_all = t - p.t_start
-        mask = s_all < 0
-        if np.any(mask):
-            xs, vs = com_closed_form(t[mask], x, v, np.array([0.0]), np.array([p0 - shift]),
-                                     np.array([0.0]), T, shift)
-            pos[mask, axis], vel[mask, axis] = xs, vs
-        xe, _ = com_closed_form(np.array([p.t_start]), x, v, np.array([0.0]),
-                                np.array([p0 - shift]), np.array([0.0]), T, shift)
-        x = float(xe[0])
-        for n in range(p.n_steps):
-            v = (xi_start[n] - x) / T
-            x0s[n, axis], v0s[n, axis] = x, v
-            lo, hi = n * p.period, (n + 1) * p.period
-            mask = (s_all >= lo) & ((s_all < hi) | ((n == p.n_steps - 1) & (s_all <= hi)))
-            if np.any(mask):
-                xs, vs = com_closed_form(s_all[mask] - lo, x, v, breaks, L[n], K[n], T, shift)
-                pos[mask, axis], vel[mask, axis] = xs, vs
-            xe, _ = com_closed_form(np.array([p.period]), x, v, breaks, L[n], K[n], T, shift)
-            x = float(xe[0])
-        # standing after the walk
-        v = (p_end - x) / T
-        mask = s_all > p.n_steps * p.period
-        if np.any(mask):
-            xs, vs = com_closed_form(s_all[mask] - p.n_steps * p.period, x, v, np.array([0.0]),
-                                     np.array([p_end - shift]), np.array([0.0]), T, shift)
-            pos[mask, axis], vel[mask, axis] = xs, vs
+    x0s = np.empty((n_steps, 2))
+    v0s = np.empty((n_steps, 2))
+    for axis, (L, K) in enumerate((segx, segy)):
+        pos[:, axis], vel[:, axis], x0s[:, axis], v0s[:, axis] = _com_axis(
+            t, p.t_start, p.period, breaks, L, K, shifts[:, axis], const.T)
     return ComTrajectory(t, pos, vel, x0s, v0s, const)
 
 
@@ -364,11 +440,76 @@ def _feet(p: TlipfmParams, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nd
     return left, right, support
 
 
+def _command_feet(p: TlipfmParams, plan: FootstepPlan, t: np.ndarray):
+    """Feet poses along a plan: the cycloid of eq 27 applied to the swing's whole (x, y, yaw)
+    displacement, W_y across the support foot's heading. Returns left, right (len(t), 3),
+    their yaws (len(t), 2) and the support phase (len(t),)."""
+    left = np.tile(np.array([plan.start_left[0], plan.start_left[1], 0.0]), (len(t), 1))
+    right = np.tile(np.array([plan.start_right[0], plan.start_right[1], 0.0]), (len(t), 1))
+    yaw = np.zeros((len(t), 2))
+    support = np.zeros(len(t), dtype=int)
+    s_all = t - p.t_start
+    for n in range(plan.n_steps):
+        sup_side = int(plan.support_side[n])
+        sw_side = -sup_side
+        lo, hi = n * p.period, (n + 1) * p.period
+        mask = (s_all >= lo) & (s_all < hi)
+        s = s_all[mask] - lo
+        theta = 2.0 * np.pi * np.clip((s - p.t1) / (p.t2 - p.t1), 0.0, 1.0)
+        frac = swing_fraction(theta)[:, None]
+        a, b, F = plan.swing_start[n], plan.swing_target[n], plan.support[n]
+        pose = a + frac * (b - a)
+        bulge = p.w_y * sw_side * (1.0 - np.cos(theta)) / 2.0
+        pose[:, 0] += -np.sin(F[2]) * bulge
+        pose[:, 1] += np.cos(F[2]) * bulge
+        z = (1.0 - np.cos(theta)) * p.h_z / 2.0
+        sw = np.column_stack([pose[:, :2], z])
+        st = np.broadcast_to(np.array([F[0], F[1], 0.0]), sw.shape)
+        i_sw, i_st = (0, 1) if sw_side == 1 else (1, 0)
+        (left if sw_side == 1 else right)[mask] = sw
+        (left if sup_side == 1 else right)[mask] = st
+        yaw[mask, i_sw] = pose[:, 2]
+        yaw[mask, i_st] = F[2]
+        support[mask] = np.where((s > p.t1) & (s <= p.t2), sup_side, 0)
+        after = s_all >= hi
+        (left if sw_side == 1 else right)[after] = np.array([b[0], b[1], 0.0])
+        yaw[after, i_sw] = b[2]
+    return left, right, yaw, support
+
+
 def generate(p: TlipfmParams, leg: LegGeometry = LegGeometry(), dt: float = 0.01,
-             model: str | None = None) -> GaitTrajectory:
-    """The full TLIPFM (or LIPM / DLIPM) walk sampled every ``dt`` seconds."""
+             model: str | None = None, commands: np.ndarray | None = None,
+             limits: StepLimits = StepLimits()) -> GaitTrajectory:
+    """The full TLIPFM (or LIPM / DLIPM) walk sampled every ``dt`` seconds.
+
+    With ``commands`` (n, 3) (vx [m/s], vy [m/s], wz [rad/s] per step, see
+    ``gaits/walk_command.py``) the walk follows the footsteps of
+    ``gaits/footstep_planner.py`` instead of eqs 6-8: ``n_steps`` and ``step_length``
+    are then unused (the commands give both), d1 and d2 only set where the ZMP crosses
+    between the feet. The pelvis heading is the mean of the feet's (ours).
+    """
     if not (1e-4 <= dt <= 0.1):
         raise ParamError(f"dt = {dt!r} s is out of range [0.0001, 0.1] s")
+    if commands is None:
+        return _generate_straight(p, leg, dt, model)
+    plan = plan_footsteps(commands, p.period, p.half_width, p.first_support, limits)
+    total = p.t_start + plan.n_steps * p.period + p.t_end
+    t = np.arange(int(round(total / dt)) + 1) * dt
+    com = com_trajectory(p, t, model, plan)
+    zmp = natural_zmp(p, t, plan)
+    left, right, yaw_feet, support = _command_feet(p, plan, t)
+    p_com = np.column_stack([com.pos, np.full(len(t), p.z_c)])
+    pelvis = p_com - np.array([0.0, 0.0, leg.com_above_pelvis])
+    return assemble("tlipfm", t, leg, p_world_pelvis=pelvis, p_world_foot_l=left,
+                    p_world_foot_r=right, support=support, p_world_zmp_ref=zmp,
+                    yaw_world_pelvis=yaw_feet.mean(axis=1), yaw_world_feet=yaw_feet,
+                    meta={"model": com.constants.model, "T_TF": com.constants.T,
+                          "C_tau2": com.constants.c_tau2, "tau": com.constants.tau,
+                          "cycle_time": 2 * p.period, "t_start": p.t_start, "period": p.period,
+                          "commands": np.asarray(commands, dtype=float).tolist()})
+
+
+def _generate_straight(p: TlipfmParams, leg: LegGeometry, dt: float, model: str | None) -> GaitTrajectory:
     total = p.t_start + p.n_steps * p.period + p.t_end
     t = np.arange(int(round(total / dt)) + 1) * dt
     com = com_trajectory(p, t, model)

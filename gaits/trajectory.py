@@ -6,8 +6,9 @@ targets q_ref(t) with the EROS leg IK and packs everything into a
 :class:`GaitTrajectory`, which exports as CSV.
 
 Frames: world x forward, y left, z up, the ground at z = 0. The pelvis is kept
-upright with zero heading (straight walking), so ``p_pelvis_sole`` is the world
-difference of sole and pelvis.
+upright; its heading is zero for the papers' straight walks, and follows the feet
+for a walk command (``yaw_world_pelvis``), when the IK targets are the world
+differences of sole and pelvis turned into the pelvis frame.
 """
 
 from __future__ import annotations
@@ -62,6 +63,8 @@ class GaitTrajectory:
     joint_names: tuple[str, ...] = JOINT_NAMES
     zmp_source: str = "model"      # "model" (the family's own ZMP reference) or "cart-table"
     meta: dict = field(default_factory=dict)
+    yaw_world_pelvis: np.ndarray | None = None   # (N,) [rad] heading; None: straight ahead (0)
+    yaw_world_feet: np.ndarray | None = None     # (N, 2) [rad] left, right sole headings
 
     @property
     def dt(self) -> float:
@@ -90,6 +93,10 @@ class GaitTrajectory:
                                  ("foot_r", self.p_world_foot_r, "xyz")):
             for k, ax in enumerate(axes):
                 cols[f"{label}_{ax}[m]"] = arr[:, k]
+        if self.yaw_world_pelvis is not None:
+            cols["pelvis_yaw[rad]"] = self.yaw_world_pelvis
+            cols["foot_l_yaw[rad]"] = self.yaw_world_feet[:, 0]
+            cols["foot_r_yaw[rad]"] = self.yaw_world_feet[:, 1]
         cols["support[-]"] = self.support
         return cols
 
@@ -136,16 +143,26 @@ def resample(t_src: np.ndarray, values: np.ndarray, t_new: np.ndarray) -> np.nda
     return out.reshape((len(t_new),) + values.shape[1:])
 
 
+def _turn(yaw: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rotate vectors v (N, 3) or (3,) about z by yaw (N,) [rad] -> (N, 3)."""
+    v = np.broadcast_to(np.asarray(v, dtype=float), (len(yaw), 3))
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.column_stack([c * v[:, 0] - s * v[:, 1], s * v[:, 0] + c * v[:, 1], v[:, 2]])
+
+
 def assemble(family: str, t: np.ndarray, leg: LegGeometry, *,
              p_world_pelvis: np.ndarray, p_world_foot_l: np.ndarray, p_world_foot_r: np.ndarray,
              support: np.ndarray, p_world_zmp_ref: np.ndarray | None = None,
              ankle_pitch_offset: np.ndarray | None = None,
+             yaw_world_pelvis: np.ndarray | None = None, yaw_world_feet: np.ndarray | None = None,
              meta: dict | None = None) -> GaitTrajectory:
     """Leg IK on world references -> :class:`GaitTrajectory`.
 
     ``ankle_pitch_offset`` (N, 2) [rad] (left, right) is added to the ankle
     pitch after the IK, as the EROS heel-strike gait does (eqs 46-47). Without a
     ZMP reference the cart-table ZMP of the CoM is recorded instead.
+    ``yaw_world_pelvis`` (N,) and ``yaw_world_feet`` (N, 2) [rad] turn the pelvis and the
+    soles (a walk command); the hip-yaw joints take the difference (EROS eq 9).
     """
     t = np.asarray(t, dtype=float)
     n = len(t)
@@ -153,13 +170,26 @@ def assemble(family: str, t: np.ndarray, leg: LegGeometry, *,
                       ("p_world_foot_r", p_world_foot_r)):
         if np.shape(arr) != (n, 3):
             raise ValueError(f"{name} must have shape ({n}, 3) to match t, got {np.shape(arr)}")
+    turning = yaw_world_pelvis is not None
+    if turning:
+        if np.shape(yaw_world_pelvis) != (n,) or np.shape(yaw_world_feet) != (n, 2):
+            raise ValueError(f"yaw_world_pelvis must have shape ({n},) and yaw_world_feet ({n}, 2), "
+                             f"got {np.shape(yaw_world_pelvis)} and {np.shape(yaw_world_feet)}")
+        psi = np.asarray(yaw_world_pelvis, dtype=float)
+        yaw_feet = np.asarray(yaw_world_feet, dtype=float)
+    else:
+        psi = np.zeros(n)
+        yaw_feet = np.zeros((n, 2))
     # The family's pelvis path is where it wants the CoM (horizontally): the pelvis itself is
     # moved by the robot's CoM offset, and each ankle by its sole offset (LegGeometry, ours).
-    p_world_pelvis = np.asarray(p_world_pelvis, dtype=float) - np.array([leg.com_forward, leg.com_lateral, 0.0])
-    p_world_com = p_world_pelvis + leg.com_in_pelvis
+    p_world_pelvis = (np.asarray(p_world_pelvis, dtype=float)
+                      - _turn(psi, np.array([leg.com_forward, leg.com_lateral, 0.0])))
+    p_world_com = p_world_pelvis + _turn(psi, leg.com_in_pelvis)
     q = np.zeros((n, len(JOINT_NAMES)))
-    q_l = leg_ik(p_world_foot_l - leg.sole_in_ankle(1) - p_world_pelvis, 0.0, leg, "left", t=t)
-    q_r = leg_ik(p_world_foot_r - leg.sole_in_ankle(-1) - p_world_pelvis, 0.0, leg, "right", t=t)
+    ankle_l = np.asarray(p_world_foot_l, dtype=float) - _turn(yaw_feet[:, 0], leg.sole_in_ankle(1))
+    ankle_r = np.asarray(p_world_foot_r, dtype=float) - _turn(yaw_feet[:, 1], leg.sole_in_ankle(-1))
+    q_l = leg_ik(_turn(-psi, ankle_l - p_world_pelvis), yaw_feet[:, 0] - psi, leg, "left", t=t)
+    q_r = leg_ik(_turn(-psi, ankle_r - p_world_pelvis), yaw_feet[:, 1] - psi, leg, "right", t=t)
     if ankle_pitch_offset is not None:
         off = np.asarray(ankle_pitch_offset, dtype=float)
         if off.shape != (n, 2):
@@ -181,7 +211,9 @@ def assemble(family: str, t: np.ndarray, leg: LegGeometry, *,
                           p_world_foot_l=np.asarray(p_world_foot_l),
                           p_world_foot_r=np.asarray(p_world_foot_r),
                           support=np.asarray(support, dtype=int), zmp_source=source,
-                          meta=dict(meta or {}))
+                          meta=dict(meta or {}),
+                          yaw_world_pelvis=psi if turning else None,
+                          yaw_world_feet=yaw_feet if turning else None)
     if not np.all(np.isfinite(traj.q_ref)):
         raise ValueError(f"{family}: the joint table has non-finite values")
     return traj
