@@ -46,6 +46,7 @@ __all__ = [
     "LEG_JOINTS",
     "leg_ik",
     "leg_fk",
+    "refine_ik",
     "rot_x",
     "rot_y",
     "rot_z",
@@ -225,3 +226,34 @@ def leg_ik(p_pelvis_sole: np.ndarray, yaw: np.ndarray | float, leg: LegGeometry,
     q5 = -(q3 + q4)                                   # eq 27
     q6 = -q2                                          # eq 28
     return np.stack([q1, q2, q3, q4, q5, q6], axis=-1)
+
+
+def _rotation_error(R_d: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """Axis-angle-like error vector (small angles) taking R to R_d, shape (..., 3)."""
+    E = R_d @ np.swapaxes(R, -1, -2)
+    return 0.5 * np.stack([E[..., 2, 1] - E[..., 1, 2], E[..., 0, 2] - E[..., 2, 0],
+                           E[..., 1, 0] - E[..., 0, 1]], axis=-1)
+
+
+def refine_ik(q0: np.ndarray, p_pelvis_sole: np.ndarray, R_pelvis_sole: np.ndarray, leg: LegGeometry,
+              side: int | str, iterations: int = 4) -> np.ndarray:
+    """Full-pose IK by Gauss-Newton from ``q0`` (..., 6): sole position (..., 3) and orientation
+    (..., 3, 3) in the pelvis frame (ours, for a sole not parallel to the pelvis, e.g. a leaning
+    torso). The flat-foot IK of :func:`leg_ik` is a good start, so a few iterations reach
+    machine precision; the Jacobian is a central difference of :func:`leg_fk`.
+    """
+    q = np.array(q0, dtype=float)
+    h = 1e-6
+    for _ in range(iterations):
+        p, R = leg_fk(q, leg, side)
+        err = np.concatenate([p_pelvis_sole - p, _rotation_error(R_pelvis_sole, R)], axis=-1)
+        J = np.empty(q.shape + (6,))
+        for j in range(6):
+            dq = np.zeros(6)
+            dq[j] = h
+            pp, Rp = leg_fk(q + dq, leg, side)
+            pm, Rm = leg_fk(q - dq, leg, side)
+            J[..., :3, j] = (pp - pm) / (2 * h)
+            J[..., 3:, j] = (_rotation_error(Rp, R) - _rotation_error(Rm, R)) / (2 * h)
+        q = q + np.linalg.solve(J, err[..., None])[..., 0]
+    return q

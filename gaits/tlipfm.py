@@ -107,6 +107,8 @@ class TlipfmParams(GaitParams):
     mass_upper: float = param(3.05, "kg", 0.05, 100.0, "upper-body mass", "M_u")
     mass_thigh: float = param(0.2, "kg", 0.0, 20.0, "support-leg thigh mass", "m_t")
     mass_calf: float = param(0.75, "kg", 0.0, 20.0, "support-leg calf mass (with sole)", "m_c")
+    torso_pitch: float = param(0.0, "rad", -0.3, 0.3, "constant forward lean of the pelvis and "
+                               "torso (ours; the paper walks upright)")
     t_start: float = param(1.0, "s", 0.0, 10.0, "standing time before the first step (ours)")
     t_end: float = param(1.0, "s", 0.0, 10.0, "standing time after the last step (ours)")
 
@@ -503,7 +505,7 @@ def generate(p: TlipfmParams, leg: LegGeometry = LegGeometry(), dt: float = 0.01
     return assemble("tlipfm", t, leg, p_world_pelvis=pelvis, p_world_foot_l=left,
                     p_world_foot_r=right, support=support, p_world_zmp_ref=zmp,
                     yaw_world_pelvis=yaw_feet.mean(axis=1), yaw_world_feet=yaw_feet,
-                    meta={"model": com.constants.model, "T_TF": com.constants.T,
+                    pitch_pelvis=p.torso_pitch, meta={"model": com.constants.model, "T_TF": com.constants.T,
                           "C_tau2": com.constants.c_tau2, "tau": com.constants.tau,
                           "cycle_time": 2 * p.period, "t_start": p.t_start, "period": p.period,
                           "commands": np.asarray(commands, dtype=float).tolist()})
@@ -519,6 +521,7 @@ def _generate_straight(p: TlipfmParams, leg: LegGeometry, dt: float, model: str 
     pelvis = p_com - np.array([0.0, 0.0, leg.com_above_pelvis])
     return assemble("tlipfm", t, leg, p_world_pelvis=pelvis, p_world_foot_l=left,
                     p_world_foot_r=right, support=support, p_world_zmp_ref=zmp,
+                    pitch_pelvis=p.torso_pitch,
                     meta={"model": com.constants.model, "T_TF": com.constants.T,
                           "C_tau2": com.constants.c_tau2, "tau": com.constants.tau,
                           "cycle_time": 2 * p.period})

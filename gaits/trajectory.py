@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .leg_kinematics import LEG_JOINTS, LegGeometry, leg_ik
+from .leg_kinematics import LEG_JOINTS, LegGeometry, leg_ik, refine_ik, rot_y, rot_z
 
 __all__ = [
     "JOINT_NAMES",
@@ -155,7 +155,7 @@ def assemble(family: str, t: np.ndarray, leg: LegGeometry, *,
              support: np.ndarray, p_world_zmp_ref: np.ndarray | None = None,
              ankle_pitch_offset: np.ndarray | None = None,
              yaw_world_pelvis: np.ndarray | None = None, yaw_world_feet: np.ndarray | None = None,
-             meta: dict | None = None) -> GaitTrajectory:
+             pitch_pelvis: float = 0.0, meta: dict | None = None) -> GaitTrajectory:
     """Leg IK on world references -> :class:`GaitTrajectory`.
 
     ``ankle_pitch_offset`` (N, 2) [rad] (left, right) is added to the ankle
@@ -163,6 +163,9 @@ def assemble(family: str, t: np.ndarray, leg: LegGeometry, *,
     ZMP reference the cart-table ZMP of the CoM is recorded instead.
     ``yaw_world_pelvis`` (N,) and ``yaw_world_feet`` (N, 2) [rad] turn the pelvis and the
     soles (a walk command); the hip-yaw joints take the difference (EROS eq 9).
+    ``pitch_pelvis`` [rad] leans the pelvis (and the torso on it) forward by a constant angle
+    (ours): the paper's flat-foot IK starts a full-pose Gauss-Newton refinement
+    (``leg_kinematics.refine_ik``) that keeps each sole flat, at its heading and position.
     """
     t = np.asarray(t, dtype=float)
     n = len(t)
@@ -184,12 +187,22 @@ def assemble(family: str, t: np.ndarray, leg: LegGeometry, *,
     # moved by the robot's CoM offset, and each ankle by its sole offset (LegGeometry, ours).
     p_world_pelvis = (np.asarray(p_world_pelvis, dtype=float)
                       - _turn(psi, np.array([leg.com_forward, leg.com_lateral, 0.0])))
-    p_world_com = p_world_pelvis + _turn(psi, leg.com_in_pelvis)
+    lean = rot_y(float(pitch_pelvis))
+    p_world_com = p_world_pelvis + _turn(psi, lean @ leg.com_in_pelvis)
     q = np.zeros((n, len(JOINT_NAMES)))
-    ankle_l = np.asarray(p_world_foot_l, dtype=float) - _turn(yaw_feet[:, 0], leg.sole_in_ankle(1))
-    ankle_r = np.asarray(p_world_foot_r, dtype=float) - _turn(yaw_feet[:, 1], leg.sole_in_ankle(-1))
-    q_l = leg_ik(_turn(-psi, ankle_l - p_world_pelvis), yaw_feet[:, 0] - psi, leg, "left", t=t)
-    q_r = leg_ik(_turn(-psi, ankle_r - p_world_pelvis), yaw_feet[:, 1] - psi, leg, "right", t=t)
+    up = np.array([0.0, 0.0, leg.ankle_height])
+    legs = []
+    for side, foot, yaw_f in ((1, p_world_foot_l, yaw_feet[:, 0]), (-1, p_world_foot_r, yaw_feet[:, 1])):
+        # the ankle sits ankle_height straight above the flat sole, in the world
+        ankle = np.asarray(foot, dtype=float) - _turn(yaw_f, leg.sole_in_ankle(side)) + up
+        target = _turn(-psi, ankle - p_world_pelvis) @ lean - up      # lean.T @ v, row-wise
+        q_leg = leg_ik(target, yaw_f - psi, leg, side, t=t)
+        if pitch_pelvis:
+            # the sole flat in the world is turned by -lean in the leaning pelvis frame
+            R_d = lean.T @ rot_z(yaw_f - psi)
+            q_leg = refine_ik(q_leg, target + up - R_d @ up, R_d, leg, side)
+        legs.append(q_leg)
+    q_l, q_r = legs
     if ankle_pitch_offset is not None:
         off = np.asarray(ankle_pitch_offset, dtype=float)
         if off.shape != (n, 2):

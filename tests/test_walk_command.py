@@ -187,3 +187,21 @@ def test_turning_com_matches_numerical_integration(model):
 def test_command_generate_rejects_unreachable():
     with pytest.raises(PlanError, match="max_forward"):
         generate(TlipfmParams(), commands=_steady([0.3, 0, 0]))
+
+
+def test_torso_lean_keeps_the_soles_where_planned():
+    from gaits.leg_kinematics import LegGeometry, leg_fk, rot_y, rot_z
+    from gaits.trajectory import JOINT_NAMES
+    leg = LegGeometry()
+    lean = 0.15
+    p = TlipfmParams(period=0.4, t1=0.08, t2=0.32, torso_pitch=lean)
+    traj = generate(p, leg, commands=_steady([0.08, 0.0, 0.3], 8))
+    for side, name, foot in ((1, "l", traj.p_world_foot_l), (-1, "r", traj.p_world_foot_r)):
+        i = JOINT_NAMES.index(f"{name}_hip_yaw")
+        pos, R = leg_fk(traj.q_ref[:, i:i + 6], leg, side)
+        R_pelvis = rot_z(traj.yaw_world_pelvis) @ rot_y(lean)
+        world = np.einsum("kij,kj->ki", R_pelvis, pos) + traj.p_world_pelvis
+        np.testing.assert_allclose(world, foot, atol=1e-9)
+        R_sole = R_pelvis @ R
+        yaw = traj.yaw_world_feet[:, 0 if side == 1 else 1]
+        np.testing.assert_allclose(R_sole, rot_z(yaw), atol=1e-9)

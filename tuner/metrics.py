@@ -22,6 +22,12 @@ planned single support to the end of the rollout (or the fall).
   The TLIPFM paper's Table 3 calls its figures "sum of absolute error" but
   gives 1.1-1.7 cm for ~9 s of walking, which can only be a per-sample
   (mean) figure; we report the mean and label it so.
+* ``vx_mps`` / ``vy_mps`` / ``wz_radps``: the walk's velocity in the torso's heading
+  frame: the torso's displacement between control ticks turned into the heading of the
+  tick and summed, and the heading change, over the *steady window* of a walk command
+  (``gaits.CommandRamp.steady_steps``, whole gait cycles at the held command) or else the
+  walking window, divided by its duration. Undefined (null) when the robot fell before
+  the steady window ended.
 """
 
 from __future__ import annotations
@@ -34,7 +40,7 @@ import numpy as np
 from .centre_of_pressure import centre_of_pressure
 from .simulate import Trace
 
-__all__ = ["Metrics", "DEFINITIONS", "pitch_rms", "pitch_pm", "centre_of_pressure", "zmp_error",
+__all__ = ["Metrics", "DEFINITIONS", "heading_velocity", "pitch_rms", "pitch_pm", "centre_of_pressure", "zmp_error",
            "summarize"]
 
 DEFINITIONS = {
@@ -47,6 +53,9 @@ DEFINITIONS = {
     "zmp_error_x_cm": "mean |measured ZMP - reference|, sagittal [cm]",
     "zmp_error_y_cm": "mean |measured ZMP - reference|, lateral [cm]",
     "walk_time_s": "time from the first step to the end or the fall [s]",
+    "vx_mps": "forward velocity in the torso's heading frame, steady window [m/s]",
+    "vy_mps": "leftward velocity in the torso's heading frame, steady window [m/s]",
+    "wz_radps": "turning rate (counter-clockwise), steady window [rad/s]",
 }
 
 
@@ -62,18 +71,41 @@ class Metrics:
     zmp_error_y_cm: float
     walk_time_s: float
     reason: str
+    vx_mps: float = float("nan")
+    vy_mps: float = float("nan")
+    wz_radps: float = float("nan")
 
     def to_dict(self) -> dict:
         """The metrics for strict JSON: a value that is not a number (the ZMP error of a walk
         with no sample that loads the soles, e.g. an early fall) is null, and ``undefined``
         says why."""
         out = asdict(self)
-        undefined = {k: "no sample with at least 10% of the robot's weight on its sole sensors"
+        undefined = {k: ("the robot fell before the steady window ended" if k in _VELOCITY else
+                         "no sample with at least 10% of the robot's weight on its sole sensors")
                      for k, v in out.items() if isinstance(v, float) and not math.isfinite(v)}
         for k in undefined:
             out[k] = None
         out["undefined"] = undefined
         return out
+
+
+_VELOCITY = ("vx_mps", "vy_mps", "wz_radps")
+
+
+def heading_velocity(t: np.ndarray, p: np.ndarray, yaw: np.ndarray, t0: float, t1: float) -> np.ndarray:
+    """(vx [m/s], vy [m/s], wz [rad/s]) over [t0, t1] in the heading frame (see the module
+    docstring); NaN when the samples do not reach t1."""
+    t = np.asarray(t, dtype=float)
+    if len(t) < 2 or t[-1] < t1 - 1e-9 or t1 <= t0:
+        return np.full(3, np.nan)
+    sel = (t >= t0 - 1e-9) & (t <= t1 + 1e-9)
+    pw, yw = np.asarray(p, dtype=float)[sel, :2], np.asarray(yaw, dtype=float)[sel]
+    d = np.diff(pw, axis=0)
+    c, s = np.cos(yw[:-1]), np.sin(yw[:-1])
+    dx = np.sum(c * d[:, 0] + s * d[:, 1])
+    dy = np.sum(-s * d[:, 0] + c * d[:, 1])
+    dur = float(t[sel][-1] - t[sel][0])
+    return np.array([dx / dur, dy / dur, (yw[-1] - yw[0]) / dur])
 
 
 def pitch_rms(pitch: np.ndarray) -> float:
@@ -122,8 +154,12 @@ def summarize(trace: Trace) -> Metrics:
     ex, ey = zmp_error(trace.zmp_local[w], trace.zmp_ref_local[w])
     walk = float(t[-1] - t[0]) if len(t) > 1 else 0.0
     dist = float(trace.p_torso[w][-1, 0] - trace.p_torso[w][0, 0]) if len(t) else 0.0
+    t0, t1 = trace.meta.get("steady", (trace.walk_start, float(trace.t[-1])))
+    vel = (heading_velocity(trace.t, trace.p_torso, trace.yaw, t0, t1) if trace.yaw is not None
+           else np.full(3, np.nan))
     return Metrics(pitch_rms_deg=pitch_rms(pitch), pitch_pm_deg=pitch_pm(t, pitch, trace.cycle_time),
                    fell=trace.fell, t_fall_s=trace.t_fall, distance_m=dist,
                    speed_mps=dist / walk if walk > 0 else 0.0,
                    zmp_error_x_cm=ex * 100, zmp_error_y_cm=ey * 100, walk_time_s=walk,
-                   reason=trace.reason)
+                   reason=trace.reason, vx_mps=float(vel[0]), vy_mps=float(vel[1]),
+                   wz_radps=float(vel[2]))

@@ -72,6 +72,7 @@ class Trace:
     cycle_time: float           # [s] one gait cycle (two steps), for the +- amplitude
     meta: dict = field(default_factory=dict)
     q_sent: np.ndarray | None = None   # (K, n) [rad] targets the servos received (after latency, backlash)
+    yaw: np.ndarray | None = None      # (K,) [rad] torso heading, unwrapped (counter-clockwise positive)
 
     @property
     def completed(self) -> bool:
@@ -94,6 +95,12 @@ def _quat_pitch_roll(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     pitch = np.arcsin(np.clip(-r20, -1.0, 1.0))
     roll = np.arctan2(r21, r22)
     return pitch, roll
+
+
+def _quat_yaw(q: np.ndarray) -> np.ndarray:
+    """Z-Y-X Euler yaw from quaternions (K, 4) [w, x, y, z], unwrapped along K [rad]."""
+    w, x, y, z = q.T
+    return np.unwrap(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
 
 
 class Simulator:
@@ -432,4 +439,6 @@ class Simulator:
                      t_fall=t_fall, p_fall=p_fall, reason=reason, walk_start=walk_start,
                      cycle_time=float(traj.meta.get("cycle_time", 1.0)),
                      meta={"robot": self.robot.name, "surface": self.surface.name,
-                           "family": traj.family, "zmp_source": traj.zmp_source})
+                           "family": traj.family, "zmp_source": traj.zmp_source,
+                           **({"steady": traj.meta["steady"]} if "steady" in traj.meta else {})},
+                     yaw=_quat_yaw(sens[:, self._s_quat]))
