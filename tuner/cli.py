@@ -33,6 +33,20 @@ def cli() -> None:
     """
 
 
+COMMAND_OPTION = click.option(
+    "--command", metavar="VX,VY,WZ",
+    help="Walk this velocity (m/s forward, m/s left, rad/s counter-clockwise), ramped from rest "
+         "and back; tlipfm gaits only. A command beyond the parameter set's step limits is an error "
+         "naming the step and the limit.")
+
+
+def _parse_command(text: str | None):
+    if text is None:
+        return None
+    from gaits import parse_command
+    return parse_command(text)
+
+
 JOINT_NAMES_OPTION = click.option(
     "--joint-names", "joint_names", type=click.Choice(["robot", "ours"]), default="robot", show_default=True,
     help="Joint table columns in the robot's own MJCF joint names and signs (with held joints), "
@@ -62,10 +76,11 @@ def write_joint_table(traj: "gaits.GaitTrajectory", robot, path: Path, joint_nam
               help="Control period of the joint table [s].")
 @click.option("--model", type=click.Choice(["lipm", "dlipm", "tlipfm"]),
               help="tlipfm only: override the parameter file's CoM model.")
+@COMMAND_OPTION
 @JOINT_NAMES_OPTION
 @click.option("--no-plot", is_flag=True, help="Skip the PNG.")
 def trajectory(family: str | None, params_spec: str | None, robot_name: str, out_dir: Path, dt: float,
-               model: str | None, joint_names: str, no_plot: bool) -> None:
+               model: str | None, command: str | None, joint_names: str, no_plot: bool) -> None:
     """Generate a gait's joint table q_ref(t) and its Cartesian references for a robot.
 
     Writes OUT/joints.csv (a comment line naming the robot, then time, the joint targets
@@ -81,9 +96,16 @@ def trajectory(family: str | None, params_spec: str | None, robot_name: str, out
             raise UserError("--model applies to the tlipfm family only")
         params = params.replace(model=model)
     robot = load_robot(robot_name)
-    traj = gaits.generate(params, robot.leg, dt=dt)
+    cmd = _parse_command(command)
+    if cmd is None:
+        traj = gaits.generate(params, robot.leg, dt=dt)
+    else:
+        from .walk_speed import command_walk
+        traj = command_walk(params, robot, cmd, dt)
     out_dir.mkdir(parents=True, exist_ok=True)
     label = params_spec or DEFAULT_BASELINE[params.FAMILY]
+    if cmd is not None:
+        label += f" at command {cmd} (vx m/s, vy m/s, wz rad/s, ramped)"
     csv_path = write_joint_table(traj, robot, out_dir / "joints.csv", joint_names, f"gait {label}")
     yaml_path = gaits.save_gait_file(out_dir / "params.yaml", params, gait_file.description)
     click.echo(f"{traj.family} for robot {robot.name}: {len(traj.t)} samples every {dt:g} s, "
@@ -107,12 +129,18 @@ def trajectory(family: str | None, params_spec: str | None, robot_name: str, out
 @click.option("--params", "params_spec", metavar="PATH|BASELINE",
               help="Parameter YAML file or shipped baseline name. Default: the family's paper baseline.")
 @click.option("--duration", type=float, help="Stop after this many seconds [s] (default: the whole gait).")
+@COMMAND_OPTION
 @click.option("--json", "as_json", is_flag=True, help="Print the metrics as JSON.")
 @click.option("--plot", "plot_dir", type=click.Path(file_okay=False, path_type=Path),
               help="Write pitch.png and zmp.png into this directory.")
 def simulate(robot_name: str, surface_name: str, family: str | None, params_spec: str | None,
-             duration: float | None, as_json: bool, plot_dir: Path | None) -> None:
-    """Walk a gait on a robot and a surface in MuJoCo and print its metrics."""
+             duration: float | None, command: str | None, as_json: bool, plot_dir: Path | None) -> None:
+    """Walk a gait on a robot and a surface in MuJoCo and print its metrics.
+
+    With --command the gait walks that velocity, ramped from rest and back
+    (gaits.CommandRamp: 4 steps up, 12 held, 4 down), and vx_mps, vy_mps, wz_radps
+    are measured over the held steps after two of them.
+    """
     import json
 
     from .metrics import DEFINITIONS, summarize
@@ -126,13 +154,19 @@ def simulate(robot_name: str, surface_name: str, family: str | None, params_spec
     if duration is not None and duration <= 0:
         raise UserError(f"--duration must be positive, got {duration:g} s")
     sim = Simulator(robot, surface)
-    traj = gaits.generate(gait_file.params, robot.leg, sim.control_period)
+    cmd = _parse_command(command)
+    if cmd is None:
+        traj = gaits.generate(gait_file.params, robot.leg, sim.control_period)
+    else:
+        from .walk_speed import command_walk
+        traj = command_walk(gait_file.params, robot, cmd, sim.control_period)
     trace = sim.rollout(traj, duration=duration)
     metrics = summarize(trace)
     label = params_spec or DEFAULT_BASELINE[gait_file.family]
+    commanded = None if cmd is None else {"vx_mps": cmd.vx, "vy_mps": cmd.vy, "wz_radps": cmd.wz}
     if as_json:
         click.echo(json.dumps({"robot": robot.name, "surface": surface.name, "gait": gait_file.family,
-                               "params": label, "metrics": metrics.to_dict(),
+                               "params": label, "command": commanded, "metrics": metrics.to_dict(),
                                "definitions": DEFINITIONS}, indent=2, allow_nan=False))
     else:
         click.echo(f"{gait_file.family} ({label}) on {robot.name} / {surface.name}: {metrics.reason}")
@@ -140,6 +174,11 @@ def simulate(robot_name: str, surface_name: str, family: str | None, params_spec
             value = getattr(metrics, key)
             shown = "-" if value is None else (f"{value:.3f}" if isinstance(value, float) else str(value))
             click.echo(f"  {key:16s} {shown:>10s}   {text}")
+        if cmd is not None:
+            got = [metrics.vx_mps, metrics.vy_mps, metrics.wz_radps]
+            click.echo("  commanded " + ", ".join(
+                f"{k} {c:g} -> {g:.3f}" + (f" ({g / c:.0%})" if c else "")
+                for k, c, g in zip(("vx", "vy", "wz"), (cmd.vx, cmd.vy, cmd.wz), got)))
     if plot_dir is not None:
         from .plots import plot_pitch, plot_zmp
         title = f"{gait_file.family} ({label}), robot {robot.name} on {surface.name}"
@@ -238,7 +277,7 @@ def tune(study_file: str, trials: int | None, workers: int, storage: str | None,
     import optuna
     from tqdm import tqdm
 
-    from .search import DONE_STATES, best_trial, open_storage, run_study, trial_fell
+    from .search import DONE_STATES, best_trial, open_storage, run_study, trial_feasible, trial_fell
     from .study import load_study
 
     spec = load_study(study_file)
@@ -275,9 +314,20 @@ def tune(study_file: str, trials: int | None, workers: int, storage: str | None,
     bar.close()
     t = best_trial(study)
     n_fell = sum(1 for x in study.get_trials(deepcopy=False, states=DONE_STATES) if trial_fell(x))
-    click.echo(f"best trial {t.number}: pitch score {t.values[0]:.3f} deg"
-               + (f", speed {t.values[1]:.4f} m/s" if len(t.values) > 1 else "")
-               + f"; {'fell' if trial_fell(t) else 'stayed up'}; falls in study: {n_fell}")
+    if spec.speed is not None:
+        got = t.user_attrs.get("speed") or {}
+        dirs = ", ".join(f"{d} {v:.3g} {'rad/s' if d.startswith('turn') else 'm/s'}"
+                         for d, v in (got.get("by_direction") or {}).items())
+        why = (t.user_attrs.get("result") or {}).get("invalid")
+        click.echo(f"best trial {t.number}: speed score {got.get('score', t.values[0]):.3f}"
+                   + (f"; highest stairs held: {dirs}" if dirs else "")
+                   + (f"; rejected: {why}" if why else "")
+                   + f"; infeasible trials (a direction not held on a surface, or rejected): "
+                     f"{sum(1 for x in study.get_trials(deepcopy=False, states=DONE_STATES) if not trial_feasible(x))}")
+    else:
+        click.echo(f"best trial {t.number}: pitch score {t.values[0]:.3f} deg"
+                   + (f", speed {t.values[1]:.4f} m/s" if len(t.values) > 1 else "")
+                   + f"; {'fell' if trial_fell(t) else 'stayed up'}; falls in study: {n_fell}")
     click.echo(f"export it with: gait-tuner export {study_file}"
                + (f" --storage {storage}" if storage else "") + " --out best.yaml")
 

@@ -58,7 +58,7 @@ from .robots import load_robot
 from .simulate import Simulator
 from .process_pool import mp_context
 from .randomisation import TUNE, draw
-from .study import STAB_PREFIX, StudySpec
+from .study import OBJECTIVES, STAB_PREFIX, StudySpec
 from .surfaces import load_surface
 
 __all__ = ["FALL_PENALTY_DEG", "Evaluator", "open_storage", "open_study", "enqueue_starts", "run_study",
@@ -111,6 +111,8 @@ class Evaluator:
                  stabiliser: Any = None) -> dict[str, Any]:
         """Per-surface metrics and the aggregate score of one parameter set."""
         spec = self.spec
+        if spec.speed is not None:
+            return self._evaluate_speed(params, stabiliser)
         try:
             traj = gaits.generate(params, self.robot.leg, self.sims[0].control_period)
         except (ParamError, UnreachableTargetError) as exc:
@@ -187,6 +189,39 @@ class Evaluator:
         return {"score": risk, "speed": float(np.mean(speeds)) if speeds else 0.0, "fall_constraint": constraint,
                 "fell": falls > 0, "survival": survival, "hopeless": hopeless, "per_surface": per}
 
+    def _evaluate_speed(self, params: gaits.GaitParams, stabiliser: Any) -> dict[str, Any]:
+        """A speed study's trial: every direction's staircase on every surface
+        (``tuner/walk_speed.py``); per direction the worst (or mean) surface's highest stair
+        held, weighted, less the pitch term. Infeasible unless every direction holds at least
+        its first stair on every surface."""
+        from .walk_speed import speed_test
+        sp = self.spec.speed
+        per: dict[str, dict] = {}
+        reached: dict[str, list[float]] = {d: [] for d, _, _ in sp.directions}
+        pitches, misses, fell = [], 0, False
+        for name, sim in zip(self.spec.surfaces, self.sims):
+            per[name] = {}
+            for d, top, _ in sp.directions:
+                r = speed_test(sim, params, sp.staircase(d, top), sp.tolerance, stabiliser)
+                per[name][d] = {"reached": r.reached, "measured": r.measured, "fell": r.fell,
+                                "pitch_rms_deg": r.pitch_rms_deg, "reason": r.reason}
+                reached[d].append(r.reached)
+                if np.isfinite(r.pitch_rms_deg):
+                    pitches.append(r.pitch_rms_deg)
+                misses += r.reached <= 0.0
+                fell = fell or r.fell
+        agg = (min if self.spec.aggregate == "worst" else (lambda v: float(np.mean(v))))
+        by_dir = {d: float(agg(v)) for d, v in reached.items()}
+        pitch = float(max(pitches) if self.spec.aggregate == "worst" else np.mean(pitches)) if pitches else 90.0
+        score = sum(w * by_dir[d] for d, _, w in sp.directions) - sp.pitch_weight * pitch
+        total = len(self.sims) * len(sp.directions)
+        constraint = misses / total if misses else -1.0
+        values = ((score,) if sp.mode == "weighted"
+                  else tuple(by_dir[d] for d, _, _ in sp.directions) + (pitch,))
+        return {"values": values, "score": score, "speed": by_dir.get("forward", 0.0),
+                "fall_constraint": constraint, "fell": fell, "per_surface": per, "by_direction": by_dir,
+                "pitch_rms_deg": pitch}
+
     def _aggregate(self, scores: list[float]) -> float:
         return float(max(scores) if self.spec.aggregate == "worst" else np.mean(scores))
 
@@ -224,8 +259,9 @@ def objective_for(spec: StudySpec, evaluator: Evaluator) -> Callable[[optuna.Tri
         except ParamError as exc:
             trial.set_constraint("fall", 1.0)
             trial.set_user_attr("result", {"fell": True, "fall_constraint": 1.0, "invalid": str(exc)})
-            return (2 * FALL_PENALTY_DEG, 0.0)[:len(spec.objectives)] if len(spec.objectives) > 1 \
-                else 2 * FALL_PENALTY_DEG
+            worst = tuple(2 * FALL_PENALTY_DEG if OBJECTIVES[o] == "minimize" else (-10.0 if o == "speed_score" else 0.0)
+                          for o in spec.objectives)
+            return worst if len(worst) > 1 else worst[0]
 
         def report(value: float, step: int) -> bool:
             if len(spec.objectives) > 1:
@@ -233,7 +269,7 @@ def objective_for(spec: StudySpec, evaluator: Evaluator) -> Callable[[optuna.Tri
             trial.report(value, step)
             return trial.should_prune()
 
-        res = evaluator.evaluate(params, report, stabiliser)
+        res = evaluator.evaluate(params, None if spec.speed is not None else report, stabiliser)
         # two journal writes per trial (params, result): workers contend for the file lock
         trial.set_constraint("fall", res["fall_constraint"])
         trial.set_user_attr("params", params.to_mapping() if stabiliser is None else
@@ -244,6 +280,10 @@ def objective_for(spec: StudySpec, evaluator: Evaluator) -> Callable[[optuna.Tri
                                        "survival": res.get("survival"), "hopeless": res.get("hopeless")})
         if res.get("hopeless"):
             raise optuna.TrialPruned(f"survival already below {spec.robust.min_survival:.0%}")
+        if "values" in res:
+            trial.set_user_attr("speed", {"by_direction": res["by_direction"], "score": res["score"],
+                                          "pitch_rms_deg": res["pitch_rms_deg"]})
+            return res["values"] if len(res["values"]) > 1 else res["values"][0]
         if len(spec.objectives) > 1:
             return res["score"], res["speed"]
         return res["score"]
@@ -272,7 +312,14 @@ def enqueue_starts(study: optuna.Study, spec: StudySpec) -> list[str]:
         try:
             from .surfaces import load_surface
             layer = max(load_surface(name).layer_height for name in spec.surfaces)
-            seeded = seed_for(spec.gait, spec.base, layer_height=layer)
+            base = spec.base
+            if spec.speed is not None:
+                # plan the seed for half the forward top stair at a 0.3 s step (ours: the seed's
+                # step length is a parameter of the problem, not a decision variable)
+                top = dict((d, t) for d, t, _ in spec.speed.directions).get("forward", 0.2)
+                sl = round(min(0.5 * top * 0.3, 0.06), 4)
+                base = base.replace(step_length=sl, d1=sl / 2, d2=sl / 2)
+            seeded = seed_for(spec.gait, base, layer_height=layer)
             study.enqueue_trial(_clip_to_space(spec, seeded), user_attrs={"start": "casadi seed"})
             done.append("casadi seed")
         except (SeedInfeasible, ParamError) as exc:
@@ -382,6 +429,8 @@ def best_trial(study: optuna.Study, number: int | None = None) -> optuna.trial.F
     if not trials:
         raise KeyError(f"study {study.study_name!r} has no completed trial yet")
     feasible = [t for t in trials if trial_result(t).get("fall_constraint", 1.0) <= 0] or trials
+    if study.directions[0] == optuna.study.StudyDirection.MAXIMIZE:
+        return max(feasible, key=lambda t: t.values[0])
     return min(feasible, key=lambda t: t.values[0])
 
 

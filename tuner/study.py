@@ -26,6 +26,18 @@ A study tunes one gait family on one robot against one or several surfaces::
       randomisation: {}            #   overrides of tuner/randomisation.py's defaults, or none
     stabiliser: {enabled: true}    # optional: the IMU stabiliser's fixed values; its gains may be
                                    #   searched as space keys stabiliser.k_ankle_pitch etc.
+    speed:                         # optional (tlipfm): a speed study, scored by tuner/walk_speed.py
+      directions:                  #   forward, backward, left, right, turn_left, turn_right
+        forward: {top: 0.45, weight: 1.0}     # top stair [m/s or rad/s], weight in the score
+        turn_left: {top: 1.6, weight: 0.2}
+      levels: 8                    #   stairs from top / levels up to top
+      steps_per_level: 4           #   steps each stair is held (even: whole cycles)
+      tolerance: 0.3               #   a stair is held if measured >= (1 - tolerance) x commanded
+      pitch_weight: 0.005          #   score = sum(weight x highest stair held) - pitch_weight x pitch RMS [deg]
+      mode: weighted               #   weighted: one objective (maximised); pareto: one per
+                                   #   direction (maximised) and pitch_rms (minimised)
+
+A speed study has no ``objectives`` key: its objectives follow from ``speed.mode``.
 
 Every mistake is a :class:`tuner.errors.UserError` naming the file, the key and
 the allowed values.
@@ -46,12 +58,14 @@ from .params_io import resolve_params
 from .surfaces import SURFACES, load_surface
 from .yaml_input import read_yaml_file
 
-__all__ = ["ParamRange", "StudySpec", "load_study", "STUDY_DIR", "list_studies", "OBJECTIVES"]
+__all__ = ["ParamRange", "SpeedSpec", "StudySpec", "load_study", "STUDY_DIR", "list_studies", "OBJECTIVES"]
 
 STUDY_DIR = Path(__file__).resolve().parents[1] / "studies"
-OBJECTIVES = {"pitch_rms": "minimize", "speed": "maximize"}
+OBJECTIVES = {"pitch_rms": "minimize", "speed": "maximize", "speed_score": "maximize",
+              **{d: "maximize" for d in ("forward", "backward", "left", "right", "turn_left", "turn_right")}}
 _KEYS = ("name", "description", "robot", "surfaces", "aggregate", "gait", "base", "fixed", "space",
-         "objectives", "trials", "duration", "enqueue", "baselines", "sampler_seed", "robust", "stabiliser")
+         "objectives", "trials", "duration", "enqueue", "baselines", "sampler_seed", "robust", "stabiliser",
+         "speed")
 RISKS = ("cvar25", "worst", "mean")
 STAB_PREFIX = "stabiliser."
 
@@ -64,6 +78,22 @@ class RobustSpec:
     risk: str = "cvar25"              # cvar25 | worst | mean over all rollouts' scores
     min_survival: float = 0.95        # [-] fraction of rollouts that must stay up
     randomisation: Any = None         # tuner.randomisation.Randomisation
+
+
+@dataclass(frozen=True)
+class SpeedSpec:
+    """A speed study's scoring (see tuner/walk_speed.py): directions with top stair and weight."""
+
+    directions: tuple[tuple[str, float, float], ...]   # (name, top [m/s or rad/s], weight)
+    levels: int = 8
+    steps_per_level: int = 4
+    tolerance: float = 0.3
+    pitch_weight: float = 0.005
+    mode: str = "weighted"
+
+    def staircase(self, name: str, top: float):
+        from gaits import SpeedStaircase
+        return SpeedStaircase(name, top, self.levels, self.steps_per_level)
 
 
 @dataclass(frozen=True)
@@ -95,6 +125,7 @@ class StudySpec:
     extra: dict = field(default_factory=dict)
     robust: RobustSpec | None = None
     stabiliser: Any = None            # gaits.StabiliserParams: the fixed values, or None (open loop)
+    speed: SpeedSpec | None = None    # a speed study's scoring, or None
 
     @property
     def directions(self) -> list[str]:
@@ -228,8 +259,19 @@ def load_study(path_or_name: str) -> StudySpec:
     aggregate = doc.get("aggregate", "worst")
     if aggregate not in ("worst", "mean"):
         _fail(source, f"aggregate must be worst or mean, got {aggregate!r}")
+    speed = _study_speed(doc.get("speed"), source)
+    if speed is not None:
+        if "objectives" in doc:
+            _fail(source, "a speed study takes its objectives from speed.mode: remove 'objectives'")
+        if gait != "tlipfm":
+            _fail(source, f"speed: gait {gait!r} takes no walk command (only tlipfm does)")
+        if doc.get("robust") is not None:
+            _fail(source, "speed and robust together are not built: list the pedestals under surfaces")
     objectives = doc.get("objectives", ["pitch_rms"])
-    if not isinstance(objectives, list) or not objectives or any(o not in OBJECTIVES for o in objectives) \
+    if speed is not None:
+        objectives = (["speed_score"] if speed.mode == "weighted"
+                      else [d[0] for d in speed.directions] + ["pitch_rms"])
+    elif not isinstance(objectives, list) or not objectives or any(o not in OBJECTIVES for o in objectives) \
             or objectives[0] != "pitch_rms" or len(set(objectives)) != len(objectives):
         _fail(source, f"objectives must be [pitch_rms] or [pitch_rms, speed], got {objectives!r}")
     trials = doc.get("trials", 60)
@@ -259,7 +301,7 @@ def load_study(path_or_name: str) -> StudySpec:
                      duration=None if duration is None else float(duration), enqueue=tuple(enqueue),
                      baselines=tuple(extra_sets), sampler_seed=seed,
                      description=str(doc.get("description") or ""), source=source, robust=robust,
-                     stabiliser=stabiliser)
+                     stabiliser=stabiliser, speed=speed)
 
 
 def _study_stabiliser(doc: Any, source: str) -> Any:
@@ -319,3 +361,49 @@ def _study_robust(doc: Any, source: str) -> RobustSpec | None:
     except UserError as exc:
         _fail(source, str(exc))
     return RobustSpec(k, risk, float(ms), rnd)
+
+
+def _study_speed(doc: Any, source: str) -> SpeedSpec | None:
+    if doc is None:
+        return None
+    from gaits import DIRECTIONS
+    allowed = ("directions", "levels", "steps_per_level", "tolerance", "pitch_weight", "mode")
+    if not isinstance(doc, Mapping):
+        _fail(source, f"speed must be a mapping of {', '.join(allowed)}")
+    for k in doc:
+        if k not in allowed:
+            _fail(source, f"speed: unknown key {k!r} (allowed: {', '.join(allowed)})")
+    dirs = doc.get("directions")
+    if not isinstance(dirs, Mapping) or not dirs:
+        _fail(source, f"speed.directions must map at least one of {', '.join(DIRECTIONS)} to {{top, weight}}")
+    out = []
+    for name, d in dirs.items():
+        if name not in DIRECTIONS:
+            _fail(source, f"speed.directions: unknown direction {name!r} (allowed: {', '.join(DIRECTIONS)})")
+        if not isinstance(d, Mapping) or "top" not in d or not set(d) <= {"top", "weight"}:
+            _fail(source, f"speed.directions.{name} must be {{top: ..., weight: ...}}")
+        top, weight = d["top"], d.get("weight", 1.0)
+        unit = "rad/s" if name.startswith("turn") else "m/s"
+        if isinstance(top, bool) or not isinstance(top, (int, float)) or not 0 < top <= 3.0:
+            _fail(source, f"speed.directions.{name}.top = {top!r}: expected a number in (0, 3] {unit}")
+        if isinstance(weight, bool) or not isinstance(weight, (int, float)) or not 0 <= weight <= 100:
+            _fail(source, f"speed.directions.{name}.weight = {weight!r}: expected a number in [0, 100]")
+        out.append((str(name), float(top), float(weight)))
+
+    def number(key, default, lo, hi, integer=False):
+        v = doc.get(key, default)
+        ok = isinstance(v, int) if integer else isinstance(v, (int, float))
+        if isinstance(v, bool) or not ok or not lo <= v <= hi:
+            _fail(source, f"speed.{key} = {v!r}: expected {'a whole number' if integer else 'a number'} "
+                          f"in [{lo}, {hi}]")
+        return v
+
+    levels = number("levels", 8, 1, 50, True)
+    spl = number("steps_per_level", 4, 2, 40, True)
+    if spl % 2:
+        _fail(source, f"speed.steps_per_level = {spl}: must be even (whole gait cycles)")
+    mode = doc.get("mode", "weighted")
+    if mode not in ("weighted", "pareto"):
+        _fail(source, f"speed.mode = {mode!r}: expected weighted or pareto")
+    return SpeedSpec(tuple(out), levels, spl, float(number("tolerance", 0.3, 0.0, 0.9)),
+                     float(number("pitch_weight", 0.005, 0.0, 10.0)), mode)
