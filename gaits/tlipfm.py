@@ -109,6 +109,14 @@ class TlipfmParams(GaitParams):
     mass_calf: float = param(0.75, "kg", 0.0, 20.0, "support-leg calf mass (with sole)", "m_c")
     torso_pitch: float = param(0.0, "rad", -0.3, 0.3, "constant forward lean of the pelvis and "
                                "torso (ours; the paper walks upright)")
+    reach_forward: float = param(0.45, "leg", 0.1, 0.8, "walk commands: longest step ahead of the "
+                                 "support foot, in thigh + shank lengths (ours)")
+    reach_backward: float = param(0.32, "leg", 0.1, 0.6, "walk commands: longest step behind the "
+                                  "support foot, in thigh + shank lengths (ours)")
+    reach_outward: float = param(0.27, "leg", 0.05, 0.5, "walk commands: widest outward side step, "
+                                 "in thigh + shank lengths (ours)")
+    max_turn: float = param(0.6, "rad", 0.1, 1.2, "walk commands: largest turn of a foot against "
+                            "the support foot per step (ours)")
     t_start: float = param(1.0, "s", 0.0, 10.0, "standing time before the first step (ours)")
     t_end: float = param(1.0, "s", 0.0, 10.0, "standing time after the last step (ours)")
 

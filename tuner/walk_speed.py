@@ -30,18 +30,22 @@ from .metrics import heading_velocity, pitch_rms
 __all__ = ["step_limits_for", "command_walk", "speed_test", "DirectionResult", "command_limit", "saturation"]
 
 
-def step_limits_for(robot) -> StepLimits:
-    """Step limits scaled to a robot's legs (ours): forward 0.45, backward 0.32 and outward
-    0.27 of thigh + shank per step, its sole's bounding box for the gap check."""
+def step_limits_for(robot, params=None) -> StepLimits:
+    """Step limits for a robot's legs and a parameter set (ours): the set's reaches (TLIPFM
+    ``reach_forward``, ``reach_backward``, ``reach_outward`` in thigh + shank lengths, defaults
+    0.45, 0.32, 0.27, and ``max_turn``) and the robot's sole bounding box for the gap check."""
     legs = robot.leg.thigh + robot.leg.shank
     length, width = robot.foot_size
-    return StepLimits(max_forward=min(0.45 * legs, 0.5), max_backward=min(0.32 * legs, 0.5),
-                      max_outward=min(0.27 * legs, 0.3), sole_length=length, sole_width=width)
+    reach = [getattr(params, k, d) for k, d in (("reach_forward", 0.45), ("reach_backward", 0.32),
+                                                ("reach_outward", 0.27), ("max_turn", 0.6))]
+    return StepLimits(max_forward=min(reach[0] * legs, 0.5), max_backward=min(reach[1] * legs, 0.5),
+                      max_outward=min(reach[2] * legs, 0.3), max_turn=min(reach[3], 1.6),
+                      sole_length=length, sole_width=width)
 
 
 def _generate(params, robot, dt: float, commands: np.ndarray) -> gaits.GaitTrajectory:
     try:
-        return gaits.generate(params, robot.leg, dt, commands=commands, limits=step_limits_for(robot))
+        return gaits.generate(params, robot.leg, dt, commands=commands, limits=step_limits_for(robot, params))
     except UnreachableTargetError as exc:
         t = float(str(exc).split("t = ")[1].split(" s")[0]) if "t = " in str(exc) else None
         period = getattr(params, "period", None)
@@ -70,7 +74,7 @@ def command_limit(params: gaits.GaitParams, robot, direction: str) -> float:
     (m/s or rad/s); 0 for a family that takes no command."""
     if params.FAMILY != "tlipfm":
         return 0.0
-    lim = step_limits_for(robot)
+    lim = step_limits_for(robot, params)
     T = params.period
     return {"forward": lim.max_forward / T, "backward": lim.max_backward / T,
             "left": lim.max_outward / (2 * T), "right": lim.max_outward / (2 * T),
