@@ -457,8 +457,11 @@ def export(study_file: str, storage: str | None, runs_dir: Path, number: int | N
         params = trial_params(spec.gait, t)
     except KeyError as exc:
         raise UserError(str(exc.args[0])) from None
+    held = (t.user_attrs.get("speed") or {}).get("by_direction")
     desc = (f"study {spec.name} trial {t.number}{_commit_of(spec.source)}: score {t.values[0]:.6g}"
-            + ("" if not trial_fell(t) else " (fell)")
+            + ("" if not trial_fell(t) or held else " (fell)")
+            + ("" if not held else "; highest stairs held: "
+               + ", ".join(f"{d} {v:.3g} {'rad/s' if d.startswith('turn') else 'm/s'}" for d, v in held.items()))
             + f"; surfaces {', '.join(spec.surfaces)}; robot {spec.robot}")
     from .robots import load_robot
     robot = load_robot(spec.robot)
