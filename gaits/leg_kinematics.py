@@ -56,7 +56,12 @@ LEG_JOINTS = ("hip_yaw", "hip_roll", "hip_pitch", "knee", "ankle_pitch", "ankle_
 
 
 class UnreachableTargetError(ValueError):
-    """A foot target lies outside the leg's reach; the message names the sample and distances."""
+    """A foot target lies outside the leg's reach; the message names the sample and distances,
+    ``t`` holds the sample's time [s] when the caller gave times."""
+
+    def __init__(self, message: str, t: float | None = None) -> None:
+        super().__init__(message)
+        self.t = t
 
 
 @dataclass(frozen=True)
@@ -206,17 +211,18 @@ def leg_ik(p_pelvis_sole: np.ndarray, yaw: np.ndarray | float, leg: LegGeometry,
     bad = too_far | too_near | above
     if np.any(bad):
         idx = np.unravel_index(int(np.flatnonzero(bad)[0]), bad.shape) if bad.ndim else ()
-        when = f" at t = {float(np.asarray(t)[idx]):.3f} s" if t is not None else ""
+        t_bad = float(np.asarray(t)[idx]) if t is not None else None
+        when = f" at t = {t_bad:.3f} s" if t is not None else ""
         sample = f" (sample {tuple(int(i) for i in idx)})" if idx else ""
         name = "left" if s == 1 else "right"
         d = float(np.asarray(r2)[idx])
         if bool(np.asarray(above)[idx]):
             raise UnreachableTargetError(
                 f"{name} foot target {np.round(p[idx], 4).tolist()} m{sample}{when} is out of reach: "
-                f"the ankle would be {float(np.asarray(az)[idx]):.4f} m above the hip centre")
+                f"the ankle would be {float(np.asarray(az)[idx]):.4f} m above the hip centre", t_bad)
         raise UnreachableTargetError(
             f"{name} foot target {np.round(p[idx], 4).tolist()} m{sample}{when} is out of reach: "
-            f"hip-ankle distance {d:.4f} m, reachable [{abs(l3 - l4):.4f}, {l3 + l4:.4f}] m")
+            f"hip-ankle distance {d:.4f} m, reachable [{abs(l3 - l4):.4f}, {l3 + l4:.4f}] m", t_bad)
     cos_gc = np.clip((l3 ** 2 + l4 ** 2 - r2 ** 2) / (2 * l3 * l4), -1.0, 1.0)
     gc = np.arccos(cos_gc)
     q4 = np.pi - gc                                   # eq 26

@@ -205,3 +205,11 @@ def test_torso_lean_keeps_the_soles_where_planned():
         R_sole = R_pelvis @ R
         yaw = traj.yaw_world_feet[:, 0 if side == 1 else 1]
         np.testing.assert_allclose(R_sole, rot_z(yaw), atol=1e-9)
+
+
+def test_unreachable_target_carries_its_time():
+    from gaits.leg_kinematics import LegGeometry, UnreachableTargetError, leg_ik
+    targets = np.array([[0.0, 0.037, -0.2], [0.0, 0.037, -0.5]])
+    with pytest.raises(UnreachableTargetError) as info:
+        leg_ik(targets, 0.0, LegGeometry(), "left", t=np.array([0.0, 0.25]))
+    assert info.value.t == 0.25 and "t = 0.250 s" in str(info.value)

@@ -47,12 +47,10 @@ def _generate(params, robot, dt: float, commands: np.ndarray) -> gaits.GaitTraje
     try:
         return gaits.generate(params, robot.leg, dt, commands=commands, limits=step_limits_for(robot, params))
     except UnreachableTargetError as exc:
-        t = float(str(exc).split("t = ")[1].split(" s")[0]) if "t = " in str(exc) else None
-        period = getattr(params, "period", None)
-        if t is not None and period:
-            step = int((t - params.t_start) // period)
-            raise PlanError(f"step {step} of the command walk is out of the leg's reach: {exc}") from None
-        raise
+        if exc.t is None:
+            raise
+        step = int((exc.t - params.t_start) // params.period)
+        raise PlanError(f"step {step} of the command walk is out of the leg's reach: {exc}") from None
 
 
 def command_walk(params: gaits.GaitParams, robot, command: WalkCommand, dt: float,
