@@ -136,10 +136,6 @@ class FootstepPlan:
     def n_steps(self) -> int:
         return len(self.commands)
 
-    def next_support(self, n: int) -> np.ndarray:
-        """The support foot of step n + 1 (the swing target of step n)."""
-        return self.swing_target[n]
-
 
 def plan_footsteps(commands: np.ndarray, period: float, half_width: float, first_support: int = -1,
                    limits: StepLimits = StepLimits(), *, swing_samples: int = 9) -> FootstepPlan:

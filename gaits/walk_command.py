@@ -70,10 +70,6 @@ class WalkCommand:
     def as_array(self) -> np.ndarray:
         return np.array([self.vx, self.vy, self.wz])
 
-    @property
-    def is_zero(self) -> bool:
-        return self.vx == 0.0 and self.vy == 0.0 and self.wz == 0.0
-
     def __str__(self) -> str:
         return f"{self.vx:g},{self.vy:g},{self.wz:g}"
 

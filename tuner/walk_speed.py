@@ -94,12 +94,6 @@ class DirectionResult:
     unit: str = "m/s"
     extra: dict = field(default_factory=dict)
 
-    def to_dict(self) -> dict:
-        d = dataclasses.asdict(self)
-        d["achieved"] = [None if not np.isfinite(v) else float(v) for v in self.achieved]
-        d["levels"] = list(self.levels)
-        return d
-
 
 def speed_test(sim, params: gaits.GaitParams, stairs: SpeedStaircase, tolerance: float = 0.2,
                stabiliser=None, limits: bool = False) -> DirectionResult:
