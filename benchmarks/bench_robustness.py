@@ -24,10 +24,10 @@ import time
 from pathlib import Path
 
 from tuner.params_io import resolve_params
-from tuner.randomisation import DEFAULT_PUSHES
-from tuner.robustness import evaluate
-from tuner.search import Evaluator
-from tuner.study import load_study
+from tuner.sim.randomisation import DEFAULT_PUSHES
+from tuner.sim.robustness import evaluate
+from tuner.search.optimise import Evaluator
+from tuner.search.study import load_study
 
 ROOT = Path(__file__).resolve().parents[1]
 PEDESTALS = ("grass50", "grass30", "grass10", "carpet4")

@@ -29,10 +29,10 @@ import optuna
 
 from gaits.params import ParamError
 
-from tuner.search import (Evaluator, enqueue_starts, objective_for, open_storage, run_study,
+from tuner.search.optimise import (Evaluator, enqueue_starts, objective_for, open_storage, run_study,
                           trial_feasible, trial_fell)
-from tuner.seed import SeedProblem
-from tuner.study import load_study
+from tuner.search.seed import SeedProblem
+from tuner.search.study import load_study
 
 
 def trials_to_first_stable(spec, with_seed: bool, seed: int, max_trials: int,

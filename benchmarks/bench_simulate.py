@@ -21,8 +21,8 @@ import numpy as np
 
 import gaits
 from tuner.robots import load_robot
-from tuner.simulate import Simulator
-from tuner.surfaces import SURFACES
+from tuner.sim.rollout import Simulator
+from tuner.sim.surfaces import SURFACES
 
 
 def bare_loop(sim: Simulator, q_ref: np.ndarray) -> None:

@@ -24,12 +24,12 @@ import time
 from pathlib import Path
 
 from gaits import CommandRamp, SpeedStaircase, WalkCommand, load_gait_file
-from tuner.metrics import summarize
+from tuner.sim.metrics import summarize
 from tuner.robots import load_robot
-from tuner.simulate import Simulator
-from tuner.study import load_study
-from tuner.surfaces import SURFACES, load_surface
-from tuner.walk_speed import command_walk, speed_test
+from tuner.sim.rollout import Simulator
+from tuner.search.study import load_study
+from tuner.sim.surfaces import SURFACES, load_surface
+from tuner.sim.walk_speed import command_walk, speed_test
 
 ROOT = Path(__file__).resolve().parents[1]
 STUDIES = ("carpet4", "grass50", "robust")

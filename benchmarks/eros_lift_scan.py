@@ -22,11 +22,11 @@ from __future__ import annotations
 import numpy as np
 
 import gaits
-from tuner import experiments as ex
-from tuner.metrics import summarize
+from tuner.report import experiments as ex
+from tuner.sim.metrics import summarize
 from tuner.robots import load_robot
-from tuner.simulate import Simulator
-from tuner.surfaces import SURFACES
+from tuner.sim.rollout import Simulator
+from tuner.sim.surfaces import SURFACES
 
 
 def main() -> None:

@@ -39,10 +39,10 @@ from optuna.storages import JournalStorage
 from optuna.storages.journal import JournalFileBackend
 
 import gaits
-from tuner import experiments as ex
+from tuner.report import experiments as ex
 from tuner.robots import load_robot
-from tuner.simulate import Simulator
-from tuner.surfaces import SURFACES
+from tuner.sim.rollout import Simulator
+from tuner.sim.surfaces import SURFACES
 
 ALL_STABLE = sum(c for t in (ex.PAPER_TABLE7, ex.PAPER_TABLE8) for d in t.values() for row in d.values()
                  for c in row)

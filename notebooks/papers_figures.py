@@ -107,12 +107,12 @@ for a, b in zip(table1_hip, ang[:, 0]):
 # the optimisation, 24 mm steps on 50 mm grass) and TLIPFM Figs. 14-16 (ZMP
 # response of LIPM, DLIPM and TLIPFM on the rigid floor). These walk the
 # built-in robot in MuJoCo (see the README for what the simulation reproduces).
-from tuner import experiments as ex  # noqa: E402
-from tuner.metrics import summarize  # noqa: E402
-from tuner.plots import plot_pitch, plot_zmp  # noqa: E402
+from tuner.report import experiments as ex  # noqa: E402
+from tuner.sim.metrics import summarize  # noqa: E402
+from tuner.report.plots import plot_pitch, plot_zmp  # noqa: E402
 from tuner.robots import load_robot  # noqa: E402
-from tuner.simulate import Simulator  # noqa: E402
-from tuner.surfaces import SURFACES  # noqa: E402
+from tuner.sim.rollout import Simulator  # noqa: E402
+from tuner.sim.surfaces import SURFACES  # noqa: E402
 
 robot = load_robot("kidsize")
 sim = Simulator(robot, SURFACES["grass50"])

@@ -11,12 +11,12 @@ import pytest
 import gaits
 import third_party_robot as T
 from tuner.errors import UserError
-from tuner.metrics import summarize
+from tuner.sim.metrics import summarize
 from tuner.robots import PREFIX, load_robot
 from tuner.robots.mjcf_geometry import axis_line_distance
 from tuner.robots.robot_check import robot_report
-from tuner.simulate import Simulator
-from tuner.surfaces import SURFACES
+from tuner.sim.rollout import Simulator
+from tuner.sim.surfaces import SURFACES
 
 
 def test_axis_line_distance_hand_checked():

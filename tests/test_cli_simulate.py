@@ -88,7 +88,7 @@ def test_compare_writes_report(gait_tuner_cmd, run_env, tmp_path):
 
 
 def test_compare_rows_do_not_depend_on_workers(tmp_path):
-    from tuner.compare import run_compare
+    from tuner.report.compare import run_compare
     args = (["tkux-table2"], "kidsize", ["rigid", "carpet4"], False, None, tmp_path / "runs")
     one = run_compare(*args, tmp_path / "w1", workers=1)
     done = []

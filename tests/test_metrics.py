@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from tuner.metrics import centre_of_pressure, pitch_pm, pitch_rms, zmp_error
+from tuner.sim.metrics import centre_of_pressure, pitch_pm, pitch_rms, zmp_error
 
 
 def test_sine_pitch_gives_known_rms_and_amplitude():

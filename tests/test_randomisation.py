@@ -10,11 +10,11 @@ import pytest
 import gaits
 from gaits import StabiliserParams
 from tuner.errors import UserError
-from tuner.randomisation import EVALUATE, NONE, TUNE, Randomisation, draw, randomisation_from_mapping
+from tuner.sim.randomisation import EVALUATE, NONE, TUNE, Randomisation, draw, randomisation_from_mapping
 from tuner.robots import load_robot
 from tuner.robots.robot_check import stand_trajectory
-from tuner.simulate import Simulator
-from tuner.surfaces import SURFACES
+from tuner.sim.rollout import Simulator
+from tuner.sim.surfaces import SURFACES
 
 ROBOT = load_robot("kidsize")
 SIMS = {}
@@ -109,7 +109,7 @@ def test_backlash_is_a_dead_band():
     sim = sim_for()
     b = 0.03
     p = pert(sim, NONE, backlash=np.full(sim.n_random()[2], b))
-    from tuner.simulate import dead_band
+    from tuner.sim.rollout import dead_band
     assert dead_band(np.array([0.10, 0.10, 0.10]), np.array([0.095, 0.12, 0.05]), np.full(3, 0.015)) == \
         pytest.approx([0.095, 0.115, 0.085])     # inside the band: hold; outside: move by the excess
     tr = sim.rollout(stand_trajectory(ROBOT, 1.0, sim.control_period), perturb=p)

@@ -8,10 +8,10 @@ import pytest
 import gaits
 from gaits import JOINT_NAMES
 from tuner.errors import UserError
-from tuner.metrics import summarize
+from tuner.sim.metrics import summarize
 from tuner.robots import RobotSpec, kidsize_xml, load_robot
-from tuner.simulate import Simulator
-from tuner.surfaces import SURFACES
+from tuner.sim.rollout import Simulator
+from tuner.sim.surfaces import SURFACES
 
 
 def test_builtin_robot_matches_its_sources():

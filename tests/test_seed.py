@@ -8,7 +8,7 @@ import pytest
 
 from gaits import load_baseline
 from gaits import tlipfm as tl
-from tuner.seed import SWING_CLEARANCE_MARGIN, SeedInfeasible, SeedProblem, lipm_interval_function, seed_for
+from tuner.search.seed import SWING_CLEARANCE_MARGIN, SeedInfeasible, SeedProblem, lipm_interval_function, seed_for
 
 TABLE2 = load_baseline("tkux-table2").params
 

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 import gaits
-from tuner.metrics import summarize
+from tuner.sim.metrics import summarize
 from tuner.robots import load_robot
-from tuner.simulate import Simulator
-from tuner.surfaces import SURFACES, Surface
+from tuner.sim.rollout import Simulator
+from tuner.sim.surfaces import SURFACES, Surface
 
 ROBOT = load_robot("kidsize")
 SIMS = {}

@@ -11,10 +11,10 @@ import pytest
 from gaits import SpeedStaircase, TlipfmParams
 from tuner.errors import UserError
 from tuner.robots import load_robot
-from tuner.simulate import Simulator
-from tuner.study import load_study
-from tuner.surfaces import load_surface
-from tuner.walk_speed import command_limit, speed_test
+from tuner.sim.rollout import Simulator
+from tuner.search.study import load_study
+from tuner.sim.surfaces import load_surface
+from tuner.sim.walk_speed import command_limit, speed_test
 
 SPEEDY = dict(period=0.3, t1=0.0375, t2=0.2625, h_z=0.025, a=0.0)
 

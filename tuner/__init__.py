@@ -6,12 +6,12 @@
 from __future__ import annotations
 
 from .errors import UserError
-from .metrics import DEFINITIONS, Metrics, summarize
+from .sim.metrics import DEFINITIONS, Metrics, summarize
 from .params_io import resolve_params
-from .randomisation import Randomisation
+from .sim.randomisation import Randomisation
 from .robots import RobotModel, RobotSpec, ServoSpec, load_robot
-from .simulate import FallCriteria, Simulator, Trace
-from .surfaces import SURFACES, Surface, load_surface
+from .sim.rollout import FallCriteria, Simulator, Trace
+from .sim.surfaces import SURFACES, Surface, load_surface
 
 __all__ = [
     "DEFINITIONS",

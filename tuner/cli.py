@@ -17,7 +17,7 @@ from gaits import ParamError, UnreachableTargetError, families, family_class, li
 
 from .errors import EXIT_INTERNAL, EXIT_USAGE, UserError
 from .params_io import DEFAULT_BASELINE, resolve_params
-from .randomisation import DEFAULT_PUSHES
+from .sim.randomisation import DEFAULT_PUSHES
 
 __all__ = ["cli", "main"]
 
@@ -100,7 +100,7 @@ def trajectory(family: str | None, params_spec: str | None, robot_name: str, out
     if cmd is None:
         traj = gaits.generate(params, robot.leg, dt=dt)
     else:
-        from .walk_speed import command_walk
+        from .sim.walk_speed import command_walk
         traj = command_walk(params, robot, cmd, dt)
     out_dir.mkdir(parents=True, exist_ok=True)
     label = params_spec or DEFAULT_BASELINE[params.FAMILY]
@@ -113,7 +113,7 @@ def trajectory(family: str | None, params_spec: str | None, robot_name: str, out
     click.echo(f"wrote {csv_path}")
     click.echo(f"wrote {yaml_path}")
     if not no_plot:
-        from .plots import plot_references
+        from .report.plots import plot_references
         png = plot_references(traj, out_dir / "references.png",
                               title=f"{traj.family} ({label}), robot {robot.name}")
         click.echo(f"wrote {png}")
@@ -143,10 +143,10 @@ def simulate(robot_name: str, surface_name: str, family: str | None, params_spec
     """
     import json
 
-    from .metrics import DEFINITIONS, summarize
+    from .sim.metrics import DEFINITIONS, summarize
     from .robots import load_robot
-    from .simulate import Simulator
-    from .surfaces import load_surface
+    from .sim.rollout import Simulator
+    from .sim.surfaces import load_surface
 
     gait_file = resolve_params(params_spec, family)
     robot = load_robot(robot_name)
@@ -158,7 +158,7 @@ def simulate(robot_name: str, surface_name: str, family: str | None, params_spec
     if cmd is None:
         traj = gaits.generate(gait_file.params, robot.leg, sim.control_period)
     else:
-        from .walk_speed import command_walk
+        from .sim.walk_speed import command_walk
         traj = command_walk(gait_file.params, robot, cmd, sim.control_period)
     trace = sim.rollout(traj, duration=duration)
     metrics = summarize(trace)
@@ -180,7 +180,7 @@ def simulate(robot_name: str, surface_name: str, family: str | None, params_spec
                 f"{k} {c:g} -> {g:.3f}" + (f" ({g / c:.0%})" if c else "")
                 for k, c, g in zip(("vx", "vy", "wz"), (cmd.vx, cmd.vy, cmd.wz), got)))
     if plot_dir is not None:
-        from .plots import plot_pitch, plot_zmp
+        from .report.plots import plot_pitch, plot_zmp
         title = f"{gait_file.family} ({label}), robot {robot.name} on {surface.name}"
         p1 = plot_pitch({label: trace}, plot_dir / "pitch.png", title)
         p2 = plot_zmp(trace, plot_dir / "zmp.png", robot.foot_size, title)
@@ -209,9 +209,9 @@ def experiment(paper: str, robot_name: str, surface_name: str, lift_scale: float
     """
     from tqdm import tqdm
 
-    from . import experiments as ex
+    from .report import experiments as ex
     from .robots import load_robot
-    from .surfaces import SURFACES, load_surface
+    from .sim.surfaces import SURFACES, load_surface
 
     robot = load_robot(robot_name)
     if paper == "eros":
@@ -239,12 +239,12 @@ def calibrate(workers: int, lift_scale: float) -> None:
     """Re-derive the pedestals' contact numbers from the EROS Tables 7-8 (slow: minutes).
 
     Prints, per pedestal, the grid point whose simulated stability matrix agrees
-    with the most table cells; tuner/surfaces.py holds the values it chose.
+    with the most table cells; tuner/sim/surfaces.py holds the values it chose.
     """
     from tqdm import tqdm
 
-    from . import calibration as cal
-    from . import experiments as ex
+    from .report import calibration as cal
+    from .report import experiments as ex
 
     n = len(ex.PEDESTALS) * int(np.prod([len(v) for v in cal.DEFAULT_GRID.values()]))
     with tqdm(total=n, desc="calibration", unit="grid point", disable=None) as bar:
@@ -277,8 +277,8 @@ def tune(study_file: str, trials: int | None, workers: int, storage: str | None,
     import optuna
     from tqdm import tqdm
 
-    from .search import DONE_STATES, best_trial, open_storage, run_study, trial_feasible, trial_fell
-    from .study import load_study
+    from .search.optimise import DONE_STATES, best_trial, open_storage, run_study, trial_feasible, trial_fell
+    from .search.study import load_study
 
     spec = load_study(study_file)
     total = trials or spec.trials
@@ -353,8 +353,8 @@ def _tuned_study(study_file: str, storage: str | None, runs_dir: Path):
     """(spec, optuna study) of a study that has been tuned; a one-line error if it has not."""
     import optuna
 
-    from .search import open_storage
-    from .study import load_study
+    from .search.optimise import open_storage
+    from .search.study import load_study
 
     spec = load_study(study_file)
     journal = runs_dir / f"{spec.name}.journal"
@@ -383,7 +383,7 @@ def trials(study_file: str, storage: str | None, runs_dir: Path, pareto: bool, s
            as_json: bool) -> None:
     """List a study's trials: state, objectives, feasibility, survival, searched parameters.
 
-    score: the pitch score [deg] minimised (see tuner/search.py); speed [m/s] when the study
+    score: the pitch score [deg] minimised (see tuner/search/optimise.py); speed [m/s] when the study
     has it; feasible: stayed up (robust: survival >= the study's minimum) and walked at
     least half its plan; survival: robust studies' share of randomised walks that stayed up.
     """
@@ -391,7 +391,7 @@ def trials(study_file: str, storage: str | None, runs_dir: Path, pareto: bool, s
 
     from optuna.trial import TrialState
 
-    from .search import trial_feasible, trial_result
+    from .search.optimise import trial_feasible, trial_result
 
     spec, study = _tuned_study(study_file, storage, runs_dir)
     rows_src = study.best_trials if pareto else study.get_trials(deepcopy=False)
@@ -449,7 +449,7 @@ def export(study_file: str, storage: str | None, runs_dir: Path, number: int | N
     STUDY is the study file (or shipped study name). The YAML is accepted as it
     is by `simulate` and `trajectory`.
     """
-    from .search import best_trial, trial_fell, trial_params, trial_stabiliser
+    from .search.optimise import best_trial, trial_fell, trial_params, trial_stabiliser
 
     spec, study = _tuned_study(study_file, storage, runs_dir)
     try:
@@ -500,14 +500,14 @@ def compare(params_specs: tuple[str, ...], robot_name: str | None, surface_names
     """
     from tqdm import tqdm
 
-    from .compare import n_rows, run_compare
+    from .report.compare import n_rows, run_compare
 
     names = [s for s in surface_names.split(",") if s]
     if not names:
         raise UserError("--surfaces: give at least one surface name or file")
     if robot_name is None:
         if study_file is not None:
-            from .study import load_study
+            from .search.study import load_study
             robot_name = load_study(study_file).robot
         else:
             robot_name = "kidsize"
@@ -528,7 +528,7 @@ def compare(params_specs: tuple[str, ...], robot_name: str | None, surface_names
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(0, 2**31 - 1),
               help="Evaluation seed: rollout i uses seed (SEED, i) of the evaluation stream, never the tuning one.")
 @click.option("--randomisation", "randomisation_spec", metavar="PATH|none",
-              help="YAML mapping overriding the default distributions (see tuner/randomisation.py), or 'none'.")
+              help="YAML mapping overriding the default distributions (see tuner/sim/randomisation.py), or 'none'.")
 @click.option("--pushes", default=",".join(f"{p:g}" for p in DEFAULT_PUSHES), show_default=True,
               help="Comma-separated push impulses [N s] for the push sweep ('' for none).")
 @click.option("--push-rollouts", default=20, show_default=True, type=click.IntRange(1, 10_000),
@@ -546,7 +546,7 @@ def robustness(params_spec: str, robot_name: str, surface_name: str, rollouts: i
     """Does a gait survive what differs between our model and your robot and field?
 
     Walks it ROLLOUTS times with masses, servos, backlash, latencies, IMU noise, friction, turf
-    and ground tilt drawn afresh each time (tuner/randomisation.py gives the defaults and why),
+    and ground tilt drawn afresh each time (tuner/sim/randomisation.py gives the defaults and why),
     then PUSH-ROLLOUTS times per push size. Prints survival, time to fall, pitch and speed
     spread and the largest push survived in 90% of rollouts.
     """
@@ -554,8 +554,8 @@ def robustness(params_spec: str, robot_name: str, surface_name: str, rollouts: i
 
     from tqdm import tqdm
 
-    from .randomisation import randomisation_from_mapping
-    from .robustness import evaluate
+    from .sim.randomisation import randomisation_from_mapping
+    from .sim.robustness import evaluate
     from .yaml_input import read_yaml_file
 
     gait_file = resolve_params(params_spec, None)
@@ -582,7 +582,7 @@ def robustness(params_spec: str, robot_name: str, surface_name: str, rollouts: i
     else:
         click.echo(report.format())
     if plot_dir is not None:
-        from .plots import plot_robustness
+        from .report.plots import plot_robustness
         path = plot_robustness(report, plot_dir)
         if not as_json:
             click.echo(f"wrote {path}")
@@ -619,7 +619,7 @@ def robot_check(robot_spec: str, as_json: bool, no_stand: bool, duration: float)
 @cli.command(name="studies")
 def studies_cmd() -> None:
     """List the shipped studies."""
-    from .study import list_studies, load_study
+    from .search.study import list_studies, load_study
     for path in list_studies():
         spec = load_study(str(path))
         click.echo(f"{path.stem:26s} {spec.gait:7s} {','.join(spec.surfaces):32s} {spec.trials:4d} trials  "
@@ -629,7 +629,7 @@ def studies_cmd() -> None:
 @cli.command()
 def surfaces() -> None:
     """List the built-in surfaces and their contact parameters."""
-    from .surfaces import SURFACES
+    from .sim.surfaces import SURFACES
     for s in SURFACES.values():
         click.echo(f"{s.name:8s} layer {s.layer_height * 1000:4.0f} mm  drag {s.drag:5.1f} N s/m  "
                    f"friction {s.friction:.2f}  {s.description}")

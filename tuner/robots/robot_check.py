@@ -37,8 +37,8 @@ def stand_trajectory(robot: RobotModel, duration: float, dt: float) -> GaitTraje
 
 def stand_test(robot: RobotModel, duration: float = 2.0) -> dict[str, Any]:
     """Stand the robot in the walking crouch on the rigid floor; what happened, as numbers."""
-    from ..simulate import Simulator
-    from ..surfaces import SURFACES
+    from ..sim.rollout import Simulator
+    from ..sim.surfaces import SURFACES
     sim = Simulator(robot, SURFACES["rigid"])
     trace = sim.rollout(stand_trajectory(robot, duration, sim.control_period))
     weight = float(np.sum(sim.model.body_mass)) * 9.81

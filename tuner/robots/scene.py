@@ -30,7 +30,7 @@ import numpy as np
 
 from gaits import JOINT_NAMES
 
-from ..surfaces import Surface
+from ..sim.surfaces import Surface
 from .robot_model import RobotModel
 
 __all__ = ["PREFIX", "SceneLayout", "build_scene", "CORNERS"]

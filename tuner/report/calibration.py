@@ -20,8 +20,8 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
 from . import experiments as ex
-from .robots import load_robot
-from .surfaces import SURFACES
+from ..robots import load_robot
+from ..sim.surfaces import SURFACES
 
 __all__ = ["DEFAULT_GRID", "HEEL_GAINS", "Candidate", "evaluate", "calibrate"]
 

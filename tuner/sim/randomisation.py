@@ -38,7 +38,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .errors import UserError
+from ..errors import UserError
 
 __all__ = ["DEFAULT_PUSHES", "Randomisation", "Perturbation", "draw", "TUNE", "EVALUATE", "NONE", "randomisation_from_mapping"]
 

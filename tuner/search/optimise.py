@@ -22,7 +22,7 @@ surfaces. Optional second objective: forward speed [m/s] (maximised; 0 on a
 fall), for a Pareto front.
 
 Robust studies (a ``robust:`` section) walk each trial K times per surface under domain
-randomisation (``tuner/randomisation.py``; seeds 0..K-1 of the tuning stream, the same for
+randomisation (``tuner/sim/randomisation.py``; seeds 0..K-1 of the tuning stream, the same for
 every trial, so trials are compared on the same draws), score each walk as above and
 aggregate all of them by the study's risk measure (``cvar25``: the mean of the worst quarter;
 ``worst``; ``mean``). Survival below ``min_survival`` is infeasible, and a trial whose falls
@@ -53,13 +53,13 @@ from optuna.trial import TrialState
 import gaits
 from gaits import ParamError, UnreachableTargetError
 
-from .metrics import summarize
-from .robots import load_robot
-from .simulate import Simulator
+from ..sim.metrics import summarize
+from ..robots import load_robot
+from ..sim.rollout import Simulator
 from .process_pool import mp_context
-from .randomisation import TUNE, draw
+from ..sim.randomisation import TUNE, draw
 from .study import OBJECTIVES, STAB_PREFIX, StudySpec
-from .surfaces import load_surface
+from ..sim.surfaces import load_surface
 
 __all__ = ["FALL_PENALTY_DEG", "Evaluator", "open_storage", "open_study", "enqueue_starts", "run_study",
            "best_trial", "trial_params", "trial_stabiliser", "trial_result", "rollout_score", "trial_fell", "trial_feasible",
@@ -191,10 +191,10 @@ class Evaluator:
 
     def _evaluate_speed(self, params: gaits.GaitParams, stabiliser: Any) -> dict[str, Any]:
         """A speed study's trial: every direction's staircase on every surface
-        (``tuner/walk_speed.py``); per direction the worst (or mean) surface's highest stair
+        (``tuner/sim/walk_speed.py``); per direction the worst (or mean) surface's highest stair
         held, weighted, less the pitch term. Infeasible unless every direction holds at least
         its first stair on every surface."""
-        from .walk_speed import speed_test
+        from ..sim.walk_speed import speed_test
         sp = self.spec.speed
         per: dict[str, dict] = {}
         reached: dict[str, list[float]] = {d: [] for d, _, _ in sp.directions}
@@ -310,7 +310,7 @@ def enqueue_starts(study: optuna.Study, spec: StudySpec) -> list[str]:
     if "casadi" in spec.enqueue:
         from .seed import SeedInfeasible, seed_for
         try:
-            from .surfaces import load_surface
+            from ..sim.surfaces import load_surface
             layer = max(load_surface(name).layer_height for name in spec.surfaces)
             base = spec.base
             if spec.speed is not None:

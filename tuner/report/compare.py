@@ -24,13 +24,13 @@ import numpy as np  # noqa: E402
 import gaits  # noqa: E402
 
 from .experiments import EROS_STEPS_MM  # noqa: E402
-from .metrics import summarize  # noqa: E402
-from .params_io import resolve_params  # noqa: E402
-from .process_pool import map_in_order  # noqa: E402
-from .randomisation import EVALUATE, Randomisation, draw  # noqa: E402
-from .robots import load_robot  # noqa: E402
-from .simulate import Simulator  # noqa: E402
-from .surfaces import load_surface  # noqa: E402
+from ..sim.metrics import summarize  # noqa: E402
+from ..params_io import resolve_params  # noqa: E402
+from ..search.process_pool import map_in_order  # noqa: E402
+from ..sim.randomisation import EVALUATE, Randomisation, draw  # noqa: E402
+from ..robots import load_robot  # noqa: E402
+from ..sim.rollout import Simulator  # noqa: E402
+from ..sim.surfaces import load_surface  # noqa: E402
 
 __all__ = ["with_step", "n_rows", "run_compare", "BASELINES_FOR"]
 
@@ -153,7 +153,7 @@ def run_compare(specs: list[str], robot_name: str, surface_names: list[str], bas
             "peak-to-peak torso pitch per gait cycle (EROS). ZMP error: mean |measured - reference| "
             "relative to the support foot. Covered %: torso distance / planned distance of the own "
             "walk (a gait that slides in place stays up but covers little). Survival % randomised: of "
-            f"{random_rollouts} walks under the default randomisation (tuner/randomisation.py, evaluation seeds), "
+            f"{random_rollouts} walks under the default randomisation (tuner/sim/randomisation.py, evaluation seeds), "
             "the share that did not fall (`gait-tuner robustness` gives more).")
     (out_dir / "compare.md").write_text(text + "\n" + defs + "\n", encoding="utf-8")
     _plots(rows, sets, surfaces, out_dir, f"robot {robot.name}, {study_label}")
@@ -187,8 +187,8 @@ def _study_plots(study_file: str, runs_dir: Path, out_dir: Path) -> None:
     import optuna
     from optuna.visualization import matplotlib as ovm
 
-    from .search import open_storage
-    from .study import load_study
+    from ..search.optimise import open_storage
+    from ..search.study import load_study
 
     spec = load_study(study_file)
     optuna.logging.set_verbosity(optuna.logging.WARNING)

@@ -26,8 +26,8 @@ from gaits import JOINT_NAMES, GaitTrajectory, StabiliserParams, stabiliser_corr
 
 from .centre_of_pressure import centre_of_pressure
 from .randomisation import Perturbation
-from .robots import PREFIX, RobotModel, SimOptions, build_scene
-from .robots.scene import CORNERS
+from ..robots import PREFIX, RobotModel, SimOptions, build_scene
+from ..robots.scene import CORNERS
 from .surfaces import Surface
 
 __all__ = ["FallCriteria", "Trace", "Simulator", "dead_band"]
@@ -299,7 +299,7 @@ class Simulator:
                 stabiliser: StabiliserParams | None = None) -> Trace:
         """Play a gait's joint table on the robot; stop at the end, a fall, or divergence.
 
-        ``perturb`` (see ``tuner/randomisation.py``) changes the model for this rollout only and
+        ``perturb`` (see ``tuner/sim/randomisation.py``) changes the model for this rollout only and
         adds backlash, command and IMU latency, IMU noise, a start-pose error and a push;
         ``stabiliser`` closes the IMU loop of ``gaits/imu_stabiliser.py`` every tick.
         """

@@ -35,8 +35,8 @@ from typing import Any, Mapping
 
 from gaits.params import GaitParams, ParamError, param
 
-from .errors import UserError
-from .yaml_input import read_yaml_file
+from ..errors import UserError
+from ..yaml_input import read_yaml_file
 
 __all__ = ["Surface", "SURFACES", "load_surface", "surface_names"]
 

@@ -25,10 +25,10 @@ import gaits
 from gaits import GaitFile, StabiliserParams
 
 from .metrics import summarize
-from .process_pool import map_in_order
+from ..search.process_pool import map_in_order
 from .randomisation import DEFAULT_PUSHES, EVALUATE, Randomisation, draw
-from .robots import load_robot
-from .simulate import Simulator
+from ..robots import load_robot
+from .rollout import Simulator
 from .surfaces import load_surface
 
 __all__ = ["evaluate", "RobustnessReport", "DEFINITIONS", "DEFAULT_PUSHES", "PUSH_SURVIVAL"]

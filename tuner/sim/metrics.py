@@ -38,7 +38,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from .centre_of_pressure import centre_of_pressure
-from .simulate import Trace
+from .rollout import Trace
 
 __all__ = ["Metrics", "DEFINITIONS", "heading_velocity", "pitch_rms", "pitch_pm", "centre_of_pressure", "zmp_error",
            "summarize"]

@@ -23,10 +23,10 @@ A study tunes one gait family on one robot against one or several surfaces::
       rollouts: 8                  #   seeds 0..K-1 of the tuning stream, the same for every trial
       risk: cvar25                 #   cvar25 (mean of the worst quarter), worst, or mean of the scores
       min_survival: 0.95           #   below this fraction of rollouts standing: infeasible (pruned early)
-      randomisation: {}            #   overrides of tuner/randomisation.py's defaults, or none
+      randomisation: {}            #   overrides of tuner/sim/randomisation.py's defaults, or none
     stabiliser: {enabled: true}    # optional: the IMU stabiliser's fixed values; its gains may be
                                    #   searched as space keys stabiliser.k_ankle_pitch etc.
-    speed:                         # optional (tlipfm): a speed study, scored by tuner/walk_speed.py
+    speed:                         # optional (tlipfm): a speed study, scored by tuner/sim/walk_speed.py
       directions:                  #   forward, backward, left, right, turn_left, turn_right
         forward: {top: 0.45, weight: 1.0}     # top stair [m/s or rad/s], weight in the score
         turn_left: {top: 1.6, weight: 0.2}
@@ -53,14 +53,14 @@ from typing import Any, Mapping
 
 from gaits import GaitParams, family_class
 
-from .errors import UserError
-from .params_io import resolve_params
-from .surfaces import SURFACES, load_surface
-from .yaml_input import read_yaml_file
+from ..errors import UserError
+from ..params_io import resolve_params
+from ..sim.surfaces import SURFACES, load_surface
+from ..yaml_input import read_yaml_file
 
 __all__ = ["ParamRange", "SpeedSpec", "StudySpec", "load_study", "STUDY_DIR", "list_studies", "OBJECTIVES"]
 
-STUDY_DIR = Path(__file__).resolve().parents[1] / "studies"
+STUDY_DIR = Path(__file__).resolve().parents[2] / "studies"
 OBJECTIVES = {"pitch_rms": "minimize", "speed": "maximize", "speed_score": "maximize",
               **{d: "maximize" for d in ("forward", "backward", "left", "right", "turn_left", "turn_right")}}
 _KEYS = ("name", "description", "robot", "surfaces", "aggregate", "gait", "base", "fixed", "space",
@@ -72,7 +72,7 @@ STAB_PREFIX = "stabiliser."
 
 @dataclass(frozen=True)
 class RobustSpec:
-    """A robust study's evaluation: K randomised rollouts per surface (see tuner/randomisation.py)."""
+    """A robust study's evaluation: K randomised rollouts per surface (see tuner/sim/randomisation.py)."""
 
     rollouts: int = 8                 # K per surface per trial
     risk: str = "cvar25"              # cvar25 | worst | mean over all rollouts' scores
@@ -82,7 +82,7 @@ class RobustSpec:
 
 @dataclass(frozen=True)
 class SpeedSpec:
-    """A speed study's scoring (see tuner/walk_speed.py): directions with top stair and weight."""
+    """A speed study's scoring (see tuner/sim/walk_speed.py): directions with top stair and weight."""
 
     directions: tuple[tuple[str, float, float], ...]   # (name, top [m/s or rad/s], weight)
     levels: int = 8
@@ -158,7 +158,7 @@ def _fail(source: str, msg: str) -> None:
 def _study_robot(robot: Any, path: Path, source: str) -> str:
     """The study's robot: a built-in name, or a map path resolved against the study file's folder
     (returned absolute); loaded once here so a bad robot is one line before any worker starts."""
-    from .robots import BUILTIN_ROBOTS, load_robot
+    from ..robots import BUILTIN_ROBOTS, load_robot
     if not isinstance(robot, str) or not robot.strip():
         _fail(source, f"robot = {robot!r}: expected a built-in robot name ({', '.join(BUILTIN_ROBOTS)}) "
               f"or a robot map YAML path")
@@ -340,7 +340,7 @@ def _stabiliser_range(name: str, rng: Any, stabiliser: Any, source: str) -> Para
 def _study_robust(doc: Any, source: str) -> RobustSpec | None:
     if doc is None:
         return None
-    from .randomisation import randomisation_from_mapping
+    from ..sim.randomisation import randomisation_from_mapping
     allowed = ("rollouts", "risk", "min_survival", "randomisation")
     if not isinstance(doc, Mapping):
         _fail(source, f"robust must be a mapping of {', '.join(allowed)}")

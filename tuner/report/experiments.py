@@ -15,10 +15,10 @@ import numpy as np
 import gaits
 from gaits import ErosParams, load_baseline
 
-from .metrics import Metrics, summarize
-from .robots import RobotModel
-from .simulate import Simulator
-from .surfaces import Surface
+from ..sim.metrics import Metrics, summarize
+from ..robots import RobotModel
+from ..sim.rollout import Simulator
+from ..sim.surfaces import Surface
 
 __all__ = ["PAPER_TABLE7", "PAPER_TABLE8", "PAPER_STABILITY", "PAPER_TABLE3", "PEDESTALS",
            "EROS_STEPS_MM", "eros_params", "EROSCell", "eros_matrix", "stability_percent",
