@@ -6,6 +6,7 @@ Exit codes: 0 done; 1 internal error (a bug: please report it); 2 bad input
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
@@ -255,40 +256,17 @@ def calibrate(workers: int, lift_scale: float) -> None:
                    f"without {c.without}  with {c.with_}")
 
 
-@cli.command()
-@click.argument("study_file", metavar="STUDY.yaml")
-@click.option("--trials", type=click.IntRange(1, 100_000), help="Total trials the study should hold "
-              "(default: the file's). Re-running resumes: finished trials are kept.")
-@click.option("--workers", default=1, show_default=True, type=click.IntRange(1, 64),
-              help="Processes running trials of this study at once.")
-@click.option("--storage", help="Optuna storage URL (sqlite:///..., postgresql://...). "
-              "Default: a journal file runs/<study>.journal, no server.")
-@click.option("--seed", type=int, help="Sampler seed (default: the file's sampler_seed).")
-@click.option("--runs", "runs_dir", default="runs", show_default=True,
-              type=click.Path(file_okay=False, path_type=Path), help="Folder of the journal files.")
-def tune(study_file: str, trials: int | None, workers: int, storage: str | None, seed: int | None,
-         runs_dir: Path) -> None:
-    """Run (or resume) a tuning study: Optuna search seeded by CasADi, against MuJoCo walks.
+def _storage_option(f):
+    return click.option("--storage", metavar="URL",
+                        help="sqlite:///FILE.db or postgresql://USER@HOST[:PORT]/DB (driver: pip install "
+                             "'gait-tuner[postgres]'). Default: the journal file RUNS/<study>.journal, no server.")(f)
 
-    The progress bar shows finished trials of the total, the best score so far
-    (torso pitch RMS [deg] of a gait that did not fall), falls so far and the
-    time left. Ctrl-C stops cleanly: finished trials stay in the storage.
-    """
-    import optuna
+
+def _study_progress(spec, total: int):
+    """A tqdm bar over the study's finished trials, and the callback that refreshes it."""
     from tqdm import tqdm
 
-    from .search.optimise import DONE_STATES, best_trial, open_storage, run_study, trial_feasible, trial_fell
-    from .search.study import load_study
-
-    spec = load_study(study_file)
-    total = trials or spec.trials
-    sampler_seed = spec.sampler_seed if seed is None else seed
-    optuna.logging.set_verbosity(optuna.logging.WARNING)
-    store = open_storage(spec, storage, runs_dir)
-    journal = None if storage else str(runs_dir / f"{spec.name}.journal")
-    click.echo(f"study {spec.name}: {spec.gait} on {spec.robot} / {', '.join(spec.surfaces)} "
-               f"({spec.aggregate if len(spec.surfaces) > 1 else 'single surface'}), "
-               f"{total} trials, {workers} worker(s), storage {storage or journal}")
+    from .search.optimise import DONE_STATES, best_trial, trial_fell
     # a terminal gets a live bar; a log file (CI, nohup) a line every 15 s rather than every poll
     bar = tqdm(total=total, unit="trial", dynamic_ncols=True,
                mininterval=0.5 if sys.stderr.isatty() else 15.0)
@@ -303,15 +281,41 @@ def tune(study_file: str, trials: int | None, workers: int, storage: str | None,
             best = "-"
         bar.set_postfix_str(f"best {best}, falls {falls}", refresh=False)
         bar.update(0)                                  # prints when mininterval has passed
+    return bar, progress
 
-    try:
-        study = run_study(spec, store, journal, total, workers, sampler_seed, progress)
-    except KeyboardInterrupt:
-        bar.close()
-        click.echo(f"interrupted: finished trials are kept in {storage or journal}; "
-                   f"run the same command to resume", err=True)
-        raise SystemExit(130) from None
-    bar.close()
+
+def _run_and_report(spec, store, study_file: str, storage: str | None, total: int | None, workers: int,
+                    seed: int, verb: str) -> None:
+    import optuna
+
+    from .search.optimise import (DONE_STATES, best_trial, prepare_study, run_study, trial_feasible,
+                                  trial_fell)
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    study, budget = prepare_study(spec, store, total, seed)
+    done = len(study.get_trials(deepcopy=False, states=DONE_STATES))
+    click.echo(f"study {spec.name}: {spec.gait} on {spec.robot} / {', '.join(spec.surfaces)} "
+               f"({spec.aggregate if len(spec.surfaces) > 1 else 'single surface'}), "
+               f"budget {budget} trials ({done} finished), {workers} worker(s) here, storage {store.where}")
+    if done >= budget:
+        click.echo(f"study {spec.name} is finished: {done} of {budget} trials "
+                   f"(raise the budget with `gait-tuner tune {study_file} --trials N`)")
+    else:
+        if workers > 1:
+            click.echo("note: with several workers the trials' order, and so the best trial, depends on "
+                       "timing; --workers 1 --seed S gives the same study every run")
+        bar, progress = _study_progress(spec, budget)
+        try:
+            study = run_study(spec, store, budget, workers, seed, progress)
+        except KeyboardInterrupt:
+            bar.close()
+            click.echo(f"interrupted: finished trials are kept in {store.where}; "
+                       f"run the same command to resume", err=True)
+            raise SystemExit(130) from None
+        finally:
+            bar.close()
+    if verb == "worker":
+        click.echo(f"study {spec.name}: budget reached")
+        return
     t = best_trial(study)
     n_fell = sum(1 for x in study.get_trials(deepcopy=False, states=DONE_STATES) if trial_fell(x))
     if spec.speed is not None:
@@ -330,6 +334,65 @@ def tune(study_file: str, trials: int | None, workers: int, storage: str | None,
                    + f"; {'fell' if trial_fell(t) else 'stayed up'}; falls in study: {n_fell}")
     click.echo(f"export it with: gait-tuner export {study_file}"
                + (f" --storage {storage}" if storage else "") + " --out best.yaml")
+
+
+@cli.command()
+@click.argument("study_file", metavar="STUDY.yaml")
+@click.option("--trials", type=click.IntRange(1, 100_000), help="The study's budget: total finished trials "
+              "it should hold, shared by every worker (default: the stored budget, else the file's). "
+              "Re-running resumes: finished trials are kept.")
+@click.option("--workers", default=2, show_default=True, type=click.IntRange(1, 64),
+              help="Processes running trials of this study on this machine.")
+@_storage_option
+@click.option("--seed", type=int, help="Sampler seed (default: the file's sampler_seed).")
+@click.option("--runs", "runs_dir", default="runs", show_default=True,
+              type=click.Path(path_type=Path), help="Folder of the journal files.")
+def tune(study_file: str, trials: int | None, workers: int, storage: str | None, seed: int | None,
+         runs_dir: Path) -> None:
+    """Run (or resume) a tuning study: Optuna search seeded by CasADi, against MuJoCo walks.
+
+    The progress bar shows finished trials of the budget, the best score so far
+    (torso pitch RMS [deg] of a gait that did not fall), falls so far and the
+    time left. Ctrl-C stops cleanly: finished trials stay in the storage. A trial
+    whose process died is retried once with the same parameters.
+    """
+    from .search.storage import StudyStore
+    from .search.study import load_study
+
+    spec = load_study(study_file)
+    store = StudyStore.open(spec.name, storage, runs_dir)
+    _run_and_report(spec, store, study_file, storage, trials or spec.trials,
+                    workers, spec.sampler_seed if seed is None else seed, "tune")
+
+
+@cli.command()
+@click.argument("study_file", metavar="STUDY.yaml")
+@_storage_option
+@click.option("--workers", default=1, show_default=True, type=click.IntRange(1, 64),
+              help="Processes running trials on this machine.")
+@click.option("--seed", type=int, help="Sampler seed of this machine's processes (default: the file's "
+              "sampler_seed plus a number drawn from the host name, so machines sample differently).")
+@click.option("--runs", "runs_dir", default="runs", show_default=True,
+              type=click.Path(path_type=Path), help="Folder of the journal files (journal storage only).")
+def worker(study_file: str, storage: str | None, workers: int, seed: int | None, runs_dir: Path) -> None:
+    """Join a study from this machine and run its trials until the study's budget is reached.
+
+    Every machine needs the same STUDY.yaml (and robot file) and the same --storage URL,
+    usually PostgreSQL. The budget is the study's (set by `tune --trials`, else the file's
+    trials), shared by all workers and `tune` processes: together they run it exactly once.
+    The CasADi seed and baselines are enqueued once, by whoever starts first.
+    """
+    import zlib
+
+    from .search.storage import StudyStore
+    from .search.study import load_study
+
+    spec = load_study(study_file)
+    store = StudyStore.open(spec.name, storage, runs_dir)
+    if seed is None:
+        import socket
+        seed = spec.sampler_seed + zlib.crc32(f"{socket.gethostname()}-{os.getpid()}".encode()) % 100_000
+    _run_and_report(spec, store, study_file, storage, None, workers, seed, "worker")
 
 
 def _commit_of(path: str) -> str:

@@ -30,40 +30,47 @@ already exceed what that allows stops at once and is recorded as pruned. A study
 ``stabiliser:`` section walks every trial with the IMU stabiliser, its gains in the space as
 ``stabiliser.NAME``; the trial records them and ``export`` writes them into the gait file.
 
-Storage: a journal file under ``runs/`` by default (no server), or any Optuna
-storage URL. Re-running a study resumes it; ``workers`` processes share one
-study. Every trial records its full parameter set (SI), so it is reproducible:
-the simulation is deterministic.
+Storage (``storage.py``): a journal file under ``runs/`` by default (no server), or a
+SQLite / PostgreSQL URL. Re-running a study resumes it; any number of processes, here
+(``--workers``) or on other machines (``gait-tuner worker``), share one budget stored with the
+study, each asking for a trial under the store's budget lock (:func:`work`). A trial whose
+worker died is failed and retried once with the same parameters; a parameter set already
+walked is never walked again (its result is copied, ``duplicate_of``). Every trial records
+its full parameter set (SI), so it is reproducible: the simulation is deterministic.
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
+import signal
+import sys
+import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
 import optuna
-from optuna.storages import JournalStorage
-from optuna.storages.journal import JournalFileBackend
 from optuna.trial import TrialState
 
 import gaits
 from gaits import ParamError, UnreachableTargetError
 
+from ..errors import UserError
 from ..sim.metrics import summarize
 from ..robots import load_robot
 from ..sim.rollout import Simulator
 from .process_pool import mp_context
 from ..sim.randomisation import TUNE, draw
+from .storage import Heartbeat, StudyStore, process_identity
 from .study import OBJECTIVES, STAB_PREFIX, StudySpec
 from ..sim.surfaces import load_surface
 
 __all__ = ["FALL_PENALTY_DEG", "Evaluator", "open_storage", "open_study", "enqueue_starts", "run_study",
            "best_trial", "trial_params", "trial_stabiliser", "trial_result", "rollout_score", "trial_fell", "trial_feasible",
-           "DONE_STATES"]
+           "DONE_STATES", "StudyStore", "WorkerStop", "work", "prepare_study", "trial_distributions"]
 
 FALL_PENALTY_DEG = 100.0
 PROGRESS_PENALTY_DEG = 50.0     # per unit of the planned distance not covered
@@ -72,11 +79,8 @@ DONE_STATES = (TrialState.COMPLETE, TrialState.PRUNED)
 
 
 def open_storage(spec: StudySpec, storage: str | None, runs_dir: Path) -> Any:
-    """The study's storage: a journal file ``runs/<name>.journal`` unless a URL is given."""
-    if storage:
-        return storage
-    runs_dir.mkdir(parents=True, exist_ok=True)
-    return JournalStorage(JournalFileBackend(str(runs_dir / f"{spec.name}.journal")))
+    """The study's Optuna storage: the journal ``runs/<name>.journal`` unless a URL is given."""
+    return StudyStore.open(spec.name, storage, runs_dir).optuna_storage()
 
 
 def _sampler(spec: StudySpec, seed: int) -> optuna.samplers.BaseSampler:
@@ -332,85 +336,209 @@ def enqueue_starts(study: optuna.Study, spec: StudySpec) -> list[str]:
     return done
 
 
-def _worker(spec: StudySpec, storage_arg: Any, storage_path: str | None, tickets: Any, seed: int) -> None:
-    """One process: open the study and run trials while the phase has tickets left.
+def trial_distributions(spec: StudySpec) -> dict[str, Any]:
+    """The study's space as Optuna distributions (all parameters are sampled at ``ask``)."""
+    from optuna.distributions import FloatDistribution, IntDistribution
+    out: dict[str, Any] = {}
+    for r in spec.space:
+        if r.integer:
+            out[r.name] = IntDistribution(int(math.ceil(r.low)), int(math.floor(r.high)), log=r.log)
+        else:
+            out[r.name] = FloatDistribution(r.low, r.high, log=r.log)
+    return out
 
-    ``tickets`` is a counter shared by the phase's processes: a worker takes one
-    under its lock before each trial, so the phase runs exactly as many trials as
-    it holds, and a worker whose rollouts are short (early falls) simply runs more
-    of them than its neighbour (no idle core at the end of a phase).
+
+def _counts(study: optuna.Study) -> tuple[int, int]:
+    trials = study.get_trials(deepcopy=False, states=DONE_STATES + (TrialState.RUNNING,))
+    done = sum(1 for t in trials if t.state in DONE_STATES)
+    return done, len(trials) - done
+
+
+def _duplicate_of(study: optuna.Study, trial: optuna.Trial) -> optuna.trial.FrozenTrial | None:
+    """A finished trial that walked exactly these parameters (a resumed sampler, or TPE on an
+    integer axis, can propose a set again); enqueued retries are never duplicates."""
+    params = trial.params
+    for t in study.get_trials(deepcopy=False, states=DONE_STATES):
+        if t.params == params and t.number != trial.number:
+            return t
+    return None
+
+
+def _tell_copy(study: optuna.Study, trial: optuna.Trial, source: optuna.trial.FrozenTrial) -> None:
+    """Record ``source``'s result for ``trial`` without walking it again."""
+    for key, value in source.user_attrs.items():
+        if key not in ("worker", "start", "retry_of"):
+            trial.set_user_attr(key, value)
+    trial.set_user_attr("duplicate_of", source.number)
+    constraint = trial_result(source).get("fall_constraint")
+    if constraint is not None:
+        trial.set_constraint("fall", float(constraint))
+    if source.state == TrialState.PRUNED:
+        study.tell(trial, state=TrialState.PRUNED)
+    else:
+        study.tell(trial, source.values if len(source.values) > 1 else source.values[0])
+
+
+class WorkerStop(UserError):
+    """A worker met bad input or a full disk: the whole run stops with this one line."""
+
+
+def work(spec: StudySpec, store: StudyStore, budget: int, seed: int,
+         log: Callable[[str], None] | None = None, poll: float = 1.0) -> int:
+    """One process's share of a study: trials until the study holds ``budget`` finished ones.
+
+    Each step runs under the store's budget lock: dead trials are failed and re-enqueued
+    (:meth:`StudyStore.reap`), the study's finished and running trials are counted, and a
+    trial is asked only while finished + running < budget. So any number of processes, on any
+    number of machines, run exactly the budget; a process that finds the rest running waits
+    for them (one of them may die and need a retry). Returns the trials this process walked.
     """
-    os.environ.setdefault("MPLBACKEND", "Agg")
-    optuna.logging.set_verbosity(optuna.logging.WARNING)
-    storage = JournalStorage(JournalFileBackend(storage_path)) if storage_path else storage_arg
-    study = open_study(spec, storage, seed)
+    log = log or (lambda msg: print(f"gait-tuner: {msg}", file=sys.stderr, flush=True))
+    study = open_study(spec, store.optuna_storage(), seed)
     objective = objective_for(spec, Evaluator(spec))
+    space = trial_distributions(spec)
+    beat = Heartbeat(store, spec.name).start()
+    ran = 0
     try:
         while True:
-            with tickets.get_lock():
-                if tickets.value <= 0:
-                    return
-                tickets.value -= 1
-            study.optimize(objective, n_trials=1, catch=(), gc_after_trial=False)
-    except KeyboardInterrupt:
+            with store.budget_lock(spec.name):
+                for note in store.reap(study):
+                    log(note)
+                done, running = _counts(study)
+                if done >= budget:
+                    return ran
+                trial = None
+                if done + running < budget:
+                    trial = study.ask(space)
+                    trial.set_user_attr("worker", process_identity())
+            if trial is None:
+                time.sleep(poll)
+                continue
+            beat.trial_id = trial._trial_id
+            source = None if trial.user_attrs.get("retry_of") is not None else _duplicate_of(study, trial)
+            if source is not None:
+                _tell_copy(study, trial, source)
+                continue
+            try:
+                value = objective(trial)
+            except optuna.TrialPruned:
+                study.tell(trial, state=TrialState.PRUNED)
+            except BaseException as exc:
+                with contextlib.suppress(Exception):
+                    trial.set_user_attr("failed", f"{type(exc).__name__}: {exc}")
+                    study.tell(trial, state=TrialState.FAIL)
+                raise
+            else:
+                study.tell(trial, value)
+            beat.trial_id = None
+            ran += 1
+    finally:
+        beat.stop()
+
+
+def _die_with_parent(parent: int) -> None:
+    """Linux: the kernel kills this process when its parent dies (no orphaned workers)."""
+    try:
+        import ctypes
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)    # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
         pass
+    if os.getppid() != parent:
+        os._exit(1)
 
 
-def run_study(spec: StudySpec, storage: Any, storage_path: str | None, total: int, workers: int,
+def _worker(spec: StudySpec, store: StudyStore, budget: int, seed: int, parent: int, errors: Any) -> None:
+    """A worker process: :func:`work`; bad input or a full disk goes back to the parent as one line."""
+    _die_with_parent(parent)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)       # the parent decides what Ctrl-C stops
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    store = StudyStore(journal=store.journal, url=store.url, grace_s=store.grace_s,
+                       interval_s=store.interval_s)                   # open afresh after fork
+    try:
+        work(spec, store, budget, seed)
+    except (UserError, ParamError) as exc:
+        errors.put(str(exc))
+        sys.exit(2)
+
+
+def _sampler_seed(seed: int, index: int, existing: int) -> int:
+    # offset by the trials already stored: a resumed study does not re-draw its first samples
+    return (seed + 1000 * index + 7919 * existing) % (2 ** 31)
+
+
+def prepare_study(spec: StudySpec, store: StudyStore, budget: int | None, seed: int) -> tuple[optuna.Study, int]:
+    """Create or join the study; once per study (whoever comes first), enqueue the CasADi seed
+    and the baselines; set the shared budget (``budget`` None: keep the stored one, or the
+    file's). Returns the study and the budget."""
+    study = None
+    with store.budget_lock(spec.name):
+        study = open_study(spec, store.optuna_storage(), seed)
+        enqueue_starts(study, spec)
+        stored = study.user_attrs.get("budget")
+        if budget is None:
+            budget = int(stored) if stored is not None else spec.trials
+        if stored != budget:
+            study.set_user_attr("budget", budget)
+        for note in store.reap(study):
+            print(f"gait-tuner: {note}", file=sys.stderr)
+    return study, budget
+
+
+def run_study(spec: StudySpec, store: StudyStore, total: int | None, workers: int,
               seed: int, on_progress: Callable[[optuna.Study], None] | None = None,
-              poll: float = 0.5) -> optuna.Study:
-    """Run until the study holds ``total`` finished trials, with ``workers`` processes."""
-    study = open_study(spec, storage, seed)
-    enqueue_starts(study, spec)
-    remaining = total - _n_done(study)
-    if remaining <= 0:
+              poll: float = 0.5, log: Callable[[str], None] | None = None) -> optuna.Study:
+    """Run until the study holds its budget of finished trials, with ``workers`` processes here
+    (other machines' ``worker`` processes may share the same budget). A worker that dies is
+    replaced (its trial is retried by the others); bad input or a full disk in a worker stops
+    all of them and is raised here as one line."""
+    log = log or (lambda msg: print(f"gait-tuner: {msg}", file=sys.stderr, flush=True))
+    study, budget = prepare_study(spec, store, total, seed)
+    if _n_done(study) >= budget:
         return study
-    # On URL storages the enqueued starts (seed, baselines) are walked by one worker first:
-    # two workers popping the same waiting trial race where rows are not locked (SQLite).
-    # The journal file serialises pops under its lock, so it needs no such phase.
-    waiting = len(study.get_trials(deepcopy=False, states=(TrialState.WAITING,)))
-    phases = []
-    if waiting and workers > 1 and storage_path is None:
-        first = min(waiting, remaining)
-        phases.append((first, 1))
-        remaining -= first
-    if remaining > 0:
-        phases.append((remaining, min(workers, remaining)))
-    for n_trials, n_procs in phases:
-        _run_phase(spec, storage, storage_path, n_trials, n_procs, seed, study, on_progress, poll)
+    ctx = mp_context()
+    errors = ctx.Queue()
+    existing = len(study.get_trials(deepcopy=False))
+    parent = os.getpid()
+
+    def spawn(index: int) -> Any:
+        p = ctx.Process(target=_worker, args=(spec, store, budget, _sampler_seed(seed, index, existing),
+                                              parent, errors), daemon=False)
+        p.start()
+        return p
+
+    n = max(1, min(workers, budget - _n_done(study)))
+    procs = {i: spawn(i) for i in range(n)}
+    respawns = 0
+    try:
+        while procs:
+            if on_progress is not None:
+                on_progress(study)
+            for i, p in list(procs.items()):
+                p.join(timeout=poll / len(procs))
+                if p.exitcode is None:
+                    continue
+                del procs[i]
+                if p.exitcode == 0:
+                    continue
+                if p.exitcode == 2:
+                    msg = errors.get(timeout=5) if not errors.empty() else "a worker stopped on bad input"
+                    raise WorkerStop(msg)
+                how = f"signal {-p.exitcode}" if p.exitcode < 0 else f"exit code {p.exitcode}"
+                if p.exitcode > 0 or respawns >= 2 * n:
+                    raise RuntimeError(f"worker {i} failed ({how}); see its message above")
+                respawns += 1
+                log(f"worker {i} died ({how}); its trial will be retried; starting another")
+                procs[i] = spawn(i + 100 * respawns)
+    except BaseException:
+        for p in procs.values():
+            p.terminate()
+        for p in procs.values():
+            p.join(timeout=10)
+        raise
     if on_progress is not None:
         on_progress(study)
     return study
-
-
-def _run_phase(spec: StudySpec, storage: Any, storage_path: str | None, n_trials: int, n_procs: int,
-               seed: int, study: optuna.Study, on_progress: Callable[[optuna.Study], None] | None,
-               poll: float) -> None:
-    # fork (Linux) starts a worker in milliseconds; spawn re-imports MuJoCo, Optuna and CasADi
-    ctx = mp_context()
-    tickets = ctx.Value("i", n_trials)
-    procs = [ctx.Process(target=_worker, args=(spec, None if storage_path else storage, storage_path,
-                                                tickets, seed + 1000 * i), daemon=False)
-             for i in range(n_procs)]
-    for p in procs:
-        p.start()
-    try:
-        while any(p.is_alive() for p in procs):
-            if on_progress is not None:
-                on_progress(study)
-            for p in procs:
-                p.join(timeout=poll / len(procs))
-    except KeyboardInterrupt:
-        for p in procs:
-            p.terminate()
-        for p in procs:
-            p.join(timeout=10)
-        raise
-    for p in procs:
-        p.join()
-    bad = [p.exitcode for p in procs if p.exitcode not in (0, None)]
-    if bad:
-        raise RuntimeError(f"{len(bad)} worker process(es) failed (exit codes {bad})")
 
 
 def _n_done(study: optuna.Study) -> int:

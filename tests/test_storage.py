@@ -1,0 +1,331 @@
+"""Studies that never lose work: shared budgets, dead workers, crashed locks, torn journals, full
+disks, and PostgreSQL through the real CLI (a server from the pgserver wheel on 127.0.0.1).
+
+Each kill test checks the issue's three numbers: trials lost (a finished trial missing after
+the resume), stale trials left (RUNNING at the end) and overshoot (finished trials beyond the
+budget), all 0.
+"""
+
+import json
+import os
+import resource
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import optuna
+import pytest
+
+from tuner.errors import UserError
+from tuner.search.storage import FlockLock, StudyStore, normalise_url, repair_journal
+
+# trials of ~0.3-1 s each (two surfaces, 8 s walks): long enough to be killed mid-trial
+STUDY = """name: {name}
+robot: kidsize
+surfaces: [grass50, carpet4]
+gait: tlipfm
+base: tkux-table2
+fixed: {{n_steps: 10}}
+space:
+  period: {{low: 0.5, high: 0.8}}
+  h_z: {{low: 0.02, high: 0.06}}
+objectives: [pitch_rms]
+trials: {trials}
+duration: 8.0
+enqueue: [casadi, baselines]
+sampler_seed: 5
+"""
+DONE = (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.PRUNED)
+
+
+def write_study(folder: Path, name: str, trials: int = 12) -> Path:
+    path = folder / f"{name}.yaml"
+    path.write_text(STUDY.format(name=name, trials=trials))
+    return path
+
+
+def load(name: str, storage: str | None, runs: Path) -> optuna.Study:
+    store = StudyStore.open(name, storage, runs)
+    return optuna.load_study(study_name=name, storage=store.optuna_storage())
+
+
+def tally(study: optuna.Study) -> dict:
+    trials = study.get_trials(deepcopy=False)
+    return {"done": sum(t.state in DONE for t in trials),
+            "running": sum(t.state == optuna.trial.TrialState.RUNNING for t in trials),
+            "failed": [t for t in trials if t.state == optuna.trial.TrialState.FAIL],
+            "retries": [t for t in trials if t.user_attrs.get("retry_of") is not None],
+            "finished": {t.number: t.values for t in trials if t.state == optuna.trial.TrialState.COMPLETE}}
+
+
+def cli(cmd, *args, env=None, **kw):
+    return subprocess.run(cmd + [str(a) for a in args], capture_output=True, text=True, env=env,
+                          timeout=600, **kw)
+
+
+def start(cmd, *args, env=None):
+    return subprocess.Popen(cmd + [str(a) for a in args], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True, env=env, start_new_session=True)
+
+
+def wait_for(pred, timeout=120.0, step=0.1, procs=()):
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        for p in procs:
+            assert p.poll() is None, p.communicate()[1]
+        got = pred()
+        if got:
+            return got
+        time.sleep(step)
+    raise AssertionError("timed out waiting")
+
+
+def running_worker(name, storage, runs):
+    """(trial number, worker pid) of a trial being walked, once some trial has finished."""
+    try:
+        study = load(name, storage, runs)
+    except Exception:
+        return None
+    trials = study.get_trials(deepcopy=False)
+    if not any(t.state in DONE for t in trials):
+        return None
+    for t in trials:
+        if t.state == optuna.trial.TrialState.RUNNING and "worker" in t.user_attrs:
+            return t.number, int(t.user_attrs["worker"]["pid"])
+    return None
+
+
+def alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state not in ("Z", "X")
+
+
+def tuned(cmd, env, folder: Path, name: str, trials: int) -> tuple[Path, Path, Path]:
+    """A study tuned to its budget on the journal: (study file, runs folder, journal)."""
+    study = write_study(folder, name, trials=trials)
+    runs = folder / "runs"
+    r = cli(cmd, "tune", study, "--workers", "1", "--runs", runs, env=env)
+    assert r.returncode == 0, r.stderr
+    return study, runs, runs / f"{name}.journal"
+
+
+# -- the journal ---------------------------------------------------------------------------------
+
+def test_killed_worker_trial_is_failed_and_retried_once_with_same_params(gait_tuner_cmd, run_env, tmp_path):
+    study = write_study(tmp_path, "wk", trials=10)
+    runs = tmp_path / "runs"
+    proc = start(gait_tuner_cmd, "tune", study, "--workers", "2", "--runs", runs, env=run_env)
+    number, pid = wait_for(lambda: running_worker("wk", None, runs), procs=[proc])
+    os.kill(pid, signal.SIGKILL)
+    _, err = proc.communicate(timeout=300)
+    assert proc.returncode == 0, err
+    assert f"worker" in err and "died" in err
+    t = tally(load("wk", None, runs))
+    assert t["done"] == 10 and t["running"] == 0                       # overshoot 0, stale 0
+    [failed] = [f for f in t["failed"] if f.number == number]
+    assert failed.user_attrs["failed"] == "its worker died"
+    [retry] = [r for r in t["retries"] if r.user_attrs["retry_of"] == number]
+    assert retry.params == failed.params and retry.state in DONE
+
+
+def test_killed_parent_takes_its_workers_and_resume_loses_nothing(gait_tuner_cmd, run_env, tmp_path):
+    study = write_study(tmp_path, "pk", trials=10)
+    runs = tmp_path / "runs"
+    proc = start(gait_tuner_cmd, "tune", study, "--workers", "2", "--runs", runs, env=run_env)
+    wait_for(lambda: running_worker("pk", None, runs), procs=[proc])
+    pids = {int(t.user_attrs["worker"]["pid"]) for t in load("pk", None, runs).get_trials(deepcopy=False)
+            if "worker" in t.user_attrs}
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    wait_for(lambda: not any(alive(p) for p in pids), timeout=10)      # no orphaned worker
+    before = tally(load("pk", None, runs))["finished"]
+    r = cli(gait_tuner_cmd, "tune", study, "--workers", "2", "--runs", runs, env=run_env)
+    assert r.returncode == 0, r.stderr
+    after = tally(load("pk", None, runs))
+    assert {n: v for n, v in after["finished"].items() if n in before} == before   # lost 0
+    assert after["done"] == 10 and after["running"] == 0                           # overshoot 0, stale 0
+
+
+def test_lock_held_by_a_killed_process_is_no_obstacle(gait_tuner_cmd, run_env, tmp_path):
+    study = write_study(tmp_path, "lk", trials=3)
+    runs = tmp_path / "runs"
+    runs.mkdir()
+    journal = runs / "lk.journal"
+    holder = subprocess.Popen([sys.executable, "-c", (
+        "import sys, time; from tuner.search.storage import FlockLock; "
+        f"a = FlockLock({str(journal)!r}); a.acquire(); "
+        f"b = FlockLock({str(journal)!r}, suffix='.budget.lock'); b.acquire(); "
+        "print('held', flush=True); time.sleep(600)")], stdout=subprocess.PIPE, text=True)
+    assert holder.stdout.readline().strip() == "held"
+    os.kill(holder.pid, signal.SIGKILL)
+    holder.wait()
+    # an optuna-style symlink lock with a relative target (the old spin) is ignored, too
+    os.symlink("runs/lk.journal", str(journal) + ".lock")
+    t0 = time.time()
+    r = cli(gait_tuner_cmd, "tune", study, "--workers", "1", "--runs", os.path.relpath(runs),
+            env=run_env, cwd=os.getcwd())
+    assert r.returncode == 0, r.stderr
+    assert time.time() - t0 < 120
+    assert tally(load("lk", None, runs))["done"] == 3
+
+
+def test_torn_last_line_is_cut_with_a_warning_and_never_appended_onto(gait_tuner_cmd, run_env, tmp_path):
+    study, runs, journal = tuned(gait_tuner_cmd, run_env, tmp_path, "tj", 3)
+    whole = journal.read_bytes()
+    with open(journal, "ab") as f:
+        f.write(b'{"op_code": 5, "worker_id": "x", "trial_id": 2, "user_at')      # a kill mid-write
+    r = cli(gait_tuner_cmd, "tune", study, "--trials", "5", "--workers", "1", "--runs", runs, env=run_env)
+    assert r.returncode == 0, r.stderr
+    assert "cut a torn last line" in r.stderr
+    data = journal.read_bytes()
+    assert data.startswith(whole) and data.endswith(b"\n")
+    for line in data.splitlines():
+        json.loads(line)
+    assert list(runs.glob("tj.journal.torn-*"))
+    assert tally(load("tj", None, runs))["done"] == 5
+
+
+def test_corrupt_line_inside_the_journal_is_one_line_error(gait_tuner_cmd, run_env, tmp_path):
+    study, runs, journal = tuned(gait_tuner_cmd, run_env, tmp_path, "cj", 2)
+    lines = journal.read_bytes().splitlines(keepends=True)
+    lines[1] = b"not json at all\n"
+    journal.write_bytes(b"".join(lines))
+    r = cli(gait_tuner_cmd, "trials", study, "--runs", runs, env=run_env)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1
+    assert "corrupt" in r.stderr
+
+
+def _limit_file_size(limit: int):
+    def apply() -> None:
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)     # the write fails with EFBIG instead
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+    return apply
+
+
+def test_full_disk_is_one_line_and_loses_nothing(gait_tuner_cmd, run_env, tmp_path):
+    study, runs, journal = tuned(gait_tuner_cmd, run_env, tmp_path, "fd", 4)
+    size = journal.stat().st_size
+    before = tally(load("fd", None, runs))["finished"]
+    # the "disk" holds 3 kB more: the next trials' writes fail part-way
+    r = cli(gait_tuner_cmd, "tune", study, "--trials", "30", "--workers", "2", "--runs", runs, env=run_env,
+            preexec_fn=_limit_file_size(size + 3000))
+    assert r.returncode == 2, r.stderr
+    last = r.stderr.strip().splitlines()[-1]
+    assert last.startswith("gait-tuner: error: disk full"), r.stderr
+    assert "Traceback" not in r.stderr
+    data = journal.read_bytes()
+    assert data.endswith(b"\n") and all(json.loads(x) is not None for x in data.splitlines())
+    r = cli(gait_tuner_cmd, "tune", study, "--trials", "8", "--workers", "2", "--runs", runs, env=run_env)
+    assert r.returncode == 0, r.stderr
+    after = tally(load("fd", None, runs))
+    assert {n: v for n, v in after["finished"].items() if n in before} == before
+    assert after["done"] == 8 and after["running"] == 0
+
+
+def test_resume_never_walks_a_parameter_set_twice(gait_tuner_cmd, run_env, tmp_path):
+    study = write_study(tmp_path, "rs", trials=4)
+    runs = tmp_path / "runs"
+    for total in (4, 8, 12):
+        r = cli(gait_tuner_cmd, "tune", study, "--trials", total, "--workers", "1", "--runs", runs, env=run_env)
+        assert r.returncode == 0, r.stderr
+    trials = [t for t in load("rs", None, runs).get_trials(deepcopy=False) if t.state in DONE]
+    walked = [tuple(sorted(t.params.items())) for t in trials if "duplicate_of" not in t.user_attrs]
+    assert len(trials) == 12 and len(walked) == len(set(walked))
+
+
+def test_flock_lock_is_exclusive_and_released(tmp_path):
+    a, b = FlockLock(tmp_path / "j"), FlockLock(tmp_path / "j")
+    a.acquire()
+    probe = subprocess.run([sys.executable, "-c", (
+        "import fcntl, os, sys; fd = os.open(sys.argv[1], os.O_RDWR); "
+        "fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)"), a.path], capture_output=True)
+    assert probe.returncode != 0                      # held
+    a.release()
+    b.acquire()
+    b.release()
+
+
+def test_repair_journal_cuts_only_the_tail(tmp_path):
+    j = tmp_path / "x.journal"
+    j.write_bytes(b'{"a": 1}\n{"b": 2}\n{"c": ')
+    assert repair_journal(j) == len(b'{"c": ')
+    assert j.read_bytes() == b'{"a": 1}\n{"b": 2}\n'
+    assert repair_journal(j) == 0
+
+
+# -- URLs ----------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("url, words", [
+    ("", "empty URL"),
+    ("nonsense", "not a database URL"),
+    ("sqlite://", "in-memory"),
+    ("sqlite:////no/such/folder/x.db", "does not exist"),
+    ("oracle://u@h/db", "unsupported database 'oracle'"),
+    ("postgresql+pg8000://u@h/db", "driver 'pg8000' is not supported"),
+])
+def test_bad_storage_urls(url, words):
+    with pytest.raises(UserError, match=words):
+        normalise_url(url)
+
+
+def test_plain_postgresql_url_uses_psycopg3_and_a_missing_driver_says_what_to_install(monkeypatch):
+    assert normalise_url("postgresql://u@127.0.0.1:5/db").startswith("postgresql+psycopg://")
+    import importlib.util
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None)
+    with pytest.raises(UserError, match=r"pip install 'gait-tuner\[postgres\]'"):
+        normalise_url("postgresql://u@127.0.0.1:5/db")
+
+
+# -- PostgreSQL ----------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def postgres():
+    sys.path.insert(0, str(Path(__file__).parent))
+    from postgres_server import PostgresServer
+    with PostgresServer() as pg:
+        yield pg
+
+
+def test_postgres_two_workers_and_a_tune_share_one_budget(postgres, gait_tuner_cmd, run_env, tmp_path):
+    url = postgres.create_database("share")
+    study = write_study(tmp_path, "share", trials=14)
+    procs = [start(gait_tuner_cmd, "worker", study, "--storage", url, env=run_env) for _ in range(2)]
+    procs.append(start(gait_tuner_cmd, "tune", study, "--storage", url, "--workers", "1", env=run_env))
+    errs = [p.communicate(timeout=300)[1] for p in procs]
+    assert [p.returncode for p in procs] == [0, 0, 0], errs
+    study_ = load("share", url, tmp_path)
+    t = tally(study_)
+    assert t["done"] == 14 and t["running"] == 0 and not t["failed"]
+    starts = [x.user_attrs.get("start") for x in study_.get_trials(deepcopy=False) if x.user_attrs.get("start")]
+    assert sorted(starts) == sorted(set(starts))                  # seed and baselines once
+
+
+def test_postgres_killed_worker_trial_is_failed_and_retried(postgres, gait_tuner_cmd, run_env, tmp_path):
+    url = postgres.create_database("retry")
+    study = write_study(tmp_path, "retry", trials=10)
+    procs = [start(gait_tuner_cmd, "worker", study, "--storage", url, env=run_env) for _ in range(2)]
+    number, pid = wait_for(lambda: running_worker("retry", url, tmp_path), procs=procs)
+    os.kill(pid, signal.SIGKILL)          # a process the worker verb forked: it starts another
+    errs = [p.communicate(timeout=300)[1] for p in procs]
+    assert [p.returncode for p in procs] == [0, 0], errs
+    t = tally(load("retry", url, tmp_path))
+    assert t["done"] == 10 and t["running"] == 0
+    [retry] = [r for r in t["retries"] if r.user_attrs["retry_of"] == number]
+    assert retry.state in DONE
+
+
+@pytest.mark.parametrize("kind, n", [("postgresql", 5), ("sqlite", 4)])
+def test_many_processes_meeting_a_fresh_database(kind, n, request, gait_tuner_cmd, run_env, tmp_path):
+    url = (request.getfixturevalue("postgres").create_database("fresh") if kind == "postgresql"
+           else f"sqlite:///{tmp_path / 'fresh.db'}")
+    study = write_study(tmp_path, "fresh", trials=6)
+    procs = [start(gait_tuner_cmd, "worker", study, "--storage", url, env=run_env) for _ in range(n)]
+    errs = [p.communicate(timeout=300)[1] for p in procs]
+    assert [p.returncode for p in procs] == [0] * n, errs
+    t = tally(load("fresh", url, tmp_path))
+    assert t["done"] == 6 and t["running"] == 0
