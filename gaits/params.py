@@ -193,18 +193,28 @@ def load_gait_file(path: str | Path) -> GaitFile:
     """Read and validate a ``{gait, description, params}`` YAML file."""
     path = Path(path)
     source = str(path)
+    if path.is_dir():
+        raise ParamError(f"{source}: is a directory, expected a parameter YAML file")
     try:
-        text = path.read_text(encoding="utf-8")
+        raw = path.read_bytes()
     except FileNotFoundError:
         raise ParamError(f"{source}: no such file") from None
-    except (IsADirectoryError, PermissionError, UnicodeDecodeError) as exc:
-        raise ParamError(f"{source}: cannot read ({exc.__class__.__name__})") from None
+    except OSError as exc:
+        raise ParamError(f"{source}: cannot read ({exc.strerror})") from None
+    if b"\x00" in raw:
+        raise ParamError(f"{source}: is a binary file, expected a parameter YAML file")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ParamError(f"{source}: is not UTF-8 text (byte {exc.start})") from None
     try:
         doc = yaml.safe_load(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
         raise ParamError(f"{source}: not valid YAML{where}") from None
+    except RecursionError:
+        raise ParamError(f"{source}: nested too deeply to be a parameter file") from None
     if not isinstance(doc, Mapping):
         raise ParamError(f"{source}: expected a mapping with keys {', '.join(_TOP_KEYS)}")
     for key in doc:

@@ -127,9 +127,10 @@ def test_killed_worker_trial_is_failed_and_retried_once_with_same_params(gait_tu
     assert f"worker" in err and "died" in err
     t = tally(load("wk", None, runs))
     assert t["done"] == 10 and t["running"] == 0                       # overshoot 0, stale 0
-    [failed] = [f for f in t["failed"] if f.number == number]
-    assert failed.user_attrs["failed"] == "its worker died"
-    [retry] = [r for r in t["retries"] if r.user_attrs["retry_of"] == number]
+    # the trial it was walking when the signal landed (the one seen running may have just ended)
+    [failed] = [f for f in t["failed"] if f.user_attrs["worker"]["pid"] == pid]
+    assert failed.number >= number and failed.user_attrs["failed"] == "its worker died"
+    [retry] = [r for r in t["retries"] if r.user_attrs["retry_of"] == failed.number]
     assert retry.params == failed.params and retry.state in DONE
 
 
@@ -315,8 +316,10 @@ def test_postgres_killed_worker_trial_is_failed_and_retried(postgres, gait_tuner
     assert [p.returncode for p in procs] == [0, 0], errs
     t = tally(load("retry", url, tmp_path))
     assert t["done"] == 10 and t["running"] == 0
-    [retry] = [r for r in t["retries"] if r.user_attrs["retry_of"] == number]
-    assert retry.state in DONE
+    [failed] = [f for f in t["failed"] if f.user_attrs["worker"]["pid"] == pid]
+    assert failed.number >= number
+    [retry] = [r for r in t["retries"] if r.user_attrs["retry_of"] == failed.number]
+    assert retry.params == failed.params and retry.state in DONE
 
 
 @pytest.mark.parametrize("kind, n", [("postgresql", 5), ("sqlite", 4)])

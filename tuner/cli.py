@@ -88,6 +88,8 @@ def trajectory(family: str | None, params_spec: str | None, robot_name: str, out
     [rad], CoM, ZMP reference, pelvis and feet [m], support phase), OUT/params.yaml (the
     exact parameters used) and OUT/references.png.
     """
+    if not str(out_dir).strip() or str(out_dir) == ".":
+        raise UserError("--out: give a folder for the joint table, e.g. --out runs/tk")
     from .robots import load_robot
 
     gait_file = resolve_params(params_spec, family)
@@ -152,8 +154,9 @@ def simulate(robot_name: str, surface_name: str, family: str | None, params_spec
     gait_file = resolve_params(params_spec, family)
     robot = load_robot(robot_name)
     surface = load_surface(surface_name)
-    if duration is not None and duration <= 0:
-        raise UserError(f"--duration must be positive, got {duration:g} s")
+    from .search.study import MAX_DURATION_S
+    if duration is not None and not 0 < duration <= MAX_DURATION_S:     # NaN fails this too
+        raise UserError(f"--duration must be in (0, {MAX_DURATION_S:g}] s, got {duration:g} s")
     sim = Simulator(robot, surface)
     cmd = _parse_command(command)
     if cmd is None:
@@ -624,6 +627,9 @@ def robustness(params_spec: str, robot_name: str, surface_name: str, rollouts: i
     gait_file = resolve_params(params_spec, None)
     doc = randomisation_spec if randomisation_spec in (None, "none") else \
         read_yaml_file(Path(randomisation_spec), "randomisation")
+    if randomisation_spec not in (None, "none") and doc is None:
+        raise UserError(f"--randomisation {randomisation_spec}: the file is empty (give a mapping of "
+                        f"fields to override, or leave --randomisation out for the defaults)")
     rnd = randomisation_from_mapping(doc, randomisation_spec or "--randomisation")
     try:
         sizes = tuple(float(v) for v in pushes.split(",") if v.strip())
@@ -727,7 +733,11 @@ def main(argv: list[str] | None = None) -> int:
         click.echo("gait-tuner: interrupted", err=True)
         return 130
     except click.ClickException as exc:
-        exc.show()
+        # one line, as for every other bad input (click's own output is a usage block)
+        ctx = getattr(exc, "ctx", None)
+        hint = f" (see `{ctx.command_path} --help`)" if ctx is not None else ""
+        msg = " ".join(exc.format_message().split())
+        click.echo(f"gait-tuner: error: {msg}{hint}", err=True)
         return EXIT_USAGE
     except (UserError, ParamError, UnreachableTargetError) as exc:
         click.echo(f"gait-tuner: error: {exc}", err=True)

@@ -23,6 +23,7 @@ import numpy as np  # noqa: E402
 
 import gaits  # noqa: E402
 
+from ..errors import UserError  # noqa: E402
 from .experiments import EROS_STEPS_MM  # noqa: E402
 from ..sim.metrics import summarize  # noqa: E402
 from ..params_io import resolve_params  # noqa: E402
@@ -192,7 +193,14 @@ def _study_plots(study_file: str, runs_dir: Path, out_dir: Path) -> None:
 
     spec = load_study(study_file)
     optuna.logging.set_verbosity(optuna.logging.WARNING)
-    study = optuna.load_study(study_name=spec.name, storage=open_storage(spec, None, runs_dir))
+    journal = Path(runs_dir) / f"{spec.name}.journal"
+    if not journal.exists():
+        raise UserError(f"--study {study_file}: no runs of study {spec.name!r} in {journal} "
+                        f"(run `gait-tuner tune {study_file}` first, or leave --study out)")
+    try:
+        study = optuna.load_study(study_name=spec.name, storage=open_storage(spec, None, runs_dir))
+    except KeyError:
+        raise UserError(f"--study {study_file}: {journal} holds no study named {spec.name!r}") from None
     plots = {"history": lambda: ovm.plot_optimization_history(study, target=lambda t: t.values[0],
                                                               target_name="pitch score [deg]"),
              "importances": lambda: ovm.plot_param_importances(study, target=lambda t: t.values[0])}

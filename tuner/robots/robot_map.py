@@ -25,6 +25,7 @@ what is allowed.
 from __future__ import annotations
 
 import dataclasses
+import re
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -87,7 +88,9 @@ def load_map(path: Path) -> RobotModel:
     except Exception as exc:
         raise UserError(f"{source}: {mjcf.name} does not load in MuJoCo: {str(exc).splitlines()[0]}") from None
     name = doc.get("name", path.stem)
-    _require(isinstance(name, str) and name.strip() != "", source, f"name = {name!r}: expected a non-empty string")
+    _require(isinstance(name, str) and re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9._ -]{0,99}", name) is not None,
+             source, f"name = {name!r}: expected letters, digits, '.', '_', '-' or spaces (at most 100, "
+                     f"no path: it names exported files)")
 
     torso = doc["torso"]
     _require(_has(model, mujoco.mjtObj.mjOBJ_BODY, torso), source, f"torso body {torso!r} not in {mjcf.name}")

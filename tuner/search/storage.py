@@ -137,32 +137,27 @@ def _cut_torn_tail(path: Path, warn: bool = True) -> int:
 
 
 def repair_journal(path: Path) -> int:
-    """Cut a torn last line (no newline, or not JSON) from a journal, under its lock.
+    """Cut a torn last line (bytes after the last newline: Optuna writes each record and its
+    newline in one write, so a kill or a full disk mid-write leaves exactly that), under its lock.
 
-    Returns the bytes cut. A bad line *before* the last is not guessed at: that is a
-    :class:`UserError` naming the line, since dropping it would silently lose a trial.
+    Returns the bytes cut. A whole line that is not JSON is not guessed at: opening the journal
+    then fails with a :class:`UserError` naming the file, since dropping it could lose a trial.
     """
     if not path.exists() or path.stat().st_size == 0:
         return 0
     with FlockLock(path):
         cut = _cut_torn_tail(path)
         size = path.stat().st_size
-        if size == 0:
-            return cut
         with open(path, "rb") as f:
             f.seek(max(0, size - (1 << 20)))
-            lines = f.read().split(b"\n")[:-1]
-        last = lines[-1] if lines else b""
+            lines = f.read().split(b"\n")
+    last = lines[-2] if len(lines) >= 2 else b""
+    if size:
         try:
             json.loads(last)
-        except ValueError:
-            # a whole line that is not JSON: if it is the last one, it is a torn write
-            # that happened to end on a newline byte; cut it too
-            with open(path, "rb+") as f:
-                f.truncate(size - len(last) - 1)
-            print(f"gait-tuner: warning: {path}: cut a last line that is not JSON "
-                  f"({len(last)} bytes)", file=sys.stderr)
-            cut += len(last) + 1
+        except ValueError:      # Optuna's reader skips a bad last line silently: say so instead
+            raise UserError(f"journal {path} is corrupt: its last line is not a journal record "
+                            f"(not a file written by gait-tuner, or edited)") from None
     return cut
 
 
@@ -298,7 +293,7 @@ class StudyStore:
     @classmethod
     def open(cls, name: str, storage: str | None, runs_dir: Path) -> "StudyStore":
         """The journal ``runs_dir/<name>.journal`` unless ``storage`` is a URL."""
-        if storage:
+        if storage is not None:
             return cls(url=normalise_url(storage))
         runs = Path(runs_dir)
         if runs.exists() and not runs.is_dir():

@@ -46,17 +46,22 @@ the allowed values.
 from __future__ import annotations
 
 import dataclasses
+import math
+import re
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, Mapping
 
 
-from gaits import GaitParams, family_class
+from gaits import GaitParams, families, family_class
 
 from ..errors import UserError
 from ..params_io import resolve_params
 from ..sim.surfaces import SURFACES, load_surface
 from ..yaml_input import read_yaml_file
+
+MAX_DURATION_S = 600.0                                  # [s] longest rollout a study may ask for
+NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,99}")   # a study name is a file name in runs/
 
 __all__ = ["ParamRange", "SpeedSpec", "StudySpec", "load_study", "STUDY_DIR", "list_studies", "OBJECTIVES"]
 
@@ -191,6 +196,8 @@ def load_study(path_or_name: str) -> StudySpec:
         if key not in doc:
             _fail(source, f"missing {key!r}")
     gait = doc["gait"]
+    if not isinstance(gait, str):
+        _fail(source, f"gait must be a family name ({', '.join(families())}), got {gait!r}")
     try:
         cls = family_class(str(gait))
     except Exception as exc:
@@ -232,9 +239,13 @@ def load_study(path_or_name: str) -> StudySpec:
             _fail(source, f"space: {name!r} is also fixed")
         if not isinstance(rng, Mapping) or not {"low", "high"} <= set(rng) or not set(rng) <= {"low", "high", "log"}:
             _fail(source, f"space: {name} must be {{low: ..., high: ..., log: false}}")
-        low, high, log = rng["low"], rng["high"], bool(rng.get("log", False))
+        low, high, log = rng["low"], rng["high"], rng.get("log", False)
+        if not isinstance(log, bool):
+            _fail(source, f"space: {name}.log must be true or false, got {log!r}")
         if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in (low, high)):
             _fail(source, f"space: {name} bounds must be numbers, got {low!r}, {high!r}")
+        if not all(math.isfinite(v) for v in (low, high)):
+            _fail(source, f"space: {name} bounds must be finite, got {low!r}, {high!r}")
         if not low < high:
             _fail(source, f"space: {name} bounds reversed or empty: low = {low}, high = {high}")
         meta = numeric[name].metadata
@@ -251,6 +262,8 @@ def load_study(path_or_name: str) -> StudySpec:
     if not isinstance(surfaces, list) or not surfaces:
         _fail(source, "surfaces must be a list of surface names or files")
     for s in surfaces:
+        if not isinstance(s, str):
+            _fail(source, f"surfaces: {s!r} is not a surface name or file")
         if s not in SURFACES:
             try:
                 load_surface(str(s))
@@ -278,12 +291,16 @@ def load_study(path_or_name: str) -> StudySpec:
     if not isinstance(trials, int) or isinstance(trials, bool) or not 1 <= trials <= 100_000:
         _fail(source, f"trials must be an integer in [1, 100000], got {trials!r}")
     duration = doc.get("duration")
-    if duration is not None and (not isinstance(duration, (int, float)) or duration <= 0):
-        _fail(source, f"duration must be a positive number of seconds or null, got {duration!r}")
+    if duration is not None and (not isinstance(duration, (int, float)) or isinstance(duration, bool)
+                                 or not 0 < duration <= MAX_DURATION_S):
+        _fail(source, f"duration must be a number of seconds in (0, {MAX_DURATION_S:g}] or null, "
+                      f"got {duration!r}")
     enqueue = doc.get("enqueue", ["casadi", "baselines"])
     if not isinstance(enqueue, list) or any(e not in ("casadi", "baselines") for e in enqueue):
         _fail(source, f"enqueue must list casadi and/or baselines, got {enqueue!r}")
     extra_sets = []
+    if not isinstance(doc.get("baselines") or [], list):
+        _fail(source, f"baselines must be a list of parameter sets, got {doc.get('baselines')!r}")
     for b in doc.get("baselines") or []:
         try:
             gf = resolve_params(str(b), gait)
@@ -293,14 +310,21 @@ def load_study(path_or_name: str) -> StudySpec:
     seed = doc.get("sampler_seed", 0)
     if not isinstance(seed, int) or isinstance(seed, bool):
         _fail(source, f"sampler_seed must be an integer, got {seed!r}")
+    name = doc.get("name") or path.stem
+    if not isinstance(name, str) or not NAME_PATTERN.fullmatch(name):
+        _fail(source, f"name must be letters, digits, '.', '_' or '-' (at most 100, no path), "
+                      f"got {name!r}")
+    description = doc.get("description") or ""
+    if not isinstance(description, str):
+        _fail(source, f"description must be text, got {type(description).__name__}")
     robot = _study_robot(doc.get("robot", "kidsize"), path, source)
     robust = _study_robust(doc.get("robust"), source)
-    return StudySpec(name=str(doc.get("name") or path.stem), gait=str(gait), base=base,
+    return StudySpec(name=name, gait=str(gait), base=base,
                      space=tuple(space), surfaces=tuple(str(s) for s in surfaces), robot=str(robot),
                      aggregate=aggregate, objectives=tuple(objectives), trials=trials,
                      duration=None if duration is None else float(duration), enqueue=tuple(enqueue),
                      baselines=tuple(extra_sets), sampler_seed=seed,
-                     description=str(doc.get("description") or ""), source=source, robust=robust,
+                     description=description, source=source, robust=robust,
                      stabiliser=stabiliser, speed=speed)
 
 

@@ -1,0 +1,342 @@
+"""Every bad input is one line on stderr and exit 2, naming what is wrong: a generated suite over
+every file kind (study, robot map, gait parameters, surface, randomisation) and every verb.
+
+The cases run the real CLI entry point (:func:`tuner.cli.main`) in this process, which is what
+the console script calls, so several hundred cases cost seconds; ``test_cli.py`` and
+``test_storage.py`` run the console script in subprocesses. Each case asserts: exit code 2, one
+line, the ``gait-tuner: error:`` prefix, no traceback, and the words that name the field.
+"""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import pytest
+import yaml
+
+from tuner.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+MAP = ROOT / "examples" / "robots" / "kid3kg" / "kid3kg.yaml"
+
+STUDY = {"name": "bad", "robot": "kidsize", "surfaces": ["rigid"], "gait": "tlipfm",
+         "base": "tkux-table2", "fixed": {"n_steps": 4},
+         "space": {"period": {"low": 0.5, "high": 0.8}}, "objectives": ["pitch_rms"],
+         "trials": 2, "duration": 2.0, "enqueue": [], "sampler_seed": 0}
+
+PARAMS = {"gait": "tlipfm", "params": {"period": 0.64}}
+SURFACE = {"layer_height": 0.01, "friction": 0.9}
+RANDOM = {"mass_scale": 0.1}
+
+DELETE = object()
+
+
+def _set(doc: dict, path: str, value) -> dict:
+    doc = copy.deepcopy(doc)
+    keys = path.split(".")
+    node = doc
+    for k in keys[:-1]:
+        node = node[k]
+    if value is DELETE:
+        del node[keys[-1]]
+    else:
+        node[keys[-1]] = value
+    return doc
+
+
+# (field path, bad value, words the message must hold)
+STUDY_FIELDS = [
+    ("name", "../escape", "name must be"), ("name", "a/b", "name must be"), ("name", 5, "name must be"),
+    ("name", "x" * 200, "name must be"), ("name", ["a"], "name must be"), ("name", ".hidden", "name must be"),
+    ("robot", 5, "robot"), ("robot", "nope-robot", "robot"), ("robot", "", "robot"),
+    ("robot", ["kidsize"], "robot"), ("robot", "missing/map.yaml", "robot"),
+    ("surfaces", [], "surfaces"), ("surfaces", ["nope"], "surfaces"), ("surfaces", [1], "surfaces"),
+    ("surfaces", {"a": 1}, "surfaces"), ("surfaces", [None], "surfaces"), ("surfaces", 7, "surfaces"),
+    ("gait", "nope", "gait"), ("gait", 3, "gait"), ("gait", None, "gait"), ("gait", ["tlipfm"], "gait"),
+    ("gait", DELETE, "missing 'gait'"),
+    ("base", "no-such-baseline", "base"), ("base", 5, "base"), ("base", "eros-x8-with", "base"),
+    ("fixed", [1, 2], "fixed"), ("fixed", {"nope": 1}, "fixed: unknown parameter 'nope'"),
+    ("fixed", {"period": "slow"}, "period"), ("fixed", {"period": float("nan")}, "period"),
+    ("fixed", {"period": -1.0}, "period"), ("fixed", {"period": True}, "period"),
+    ("fixed", {"n_steps": 2.5}, "n_steps"), ("fixed", {"n_steps": 0}, "n_steps"),
+    ("space", {}, "space"), ("space", [], "space"), ("space", None, "space"), ("space", DELETE, "missing 'space'"),
+    ("space", {"period": {"low": 0.8, "high": 0.5}}, "period bounds reversed"),
+    ("space", {"period": {"low": "a", "high": 0.8}}, "period bounds must be numbers"),
+    ("space", {"period": {"low": 0.5}}, "period must be"),
+    ("space", {"period": 5}, "period must be"),
+    ("space", {"period": {"low": 0.5, "high": 0.8, "extra": 1}}, "period must be"),
+    ("space", {"period": {"low": float("nan"), "high": 0.8}}, "period bounds must be finite"),
+    ("space", {"period": {"low": 0.5, "high": float("inf")}}, "period bounds must be finite"),
+    ("space", {"period": {"low": 0.5, "high": 0.8, "log": "false"}}, "period.log must be true or false"),
+    ("space", {"period": {"low": 0.5, "high": 0.8, "log": 1}}, "period.log must be true or false"),
+    ("space", {"period": {"low": True, "high": 0.8}}, "period bounds must be numbers"),
+    ("space", {"period": {"low": 0.01, "high": 0.8}}, "period range"),
+    ("space", {"nope": {"low": 0.0, "high": 1.0}}, "unknown or non-numeric parameter 'nope'"),
+    ("space", {"n_steps": {"low": 2, "high": 6}, "period": {"low": 0.5, "high": 0.8}}, "'n_steps' is also fixed"),
+    ("space", {"stabiliser.nope": {"low": 0.0, "high": 1.0}}, "stabiliser"),
+    ("objectives", [], "objectives"), ("objectives", ["nope"], "objectives"),
+    ("objectives", "pitch_rms", "objectives"), ("objectives", ["pitch_rms", "pitch_rms"], "objectives"),
+    ("objectives", ["speed"], "objectives"), ("objectives", None, "objectives"),
+    ("trials", 0, "trials"), ("trials", -5, "trials"), ("trials", "ten", "trials"), ("trials", 1.5, "trials"),
+    ("trials", True, "trials"), ("trials", 10 ** 9, "trials"), ("trials", None, "trials"),
+    ("duration", 0, "duration"), ("duration", -1, "duration"), ("duration", "long", "duration"),
+    ("duration", float("nan"), "duration"), ("duration", float("inf"), "duration"), ("duration", True, "duration"),
+    ("duration", 1e9, "duration"), ("duration", [2], "duration"),
+    ("enqueue", ["nope"], "enqueue"), ("enqueue", "casadi", "enqueue"), ("enqueue", 5, "enqueue"),
+    ("sampler_seed", "x", "sampler_seed"), ("sampler_seed", 1.5, "sampler_seed"),
+    ("sampler_seed", True, "sampler_seed"), ("sampler_seed", None, "sampler_seed"),
+    ("aggregate", "nope", "aggregate"), ("aggregate", 3, "aggregate"),
+    ("description", ["a"], "description"), ("description", {"a": 1}, "description"),
+    ("baselines", ["no-such-set"], "baselines"), ("baselines", 5, "baselines"),
+    ("nope", 1, "unknown key 'nope'"), ("robust", 5, "robust"), ("robust", {"rollouts": 0}, "rollouts"),
+    ("robust", {"rollouts": "many"}, "rollouts"), ("robust", {"risk": "nope"}, "risk"),
+    ("robust", {"min_survival": 2}, "min_survival"), ("robust", {"nope": 1}, "nope"),
+    ("robust", {"randomisation": {"mass_scale": -1}}, "mass_scale"),
+    ("robust", {"randomisation": {"nope": 1}}, "nope"), ("robust", {"randomisation": 7}, "randomisation"),
+    ("stabiliser", 5, "stabiliser"), ("stabiliser", {"nope": 1}, "nope"),
+    ("stabiliser", {"enabled": "yes"}, "enabled"), ("stabiliser", {"k_ankle_pitch": float("nan")}, "k_ankle_pitch"),
+    ("speed", 5, "speed"), ("speed", {"directions": {}}, "directions"),
+    ("speed", {"directions": {"sideways": {"top": 0.1}}}, "sideways"),
+    ("speed", {"directions": {"forward": {"top": -0.1}}}, "top"),
+    ("speed", {"directions": {"forward": {"top": 0.2}}, "levels": 0}, "levels"),
+    ("speed", {"directions": {"forward": {"top": 0.2}}, "tolerance": 2}, "tolerance"),
+    ("speed", {"directions": {"forward": {"top": 0.2}}, "mode": "nope"}, "mode"),
+]
+
+MAP_DOC = yaml.safe_load(MAP.read_text())
+MAP_FIELDS = [
+    ("mjcf", DELETE, "mjcf"), ("mjcf", "missing.xml", "missing.xml"), ("mjcf", 5, "mjcf"),
+    ("mjcf", ["a.xml"], "mjcf"), ("name", ["x"], "name"), ("name", "../x", "name"),
+    ("torso", "nope_body", "nope_body"), ("torso", 5, "torso"), ("torso", DELETE, "torso"),
+    ("feet", {"left": "foot_l"}, "feet"), ("feet", "foot_l", "feet"), ("feet", {"left": "nope", "right": "foot_r"}, "nope"),
+    ("feet", {"left": "foot_l", "right": "foot_l"}, "feet"),
+    ("joints", {}, "joints"), ("joints", [1, 2], "joints"), ("joints.l_knee", "NoSuchJoint", "NoSuchJoint"),
+    ("joints.l_knee", DELETE, "l_knee"), ("joints.nope_joint", "Knee_L", "nope_joint"),
+    ("joints.l_knee", 5, "l_knee"), ("joints.r_knee", "Knee_L", "Knee_L"),
+    ("servo", 5, "servo"), ("servo.legs", {"kp": -1}, "kp"), ("servo.legs", {"kp": float("nan")}, "kp"),
+    ("servo.legs", {"kp": "stiff"}, "kp"), ("servo.legs", {"torque": 0}, "torque"),
+    ("servo.legs", {"speed": -2}, "speed"), ("servo.legs", {"kp": True}, "kp"),
+    ("servo.legs", {"preset": "MX-999"}, "MX-999"), ("servo.legs", "MX-999", "MX-999"),
+    ("servo.legs", {"nope": 1}, "nope"), ("servo.tail", {"kp": 10}, "tail"),
+    ("servo.legs", {"kp": 1e9}, "kp"), ("servo.legs", {"kv": -1}, "kv"),
+    ("pose", 5, "pose"), ("pose", {"NoSuchJoint": 0.1}, "NoSuchJoint"), ("pose", {"ShoRoll_L": "up"}, "ShoRoll_L"),
+    ("pose", {"ShoRoll_L": float("nan")}, "ShoRoll_L"),
+    ("sim", 5, "sim"), ("sim", {"control_period": 0}, "control_period"), ("sim", {"timestep": -1}, "timestep"),
+    ("sim", {"max_tilt_deg": "x"}, "max_tilt_deg"), ("sim", {"nope": 1}, "nope"),
+    ("leg", {"thigh": -0.1}, "thigh"), ("leg", {"nope": 1}, "nope"), ("leg", 5, "leg"),
+    ("nope", 1, "nope"),
+]
+
+PARAMS_FIELDS = [
+    ("gait", "nope", "nope"), ("gait", 5, "gait"), ("gait", DELETE, "gait"),
+    ("params", [1], "params"), ("params", "x", "params"), ("params.nope", 1, "nope"),
+    ("params.period", "slow", "period"), ("params.period", float("nan"), "period"),
+    ("params.period", -1, "period"), ("params.period", True, "period"), ("params.period", 100.0, "period"),
+    ("params.n_steps", 2.5, "n_steps"), ("params.n_steps", -3, "n_steps"), ("params.h_z", 10.0, "h_z"),
+    ("params.t1", 0.6, "t1"), ("stabiliser", 5, "stabiliser"), ("stabiliser", {"nope": 1}, "nope"),
+    ("stabiliser", {"k_ankle_pitch": "x"}, "k_ankle_pitch"), ("nope", 1, "nope"),
+]
+
+SURFACE_FIELDS = [
+    ("layer_height", -0.01, "layer_height"), ("layer_height", 5.0, "layer_height"), ("layer_height", "x", "layer_height"),
+    ("layer_height", float("nan"), "layer_height"), ("friction", 0, "friction"), ("friction", True, "friction"),
+    ("drag", -1, "drag"), ("layer_timeconst", 0, "layer_timeconst"), ("layer_dmin", 1.5, "layer_dmin"),
+    ("layer_dmax", 0, "layer_dmax"), ("soil_friction", "rough", "soil_friction"), ("nope", 1, "nope"),
+    ("name", 5, "name"),
+]
+
+RANDOM_FIELDS = [
+    ("mass_scale", -0.1, "mass_scale"), ("mass_scale", 2.0, "mass_scale"), ("mass_scale", "x", "mass_scale"),
+    ("latency_ticks", 1.5, "latency_ticks"), ("latency_ticks", 99, "latency_ticks"), ("push", -1, "push"),
+    ("tilt_deg", float("nan"), "tilt_deg"), ("kp_scale", True, "kp_scale"), ("nope", 1, "nope"),
+    ("backlash", [0.1], "backlash"),
+]
+
+
+def _ids(rows):
+    return [f"{path}={value!r}"[:60] for path, value, _ in rows]
+
+
+@pytest.fixture
+def workdir(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    return tmp_path
+
+
+def run_bad(capsys, argv: list[str], words: str) -> None:
+    code = main([str(a) for a in argv])
+    err = capsys.readouterr().err.strip()
+    lines = err.splitlines()
+    assert code == 2, (code, err)
+    assert len(lines) == 1, err
+    assert lines[0].startswith("gait-tuner: error:"), err
+    assert "Traceback" not in err
+    assert words.lower() in lines[0].lower(), (words, err)
+
+
+def dump(path: Path, doc) -> Path:
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return path
+
+
+@pytest.mark.parametrize("field, value, words", STUDY_FIELDS, ids=_ids(STUDY_FIELDS))
+def test_study_fields(capsys, workdir, field, value, words):
+    study = dump(workdir / "study.yaml", _set(STUDY, field, value))
+    run_bad(capsys, ["tune", study, "--workers", "1"], words)
+
+
+@pytest.mark.parametrize("field, value, words", MAP_FIELDS, ids=_ids(MAP_FIELDS))
+def test_robot_map_fields(capsys, workdir, field, value, words):
+    (workdir / "kid3kg.xml").write_text((MAP.parent / "kid3kg.xml").read_text())
+    robot = dump(workdir / "robot.yaml", _set(MAP_DOC, field, value))
+    run_bad(capsys, ["robot", "check", robot], words)
+
+
+@pytest.mark.parametrize("field, value, words", PARAMS_FIELDS, ids=_ids(PARAMS_FIELDS))
+def test_params_fields(capsys, workdir, field, value, words):
+    params = dump(workdir / "params.yaml", _set(PARAMS, field, value))
+    run_bad(capsys, ["simulate", "--params", params, "--surface", "rigid", "--duration", "0.5"], words)
+
+
+@pytest.mark.parametrize("field, value, words", SURFACE_FIELDS, ids=_ids(SURFACE_FIELDS))
+def test_surface_fields(capsys, workdir, field, value, words):
+    surface = dump(workdir / "turf.yaml", _set(SURFACE, field, value))
+    run_bad(capsys, ["simulate", "--params", "tkux-table2", "--surface", surface, "--duration", "0.5"], words)
+
+
+@pytest.mark.parametrize("field, value, words", RANDOM_FIELDS, ids=_ids(RANDOM_FIELDS))
+def test_randomisation_fields(capsys, workdir, field, value, words):
+    rnd = dump(workdir / "random.yaml", _set(RANDOM, field, value))
+    run_bad(capsys, ["robustness", "--params", "tkux-table2", "--surface", "rigid", "--rollouts", "1",
+                     "--randomisation", rnd], words)
+
+
+# -- file kinds, for every option that reads a file ---------------------------------------------
+
+KINDS = {
+    "binary": (b"\x00\x01\x02binary\xff", "binary"),
+    "latin1": ("name: caf\xe9\n".encode("latin-1"), "not UTF-8"),
+    "nested": (b"a: " + b"[" * 5000 + b"]" * 5000 + b"\n", "nested too deeply"),
+    "empty": (b"", ""),
+    "list": (b"- 1\n- 2\n", ""),
+    "scalar": (b"42\n", ""),
+    "badyaml": (b"a: [1, 2\nb: }\n", ""),
+    "directory": (None, "directory"),
+    "missing": (False, ""),
+}
+FILE_OPTIONS = {
+    "study": lambda f: ["tune", f, "--workers", "1"],
+    "robot": lambda f: ["robot", "check", f],
+    "robot-simulate": lambda f: ["simulate", "--params", "tkux-table2", "--robot", f, "--duration", "0.5"],
+    "params": lambda f: ["simulate", "--params", f, "--duration", "0.5"],
+    "surface": lambda f: ["simulate", "--params", "tkux-table2", "--surface", f, "--duration", "0.5"],
+    "randomisation": lambda f: ["robustness", "--params", "tkux-table2", "--rollouts", "1", "--randomisation", f],
+    "compare": lambda f: ["compare", f, "--out", "cmp"],
+    "export-study": lambda f: ["export", f, "--out", "x.yaml"],
+    "trials-study": lambda f: ["trials", f],
+}
+
+
+@pytest.mark.parametrize("kind", list(KINDS))
+@pytest.mark.parametrize("option", list(FILE_OPTIONS))
+def test_file_kinds(capsys, workdir, option, kind):
+    content, words = KINDS[kind]
+    path = workdir / f"input-{option}.yaml"
+    if content is None:
+        path.mkdir()
+    elif content is not False:
+        path.write_bytes(content)
+    run_bad(capsys, FILE_OPTIONS[option](path), words)
+
+
+# -- option values -------------------------------------------------------------------------------
+
+OPTIONS = [
+    (["simulate", "--params", "tkux-table2", "--duration", "-1"], "duration"),
+    (["simulate", "--params", "tkux-table2", "--duration", "nan"], "duration"),
+    (["simulate", "--params", "tkux-table2", "--duration", "abc"], "duration"),
+    (["simulate", "--params", "tkux-table2", "--duration", "1e9"], "duration"),
+    (["simulate", "--params", "tkux-table2", "--surface", "nope"], "nope"),
+    (["simulate", "--params", "no-such-set"], "no-such-set"),
+    (["simulate", "--params", "tkux-table2", "--command", "a,b,c"], "command"),
+    (["simulate", "--params", "tkux-table2", "--command", "0.1,0"], "command"),
+    (["simulate", "--params", "tkux-table2", "--command", "9,0,0"], "command"),
+    (["simulate", "--params", "tkux-table2", "--command", "nan,0,0"], "command"),
+    (["simulate", "--params", "eros-x8-with", "--command", "0.1,0,0"], "command"),
+    (["simulate", "--params", "tkux-table2", "--robot", "nope-robot"], "nope-robot"),
+    (["simulate", "--gait", "nope"], "nope"),
+    (["simulate", "--nope"], "nope"),
+    (["trajectory", "--gait", "tlipfm", "--out", ""], "out"),
+    (["trajectory", "--params", "tkux-table2", "--command", "1,2", "--out", "o"], "command"),
+    (["tune", "quickstart", "--trials", "0"], "trials"),
+    (["tune", "quickstart", "--trials", "ten"], "trials"),
+    (["tune", "quickstart", "--workers", "0"], "workers"),
+    (["tune", "quickstart", "--workers", "1000"], "workers"),
+    (["tune", "quickstart", "--seed", "abc"], "seed"),
+    (["tune", "quickstart", "--storage", "nonsense"], "storage"),
+    (["tune", "quickstart", "--storage", ""], "storage"),
+    (["tune", "quickstart", "--storage", "sqlite://"], "storage"),
+    (["tune", "quickstart", "--storage", "sqlite:////no/such/dir/x.db"], "does not exist"),
+    (["tune", "quickstart", "--storage", "oracle://u@h/db"], "oracle"),
+    (["tune", "quickstart", "--storage", "postgresql://u@127.0.0.1:1/db"], "cannot"),
+    (["tune", "quickstart", "--storage", "mysql+nope://u@h/db"], "storage"),
+    (["tune", "no-such-study"], "no-such-study"),
+    (["worker", "quickstart", "--storage", "nonsense"], "storage"),
+    (["worker", "quickstart", "--workers", "0"], "workers"),
+    (["worker"], "STUDY"),
+    (["export", "quickstart", "--out", "x.yaml", "--runs", "never-tuned"], "no runs"),
+    (["trials", "quickstart", "--runs", "never-tuned"], "no runs"),
+    (["compare", "tkux-table2", "--study", "quickstart", "--runs", "never-tuned", "--out", "c"], "quickstart"),
+    (["compare", "tkux-table2", "--random-rollouts", "-1", "--out", "c"], "random-rollouts"),
+    (["compare", "no-such-set", "--out", "c"], "no-such-set"),
+    (["compare", "tkux-table2", "--surfaces", "", "--out", "c"], "surfaces"),
+    (["compare", "tkux-table2", "--surfaces", "nope", "--out", "c"], "nope"),
+    (["export", "quickstart", "--trial", "-1", "--runs", "never-tuned"], "no runs"),
+    (["robustness", "--params", "tkux-table2", "--rollouts", "0"], "rollouts"),
+    (["robustness", "--params", "tkux-table2", "--pushes", "a"], "pushes"),
+    (["robustness", "--params", "tkux-table2", "--pushes", "-1"], "pushes"),
+    (["robustness", "--params", "tkux-table2", "--pushes", "999"], "pushes"),
+    (["robustness", "--params", "tkux-table2", "--seed", "x"], "seed"),
+    (["robustness", "--params", "tkux-table2", "--surface", "nope"], "nope"),
+    (["robustness", "--params", "tkux-table2", "--stabiliser"], "stabiliser"),
+    (["experiment", "nope"], "nope"),
+    (["experiment", "tlipfm", "--surface", "nope"], "nope"),
+    (["params", "nope"], "nope"),
+    (["robot", "check", "no-such-map.yaml"], "no-such-map"),
+    (["robot", "nope"], "nope"),
+    (["nope-verb"], "nope-verb"),
+]
+
+
+@pytest.mark.parametrize("argv, words", OPTIONS, ids=[" ".join(a)[:60] for a, _ in OPTIONS])
+def test_option_values(capsys, workdir, argv, words):
+    run_bad(capsys, argv, words)
+
+
+def test_runs_folder_that_is_a_file(capsys, workdir):
+    (workdir / "runs").write_text("not a folder")
+    run_bad(capsys, ["tune", "quickstart", "--runs", "runs"], "--runs")
+
+
+def test_runs_folder_read_only(capsys, workdir):
+    import os
+    if os.geteuid() == 0:
+        pytest.skip("root writes anywhere")
+    ro = workdir / "ro"
+    ro.mkdir(mode=0o500)
+    run_bad(capsys, ["tune", "quickstart", "--runs", ro], "not writable")
+
+
+def test_journal_that_is_not_a_journal(capsys, workdir):
+    runs = workdir / "runs"
+    runs.mkdir()
+    (runs / "quickstart.journal").write_bytes(b"\x00\x01 not json\n")
+    run_bad(capsys, ["trials", "quickstart"], "journal")
+
+
+def test_the_suite_is_as_large_as_promised():
+    n = (len(STUDY_FIELDS) + len(MAP_FIELDS) + len(PARAMS_FIELDS) + len(SURFACE_FIELDS) + len(RANDOM_FIELDS)
+         + len(KINDS) * len(FILE_OPTIONS) + len(OPTIONS) + 3)
+    assert n >= 200, n
