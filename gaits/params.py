@@ -189,32 +189,40 @@ class GaitFile:
 _TOP_KEYS = ("gait", "description", "params", "stabiliser")
 
 
+def read_yaml(path: str | Path, what: str, error: type[Exception] = ParamError) -> Any:
+    """The parsed document of a user's YAML file; every way it can be wrong is one ``error``
+    naming the file: a directory, a missing file, binary or non-UTF-8 content, YAML syntax, and
+    nesting deep enough to exhaust the parser. ``what`` names the kind of file in messages."""
+    path = Path(path)
+    if path.is_dir():
+        raise error(f"{path}: is a directory, expected a {what} YAML file")
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise error(f"{path}: no such {what} file") from None
+    except OSError as exc:
+        raise error(f"{path}: cannot read the {what} file ({exc.strerror})") from None
+    if b"\x00" in raw:
+        raise error(f"{path}: is a binary file, expected a {what} YAML file")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise error(f"{path}: is not UTF-8 text (byte {exc.start})") from None
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        raise error(f"{path}: not valid YAML{where}") from None
+    except RecursionError:
+        raise error(f"{path}: nested too deeply to be a {what} file") from None
+
+
 def load_gait_file(path: str | Path) -> GaitFile:
     """Read and validate a ``{gait, description, params}`` YAML file."""
     path = Path(path)
     source = str(path)
-    if path.is_dir():
-        raise ParamError(f"{source}: is a directory, expected a parameter YAML file")
-    try:
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        raise ParamError(f"{source}: no such file") from None
-    except OSError as exc:
-        raise ParamError(f"{source}: cannot read ({exc.strerror})") from None
-    if b"\x00" in raw:
-        raise ParamError(f"{source}: is a binary file, expected a parameter YAML file")
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise ParamError(f"{source}: is not UTF-8 text (byte {exc.start})") from None
-    try:
-        doc = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        raise ParamError(f"{source}: not valid YAML{where}") from None
-    except RecursionError:
-        raise ParamError(f"{source}: nested too deeply to be a parameter file") from None
+    doc = read_yaml(path, "parameter")
     if not isinstance(doc, Mapping):
         raise ParamError(f"{source}: expected a mapping with keys {', '.join(_TOP_KEYS)}")
     for key in doc:

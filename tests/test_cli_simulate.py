@@ -84,7 +84,7 @@ def test_compare_writes_report(gait_tuner_cmd, run_env, tmp_path):
     assert r.stdout.count("| tkux-table2 | rigid |") == 1        # the baseline is not listed twice
     assert (tmp_path / "compare.md").exists() and (tmp_path / "compare.png").stat().st_size > 10_000
     r = run(gait_tuner_cmd, ["compare", "nothing.yaml", "--out", str(tmp_path)], run_env)
-    assert r.returncode == 2 and "no such file" in r.stderr
+    assert r.returncode == 2 and "no such parameter file" in r.stderr
 
 
 def test_compare_rows_do_not_depend_on_workers(tmp_path):

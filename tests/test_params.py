@@ -75,7 +75,7 @@ def test_malformed_files_name_the_problem(tmp_path, text, match):
 
 
 def test_missing_file(tmp_path):
-    with pytest.raises(ParamError, match="no such file"):
+    with pytest.raises(ParamError, match="no such parameter file"):
         load_gait_file(tmp_path / "nope.yaml")
 
 
