@@ -5,6 +5,16 @@
 
 from __future__ import annotations
 
+import os as _os
+import sys as _sys
+
+# MuJoCo picks its OpenGL backend when it is first imported. With no display (a server, CI),
+# default to EGL (headless; Mesa's software renderer where there is no GPU) so `render` works;
+# with a display the default (GLFW) serves both `render` and the interactive `view`.
+if ("MUJOCO_GL" not in _os.environ and _sys.platform.startswith("linux")
+        and not _os.environ.get("DISPLAY") and not _os.environ.get("WAYLAND_DISPLAY")):
+    _os.environ["MUJOCO_GL"] = "egl"
+
 from .errors import UserError
 from .sim.metrics import DEFINITIONS, Metrics, summarize
 from .params_io import resolve_params

@@ -122,6 +122,141 @@ def trajectory(family: str | None, params_spec: str | None, robot_name: str, out
         click.echo(f"wrote {png}")
 
 
+SAVE_SCENE_OPTION = click.option(
+    "--save-scene", type=click.Path(dir_okay=False, path_type=Path), metavar="SCENE.xml",
+    help="Also write the assembled robot + surface model as one MJCF file (loads in any MuJoCo tool; "
+         "the blade drag is applied by our loop, not in the file).")
+
+
+def _walk_setup(robot_name: str, surface_name: str, family: str | None, params_spec: str | None,
+                duration: float | None, command: str | None):
+    """(gait file, robot, simulator, joint table, command) of a walk asked for on the command line."""
+    from .robots import load_robot
+    from .search.study import MAX_DURATION_S
+    from .sim.rollout import Simulator
+    from .sim.surfaces import load_surface
+
+    gait_file = resolve_params(params_spec, family)
+    robot = load_robot(robot_name)
+    surface = load_surface(surface_name)
+    if duration is not None and not 0 < duration <= MAX_DURATION_S:     # NaN fails this too
+        raise UserError(f"--duration must be in (0, {MAX_DURATION_S:g}] s, got {duration:g} s")
+    sim = Simulator(robot, surface)
+    cmd = _parse_command(command)
+    if cmd is None:
+        traj = gaits.generate(gait_file.params, robot.leg, sim.control_period)
+    else:
+        from .sim.walk_speed import command_walk
+        traj = command_walk(gait_file.params, robot, cmd, sim.control_period)
+    return gait_file, robot, sim, traj, cmd
+
+
+def _walk_options(f):
+    for opt in reversed([
+        click.option("--params", "params_spec", metavar="PATH|BASELINE",
+                     help="Parameter YAML file, shipped baseline or tuned set. Default: the family's paper baseline."),
+        click.option("--gait", "family", type=click.Choice(["eros", "tlipfm", "cosine"]),
+                     help="Gait family (taken from the parameter file if omitted)."),
+        click.option("--robot", "robot_name", default="kidsize", show_default=True, metavar="NAME|PATH",
+                     help="Built-in robot name or a robot map YAML."),
+        click.option("--surface", "surface_name", default="grass50", show_default=True, metavar="NAME|PATH",
+                     help="rigid, carpet4, grass10, grass30, grass50, or a surface YAML."),
+        click.option("--duration", type=float, help="Stop after this many seconds [s] (default: the whole gait)."),
+        COMMAND_OPTION,
+    ]):
+        f = opt(f)
+    return f
+
+
+def _parse_size(size: str) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in size.lower().split("x"))
+    except ValueError:
+        raise UserError(f"--size {size!r}: expected WIDTHxHEIGHT in pixels, e.g. 640x480") from None
+    return w, h
+
+
+@cli.command()
+@_walk_options
+@click.option("--out", required=True, type=click.Path(dir_okay=False, path_type=Path), metavar="WALK.mp4",
+              help="The video file to write (H.264 MP4).")
+@click.option("--size", default="640x480", show_default=True, help="Frame size WIDTHxHEIGHT [px], multiples of 16.")
+@click.option("--fps", default=30, show_default=True, type=int, help="Frames per second.")
+@click.option("--no-overlay", is_flag=True, help="No text over the frames.")
+@SAVE_SCENE_OPTION
+def render(robot_name: str, surface_name: str, family: str | None, params_spec: str | None,
+           duration: float | None, command: str | None, out: Path, size: str, fps: int, no_overlay: bool,
+           save_scene: Path | None) -> None:
+    """Film a walk: an MP4 from MuJoCo's offscreen renderer, headless.
+
+    The camera tracks the torso; grass is drawn as a translucent slab as tall as its blades;
+    the overlay shows time, forward speed, torso pitch and the moment of a fall. Needs no
+    display (EGL); see tuner/report/video.py for the packages.
+    """
+    from tqdm import tqdm
+
+    from .report.video import VideoOptions, frame_ticks, render_trace
+    from .report.video import save_scene as write_scene
+
+    if out.suffix.lower() != ".mp4":
+        raise UserError(f"--out {out}: the video is H.264 MP4; name it *.mp4")
+    w, h = _parse_size(size)
+    options = VideoOptions(width=w, height=h, fps=fps, overlay=not no_overlay)
+    gait_file, robot, sim, traj, cmd = _walk_setup(robot_name, surface_name, family, params_spec,
+                                                   duration, command)
+    if save_scene is not None:
+        click.echo(f"wrote {write_scene(sim, save_scene)}")
+    trace = sim.rollout(traj, duration=duration, record_qpos=True)
+    label = params_spec or DEFAULT_BASELINE[gait_file.family]
+    title = f"{label} | {robot.name} | {sim.surface.name}" + (f" | command {command}" if command else "")
+    n = len(frame_ticks(len(trace.t), sim.control_period, fps))
+    with tqdm(total=n + int(round(options.hold_end * fps)), unit="frame", desc="render",
+              disable=None) as bar:
+        info = render_trace(sim, trace, out, options, title=title, progress=bar.update)
+    click.echo(f"wrote {info['path']}: {info['frames']} frames, {info['width']}x{info['height']}, "
+               f"{info['fps']} fps ({info['seconds']:.1f} s); the walk: {trace.reason}"
+               + (f" at {trace.t_fall:.2f} s" if trace.fell and trace.t_fall is not None else ""))
+
+
+@cli.command()
+@_walk_options
+@SAVE_SCENE_OPTION
+def view(robot_name: str, surface_name: str, family: str | None, params_spec: str | None,
+         duration: float | None, command: str | None, save_scene: Path | None) -> None:
+    """Watch a walk in MuJoCo's interactive viewer (needs a display), replayed in real time.
+
+    The walk is simulated first (as `simulate` does), then replayed on a loop until the
+    window is closed. Without a display: use `render` for a video, or --save-scene and
+    open the scene in any MuJoCo tool.
+    """
+    import os
+    import time
+
+    import mujoco
+
+    if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
+        raise UserError("view needs a display (no DISPLAY or WAYLAND_DISPLAY here); "
+                        "use `gait-tuner render ... --out walk.mp4`, or --save-scene with `view`'s options")
+    gait_file, robot, sim, traj, cmd = _walk_setup(robot_name, surface_name, family, params_spec,
+                                                   duration, command)
+    if save_scene is not None:
+        from .report.video import save_scene as write_scene
+        click.echo(f"wrote {write_scene(sim, save_scene)}")
+    trace = sim.rollout(traj, duration=duration, record_qpos=True)
+    click.echo(f"the walk: {trace.reason}; replaying {trace.t[-1]:.1f} s (close the window to stop)")
+    import mujoco.viewer
+    d = mujoco.MjData(sim.model)
+    with mujoco.viewer.launch_passive(sim.model, d) as viewer:
+        while viewer.is_running():
+            for k in range(len(trace.t)):
+                if not viewer.is_running():
+                    break
+                d.qpos[:] = trace.qpos[k]
+                mujoco.mj_forward(sim.model, d)
+                viewer.sync()
+                time.sleep(sim.control_period)
+
+
 @cli.command()
 @click.option("--robot", "robot_name", default="kidsize", show_default=True, metavar="NAME|PATH",
               help="Built-in robot name or a robot map YAML (bring your own MJCF).")
@@ -136,8 +271,10 @@ def trajectory(family: str | None, params_spec: str | None, robot_name: str, out
 @click.option("--json", "as_json", is_flag=True, help="Print the metrics as JSON.")
 @click.option("--plot", "plot_dir", type=click.Path(file_okay=False, path_type=Path),
               help="Write pitch.png and zmp.png into this directory.")
+@SAVE_SCENE_OPTION
 def simulate(robot_name: str, surface_name: str, family: str | None, params_spec: str | None,
-             duration: float | None, command: str | None, as_json: bool, plot_dir: Path | None) -> None:
+             duration: float | None, command: str | None, as_json: bool, plot_dir: Path | None,
+             save_scene: Path | None) -> None:
     """Walk a gait on a robot and a surface in MuJoCo and print its metrics.
 
     With --command the gait walks that velocity, ramped from rest and back
@@ -147,23 +284,13 @@ def simulate(robot_name: str, surface_name: str, family: str | None, params_spec
     import json
 
     from .sim.metrics import DEFINITIONS, summarize
-    from .robots import load_robot
-    from .sim.rollout import Simulator
-    from .sim.surfaces import load_surface
 
-    gait_file = resolve_params(params_spec, family)
-    robot = load_robot(robot_name)
-    surface = load_surface(surface_name)
-    from .search.study import MAX_DURATION_S
-    if duration is not None and not 0 < duration <= MAX_DURATION_S:     # NaN fails this too
-        raise UserError(f"--duration must be in (0, {MAX_DURATION_S:g}] s, got {duration:g} s")
-    sim = Simulator(robot, surface)
-    cmd = _parse_command(command)
-    if cmd is None:
-        traj = gaits.generate(gait_file.params, robot.leg, sim.control_period)
-    else:
-        from .sim.walk_speed import command_walk
-        traj = command_walk(gait_file.params, robot, cmd, sim.control_period)
+    gait_file, robot, sim, traj, cmd = _walk_setup(robot_name, surface_name, family, params_spec,
+                                                   duration, command)
+    surface = sim.surface
+    if save_scene is not None:
+        from .report.video import save_scene as write_scene
+        click.echo(f"wrote {write_scene(sim, save_scene)}", err=as_json)
     trace = sim.rollout(traj, duration=duration)
     metrics = summarize(trace)
     label = params_spec or DEFAULT_BASELINE[gait_file.family]

@@ -124,6 +124,19 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
     soil.contype = 0
     soil.conaffinity = 1
     soil.rgba = [0.45, 0.35, 0.25, 1]
+    # drawn only: a 10 cm checker on the ground (motion and slip are visible in a video) and
+    # a light from above; neither touches the physics
+    tex = spec.add_texture(name=PREFIX + "grid", type=mujoco.mjtTexture.mjTEXTURE_2D,
+                           builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER, width=256, height=256,
+                           rgb1=[0.50, 0.40, 0.30], rgb2=[0.42, 0.33, 0.25])
+    mat = spec.add_material(name=PREFIX + "grid")
+    mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = tex.name
+    mat.texrepeat = [10, 10]
+    mat.texuniform = True
+    soil.material = mat.name
+    sun = spec.worldbody.add_light(name=PREFIX + "sun", pos=[0, 0, 3], dir=[0.2, 0.3, -1],
+                                   diffuse=[0.8, 0.8, 0.8], specular=[0.2, 0.2, 0.2])
+    sun.castshadow = False
     if not s.rigid:
         layer = spec.worldbody.add_geom(default=gt, name=PREFIX + "layer", type=mujoco.mjtGeom.mjGEOM_PLANE,
                                         size=[0, 0, 0.05])
@@ -135,7 +148,15 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
         layer.contype = 0
         layer.conaffinity = 1
         layer.group = 1
-        layer.rgba = [0.2, 0.6, 0.2, 0.3]
+        layer.rgba = [0.2, 0.6, 0.2, 0.0]     # invisible: at the soil's height it would z-fight; the slab shows it
+        # drawn only: a translucent slab as tall as the blades, so a video shows how deep the
+        # feet sink (no contact, no mass: the physics is the plane's margin above)
+        blades = spec.worldbody.add_geom(default=gt, name=PREFIX + "blades", type=mujoco.mjtGeom.mjGEOM_BOX,
+                                         size=[4.0, 4.0, s.layer_height / 2], pos=[0, 0, s.layer_height / 2])
+        blades.contype = 0
+        blades.conaffinity = 0
+        blades.group = 1
+        blades.rgba = [0.3, 0.75, 0.25, 0.35]
 
     spec.body(r.torso).add_site(default=gt, name=PREFIX + "imu", pos=[0, 0, 0.05])
     fl, fw = r.foot_size

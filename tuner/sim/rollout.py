@@ -73,6 +73,7 @@ class Trace:
     meta: dict = field(default_factory=dict)
     q_sent: np.ndarray | None = None   # (K, n) [rad] targets the servos received (after latency, backlash)
     yaw: np.ndarray | None = None      # (K,) [rad] torso heading, unwrapped (counter-clockwise positive)
+    qpos: np.ndarray | None = None     # (K, nq) MuJoCo qpos per tick, when the rollout recorded it
 
     @property
     def completed(self) -> bool:
@@ -296,26 +297,27 @@ class Simulator:
         self._layer_h = self.surface.layer_height
 
     def rollout(self, traj: GaitTrajectory, *, duration: float | None = None, perturb: Perturbation | None = None,
-                stabiliser: StabiliserParams | None = None) -> Trace:
+                stabiliser: StabiliserParams | None = None, record_qpos: bool = False) -> Trace:
         """Play a gait's joint table on the robot; stop at the end, a fall, or divergence.
 
         ``perturb`` (see ``tuner/sim/randomisation.py``) changes the model for this rollout only and
         adds backlash, command and IMU latency, IMU noise, a start-pose error and a push;
         ``stabiliser`` closes the IMU loop of ``gaits/imu_stabiliser.py`` every tick.
+        ``record_qpos`` keeps the model's full qpos per tick in ``Trace.qpos`` (for a video).
         """
         if abs(traj.dt - self.control_period) > 1e-9:
             raise ValueError(f"the joint table's dt ({traj.dt:g} s) must equal the control period "
                              f"({self.control_period:g} s)")
         if perturb is None:
-            return self._rollout(traj, duration, None, stabiliser)
+            return self._rollout(traj, duration, None, stabiliser, record_qpos)
         self._apply(perturb)
         try:
-            return self._rollout(traj, duration, perturb, stabiliser)
+            return self._rollout(traj, duration, perturb, stabiliser, record_qpos)
         finally:
             self._restore()
 
     def _rollout(self, traj: GaitTrajectory, duration: float | None, pert: Perturbation | None,
-                 stabiliser: StabiliserParams | None) -> Trace:
+                 stabiliser: StabiliserParams | None, record_qpos: bool = False) -> Trace:
         m, d = self.model, self.data
         q_ref = self.to_robot(traj.q_ref)                            # into the robot's joints
         n_ticks = len(traj.t)
@@ -329,6 +331,7 @@ class Simulator:
         sens[0] = d.sensordata
         cmds[0] = cmd
         sent_log[0] = cmd
+        qpos_log = np.empty((n_ticks, m.nq)) if record_qpos else None
         cos_tilt = math.cos(self.fall.max_tilt)
         z_min = self.fall.min_height_ratio * z0
         drag = self.surface.drag > 0.0
@@ -353,6 +356,8 @@ class Simulator:
                 push_tick = first + int(pert.push_time * max(n_ticks - 1 - first, 1))
                 push = (pert.push_impulse / self.control_period) * np.array(
                     [math.cos(pert.push_angle), math.sin(pert.push_angle), 0.0])
+        if qpos_log is not None:
+            qpos_log[0] = d.qpos
         sent = [cmd.copy() for _ in range(latency)]       # commands on their way to the servos
         imu = [np.zeros(4) for _ in range(imu_latency)]   # readings on their way from the IMU
         for k in range(1, n_ticks):
@@ -386,6 +391,8 @@ class Simulator:
                 d.xfrc_applied[torso, :3] = 0.0
             sens[k] = d.sensordata
             cmds[k] = cmd
+            if qpos_log is not None:
+                qpos_log[k] = d.qpos
             if d.warning[warn].number or not math.isfinite(d.qacc[0]):
                 reason, k_end = f"diverged: MuJoCo reported unstable accelerations at t = {k * self.control_period:.2f} s", k
                 break
@@ -396,6 +403,8 @@ class Simulator:
         sens = sens[:k_end]
         trace = self._trace(traj, sens, cmds[:k_end], q_ref[:k_end], reason, z0)
         trace.q_sent = self.from_robot(sent_log[:k_end])
+        if qpos_log is not None:
+            trace.qpos = qpos_log[:k_end]
         if pert is not None:
             trace.meta.update({"seed": pert.seed, "namespace": pert.namespace,
                                "push_t": None if push_tick < 0 else float(traj.t[push_tick]),

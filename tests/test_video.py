@@ -1,0 +1,78 @@
+"""Seeing the walk: `render` writes a real video (read back: frames and size), `--save-scene` writes
+a model that any MuJoCo loop walks exactly as our simulator did, `view` without a display is one
+line."""
+
+import subprocess
+
+import mujoco
+import numpy as np
+import pytest
+
+import gaits
+from tuner.report.video import frame_ticks, video_info
+from tuner.robots import load_robot
+from tuner.sim.rollout import Simulator
+from tuner.sim.surfaces import SURFACES
+
+
+def test_frame_ticks_play_in_real_time():
+    ticks = frame_ticks(101, 0.01, 30)          # 1 s of 10 ms ticks at 30 fps
+    assert len(ticks) == 31 and ticks[0] == 0 and ticks[-1] == 100
+    assert ticks[15] == 50                       # frame 15 is t = 0.5 s
+    assert frame_ticks(1, 0.01, 30) == [0]
+
+
+def test_render_writes_the_expected_video(gait_tuner_cmd, run_env, tmp_path):
+    out = tmp_path / "walk.mp4"
+    r = subprocess.run(gait_tuner_cmd + ["render", "--params", "tkux-table2", "--surface", "grass50",
+                                         "--duration", "1.5", "--size", "320x240", "--fps", "20",
+                                         "--out", str(out)], capture_output=True, text=True, env=run_env,
+                       timeout=300)
+    assert r.returncode == 0, r.stderr
+    info = video_info(out)
+    # 1.5 s at 20 fps: 31 frames of the walk, then the last one held for 1 s (20 frames)
+    assert (info["frames"], info["width"], info["height"]) == (31 + 20, 320, 240)
+    assert "51 frames, 320x240, 20 fps" in r.stdout
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--size", "300x240"], "multiple of 16"),
+    (["--size", "big"], "WIDTHxHEIGHT"),
+    (["--fps", "0"], "fps"),
+])
+def test_render_bad_options_are_one_line(gait_tuner_cmd, run_env, tmp_path, args, words):
+    r = subprocess.run(gait_tuner_cmd + ["render", "--params", "tkux-table2", "--out", str(tmp_path / "w.mp4")]
+                       + args, capture_output=True, text=True, env=run_env, timeout=300)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and words in r.stderr
+
+
+def test_view_without_a_display_is_one_line(gait_tuner_cmd, run_env):
+    env = {k: v for k, v in run_env.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    r = subprocess.run(gait_tuner_cmd + ["view", "--params", "tkux-table2"], capture_output=True, text=True,
+                       env=env, timeout=300)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "display" in r.stderr
+
+
+@pytest.mark.parametrize("surface", ["rigid", "carpet4"])
+def test_saved_scene_walks_as_the_simulator(gait_tuner_cmd, run_env, tmp_path, surface):
+    scene = tmp_path / "scene.xml"
+    r = subprocess.run(gait_tuner_cmd + ["simulate", "--params", "tkux-table2", "--surface", surface,
+                                         "--duration", "2", "--save-scene", str(scene)],
+                       capture_output=True, text=True, env=run_env, timeout=300)
+    assert r.returncode == 0, r.stderr
+    robot = load_robot("kidsize")
+    sim = Simulator(robot, SURFACES[surface])
+    traj = gaits.generate(gaits.load_baseline("tkux-table2").params, robot.leg, sim.control_period)
+    trace = sim.rollout(traj, duration=2.0, record_qpos=True)
+    # a plain MuJoCo loop on the saved file, fed the commands the servos received
+    m = mujoco.MjModel.from_xml_path(str(scene))
+    assert (m.nq, m.nu, m.opt.timestep) == (sim.model.nq, sim.model.nu, sim.model.opt.timestep)
+    d = mujoco.MjData(m)
+    d.qpos[:] = trace.qpos[0]
+    d.ctrl[:] = sim.data.ctrl                          # held joints' targets (arms, head)
+    mujoco.mj_forward(m, d)
+    servo = trace.q_sent * sim._sign + sim._offset      # back to the robot's signs
+    for k in range(1, len(trace.t)):
+        d.ctrl[:sim._n_servo] = servo[k]
+        mujoco.mj_step(m, d, nstep=sim.nstep)
+    assert np.max(np.abs(d.qpos - trace.qpos[-1])) < 1e-6
