@@ -332,3 +332,13 @@ def test_many_processes_meeting_a_fresh_database(kind, n, request, gait_tuner_cm
     assert [p.returncode for p in procs] == [0] * n, errs
     t = tally(load("fresh", url, tmp_path))
     assert t["done"] == 6 and t["running"] == 0
+
+
+def test_fall_constraint_is_where_optuna_and_the_dashboard_read_it(gait_tuner_cmd, run_env, tmp_path):
+    _, runs, _ = tuned(gait_tuner_cmd, run_env, tmp_path, "cons", 6)
+    trials = [t for t in load("cons", None, runs).get_trials(deepcopy=False) if t.state in DONE]
+    for t in trials:
+        value = t.user_attrs["result"]["fall_constraint"]
+        assert t.system_attrs["constraints"] == [value]          # optuna-dashboard's key
+        assert t.constraints == {"0": value}                     # Optuna 5's view of it
+    assert any(t.constraints["0"] > 0 for t in trials) and any(t.constraints["0"] <= 0 for t in trials)

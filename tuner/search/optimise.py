@@ -70,7 +70,7 @@ from ..sim.surfaces import load_surface
 
 __all__ = ["FALL_PENALTY_DEG", "Evaluator", "open_storage", "open_study", "enqueue_starts", "run_study",
            "best_trial", "trial_params", "trial_stabiliser", "trial_result", "rollout_score", "trial_fell", "trial_feasible",
-           "DONE_STATES", "StudyStore", "WorkerStop", "work", "prepare_study", "trial_distributions"]
+           "DONE_STATES", "record_constraint", "StudyStore", "WorkerStop", "work", "prepare_study", "trial_distributions"]
 
 FALL_PENALTY_DEG = 100.0
 PROGRESS_PENALTY_DEG = 50.0     # per unit of the planned distance not covered
@@ -84,7 +84,7 @@ def open_storage(spec: StudySpec, storage: str | None, runs_dir: Path) -> Any:
 
 
 def _sampler(spec: StudySpec, seed: int) -> optuna.samplers.BaseSampler:
-    # the fall constraint is set on each trial (Trial.set_constraint, Optuna 5); TPE reads it
+    # the fall constraint is stored on each trial (record_constraint); TPE reads it
     return optuna.samplers.TPESampler(seed=seed, multivariate=True, n_startup_trials=8)
 
 
@@ -244,6 +244,14 @@ def rollout_score(m: Any, planned: float, plan_dist: float) -> tuple[float, floa
     return score, frac, covered
 
 
+def record_constraint(trial: optuna.Trial, value: float) -> None:
+    """Store the fall constraint (> 0: fell or walked too little) as the list-valued system
+    attribute ``constraints``: Optuna 5 reads it as constraint "0" (``FrozenTrial.constraints``,
+    feasibility in TPE and ``best_trials``), and optuna-dashboard (0.21) reads only this key,
+    not the per-name keys of ``Trial.set_constraint``, so fallen trials show as infeasible there."""
+    trial.storage.set_trial_system_attr(trial._trial_id, "constraints", [float(value)])
+
+
 def _suggest(trial: optuna.Trial, spec: StudySpec) -> dict[str, Any]:
     out = {}
     for r in spec.space:
@@ -261,7 +269,7 @@ def objective_for(spec: StudySpec, evaluator: Evaluator) -> Callable[[optuna.Tri
             params = spec.params_for(sampled)
             stabiliser = spec.stabiliser_for(sampled)
         except ParamError as exc:
-            trial.set_constraint("fall", 1.0)
+            record_constraint(trial, 1.0)
             trial.set_user_attr("result", {"fell": True, "fall_constraint": 1.0, "invalid": str(exc)})
             worst = tuple(2 * FALL_PENALTY_DEG if OBJECTIVES[o] == "minimize" else (-10.0 if o == "speed_score" else 0.0)
                           for o in spec.objectives)
@@ -275,7 +283,7 @@ def objective_for(spec: StudySpec, evaluator: Evaluator) -> Callable[[optuna.Tri
 
         res = evaluator.evaluate(params, None if spec.speed is not None else report, stabiliser)
         # two journal writes per trial (params, result): workers contend for the file lock
-        trial.set_constraint("fall", res["fall_constraint"])
+        record_constraint(trial, res["fall_constraint"])
         trial.set_user_attr("params", params.to_mapping() if stabiliser is None else
                             {**params.to_mapping(), "stabiliser": stabiliser.to_mapping()})
         trial.set_user_attr("result", {"fell": res.get("fell", True),
@@ -372,7 +380,7 @@ def _tell_copy(study: optuna.Study, trial: optuna.Trial, source: optuna.trial.Fr
     trial.set_user_attr("duplicate_of", source.number)
     constraint = trial_result(source).get("fall_constraint")
     if constraint is not None:
-        trial.set_constraint("fall", float(constraint))
+        record_constraint(trial, float(constraint))
     if source.state == TrialState.PRUNED:
         study.tell(trial, state=TrialState.PRUNED)
     else:
