@@ -342,3 +342,21 @@ def test_fall_constraint_is_where_optuna_and_the_dashboard_read_it(gait_tuner_cm
         assert t.system_attrs["constraints"] == [value]          # optuna-dashboard's key
         assert t.constraints == {"0": value}                     # Optuna 5's view of it
     assert any(t.constraints["0"] > 0 for t in trials) and any(t.constraints["0"] <= 0 for t in trials)
+
+
+def test_one_worker_and_a_seed_give_the_same_study_and_pareto_lists_optunas_best(gait_tuner_cmd, run_env,
+                                                                                   tmp_path):
+    study = tmp_path / "par.yaml"
+    study.write_text(STUDY.format(name="par", trials=8).replace("objectives: [pitch_rms]",
+                                                                "objectives: [pitch_rms, speed]"))
+    runs = []
+    for i in (1, 2):
+        r = cli(gait_tuner_cmd, "tune", study, "--workers", "1", "--seed", "7", "--runs", tmp_path / f"r{i}",
+                env=run_env)
+        assert r.returncode == 0, r.stderr
+        runs.append([(t.params, t.values) for t in load("par", None, tmp_path / f"r{i}").trials])
+    assert runs[0] == runs[1]
+    r = cli(gait_tuner_cmd, "trials", study, "--pareto", "--json", "--runs", tmp_path / "r1", env=run_env)
+    assert r.returncode == 0, r.stderr
+    listed = sorted(row["number"] for row in json.loads(r.stdout)["shown"])
+    assert listed == sorted(t.number for t in load("par", None, tmp_path / "r1").best_trials)
