@@ -360,3 +360,21 @@ def test_one_worker_and_a_seed_give_the_same_study_and_pareto_lists_optunas_best
     assert r.returncode == 0, r.stderr
     listed = sorted(row["number"] for row in json.loads(r.stdout)["shown"])
     assert listed == sorted(t.number for t in load("par", None, tmp_path / "r1").best_trials)
+
+
+def test_pareto_pick_chooses_on_the_front(gait_tuner_cmd, run_env, tmp_path):
+    from tuner.search.optimise import pareto_pick
+    study = tmp_path / "pp.yaml"
+    study.write_text(STUDY.format(name="pp", trials=10).replace("objectives: [pitch_rms]",
+                                                                 "objectives: [pitch_rms, speed]"))
+    runs = tmp_path / "runs"
+    assert cli(gait_tuner_cmd, "tune", study, "--workers", "1", "--runs", runs, env=run_env).returncode == 0
+    s = load("pp", None, runs)
+    front = [t for t in s.best_trials if t.constraints["0"] <= 0]
+    assert pareto_pick(s, "pitch").values[0] == min(t.values[0] for t in front)
+    assert pareto_pick(s, "speed").values[1] == max(t.values[1] for t in front)
+    assert pareto_pick(s, "knee") in front
+    r = cli(gait_tuner_cmd, "export", study, "--runs", runs, "--pareto-pick", "speed", env=run_env)
+    assert r.returncode == 0, r.stderr
+    assert (runs / "pp" / "best.yaml").exists()                # the default lands under runs/
+    assert f"trial {pareto_pick(s, 'speed').number} " in r.stdout

@@ -463,7 +463,7 @@ def _run_and_report(spec, store, study_file: str, storage: str | None, total: in
                    + (f", speed {t.values[1]:.4f} m/s" if len(t.values) > 1 else "")
                    + f"; {'fell' if trial_fell(t) else 'stayed up'}; falls in study: {n_fell}")
     click.echo(f"export it with: gait-tuner export {study_file}"
-               + (f" --storage {storage}" if storage else "") + " --out best.yaml")
+               + (f" --storage {storage}" if storage else "") + (" --pareto-pick knee" if len(spec.objectives) > 1 else ""))
 
 
 @cli.command()
@@ -632,21 +632,30 @@ def trials(study_file: str, storage: str | None, runs_dir: Path, pareto: bool, s
 @click.option("--runs", "runs_dir", default="runs", show_default=True,
               type=click.Path(file_okay=False, path_type=Path))
 @click.option("--trial", "number", type=int, help="Export this trial instead of the best one.")
-@click.option("--out", default="best.yaml", show_default=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="Parameter file to write; the joint table goes beside it (<out>.joints.csv).")
+@click.option("--pareto-pick", type=click.Choice(["pitch", "speed", "knee"]),
+              help="Two-objective studies: the Pareto point with the lowest pitch, the highest speed, or "
+                   "the knee (nearest the best of both, each scaled over the front).")
+@click.option("--out", type=click.Path(dir_okay=False, path_type=Path),
+              help="Parameter file to write (default: RUNS/<study>/best.yaml); the joint table goes "
+                   "beside it (<out>.joints.csv).")
 @JOINT_NAMES_OPTION
-def export(study_file: str, storage: str | None, runs_dir: Path, number: int | None, out: Path,
-           joint_names: str) -> None:
+def export(study_file: str, storage: str | None, runs_dir: Path, number: int | None, pareto_pick: str | None,
+           out: Path | None, joint_names: str) -> None:
     """Write a study's best (or a chosen) trial as a parameter YAML plus its joint table.
 
     STUDY is the study file (or shipped study name). The YAML is accepted as it
     is by `simulate` and `trajectory`.
     """
-    from .search.optimise import best_trial, trial_fell, trial_params, trial_stabiliser
+    from .search.optimise import best_trial, pareto_pick as pick, trial_fell, trial_params, trial_stabiliser
 
+    if number is not None and pareto_pick is not None:
+        raise UserError("give --trial or --pareto-pick, not both")
     spec, study = _tuned_study(study_file, storage, runs_dir)
+    if out is None:
+        out = runs_dir / spec.name / "best.yaml"
+    out.parent.mkdir(parents=True, exist_ok=True)
     try:
-        t = best_trial(study, number)
+        t = pick(study, pareto_pick) if pareto_pick else best_trial(study, number)
         params = trial_params(spec.gait, t)
     except KeyError as exc:
         raise UserError(str(exc.args[0])) from None

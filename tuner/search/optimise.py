@@ -70,7 +70,7 @@ from ..sim.surfaces import load_surface
 
 __all__ = ["FALL_PENALTY_DEG", "Evaluator", "open_storage", "open_study", "enqueue_starts", "run_study",
            "best_trial", "trial_params", "trial_stabiliser", "trial_result", "rollout_score", "trial_fell", "trial_feasible",
-           "DONE_STATES", "record_constraint", "StudyStore", "WorkerStop", "work", "prepare_study", "trial_distributions"]
+           "DONE_STATES", "record_constraint", "pareto_pick", "PARETO_PICKS", "StudyStore", "WorkerStop", "work", "prepare_study", "trial_distributions"]
 
 FALL_PENALTY_DEG = 100.0
 PROGRESS_PENALTY_DEG = 50.0     # per unit of the planned distance not covered
@@ -568,6 +568,35 @@ def best_trial(study: optuna.Study, number: int | None = None) -> optuna.trial.F
     if study.directions[0] == optuna.study.StudyDirection.MAXIMIZE:
         return max(feasible, key=lambda t: t.values[0])
     return min(feasible, key=lambda t: t.values[0])
+
+
+PARETO_PICKS = ("pitch", "speed", "knee")
+
+
+def pareto_pick(study: optuna.Study, how: str) -> optuna.trial.FrozenTrial:
+    """One trial of a (pitch score, speed) study's Pareto front of feasible trials.
+
+    ``pitch``: the lowest pitch score; ``speed``: the fastest; ``knee`` (ours): the point
+    nearest the utopia corner (lowest pitch, highest speed) once both objectives are scaled
+    to [0, 1] over the front: the best compromise when neither objective is preferred.
+    """
+    if how not in PARETO_PICKS:
+        raise KeyError(f"--pareto-pick {how!r}: choose {', '.join(PARETO_PICKS)}")
+    if len(study.directions) != 2:
+        raise KeyError(f"--pareto-pick needs a two-objective study (pitch_rms, speed); "
+                       f"{study.study_name!r} has {len(study.directions)} objective(s)")
+    front = [t for t in study.best_trials if trial_feasible(t)]
+    if not front:
+        raise KeyError(f"study {study.study_name!r} has no feasible trial on its Pareto front")
+    if how == "pitch":
+        return min(front, key=lambda t: (t.values[0], -t.values[1]))
+    if how == "speed":
+        return max(front, key=lambda t: (t.values[1], -t.values[0]))
+    p = np.array([t.values[0] for t in front])
+    v = np.array([t.values[1] for t in front])
+    p_n = (p - p.min()) / max(float(np.ptp(p)), 1e-12)
+    v_n = (v.max() - v) / max(float(np.ptp(v)), 1e-12)
+    return front[int(np.argmin(p_n ** 2 + v_n ** 2))]
 
 
 def trial_params(spec_gait: str, trial: optuna.trial.FrozenTrial) -> gaits.GaitParams:
