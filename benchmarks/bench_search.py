@@ -29,7 +29,7 @@ import optuna
 
 from gaits.params import ParamError
 
-from tuner.search.optimise import (Evaluator, enqueue_starts, objective_for, open_storage, run_study,
+from tuner.search.optimise import (Evaluator, StudyStore, enqueue_starts, objective_for, run_study,
                           trial_feasible, trial_fell)
 from tuner.search.seed import SeedProblem
 from tuner.search.study import load_study
@@ -104,19 +104,19 @@ def main() -> None:
           f"chose, enqueued again and walked with 1 and with 2 workers (identical work)")
     with tempfile.TemporaryDirectory() as tmp:
         s0 = dataclasses.replace(spec, name="rate-source")
-        store = open_storage(s0, None, Path(tmp))
-        src = run_study(s0, store, str(Path(tmp) / "rate-source.journal"), args.rate_trials, 1, 0)
+        src = run_study(s0, StudyStore.open(s0.name, None, Path(tmp)), args.rate_trials, 1, 0)
         fixed_sets = [dict(t.params) for t in src.trials][:args.rate_trials]
     rates = {}
     for workers in (1, 2):
         with tempfile.TemporaryDirectory() as tmp:
             s2 = dataclasses.replace(spec, enqueue=(), name=f"rate{workers}")
-            store = open_storage(s2, None, Path(tmp))
-            study = optuna.create_study(study_name=s2.name, storage=store, directions=s2.directions)
+            store = StudyStore.open(s2.name, None, Path(tmp))
+            study = optuna.create_study(study_name=s2.name, storage=store.optuna_storage(),
+                                        directions=s2.directions)
             for params in fixed_sets:
                 study.enqueue_trial(params)
             t0 = time.perf_counter()
-            run_study(s2, store, str(Path(tmp) / f"{s2.name}.journal"), args.rate_trials, workers, 0)
+            run_study(s2, store, args.rate_trials, workers, 0)
             el = time.perf_counter() - t0
         rates[workers] = args.rate_trials / el * 3600
         print(f"   {workers} worker(s): {el:.1f} s -> {rates[workers]:,.0f} trials/hour")

@@ -124,7 +124,7 @@ def test_killed_worker_trial_is_failed_and_retried_once_with_same_params(gait_tu
     os.kill(pid, signal.SIGKILL)
     _, err = proc.communicate(timeout=300)
     assert proc.returncode == 0, err
-    assert f"worker" in err and "died" in err
+    assert "worker" in err and "died" in err
     t = tally(load("wk", None, runs))
     assert t["done"] == 10 and t["running"] == 0                       # overshoot 0, stale 0
     # the trial it was walking when the signal landed (the one seen running may have just ended)
