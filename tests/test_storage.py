@@ -6,6 +6,7 @@ the resume), stale trials left (RUNNING at the end) and overshoot (finished tria
 budget), all 0.
 """
 
+import datetime
 import json
 import os
 import resource
@@ -24,7 +25,7 @@ from tuner.search.storage import FlockLock, StudyStore, normalise_url, repair_jo
 # trials of ~0.3-1 s each (two surfaces, 8 s walks): long enough to be killed mid-trial
 STUDY = """name: {name}
 robot: kidsize
-surfaces: [grass50, carpet4]
+surfaces: {surfaces}
 gait: tlipfm
 base: tkux-table2
 fixed: {{n_steps: 10}}
@@ -40,9 +41,13 @@ sampler_seed: 5
 DONE = (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.PRUNED)
 
 
-def write_study(folder: Path, name: str, trials: int = 12) -> Path:
+SHORT = "[grass50, carpet4]"                        # ~0.3 s trials
+LONG = "[grass50, grass30, grass10, carpet4]"       # ~0.7 s: kill tests aim inside a trial
+
+
+def write_study(folder: Path, name: str, trials: int = 12, surfaces: str = SHORT) -> Path:
     path = folder / f"{name}.yaml"
-    path.write_text(STUDY.format(name=name, trials=trials))
+    path.write_text(STUDY.format(name=name, trials=trials, surfaces=surfaces))
     return path
 
 
@@ -91,10 +96,26 @@ def running_worker(name, storage, runs):
     trials = study.get_trials(deepcopy=False)
     if not any(t.state in DONE for t in trials):
         return None
+    now = datetime.datetime.now()
     for t in trials:
-        if t.state == optuna.trial.TrialState.RUNNING and "worker" in t.user_attrs:
+        # a trial that has just started, so that the kill lands inside it, not after it
+        if (t.state == optuna.trial.TrialState.RUNNING and "worker" in t.user_attrs
+                and t.datetime_start is not None and (now - t.datetime_start).total_seconds() < 0.15):
             return t.number, int(t.user_attrs["worker"]["pid"])
     return None
+
+
+def kill_mid_trial(name, storage, runs, procs) -> tuple[int, int]:
+    """SIGKILL a worker while it walks a trial: stop it, check its trial is still running, kill.
+    Returns (trial number, pid)."""
+    while True:
+        number, pid = wait_for(lambda: running_worker(name, storage, runs), procs=procs)
+        os.kill(pid, signal.SIGSTOP)
+        trial = load(name, storage, runs).trials[number]
+        if trial.state == optuna.trial.TrialState.RUNNING:
+            os.kill(pid, signal.SIGKILL)
+            return number, pid
+        os.kill(pid, signal.SIGCONT)                   # it had just finished: aim again
 
 
 def alive(pid: int) -> bool:
@@ -117,19 +138,17 @@ def tuned(cmd, env, folder: Path, name: str, trials: int) -> tuple[Path, Path, P
 # -- the journal ---------------------------------------------------------------------------------
 
 def test_killed_worker_trial_is_failed_and_retried_once_with_same_params(gait_tuner_cmd, run_env, tmp_path):
-    study = write_study(tmp_path, "wk", trials=10)
+    study = write_study(tmp_path, "wk", trials=10, surfaces=LONG)
     runs = tmp_path / "runs"
     proc = start(gait_tuner_cmd, "tune", study, "--workers", "2", "--runs", runs, env=run_env)
-    number, pid = wait_for(lambda: running_worker("wk", None, runs), procs=[proc])
-    os.kill(pid, signal.SIGKILL)
+    number, pid = kill_mid_trial("wk", None, runs, [proc])
     _, err = proc.communicate(timeout=300)
     assert proc.returncode == 0, err
     assert "worker" in err and "died" in err
     t = tally(load("wk", None, runs))
     assert t["done"] == 10 and t["running"] == 0                       # overshoot 0, stale 0
-    # the trial it was walking when the signal landed (the one seen running may have just ended)
     [failed] = [f for f in t["failed"] if f.user_attrs["worker"]["pid"] == pid]
-    assert failed.number >= number and failed.user_attrs["failed"] == "its worker died"
+    assert failed.number == number and failed.user_attrs["failed"] == "its worker died"
     [retry] = [r for r in t["retries"] if r.user_attrs["retry_of"] == failed.number]
     assert retry.params == failed.params and retry.state in DONE
 
@@ -308,16 +327,15 @@ def test_postgres_two_workers_and_a_tune_share_one_budget(postgres, gait_tuner_c
 
 def test_postgres_killed_worker_trial_is_failed_and_retried(postgres, gait_tuner_cmd, run_env, tmp_path):
     url = postgres.create_database("retry")
-    study = write_study(tmp_path, "retry", trials=10)
+    study = write_study(tmp_path, "retry", trials=10, surfaces=LONG)
     procs = [start(gait_tuner_cmd, "worker", study, "--storage", url, env=run_env) for _ in range(2)]
-    number, pid = wait_for(lambda: running_worker("retry", url, tmp_path), procs=procs)
-    os.kill(pid, signal.SIGKILL)          # a process the worker verb forked: it starts another
+    number, pid = kill_mid_trial("retry", url, tmp_path, procs)   # a process the worker verb forked
     errs = [p.communicate(timeout=300)[1] for p in procs]
     assert [p.returncode for p in procs] == [0, 0], errs
     t = tally(load("retry", url, tmp_path))
     assert t["done"] == 10 and t["running"] == 0
     [failed] = [f for f in t["failed"] if f.user_attrs["worker"]["pid"] == pid]
-    assert failed.number >= number
+    assert failed.number == number
     [retry] = [r for r in t["retries"] if r.user_attrs["retry_of"] == failed.number]
     assert retry.params == failed.params and retry.state in DONE
 
@@ -347,7 +365,7 @@ def test_fall_constraint_is_where_optuna_and_the_dashboard_read_it(gait_tuner_cm
 def test_one_worker_and_a_seed_give_the_same_study_and_pareto_lists_optunas_best(gait_tuner_cmd, run_env,
                                                                                    tmp_path):
     study = tmp_path / "par.yaml"
-    study.write_text(STUDY.format(name="par", trials=8).replace("objectives: [pitch_rms]",
+    study.write_text(STUDY.format(name="par", trials=8, surfaces=SHORT).replace("objectives: [pitch_rms]",
                                                                 "objectives: [pitch_rms, speed]"))
     runs = []
     for i in (1, 2):
@@ -365,7 +383,7 @@ def test_one_worker_and_a_seed_give_the_same_study_and_pareto_lists_optunas_best
 def test_pareto_pick_chooses_on_the_front(gait_tuner_cmd, run_env, tmp_path):
     from tuner.search.optimise import pareto_pick
     study = tmp_path / "pp.yaml"
-    study.write_text(STUDY.format(name="pp", trials=10).replace("objectives: [pitch_rms]",
+    study.write_text(STUDY.format(name="pp", trials=10, surfaces=SHORT).replace("objectives: [pitch_rms]",
                                                                  "objectives: [pitch_rms, speed]"))
     runs = tmp_path / "runs"
     assert cli(gait_tuner_cmd, "tune", study, "--workers", "1", "--runs", runs, env=run_env).returncode == 0
