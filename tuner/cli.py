@@ -526,20 +526,8 @@ def worker(study_file: str, storage: str | None, workers: int, seed: int | None,
 
 
 def _commit_of(path: str) -> str:
-    """' (commit abc1234)' when the study file sits in a git checkout ('+ local changes' if it
-    differs from that commit), else ''."""
-    import subprocess
-    try:
-        folder = str(Path(path).resolve().parent)
-        head = subprocess.run(["git", "-C", folder, "rev-parse", "--short", "HEAD"], capture_output=True,
-                              text=True, timeout=10)
-        if head.returncode != 0:
-            return ""
-        dirty = subprocess.run(["git", "-C", folder, "status", "--porcelain", "--", str(Path(path).resolve())],
-                               capture_output=True, text=True, timeout=10).stdout.strip()
-        return f" (commit {head.stdout.strip()}{' + local changes' if dirty else ''})"
-    except (OSError, subprocess.SubprocessError):
-        return ""
+    from .report.provenance import commit_of
+    return commit_of(path)
 
 
 def _tuned_study(study_file: str, storage: str | None, runs_dir: Path):

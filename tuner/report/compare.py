@@ -146,7 +146,8 @@ def run_compare(specs: list[str], robot_name: str, surface_names: list[str], bas
     for label, _, _ in sets:
         vals = [r["stability"] for r in rows if r["set"] == label]
         summary.append(f"| {label} | {np.mean(vals):.0f} |")
-    study_label = f"study {Path(study_file).stem}" if study_file else "no study"
+    from .provenance import commit_of
+    study_label = f"study {Path(study_file).stem}{commit_of(study_file)}" if study_file else "no study"
     heading = (f"Robot {robot.name} ({robot_name}); surfaces {', '.join(s.name for s in surfaces)}; "
                f"{study_label}.\n")
     text = heading + "\n" + "\n".join(lines + summary)
@@ -157,31 +158,90 @@ def run_compare(specs: list[str], robot_name: str, surface_names: list[str], bas
             f"{random_rollouts} walks under the default randomisation (tuner/sim/randomisation.py, evaluation seeds), "
             "the share that did not fall (`gait-tuner robustness` gives more).")
     (out_dir / "compare.md").write_text(text + "\n" + defs + "\n", encoding="utf-8")
-    _plots(rows, sets, surfaces, out_dir, f"robot {robot.name}, {study_label}")
+    _plots(rows, sets, surfaces, out_dir, f"robot {robot.name}; {study_label}; surfaces "
+           f"{', '.join(s.name for s in surfaces)}")
     if study_file:
         _study_plots(study_file, runs_dir, out_dir)
     return text + "\n" + defs + f"\nwrote {out_dir / 'compare.md'} and PNG plots"
 
 
+PANELS = (("stability", "stability % (10-cell EROS grid)", "%"),
+          ("pitch", "torso pitch RMS of its own walk [deg]", "deg"),
+          ("speed", "forward speed of its own walk [m/s]", "m/s"),
+          ("covered", "distance covered, % of plan", "%"))
+FOOTNOTE = ("Own walk: each set's own gait, once per surface. Stability: share of the 10 EROS cells "
+            "(0-24 mm forward, 8-24 mm backward) walked without a fall. Covered: torso distance / planned "
+            "distance; above 100% the feet slid or the torso swayed forward of the plan, below it the "
+            "steps slipped or the robot fell. A bar of 0 is drawn as a short stub marked 0.")
+
+
 def _plots(rows, sets, surfaces, out_dir: Path, title: str) -> None:
-    fig, axes = plt.subplots(1, 3, figsize=(16, 4.5))
+    fig, axes = plt.subplots(1, len(PANELS), figsize=(19, 5))
     width = 0.8 / max(len(sets), 1)
     x = np.arange(len(surfaces))
     for i, (label, _, _) in enumerate(sets):
         mine = [next(r for r in rows if r["set"] == label and r["surface"] == s.name) for s in surfaces]
-        axes[0].bar(x + i * width, [r["stability"] for r in mine], width, label=label)
-        axes[1].bar(x + i * width, [r["own"].pitch_rms_deg for r in mine], width, label=label)
-        axes[2].bar(x + i * width, [r["covered"] for r in mine], width, label=label)
-    for ax, title in zip(axes, ("stability % (10-cell EROS grid)", "torso pitch RMS of its own walk [deg]",
-                                "distance covered, % of plan")):
+        values = {"stability": [r["stability"] for r in mine], "pitch": [r["own"].pitch_rms_deg for r in mine],
+                  "speed": [0.0 if r["own"].fell else r["own"].speed_mps for r in mine],
+                  "covered": [r["covered"] for r in mine]}
+        for ax, (key, _, _) in zip(axes, PANELS):
+            bars = ax.bar(x + i * width, values[key], width, label=label, color=f"C{i}")
+            for bar, v in zip(bars, values[key]):
+                if v == 0 or not np.isfinite(v):        # an empty bar is invisible: mark it
+                    ax.plot([bar.get_x(), bar.get_x() + bar.get_width()], [0, 0], color=f"C{i}", lw=4)
+                    ax.annotate("0", (bar.get_x() + bar.get_width() / 2, 0), textcoords="offset points",
+                                xytext=(0, 3), ha="center", fontsize=8, color=f"C{i}")
+    for ax, (_, panel_title, _) in zip(axes, PANELS):
         ax.set_xticks(x + width * (len(sets) - 1) / 2, [s.name for s in surfaces])
-        ax.set_title(title)
+        ax.set_title(panel_title, fontsize=10)
         ax.grid(alpha=0.3, axis="y")
     axes[0].legend(fontsize=7)
     fig.suptitle(title)
-    fig.tight_layout()
+    fig.text(0.01, 0.01, FOOTNOTE, fontsize=7, wrap=True)
+    fig.tight_layout(rect=(0, 0.06, 1, 1))
     fig.savefig(out_dir / "compare.png", dpi=110)
     plt.close(fig)
+
+
+def history_plot(study, path: Path, title: str, feasible: Callable, target_name: str, maximise: bool) -> Path:
+    """Each trial's first objective against its number: feasible trials on their own scale with
+    the best-so-far line, trials that fell or were infeasible as marks along the top (their
+    penalised scores would flatten the scale), pruned ones as grey marks."""
+    from optuna.trial import TrialState
+    done = [t for t in study.get_trials(deepcopy=False) if t.state in (TrialState.COMPLETE, TrialState.PRUNED)]
+    good = [t for t in done if t.state == TrialState.COMPLETE and feasible(t)]
+    bad = [t for t in done if t.state == TrialState.COMPLETE and not feasible(t)]
+    pruned = [t for t in done if t.state == TrialState.PRUNED]
+    fig, ax = plt.subplots(figsize=(9, 5))
+    if good:
+        ax.plot([t.number for t in good], [t.values[0] for t in good], "o", ms=4, color="C0",
+                label=f"feasible trial ({len(good)})")
+        best, xs, ys = None, [], []
+        for t in sorted(good, key=lambda t: t.number):
+            v = t.values[0]
+            best = v if best is None else (max(best, v) if maximise else min(best, v))
+            xs.append(t.number)
+            ys.append(best)
+        ax.step(xs + [max(t.number for t in done)], ys + [ys[-1]], where="post", color="C3", lw=2,
+                label="best so far")
+    ymin, ymax = ax.get_ylim() if good else (0.0, 1.0)
+    top = ymax + 0.05 * (ymax - ymin)
+    if bad:
+        ax.plot([t.number for t in bad], [top] * len(bad), "x", color="0.3",
+                label=f"fell or infeasible ({len(bad)}; score off scale)")
+    if pruned:
+        ax.plot([t.number for t in pruned], [top] * len(pruned), "|", color="0.6", ms=10,
+                label=f"pruned early ({len(pruned)})")
+    ax.set_ylim(ymin, top + 0.05 * (ymax - ymin))
+    ax.set_xlabel("trial number")
+    ax.set_ylabel(target_name)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="best")
+    ax.set_title(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
 
 
 def _study_plots(study_file: str, runs_dir: Path, out_dir: Path) -> None:
@@ -201,9 +261,15 @@ def _study_plots(study_file: str, runs_dir: Path, out_dir: Path) -> None:
         study = optuna.load_study(study_name=spec.name, storage=open_storage(spec, None, runs_dir))
     except KeyError:
         raise UserError(f"--study {study_file}: {journal} holds no study named {spec.name!r}") from None
-    plots = {"history": lambda: ovm.plot_optimization_history(study, target=lambda t: t.values[0],
-                                                              target_name="pitch score [deg]"),
-             "importances": lambda: ovm.plot_param_importances(study, target=lambda t: t.values[0])}
+    from ..search.optimise import trial_feasible
+    from .provenance import commit_of
+    maximise = study.directions[0] == optuna.study.StudyDirection.MAXIMIZE
+    target = "speed score (maximised)" if maximise else "pitch score [deg] (minimised)"
+    history_plot(study, out_dir / "study_history.png",
+                 f"study {spec.name}{commit_of(spec.source)}: robot {Path(spec.robot).stem}, "
+                 f"{', '.join(spec.surfaces)}", trial_feasible, target, maximise)
+    plots = {"importances": lambda: ovm.plot_param_importances(study, target=lambda t: t.values[0],
+                                                               target_name=target)}
     if len(spec.objectives) > 1:
         plots["pareto"] = lambda: ovm.plot_pareto_front(study, target_names=["pitch score [deg]", "speed [m/s]"])
     notes = []
