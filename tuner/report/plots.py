@@ -135,7 +135,11 @@ def plot_robustness(report, out_dir: str | Path) -> Path:
     if pitch:
         axes[2].hist(pitch, bins=20, color="tab:green")
     axes[2].set_xlabel("torso pitch RMS [deg]")
+    axes[2].set_ylabel("rollouts")
     axes[2].set_title("pitch vibration of the rollouts that stayed up")
+    from matplotlib.ticker import MaxNLocator
+    for ax in axes[1:]:
+        ax.yaxis.set_major_locator(MaxNLocator(integer=True))     # counts of rollouts
     fig.suptitle(f"robustness: {report.params} on robot {report.robot} / {report.surface}, "
                  f"stabiliser {'on' if report.stabiliser else 'off'}")
     fig.tight_layout()
