@@ -129,8 +129,9 @@ SAVE_SCENE_OPTION = click.option(
 
 
 def _walk_setup(robot_name: str, surface_name: str, family: str | None, params_spec: str | None,
-                duration: float | None, command: str | None):
-    """(gait file, robot, simulator, joint table, command) of a walk asked for on the command line."""
+                duration: float | None, command: str | None, save_scene: Path | None = None):
+    """(gait file, robot, simulator, joint table, command) of a walk asked for on the command line;
+    with ``save_scene`` the assembled model is written there too (reported on stderr)."""
     from .robots import load_robot
     from .search.study import MAX_DURATION_S
     from .sim.rollout import Simulator
@@ -148,6 +149,9 @@ def _walk_setup(robot_name: str, surface_name: str, family: str | None, params_s
     else:
         from .sim.walk_speed import command_walk
         traj = command_walk(gait_file.params, robot, cmd, sim.control_period)
+    if save_scene is not None:
+        from .report.video import save_scene as write_scene
+        click.echo(f"wrote {write_scene(sim, save_scene)}", err=True)
     return gait_file, robot, sim, traj, cmd
 
 
@@ -196,16 +200,13 @@ def render(robot_name: str, surface_name: str, family: str | None, params_spec: 
     from tqdm import tqdm
 
     from .report.video import VideoOptions, frame_ticks, render_trace
-    from .report.video import save_scene as write_scene
 
     if out.suffix.lower() != ".mp4":
         raise UserError(f"--out {out}: the video is H.264 MP4; name it *.mp4")
     w, h = _parse_size(size)
     options = VideoOptions(width=w, height=h, fps=fps, overlay=not no_overlay)
     gait_file, robot, sim, traj, cmd = _walk_setup(robot_name, surface_name, family, params_spec,
-                                                   duration, command)
-    if save_scene is not None:
-        click.echo(f"wrote {write_scene(sim, save_scene)}")
+                                                   duration, command, save_scene)
     trace = sim.rollout(traj, duration=duration, record_qpos=True)
     label = params_spec or DEFAULT_BASELINE[gait_file.family]
     title = f"{label} | {robot.name} | {sim.surface.name}" + (f" | command {command}" if command else "")
@@ -238,10 +239,7 @@ def view(robot_name: str, surface_name: str, family: str | None, params_spec: st
         raise UserError("view needs a display (no DISPLAY or WAYLAND_DISPLAY here); "
                         "use `gait-tuner render ... --out walk.mp4`, or --save-scene with `view`'s options")
     gait_file, robot, sim, traj, cmd = _walk_setup(robot_name, surface_name, family, params_spec,
-                                                   duration, command)
-    if save_scene is not None:
-        from .report.video import save_scene as write_scene
-        click.echo(f"wrote {write_scene(sim, save_scene)}")
+                                                   duration, command, save_scene)
     trace = sim.rollout(traj, duration=duration, record_qpos=True)
     click.echo(f"the walk: {trace.reason}; replaying {trace.t[-1]:.1f} s (close the window to stop)")
     import mujoco.viewer
@@ -286,11 +284,8 @@ def simulate(robot_name: str, surface_name: str, family: str | None, params_spec
     from .sim.metrics import DEFINITIONS, summarize
 
     gait_file, robot, sim, traj, cmd = _walk_setup(robot_name, surface_name, family, params_spec,
-                                                   duration, command)
+                                                   duration, command, save_scene)
     surface = sim.surface
-    if save_scene is not None:
-        from .report.video import save_scene as write_scene
-        click.echo(f"wrote {write_scene(sim, save_scene)}", err=as_json)
     trace = sim.rollout(traj, duration=duration)
     metrics = summarize(trace)
     label = params_spec or DEFAULT_BASELINE[gait_file.family]
@@ -418,7 +413,7 @@ def _run_and_report(spec, store, study_file: str, storage: str | None, total: in
                     seed: int, verb: str) -> None:
     import optuna
 
-    from .search.optimise import (DONE_STATES, best_trial, prepare_study, run_study, trial_feasible,
+    from .search.optimise import (DONE_STATES, best_trial, prepare_study, run_workers, trial_feasible,
                                   trial_fell)
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     study, budget = prepare_study(spec, store, total, seed)
@@ -435,7 +430,7 @@ def _run_and_report(spec, store, study_file: str, storage: str | None, total: in
                        "timing; --workers 1 --seed S gives the same study every run")
         bar, progress = _study_progress(spec, budget)
         try:
-            study = run_study(spec, store, budget, workers, seed, progress)
+            study = run_workers(spec, store, study, budget, workers, seed, progress)
         except KeyboardInterrupt:
             bar.close()
             click.echo(f"interrupted: finished trials are kept in {store.where}; "
@@ -532,21 +527,11 @@ def _commit_of(path: str) -> str:
 
 def _tuned_study(study_file: str, storage: str | None, runs_dir: Path):
     """(spec, optuna study) of a study that has been tuned; a one-line error if it has not."""
-    import optuna
-
-    from .search.optimise import open_storage
+    from .search.optimise import load_tuned_study
     from .search.study import load_study
 
     spec = load_study(study_file)
-    journal = runs_dir / f"{spec.name}.journal"
-    if not storage and not journal.exists():
-        raise UserError(f"no runs of study {spec.name!r} in {journal} (run `gait-tuner tune` first)")
-    optuna.logging.set_verbosity(optuna.logging.WARNING)
-    try:
-        study = optuna.load_study(study_name=spec.name, storage=open_storage(spec, storage, runs_dir))
-    except KeyError:
-        raise UserError(f"storage holds no study named {spec.name!r}") from None
-    return spec, study
+    return spec, load_tuned_study(spec, storage, runs_dir)
 
 
 @cli.command()

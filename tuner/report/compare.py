@@ -248,19 +248,14 @@ def _study_plots(study_file: str, runs_dir: Path, out_dir: Path) -> None:
     import optuna
     from optuna.visualization import matplotlib as ovm
 
-    from ..search.optimise import open_storage
+    from ..search.optimise import load_tuned_study
     from ..search.study import load_study
 
     spec = load_study(study_file)
-    optuna.logging.set_verbosity(optuna.logging.WARNING)
-    journal = Path(runs_dir) / f"{spec.name}.journal"
-    if not journal.exists():
-        raise UserError(f"--study {study_file}: no runs of study {spec.name!r} in {journal} "
-                        f"(run `gait-tuner tune {study_file}` first, or leave --study out)")
     try:
-        study = optuna.load_study(study_name=spec.name, storage=open_storage(spec, None, runs_dir))
-    except KeyError:
-        raise UserError(f"--study {study_file}: {journal} holds no study named {spec.name!r}") from None
+        study = load_tuned_study(spec, None, runs_dir)
+    except UserError as exc:
+        raise UserError(f"--study {study_file}: {exc}") from None
     from ..search.optimise import trial_feasible
     from .provenance import commit_of
     maximise = study.directions[0] == optuna.study.StudyDirection.MAXIMIZE

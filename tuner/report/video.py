@@ -16,6 +16,7 @@ binary that the ``imageio-ffmpeg`` wheel ships (H.264, yuv420p: plays everywhere
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -51,14 +52,20 @@ class VideoOptions:
             raise UserError(f"--fps {self.fps}: expected 1..120 frames per second")
 
 
+@functools.lru_cache(maxsize=4)
+def _font(size: int):
+    from PIL import ImageFont
+    try:
+        return ImageFont.load_default(size=size)
+    except TypeError:                                   # Pillow < 10.1: fixed-size bitmap font
+        return ImageFont.load_default()
+
+
 def _overlay(frame: np.ndarray, lines: list[tuple[str, tuple[int, int, int]]]) -> np.ndarray:
-    from PIL import Image, ImageDraw, ImageFont
+    from PIL import Image, ImageDraw
     img = Image.fromarray(frame)
     draw = ImageDraw.Draw(img)
-    try:
-        font = ImageFont.load_default(size=max(12, frame.shape[0] // 28))
-    except TypeError:                                   # Pillow < 10.1: fixed-size bitmap font
-        font = ImageFont.load_default()
+    font = _font(max(12, frame.shape[0] // 28))
     y = 6
     for text, colour in lines:
         box = draw.textbbox((8, y), text, font=font)

@@ -70,7 +70,7 @@ from ..sim.surfaces import load_surface
 
 __all__ = ["FALL_PENALTY_DEG", "Evaluator", "open_storage", "open_study", "enqueue_starts", "run_study",
            "best_trial", "trial_params", "trial_stabiliser", "trial_result", "rollout_score", "trial_fell", "trial_feasible",
-           "DONE_STATES", "record_constraint", "pareto_pick", "PARETO_PICKS", "StudyStore", "WorkerStop", "work", "prepare_study", "trial_distributions"]
+           "DONE_STATES", "record_constraint", "pareto_pick", "PARETO_PICKS", "StudyStore", "WorkerStop", "work", "prepare_study", "run_workers", "load_tuned_study", "trial_distributions"]
 
 FALL_PENALTY_DEG = 100.0
 PROGRESS_PENALTY_DEG = 50.0     # per unit of the planned distance not covered
@@ -86,6 +86,18 @@ def open_storage(spec: StudySpec, storage: str | None, runs_dir: Path) -> Any:
 def _sampler(spec: StudySpec, seed: int) -> optuna.samplers.BaseSampler:
     # the fall constraint is stored on each trial (record_constraint); TPE reads it
     return optuna.samplers.TPESampler(seed=seed, multivariate=True, n_startup_trials=8)
+
+
+def load_tuned_study(spec: StudySpec, storage: str | None, runs_dir: Path) -> optuna.Study:
+    """A study that has been tuned, from its storage; a one-line :class:`UserError` if it has not."""
+    journal = Path(runs_dir) / f"{spec.name}.journal"
+    if storage is None and not journal.exists():
+        raise UserError(f"no runs of study {spec.name!r} in {journal} (run `gait-tuner tune` first)")
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    try:
+        return optuna.load_study(study_name=spec.name, storage=open_storage(spec, storage, runs_dir))
+    except KeyError:
+        raise UserError(f"storage holds no study named {spec.name!r}") from None
 
 
 def open_study(spec: StudySpec, storage: Any, seed: int | None = None) -> optuna.Study:
@@ -500,8 +512,15 @@ def run_study(spec: StudySpec, store: StudyStore, total: int | None, workers: in
     (other machines' ``worker`` processes may share the same budget). A worker that dies is
     replaced (its trial is retried by the others); bad input or a full disk in a worker stops
     all of them and is raised here as one line."""
-    log = log or (lambda msg: print(f"gait-tuner: {msg}", file=sys.stderr, flush=True))
     study, budget = prepare_study(spec, store, total, seed)
+    return run_workers(spec, store, study, budget, workers, seed, on_progress, poll, log)
+
+
+def run_workers(spec: StudySpec, store: StudyStore, study: optuna.Study, budget: int, workers: int,
+                seed: int, on_progress: Callable[[optuna.Study], None] | None = None,
+                poll: float = 0.5, log: Callable[[str], None] | None = None) -> optuna.Study:
+    """:func:`run_study` after :func:`prepare_study` (which gave ``study`` and ``budget``)."""
+    log = log or (lambda msg: print(f"gait-tuner: {msg}", file=sys.stderr, flush=True))
     if _n_done(study) >= budget:
         return study
     ctx = mp_context()

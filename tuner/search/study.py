@@ -237,23 +237,11 @@ def load_study(path_or_name: str) -> StudySpec:
                           f"(numeric parameters: {', '.join(numeric)})")
         if name in fixed:
             _fail(source, f"space: {name!r} is also fixed")
-        if not isinstance(rng, Mapping) or not {"low", "high"} <= set(rng) or not set(rng) <= {"low", "high", "log"}:
-            _fail(source, f"space: {name} must be {{low: ..., high: ..., log: false}}")
-        low, high, log = rng["low"], rng["high"], rng.get("log", False)
-        if not isinstance(log, bool):
-            _fail(source, f"space: {name}.log must be true or false, got {log!r}")
-        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in (low, high)):
-            _fail(source, f"space: {name} bounds must be numbers, got {low!r}, {high!r}")
-        if not all(math.isfinite(v) for v in (low, high)):
-            _fail(source, f"space: {name} bounds must be finite, got {low!r}, {high!r}")
-        if not low < high:
-            _fail(source, f"space: {name} bounds reversed or empty: low = {low}, high = {high}")
+        low, high, log = _range_bounds(name, rng, source)
         meta = numeric[name].metadata
         if low < meta["lo"] or high > meta["hi"]:
             _fail(source, f"space: {name} range [{low}, {high}] leaves the parameter's allowed range "
                           f"[{meta['lo']}, {meta['hi']}] {meta['unit']}")
-        if log and low <= 0:
-            _fail(source, f"space: {name} is log-scaled, so low must be > 0 (got {low})")
         space.append(ParamRange(name, float(low), float(high), log,
                                 isinstance(numeric[name].default, int)))
     surfaces = doc.get("surfaces", ["grass50"])
@@ -339,6 +327,25 @@ def _study_stabiliser(doc: Any, source: str) -> Any:
         _fail(source, str(exc))
 
 
+def _range_bounds(name: str, rng: Any, source: str) -> tuple[float, float, bool]:
+    """(low, high, log) of a space entry {low, high, log}: a mapping of those keys, a boolean
+    log flag, finite numbers with low < high, low > 0 when log-scaled; else one line naming it."""
+    if not isinstance(rng, Mapping) or not {"low", "high"} <= set(rng) or not set(rng) <= {"low", "high", "log"}:
+        _fail(source, f"space: {name} must be {{low: ..., high: ..., log: false}}")
+    low, high, log = rng["low"], rng["high"], rng.get("log", False)
+    if not isinstance(log, bool):
+        _fail(source, f"space: {name}.log must be true or false, got {log!r}")
+    if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in (low, high)):
+        _fail(source, f"space: {name} bounds must be numbers, got {low!r}, {high!r}")
+    if not all(math.isfinite(v) for v in (low, high)):
+        _fail(source, f"space: {name} bounds must be finite, got {low!r}, {high!r}")
+    if not low < high:
+        _fail(source, f"space: {name} bounds reversed or empty: low = {low}, high = {high}")
+    if log and low <= 0:
+        _fail(source, f"space: {name} is log-scaled, so low must be > 0 (got {low})")
+    return low, high, log
+
+
 def _stabiliser_range(name: str, rng: Any, stabiliser: Any, source: str) -> ParamRange:
     from gaits.imu_stabiliser import _RANGES
     field_name = name[len(STAB_PREFIX):]
@@ -346,18 +353,10 @@ def _stabiliser_range(name: str, rng: Any, stabiliser: Any, source: str) -> Para
         _fail(source, f"space: {name!r} needs a stabiliser: section (e.g. stabiliser: {{enabled: true}})")
     if field_name not in _RANGES:
         _fail(source, f"space: unknown stabiliser gain {field_name!r} (allowed: {', '.join(_RANGES)})")
-    if not isinstance(rng, Mapping) or not {"low", "high"} <= set(rng) or not set(rng) <= {"low", "high", "log"}:
-        _fail(source, f"space: {name} must be {{low: ..., high: ..., log: false}}")
-    low, high, log = rng["low"], rng["high"], rng.get("log", False)
-    if not isinstance(log, bool):
-        _fail(source, f"space: {name}.log = {log!r}: expected true or false")
-    if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in (low, high)) or not low < high:
-        _fail(source, f"space: {name} bounds must be numbers with low < high, got {low!r}, {high!r}")
+    low, high, log = _range_bounds(name, rng, source)
     lo, hi, unit = _RANGES[field_name]
     if low < lo or high > hi:
         _fail(source, f"space: {name} range [{low}, {high}] leaves the allowed range [{lo}, {hi}] {unit}")
-    if log and low <= 0:
-        _fail(source, f"space: {name} is log-scaled, so low must be > 0 (got {low})")
     return ParamRange(name, float(low), float(high), log, False)
 
 
