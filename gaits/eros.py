@@ -52,6 +52,26 @@ meaningful (the log of an angle); the text says the increment falls in a
 logarithmic rather than linear way as the foot nears the ground. We use
 ``T_mn,DC(k) = T_mn / (1 + C_DC ln(1 + k))`` in area k: C_DC = 0 is the plain
 gait, and the landing lengthens monotonically with C_DC and with n.
+
+Double-support phase (ours; ``double_support``, the share of each step with
+both feet loaded). Read literally, eqs 37-39 chain the landing of one foot
+straight into the lift-off of the other, and the hip sway (eq 39's 1 - cos back
+to the midline, then eq 38's sin out to the other side) crosses the midline at
+that very instant: both feet are down for single ticks only, and at lift-off the
+CoM is still a sway amplitude away from the new stance sole, so the full-lift
+walk falls sideways at once. The paper names a double-support phase and a
+push-off "at the beginning of transition from DSP to SSP", which needs the rear
+foot loaded for a while, but gives no duration. We insert one, centred on the
+sway's midline crossing: each step is ``[DSP/2][lift][landing][DSP/2]``, the
+feet stay still during the DSP halves, and the sway keeps the paper's shapes but
+spans the whole step (sin from the midline to its apex over the first DSP half
+and the lift-off, 1 - cos back over the landing and the second DSP half, at a
+uniform angle rate), so the CoM is carried across to the new stance foot while
+both feet are down. ``double_support = 0`` is the literal cycle, tick for tick.
+The default 0.4 is the middle of the 35-45% band that walked at the paper's
+full lift in an independent check (the issue tracker, issue 12); the stance
+width that goes with it is set per experiment setting (``tuner`` reads it as
+2Y + 5 mm, at least 65 mm).
 """
 
 from __future__ import annotations
@@ -71,6 +91,7 @@ __all__ = [
     "quarter_circle",
     "angle_steps",
     "decelerated_angle_steps",
+    "dsp_ticks",
     "via_points",
     "eros_references",
     "generate",
@@ -103,6 +124,9 @@ class ErosParams(GaitParams):
     landing_deceleration: bool = param(False, "-", doc="landing deceleration on (eqs 48-49)")
     c_dc: float = param(1.0, "-", 0.0, 10.0, "deceleration gain", "C_DC")
     n_areas: int = param(4, "-", 1, 20, "number of landing areas", "n")
+    double_support: float = param(0.4, "-", 0.0, 0.6,
+                                  "share of each step with both feet loaded, centred on the sway's "
+                                  "midline crossing (ours; 0: the literal cycle)")
     t_start: float = param(0.5, "s", 0.0, 10.0, "standing time before the first step (ours)")
     t_end: float = param(0.5, "s", 0.0, 10.0, "standing time after the last step (ours)")
 
@@ -126,7 +150,7 @@ class Transition:
 #: Y/Z profile family of each transition kind: the paper's lift-off (eq 38) and landing
 #: (eq 39) shapes, and a rest-to-rest raised cosine for our start/stop weight shifts.
 PROFILE = {"lift": "lift", "post": "lift", "land": "land", "pre": "land",
-           "shift": "rest", "return": "rest", "settle": "rest"}
+           "shift": "rest", "return": "rest", "settle": "rest", "dsp": "rest"}
 
 
 def quarter_circle(theta: np.ndarray, kind: str) -> tuple[np.ndarray, np.ndarray]:
@@ -172,6 +196,18 @@ def decelerated_angle_steps(t_mn: float, c_dc: float, n_areas: int) -> np.ndarra
     return np.array(out)
 
 
+#: Stop lean after the last step with a double-support phase, as a share of the sway (ours).
+STOP_LEAN = 0.25
+
+
+def dsp_ticks(p: ErosParams) -> int:
+    """Ticks of each half of the double-support phase: DSP / (DSP + lift + plain landing) = share."""
+    if p.double_support <= 0.0:
+        return 0
+    ssp = 2 * len(angle_steps(p.t_mn))
+    return max(1, int(round(p.double_support / (1.0 - p.double_support) * ssp / 2.0)))
+
+
 def via_points(p: ErosParams) -> list[Transition]:
     """The chain of transitions: start-up, ``n_steps`` steps, stop, and a final settle.
 
@@ -182,18 +218,30 @@ def via_points(p: ErosParams) -> list[Transition]:
     "shift" (rest to the swing side, raised cosine), "pre" (back to the centre,
     eq 39's shape, arriving at full sway speed), the steps, then "post" (eq 38's
     shape, to the last landed foot's side) and "return" (raised cosine to the
-    centre). Those use the plain T_mn stepping.
+    centre). Those use the plain T_mn stepping, or with a double-support phase
+    the sway's own (slower) angle rate, so the sway speed is continuous.
+
+    With ``double_support > 0`` each step is framed by two "dsp" transitions of
+    ``dsp_ticks(p)`` ticks that move no foot (their sway is set by
+    :func:`eros_references`).
     """
     state = np.zeros(6)
     swing = 1 if p.first_swing == "left" else -1
     plain = angle_steps(p.t_mn)
     landing = (decelerated_angle_steps(p.t_mn, p.c_dc, p.n_areas)
                if p.landing_deceleration else plain)
+    half = dsp_ticks(p)
+    sway = plain if half == 0 else np.linspace(0.0, np.pi / 2, half + len(plain) + 1)[1:]
     chain: list[Transition] = []
+
+    def hold(n: int, swing: int, at: np.ndarray) -> None:
+        if n > 0:
+            chain.append(Transition("dsp", swing, at, at.copy(), np.linspace(0.0, np.pi / 2, n + 1)[1:]))
+
     lean = state.copy()
     lean[BY] = swing * p.sway_y                 # toward the first swing foot, at rest
-    chain.append(Transition("shift", 0, state, lean, plain))
-    chain.append(Transition("pre", 0, lean, state.copy(), plain))
+    chain.append(Transition("shift", 0, state, lean, sway))
+    chain.append(Transition("pre", 0, lean, state.copy(), sway))
     for j in range(p.n_steps):
         xs, xp = (XL, XR) if swing == 1 else (XR, XL)
         zs = ZL if swing == 1 else ZR
@@ -205,6 +253,7 @@ def via_points(p: ErosParams) -> list[Transition]:
         apex[zs] = p.foot_lift
         apex[BX] = 0.5 * (state[BX] + body_next)
         apex[BY] = -swing * p.sway_y            # toward the support foot
+        hold(half, swing, state)
         chain.append(Transition("lift", swing, state, apex, plain))
         down = apex.copy()
         down[xs] = target
@@ -212,12 +261,18 @@ def via_points(p: ErosParams) -> list[Transition]:
         down[BX] = body_next
         down[BY] = 0.0
         chain.append(Transition("land", swing, apex, down, landing))
+        hold(half, swing, down)
         state = down
         swing = -swing
     lean = state.copy()
-    lean[BY] = -swing * p.sway_y                # toward the foot that landed last
-    chain.append(Transition("post", 0, state, lean, plain))
-    chain.append(Transition("return", 0, lean, state.copy(), plain))
+    # toward the foot that landed last; with a double support the CoM crosses the midline
+    # with both feet down, and a lean of a quarter of the sway, at the same speed, stops it
+    # over the stance polygon (ours; a full sway tips the robot over that foot's edge)
+    brake = 1.0 if half == 0 else STOP_LEAN
+    lean[BY] = -swing * p.sway_y * brake
+    post = sway if half == 0 else np.linspace(0.0, np.pi / 2, max(1, round(len(sway) * brake)) + 1)[1:]
+    chain.append(Transition("post", 0, state, lean, post))
+    chain.append(Transition("return", 0, lean, state.copy(), sway))
     chain.append(Transition("settle", 0, state, state.copy(), plain))
     return chain
 
@@ -226,8 +281,13 @@ def _heel_targets(p: ErosParams, chain: list[Transition]) -> list[tuple[float, f
     """End values of the ankle-pitch offsets (left, right) after each transition (eqs 44-47)."""
     ends = []
     cur = {1: 0.0, -1: 0.0}
-    for i, tr in enumerate(chain):
-        nxt = chain[i + 1] if i + 1 < len(chain) else None
+    steps = [tr for tr in chain if tr.kind != "dsp"]
+    following = {id(a): b for a, b in zip(steps, steps[1:])}
+    for tr in chain:
+        if tr.kind == "dsp":                           # both feet down: offsets held
+            ends.append((cur[1], cur[-1]))
+            continue
+        nxt = following.get(id(tr))
         for leg in (1, -1):
             if not p.heel_strike or tr.kind not in ("lift", "land"):
                 cur[leg] = 0.0                         # start-up, stop and settle: feet flat
@@ -265,6 +325,45 @@ class ErosReferences:
     via_ticks: np.ndarray    # tick index at which each via point is reached (first = 0)
     via_states: np.ndarray   # (len(chain) + 1, 6)
     transition_ticks: np.ndarray  # (len(chain),) ticks spent in each transition
+
+
+def _spread_sway(state: np.ndarray, chain: list[Transition], via_ticks: np.ndarray, extra: int) -> None:
+    """Sway over whole steps (double-support reading, module docstring), in place.
+
+    Knots: the midline before the first step (end of "pre"), the sway apex at
+    the end of each lift-off, the midline at the end of the last step. From the
+    midline to an apex the sway follows eq 38's sin, from an apex to the midline
+    eq 39's 1 - cos, and apex to apex the two joined (a half cosine, which is
+    both at a uniform angle rate): the CoM crosses the midline halfway between
+    apexes, in the middle of the double support. A decelerated landing (eqs
+    48-49) is longer than the plain one by ``extra`` ticks: the sway waits at its
+    apex for them, so the CoM leaves the stance foot as long before touchdown as
+    without deceleration (ours: the literal cycle slows the sway with the foot,
+    which with a double-support phase tips the robot toward the still-airborne
+    foot). Rows of transition i are ``via_ticks[i] + 1 .. via_ticks[i + 1]``.
+    """
+    kinds = [tr.kind for tr in chain]
+    lifts = [i for i, k in enumerate(kinds) if k == "lift"]
+    start = via_ticks[kinds.index("pre") + 1]
+    stop = via_ticks[kinds.index("post")]
+    knots = [(start, 0.0)]
+    for i in lifts:
+        knots += [(via_ticks[i + 1], chain[i].end[BY]), (via_ticks[i + 1] + extra, chain[i].end[BY])]
+    knots.append((stop, 0.0))
+    for (t0, y0), (t1, y1) in zip(knots, knots[1:]):
+        n = t1 - t0
+        if n == 0:
+            continue
+        s = np.arange(1, n + 1) / n
+        if y0 == y1:                                    # waiting at the apex
+            y = np.full(n, y0)
+        elif y0 == 0.0:                                 # midline -> apex: sin
+            y = y1 * np.sin(s * np.pi / 2)
+        elif y1 == 0.0:                                 # apex -> midline: 1 - cos
+            y = y0 * np.cos(s * np.pi / 2)
+        else:                                           # apex -> apex through the midline
+            y = y0 * np.cos(s * np.pi)
+        state[t0 + 1:t1 + 1, BY] = y
 
 
 def eros_references(p: ErosParams) -> ErosReferences:
@@ -305,9 +404,15 @@ def eros_references(p: ErosParams) -> ErosReferences:
     offsets.append(np.zeros((n_end, 2)))
     supports.append(np.zeros(n_end, dtype=int))
     state = np.concatenate(states)
+    via_states = np.array(via_states)
+    if dsp_ticks(p):
+        kinds = [tr.kind for tr in chain]
+        extra = len(chain[kinds.index("land")].theta) - len(chain[kinds.index("lift")].theta)
+        _spread_sway(state, chain, np.array(via_ticks), extra)
+        via_states[:, BY] = state[via_ticks, BY]     # DSP bounds lie inside a sway quarter
     t = np.arange(len(state)) * p.tick
     return ErosReferences(t, state, np.concatenate(offsets), np.concatenate(supports),
-                          np.array(via_ticks), np.array(via_states), np.array(spent))
+                          np.array(via_ticks), via_states, np.array(spent))
 
 
 def generate(p: ErosParams, leg: LegGeometry = LegGeometry(), dt: float | None = None) -> GaitTrajectory:
@@ -334,4 +439,4 @@ def generate(p: ErosParams, leg: LegGeometry = LegGeometry(), dt: float | None =
     return assemble("eros", t, leg, p_world_pelvis=pelvis, p_world_foot_l=left,
                     p_world_foot_r=right, support=support, ankle_pitch_offset=off,
                     meta={"transition_ticks": ref.transition_ticks.tolist(),
-                          "cycle_time": 4 * (math.pi / 2) / p.t_mn * p.tick})
+                          "cycle_time": (4 * (math.pi / 2) / p.t_mn + 4 * dsp_ticks(p)) * p.tick})

@@ -69,6 +69,38 @@ def test_experiment_eros_matrix(gait_tuner_cmd, run_env):
     assert "Table 7 (without optimisation)" in r.stdout and "Table 8 (with optimisation)" in r.stdout
     assert r.stdout.count("stability %") == 2
     assert "cells agreeing with the paper:" in r.stdout
+    assert "foot lift: the paper's Z x 1;" in r.stdout and "double support 40% of each step" in r.stdout
+    assert "paper's table      30             30             50             90" in r.stdout
+    assert "distance to fall on grass50" in r.stdout and "* = our cell differs" in r.stdout
+
+
+def test_experiment_eros_json(gait_tuner_cmd, run_env):
+    import json
+    r = run(gait_tuner_cmd, ["experiment", "eros", "--json", "--steps", "6"], run_env)
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(r.stdout)
+    assert doc["lift_scale"] == 1.0 and doc["double_support"] == 0.4
+    names = {"grass50", "grass30", "grass10", "carpet4"}
+    for key in ("without", "with"):
+        assert set(doc["stability"][key]) == names
+        assert all(0.0 <= v <= 1.0 for v in doc["stability"][key].values())
+        stable = [c["stable"] for c in doc["cells"] if c["optimised"] == (key == "with")
+                  and c["surface"] == "carpet4"]
+        assert doc["stability"][key]["carpet4"] == pytest.approx(sum(stable) / 10)
+    assert doc["paper_stability"]["without_table"]["grass50"] == 0.3
+    assert doc["paper_stability"]["without_text"]["grass50"] == 0.1
+    assert doc["paper_stability"]["with"]["carpet4"] == 1.0
+    assert set(doc["distance_to_fall_m"]) == {"8", "16", "24"} and len(doc["cells"]) == 80
+
+
+def test_experiment_eros_literal_cycle_falls(gait_tuner_cmd, run_env):
+    """double_support 0 is the paper's literal cycle: at its full lift it falls on every pedestal."""
+    import json
+    r = run(gait_tuner_cmd, ["experiment", "eros", "--json", "--double-support", "0", "--steps", "4"], run_env)
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(r.stdout)
+    assert doc["double_support"] == 0.0
+    assert doc["mean_stability"]["without"] == 0.0 and doc["mean_stability"]["with"] == 0.0
 
 
 def test_surfaces_listing(gait_tuner_cmd, run_env):

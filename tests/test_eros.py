@@ -8,8 +8,12 @@ import pytest
 from gaits import ErosParams, ParamError, load_baseline
 from gaits import eros
 
-WITHOUT = load_baseline("eros-x16-without").params
-WITH = load_baseline("eros-x16-with").params
+# the paper's literal cycle (no double-support phase) at 2.5 deg per tick, for exact tick counts
+WITHOUT = load_baseline("eros-x16-without").params.replace(double_support=0.0, t_mn=math.radians(2.5))
+WITH = load_baseline("eros-x16-with").params.replace(double_support=0.0, t_mn=math.radians(2.5),
+                                                     heel_gain=2.0, c_dc=1.0)
+# the project's gait: a double-support phase of 40% of each step (ours)
+DSP = load_baseline("eros-x16-without").params
 
 
 def test_quarter_circle_profiles_hand_checked():
@@ -149,3 +153,70 @@ def test_rest_profile_starts_and_ends_at_rest():
     _, yz = eros.quarter_circle(np.r_[0.0, th], "rest")
     assert yz[0] == 0.0 and yz[-1] == 1.0
     assert abs(yz[1] - yz[0]) < 0.002 and abs(yz[-1] - yz[-2]) < 0.002
+
+
+def _step_windows(p):
+    """(lift start, landing end, next lift start or end of walk) ticks of every step."""
+    ref = eros.eros_references(p)
+    kinds = [tr.kind for tr in eros.via_points(p)]
+    lifts = [i for i, k in enumerate(kinds) if k == "lift"]
+    return ref, [(ref.via_ticks[i], ref.via_ticks[i + 2]) for i in lifts]
+
+
+def test_literal_cycle_has_no_double_support():
+    assert eros.dsp_ticks(WITHOUT) == 0
+    kinds = [tr.kind for tr in eros.via_points(WITHOUT)]
+    assert "dsp" not in kinds
+    ref, steps = _step_windows(WITHOUT)
+    # one step's landing is the next one's lift-off: no tick between them with both feet down
+    assert all(b == a2 for (_, b), (a2, _) in zip(steps, steps[1:]))
+
+
+@pytest.mark.parametrize("share", [0.2, 0.4, 0.5])
+def test_double_support_takes_its_share_of_each_step(share):
+    p = DSP.replace(double_support=share)
+    ref, steps = _step_windows(p)
+    z = ref.state[:, [eros.ZL, eros.ZR]]
+    for (lift0, land1), (lift1, _) in zip(steps, steps[1:]):
+        both_down = np.all(z[land1:lift1 + 1] == 0.0, axis=1)
+        assert both_down.all()
+        step = lift1 - lift0                           # lift-off to the next lift-off
+        assert (lift1 - land1) / step == pytest.approx(share, abs=0.02)
+        assert np.any(z[lift0 + 1:land1] > 0.0)        # the swing foot is up between them
+
+
+def test_com_crosses_to_the_new_stance_foot_during_double_support():
+    p = DSP
+    ref, steps = _step_windows(p)
+    y = ref.state[:, eros.BY]
+    chain = eros.via_points(p)
+    swings = [tr.swing for tr in chain if tr.kind == "lift"]
+    for k, ((lift0, land1), (lift1, _)) in enumerate(zip(steps, steps[1:])):
+        window = y[land1:lift1 + 1]
+        # the sway crosses the midline inside the double support, halfway through it
+        assert window[0] * window[-1] < 0.0
+        cross = land1 + int(np.argmax(np.sign(window) != np.sign(window[0])))
+        assert abs(cross - (land1 + lift1) / 2) <= 1
+        # at the next lift-off the hip is already well over the new stance foot (sign -swing)
+        assert -swings[k + 1] * y[lift1] > 0.5 * p.sway_y
+    # the literal cycle lifts off with the hip still on the midline
+    ref0, steps0 = _step_windows(WITHOUT)
+    assert all(abs(ref0.state[a, eros.BY]) < 1e-12 for a, _ in steps0)
+
+
+@pytest.mark.parametrize("params", [DSP, DSP.replace(landing_deceleration=True, c_dc=1.0, heel_strike=True)])
+def test_double_support_sway_is_smooth(params):
+    """The spread sway keeps the paper's shapes: no velocity jump anywhere (deceleration waits at the apex)."""
+    ref = eros.eros_references(params)
+    y = ref.state[:, eros.BY]
+    v = np.diff(y) / params.tick
+    assert np.max(np.abs(np.diff(v))) < 0.05          # [m/s per tick]: ~6x below a jump at full sway speed
+    assert np.max(np.abs(y)) == pytest.approx(params.sway_y)
+    assert y[-1] == 0.0
+    # heel strike offsets stay continuous across the double support
+    assert np.max(np.abs(np.diff(ref.ankle_offset, axis=0))) < 0.02
+
+
+def test_double_support_parameter_bounds():
+    with pytest.raises(ParamError, match=r"eros.double_support = 0.7 - is out of range \[0, 0.6\]"):
+        ErosParams(double_support=0.7)

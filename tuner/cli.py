@@ -172,6 +172,25 @@ def _walk_options(f):
     return f
 
 
+class _LogLines:
+    """tqdm's output for a log file: each refresh one plain line instead of carriage returns."""
+
+    def write(self, text: str) -> None:
+        line = text.replace("\r", "").rstrip()
+        if line:
+            sys.stderr.write(line + "\n")
+
+    def flush(self) -> None:
+        sys.stderr.flush()
+
+
+def _bar_options() -> dict:
+    """Progress bars live on a terminal, a line every 15 s in a log (never silent for minutes)."""
+    if sys.stderr.isatty():
+        return {"disable": False, "mininterval": 0.5}
+    return {"disable": False, "mininterval": 15.0, "delay": 15.0, "file": _LogLines(), "ascii": True}
+
+
 def _parse_size(size: str) -> tuple[int, int]:
     try:
         w, h = (int(v) for v in size.lower().split("x"))
@@ -212,7 +231,7 @@ def render(robot_name: str, surface_name: str, family: str | None, params_spec: 
     title = f"{label} | {robot.name} | {sim.surface.name}" + (f" | command {command}" if command else "")
     n = len(frame_ticks(len(trace.t), sim.control_period, fps))
     with tqdm(total=n + int(round(options.hold_end * fps)), unit="frame", desc="render",
-              disable=None) as bar:
+              **_bar_options()) as bar:
         info = render_trace(sim, trace, out, options, title=title, progress=bar.update)
     click.echo(f"wrote {info['path']}: {info['frames']} frames, {info['width']}x{info['height']}, "
                f"{info['fps']} fps ({info['seconds']:.1f} s); the walk: {trace.reason}"
@@ -319,35 +338,55 @@ def simulate(robot_name: str, surface_name: str, family: str | None, params_spec
 @click.option("--robot", "robot_name", default="kidsize", show_default=True, metavar="NAME|PATH")
 @click.option("--surface", "surface_name", default="rigid", show_default=True,
               help="tlipfm only: the surface of the Table 3 walk.")
-@click.option("--lift-scale", default=0.2, show_default=True, type=click.FloatRange(0.05, 1.0),
-              help="eros only: multiply the paper's foot lift (Z = 90-100 mm) by this. On the built-in "
-                   "robot the full lift makes every EROS gait fall at its first step (measured), so "
-                   "the calibrated experiment uses 0.2 (18-20 mm).")
+@click.option("--lift-scale", default=1.0, show_default=True, type=click.FloatRange(0.05, 1.0),
+              help="eros only: multiply the paper's foot lift (Z = 90-100 mm) by this (1: the paper's own).")
+@click.option("--double-support", type=click.FloatRange(0.0, 0.6), metavar="SHARE",
+              help="eros only: share of each step with both feet loaded (ours; default: the baselines' 0.4). "
+                   "0 is the paper's literal cycle, which falls sideways at the full lift.")
+@click.option("--steps", "long_steps", default=40, show_default=True, type=click.IntRange(2, 500),
+              help="eros only: steps of the distance-to-fall walks on pedestal 1.")
+@click.option("--workers", default=2, show_default=True, type=click.IntRange(1, 64),
+              help="eros only: processes walking the matrix cells.")
+@click.option("--json", "as_json", is_flag=True, help="eros only: print the numbers as strict JSON.")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path),
               help="Also write the report as Markdown (report.md) here.")
-def experiment(paper: str, robot_name: str, surface_name: str, lift_scale: float,
-               out_dir: Path | None) -> None:
+def experiment(paper: str, robot_name: str, surface_name: str, lift_scale: float, double_support: float | None,
+               long_steps: int, workers: int, as_json: bool, out_dir: Path | None) -> None:
     """Run a paper's experiment in simulation and print it beside the paper's numbers.
 
     eros: the stability matrix of Tables 7-8 (4 pedestals x 10 step settings,
-    without and with the optimisation). tlipfm: Table 3 (ZMP error of LIPM,
-    DLIPM and TLIPFM).
+    without and with the optimisation) beside both readings of Table 7 (its
+    cells and its text) and Table 8, per-pedestal and mean stability, pitch
+    vibration, and the text's distance-to-fall walks on pedestal 1. tlipfm:
+    Table 3 (ZMP error of LIPM, DLIPM and TLIPFM).
     """
+    import json
+
     from tqdm import tqdm
 
     from .report import experiments as ex
     from .robots import load_robot
     from .sim.surfaces import SURFACES, load_surface
 
+    if paper != "eros" and as_json:
+        raise UserError("--json: only the eros experiment prints JSON")
     robot = load_robot(robot_name)
     if paper == "eros":
         surfaces = {p: SURFACES[name] for p, name in ex.PEDESTALS.items()}
+        ds = ex.eros_params(8, False).double_support if double_support is None else double_support
         n = 2 * len(surfaces) * sum(len(v) for v in ex.EROS_STEPS_MM.values())
-        with tqdm(total=n, desc="EROS matrix", unit="walk", disable=None) as bar:
-            without = ex.eros_matrix(robot, surfaces, False, lift_scale=lift_scale, progress=bar.update)
-            with_ = ex.eros_matrix(robot, surfaces, True, lift_scale=lift_scale, progress=bar.update)
-        text = (f"robot {robot.name}; foot lift: the paper's Z x {lift_scale:g}\n" + ex.format_eros(without, False)
-                + "\n\n" + ex.format_eros(with_, True))
+        with tqdm(total=n, desc="EROS matrix", unit="walk", **_bar_options()) as bar:
+            without, with_ = ex.eros_matrices(robot_name, surfaces, lift_scale=lift_scale, double_support=ds,
+                                              workers=workers, progress=bar.update)
+        distance = ex.distance_to_fall(robot, surfaces[1], long_steps, lift_scale, ds)
+        if as_json:
+            report = ex.eros_report(without, with_, distance, lift_scale, ds)
+            click.echo(json.dumps({"robot": robot.name, **report}, allow_nan=False))
+            return
+        text = (f"robot {robot.name}; foot lift: the paper's Z x {lift_scale:g}; double support "
+                f"{ds:.0%} of each step (ours{'; 0 = the literal cycle' if ds == 0 else ''})\n"
+                + ex.format_eros(without, False) + "\n\n" + ex.format_eros(with_, True) + "\n\n"
+                + ex.format_distance(distance, surfaces[1].name))
     else:
         surface = load_surface(surface_name)
         text = f"robot {robot.name}\n" + ex.format_table3(ex.tlipfm_table3(robot, surface), surface.name)
@@ -360,12 +399,13 @@ def experiment(paper: str, robot_name: str, surface_name: str, lift_scale: float
 
 @cli.command()
 @click.option("--workers", default=2, show_default=True, type=click.IntRange(1, 64))
-@click.option("--lift-scale", default=0.2, show_default=True, type=click.FloatRange(0.05, 1.0))
+@click.option("--lift-scale", default=1.0, show_default=True, type=click.FloatRange(0.05, 1.0))
 def calibrate(workers: int, lift_scale: float) -> None:
-    """Re-derive the pedestals' contact numbers from the EROS Tables 7-8 (slow: minutes).
+    """Re-derive the pedestals' contact numbers from the EROS Tables 7-8 (slow: tens of minutes).
 
     Prints, per pedestal, the grid point whose simulated stability matrix agrees
-    with the most table cells; tuner/sim/surfaces.py holds the values it chose.
+    with the most table cells, and how much better it does than the built-in
+    surface; tuner/sim/surfaces.py holds the values in use.
     """
     from tqdm import tqdm
 
@@ -373,12 +413,15 @@ def calibrate(workers: int, lift_scale: float) -> None:
     from .report import experiments as ex
 
     n = len(ex.PEDESTALS) * int(np.prod([len(v) for v in cal.DEFAULT_GRID.values()]))
-    with tqdm(total=n, desc="calibration", unit="grid point", disable=None) as bar:
+    with tqdm(total=n, desc="calibration", unit="grid point", **_bar_options()) as bar:
         gain, best, _ = cal.calibrate(workers=workers, lift_scale=lift_scale, progress=bar.update)
-    click.echo(f"heel gain (shared): {gain:g} rad/m")
+    click.echo(f"heel gain (shared): {gain:g} rad/m; cells in Table 7 order, S = stable, . = fell")
     for ped, c in best.items():
+        now = cal.evaluate((ped, {}, (gain,), lift_scale))[0]
         click.echo(f"P{ped} {c.surface:8s} {c.values}  agrees {c.agree}/20  "
-                   f"without {c.without}  with {c.with_}")
+                   f"without {c.without}  with {c.with_}  (built-in surface: agrees {now.agree}/20)")
+    click.echo("paper    without " + " | ".join(cal._paper_pattern(False, p) for p in ex.PEDESTALS)
+               + "   with " + " | ".join(cal._paper_pattern(True, p) for p in ex.PEDESTALS))
 
 
 def _storage_option(f):
@@ -393,8 +436,7 @@ def _study_progress(spec, total: int):
 
     from .search.optimise import DONE_STATES, best_trial, trial_fell
     # a terminal gets a live bar; a log file (CI, nohup) a line every 15 s rather than every poll
-    bar = tqdm(total=total, unit="trial", dynamic_ncols=True,
-               mininterval=0.5 if sys.stderr.isatty() else 15.0)
+    bar = tqdm(total=total, unit="trial", dynamic_ncols=True, **_bar_options())
 
     def progress(study) -> None:
         done = study.get_trials(deepcopy=False, states=DONE_STATES)
@@ -687,7 +729,7 @@ def compare(params_specs: tuple[str, ...], robot_name: str | None, surface_names
         else:
             robot_name = "kidsize"
     with tqdm(total=n_rows(list(params_specs), names, baselines), desc="compare", unit="set x surface",
-              disable=None) as bar:
+              **_bar_options()) as bar:
         text = run_compare(list(params_specs), robot_name, names, baselines, study_file, runs_dir, out_dir,
                            workers=workers, progress=bar.update, random_rollouts=random_rollouts)
     click.echo(text)
@@ -750,8 +792,7 @@ def robustness(params_spec: str, robot_name: str, surface_name: str, rollouts: i
     if stabiliser and stab is None:
         raise UserError(f"--stabiliser: {params_spec} holds no stabiliser section")
     total = rollouts + len(sizes) * push_rollouts
-    with tqdm(total=total, desc="robustness", unit="rollout", disable=None,
-              mininterval=0.5 if sys.stderr.isatty() else 15.0) as bar:
+    with tqdm(total=total, desc="robustness", unit="rollout", **_bar_options()) as bar:
         report = evaluate(robot_name, surface_name, gait_file, params_spec, rollouts=rollouts, seed=seed,
                           randomisation=rnd, stabiliser=stab, pushes=sizes, push_rollouts=push_rollouts,
                           workers=workers, progress=bar.update)

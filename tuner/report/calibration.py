@@ -3,11 +3,12 @@
 The EROS paper gives no contact physics, only outcomes: Tables 7-8 (which
 step settings stayed up on which pedestal, without and with the
 optimisation). We therefore treat the soft layer's support (``layer_timeconst``,
-``layer_dmin``) and its friction as unknowns and pick, per pedestal, the grid
+``layer_dmin``) and its in-layer drag as unknowns and pick, per pedestal, the grid
 point whose simulated stability matrix agrees with the most of that pedestal's
 20 table cells; the heel-strike gain (which the paper does not give either) is
 chosen with them, shared by all pedestals. Blade height is the paper's; the
-in-layer drag and the other numbers stay as in ``tuner.surfaces``. Ties go to
+the other numbers stay as in ``tuner.surfaces``. The gait is the baselines' (the
+paper's full lift with our 40% double-support phase, ``gaits/eros.py``). Ties go to
 the stiffest layer (the smaller time constant, the larger dmin), the more
 conservative model. ``gait-tuner calibrate`` runs this and prints the table it
 chose from; the values in ``tuner.surfaces`` are its output.
@@ -25,9 +26,9 @@ from ..sim.surfaces import SURFACES
 
 __all__ = ["DEFAULT_GRID", "HEEL_GAINS", "Candidate", "evaluate", "calibrate"]
 
-DEFAULT_GRID = {"layer_timeconst": (0.02, 0.03), "layer_dmin": (0.4, 0.5, 0.6, 0.7),
-                "friction": (0.8, 0.9, 1.0, 1.1)}
-HEEL_GAINS = (0.5, 1.0, 2.0)
+DEFAULT_GRID = {"layer_timeconst": (0.01, 0.015, 0.02, 0.03), "layer_dmin": (0.6, 0.7, 0.8, 0.9),
+                "drag": (30.0, 80.0, 200.0, 400.0)}
+HEEL_GAINS = (0.25, 0.5, 1.0)
 
 
 @dataclass(frozen=True)
@@ -65,7 +66,7 @@ def evaluate(args: tuple) -> list[Candidate]:
     return out
 
 
-def calibrate(grid: dict = DEFAULT_GRID, gains: tuple = HEEL_GAINS, lift_scale: float = 0.2,
+def calibrate(grid: dict = DEFAULT_GRID, gains: tuple = HEEL_GAINS, lift_scale: float = 1.0,
               workers: int = 2, progress=None) -> tuple[float, dict[int, Candidate], list[Candidate]]:
     """Best heel gain, the best candidate per pedestal at that gain, and every candidate."""
     keys = list(grid)
