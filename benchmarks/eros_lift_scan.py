@@ -1,10 +1,12 @@
-"""Why the EROS experiment scales the paper's lift by 0.2: stability and progress by lift scale.
+"""Why the paper's literal EROS cycle cannot take its own lift: stability and progress by lift scale.
 
 Usage: ``python benchmarks/eros_lift_scan.py``
 
 For each lift scale (the paper's Z x s) and surface, the EROS gait without and
 with its optimisation at 0, 8, 16 and 24 mm (Y, Z per ``tuner.experiments.eros_params``):
 S = stayed up, U = fell, followed by the distance covered as a fraction of the plan.
+The gait is the literal cycle (``double_support = 0``); before the double-support
+phase of ``gaits/eros.py`` the experiment scaled the lift by 0.2 because of this.
 
 Then, why a high lift falls (rigid floor, 8 mm, without optimisation): the
 paper's cycle has no double-support time and its hip sway is a sinusoid
@@ -37,7 +39,7 @@ def main() -> None:
             cells = []
             for optimised in (False, True):
                 for step in (0, 8, 16, 24):
-                    p = ex.eros_params(step, optimised)
+                    p = ex.eros_params(step, optimised, double_support=0.0)
                     p = p.replace(foot_lift=p.foot_lift * scale)
                     traj = gaits.generate(p, robot.leg, sim.control_period)
                     m = summarize(sim.rollout(traj))
@@ -48,7 +50,7 @@ def main() -> None:
     sim = Simulator(robot, SURFACES["rigid"])
     print("\nlift-off on the rigid floor, 8 mm, without optimisation:")
     for scale in (0.2, 0.3, 0.5, 1.0):
-        p = ex.eros_params(8, False)
+        p = ex.eros_params(8, False, double_support=0.0)
         p = p.replace(foot_lift=p.foot_lift * scale)
         traj = gaits.generate(p, robot.leg, sim.control_period)
         tr = sim.rollout(traj)

@@ -23,6 +23,9 @@ with 52 of the 80 cells. Measured with 120 trials: best 58 of 80; the best
 fits are nearly all stable, their falls without the optimisation are sideways
 (at small as well as long steps), and the forward falls that appear come with
 the optimisation at the long steps: not the paper's toe-catching pattern.
+This fit is of the paper's literal cycle (``double_support = 0``, lift scaled),
+the experiment before the double-support phase; ``gait-tuner calibrate`` fits
+the pedestals for the gait with it.
 """
 
 from __future__ import annotations
@@ -89,7 +92,7 @@ def objective(trial: optuna.Trial) -> int:
         sim = Simulator(robot, surface)
         cells = {}
         for opt in (False, True):
-            base = ex.eros_params(8, opt).replace(**shared)
+            base = ex.eros_params(8, opt, double_support=0.0).replace(**shared)
             cells[opt] = []
             for d, steps in ex.EROS_STEPS_MM.items():
                 for s in steps:

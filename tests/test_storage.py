@@ -360,6 +360,10 @@ def test_fall_constraint_is_where_optuna_and_the_dashboard_read_it(gait_tuner_cm
         assert t.system_attrs["constraints"] == [value]          # optuna-dashboard's key
         assert t.constraints == {"0": value}                     # Optuna 5's view of it
     assert any(t.constraints["0"] > 0 for t in trials) and any(t.constraints["0"] <= 0 for t in trials)
+    # parameter names carry their SI unit where the dashboard and Optuna's plots read them
+    names = set(trials[0].distributions)
+    assert names and all(n.endswith(("[m]", "[s]", "[rad]", "[rad/m]", "[N s/m]")) or "[" not in n for n in names)
+    assert any(n.endswith(" [m]") or n.endswith(" [s]") for n in names), names
 
 
 def test_one_worker_and_a_seed_give_the_same_study_and_pareto_lists_optunas_best(gait_tuner_cmd, run_env,

@@ -347,11 +347,14 @@ def simulate(robot_name: str, surface_name: str, family: str | None, params_spec
               help="eros only: steps of the distance-to-fall walks on pedestal 1.")
 @click.option("--workers", default=2, show_default=True, type=click.IntRange(1, 64),
               help="eros only: processes walking the matrix cells.")
+@click.option("--tuned", "tuned_spec", metavar="PARAMS",
+              help="eros only: also walk Table 8's cells with this EROS set's heel gain, C_DC, n and "
+                   "double-support share (e.g. the export of the eros-paper study).")
 @click.option("--json", "as_json", is_flag=True, help="eros only: print the numbers as strict JSON.")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path),
               help="Also write the report as Markdown (report.md) here.")
 def experiment(paper: str, robot_name: str, surface_name: str, lift_scale: float, double_support: float | None,
-               long_steps: int, workers: int, as_json: bool, out_dir: Path | None) -> None:
+               long_steps: int, workers: int, tuned_spec: str | None, as_json: bool, out_dir: Path | None) -> None:
     """Run a paper's experiment in simulation and print it beside the paper's numbers.
 
     eros: the stability matrix of Tables 7-8 (4 pedestals x 10 step settings,
@@ -368,25 +371,35 @@ def experiment(paper: str, robot_name: str, surface_name: str, lift_scale: float
     from .robots import load_robot
     from .sim.surfaces import SURFACES, load_surface
 
-    if paper != "eros" and as_json:
-        raise UserError("--json: only the eros experiment prints JSON")
+    if paper != "eros" and (as_json or tuned_spec):
+        raise UserError(f"{'--json' if as_json else '--tuned'}: only the eros experiment takes it")
+    tuned = None if tuned_spec is None else resolve_params(tuned_spec, "eros").params
     robot = load_robot(robot_name)
     if paper == "eros":
         surfaces = {p: SURFACES[name] for p, name in ex.PEDESTALS.items()}
         ds = ex.eros_params(8, False).double_support if double_support is None else double_support
-        n = 2 * len(surfaces) * sum(len(v) for v in ex.EROS_STEPS_MM.values())
+        n = (2 + (tuned is not None)) * len(surfaces) * sum(len(v) for v in ex.EROS_STEPS_MM.values())
         with tqdm(total=n, desc="EROS matrix", unit="walk", **_bar_options()) as bar:
-            without, with_ = ex.eros_matrices(robot_name, surfaces, lift_scale=lift_scale, double_support=ds,
-                                              workers=workers, progress=bar.update)
+            matrices = ex.eros_matrices(robot_name, surfaces, lift_scale=lift_scale, double_support=ds,
+                                        workers=workers, progress=bar.update, tuned=tuned)
+        without, with_ = matrices[:2]
+        tuned_cells = matrices[2] if tuned is not None else None
         distance = ex.distance_to_fall(robot, surfaces[1], long_steps, lift_scale, ds)
         if as_json:
-            report = ex.eros_report(without, with_, distance, lift_scale, ds)
+            report = ex.eros_report(without, with_, distance, lift_scale, ds, tuned_cells)
+            if tuned is not None:
+                report["tuned"]["params"] = {k: getattr(tuned, k) for k in ex.TUNED_KNOBS}
+                report["tuned"]["source"] = tuned_spec
             click.echo(json.dumps({"robot": robot.name, **report}, allow_nan=False))
             return
         text = (f"robot {robot.name}; foot lift: the paper's Z x {lift_scale:g}; double support "
                 f"{ds:.0%} of each step (ours{'; 0 = the literal cycle' if ds == 0 else ''})\n"
-                + ex.format_eros(without, False) + "\n\n" + ex.format_eros(with_, True) + "\n\n"
-                + ex.format_distance(distance, surfaces[1].name))
+                + ex.format_eros(without, False) + "\n\n" + ex.format_eros(with_, True) + "\n\n")
+        if tuned_cells is not None:
+            knobs = ", ".join(f"{k} {getattr(tuned, k):.3g}" for k in ex.TUNED_KNOBS)
+            text += ex.format_eros(tuned_cells, True, f"Table 8 cells, tuned knobs from {tuned_spec} "
+                                                      f"({knobs})") + "\n\n"
+        text += ex.format_distance(distance, surfaces[1].name)
     else:
         surface = load_surface(surface_name)
         text = f"robot {robot.name}\n" + ex.format_table3(ex.tlipfm_table3(robot, surface), surface.name)
@@ -535,7 +548,7 @@ def tune(study_file: str, trials: int | None, workers: int, storage: str | None,
 @cli.command()
 @click.argument("study_file", metavar="STUDY.yaml")
 @_storage_option
-@click.option("--workers", default=1, show_default=True, type=click.IntRange(1, 64),
+@click.option("--workers", default=2, show_default=True, type=click.IntRange(1, 64),
               help="Processes running trials on this machine.")
 @click.option("--seed", type=int, help="Sampler seed of this machine's processes (default: the file's "
               "sampler_seed plus a number drawn from the host name, so machines sample differently).")
@@ -612,7 +625,7 @@ def trials(study_file: str, storage: str | None, runs_dir: Path, pareto: bool, s
                      "speed": values[1] if len(values) > 1 else None,
                      "feasible": trial_feasible(t), "survival": res.get("survival"),
                      "start": t.user_attrs.get("start"),
-                     "params": {r.name: t.params.get(r.name) for r in spec.space}})
+                     "params": {r.name: t.params.get(r.label, t.params.get(r.name)) for r in spec.space}})
     keys = {"number": lambda r: r["number"],
             "score": lambda r: (r["score"] is None, r["score"] if r["score"] is not None else 0.0),
             "speed": lambda r: (r["speed"] is None, -(r["speed"] or 0.0))}

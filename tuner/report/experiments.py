@@ -22,7 +22,7 @@ from ..sim.surfaces import Surface
 
 __all__ = ["PAPER_TABLE7", "PAPER_TABLE8", "PAPER_STABILITY", "PAPER_TABLE3", "PAPER_DISTANCE_TO_FALL",
            "PAPER_PITCH_PM", "PEDESTALS", "EROS_STEPS_MM", "eros_params", "EROSCell", "eros_matrix",
-           "eros_matrices", "stability_percent", "paper_stability", "distance_to_fall", "eros_report", "format_distance",
+           "eros_matrices", "TUNED_KNOBS", "tuned_base", "stability_percent", "paper_stability", "distance_to_fall", "eros_report", "format_distance",
            "tlipfm_table3", "format_eros", "format_table3"]
 
 #: EROS pedestal number -> our surface.
@@ -126,29 +126,44 @@ _SIMS: dict = {}
 
 def _cell(task: tuple) -> EROSCell:
     """One walk of the matrix (runs in a worker process; the simulator is kept per surface)."""
-    robot_name, ped, surface, optimised, direction, step, lift_scale, double_support = task
+    robot_name, ped, surface, optimised, direction, step, lift_scale, double_support, base = task
     key = (robot_name, surface)
     if key not in _SIMS:
         from ..robots import load_robot
         _SIMS[key] = Simulator(load_robot(robot_name), surface)
     sim = _SIMS[key]
-    p = eros_params(step, optimised, direction, None, double_support)
+    p = eros_params(step, optimised, direction, base, double_support)
     if lift_scale != 1.0:
         p = p.replace(foot_lift=p.foot_lift * lift_scale)
     m = summarize(sim.rollout(gaits.generate(p, sim.robot.leg, sim.control_period)))
     return EROSCell(ped, surface.name, direction, step, optimised, not m.fell, m)
 
 
+#: What a tuned EROS gait brings to the matrix: the paper's own knobs and our double-support share.
+TUNED_KNOBS = ("heel_gain", "c_dc", "n_areas", "double_support")
+
+
+def tuned_base(tuned: ErosParams) -> ErosParams:
+    """The Table 8 gait with a tuned set's knobs (:data:`TUNED_KNOBS`); the rest stays the baselines'."""
+    base = load_baseline("eros-x8-with").params
+    return base.replace(**{k: getattr(tuned, k) for k in TUNED_KNOBS})
+
+
 def eros_matrices(robot_name: str, surfaces: dict[int, Surface], lift_scale: float = 1.0,
-                  double_support: float | None = None, workers: int = 2,
-                  progress=None) -> tuple[list[EROSCell], list[EROSCell]]:
-    """Tables 7 and 8 (the baselines' gait), their walks spread over ``workers`` processes."""
+                  double_support: float | None = None, workers: int = 2, progress=None,
+                  tuned: ErosParams | None = None) -> tuple[list[EROSCell], ...]:
+    """Tables 7 and 8 (the baselines' gait), and with ``tuned`` a third matrix: Table 8's cells
+    walked with the tuned knobs. The walks are spread over ``workers`` processes."""
     from ..search.process_pool import map_in_order
-    tasks = [(robot_name, ped, surface, optimised, direction, step, lift_scale, double_support)
-             for optimised in (False, True) for ped, surface in surfaces.items()
+    runs = [(False, None, double_support), (True, None, double_support)]
+    if tuned is not None:
+        runs.append((True, tuned_base(tuned), None))
+    tasks = [(robot_name, ped, surface, optimised, direction, step, lift_scale, ds, base)
+             for optimised, base, ds in runs for ped, surface in surfaces.items()
              for direction, steps in EROS_STEPS_MM.items() for step in steps]
     cells = map_in_order(_cell, tasks, workers, progress)
-    return [c for c in cells if not c.optimised], [c for c in cells if c.optimised]
+    n = len(cells) // len(runs)
+    return tuple(cells[i * n:(i + 1) * n] for i in range(len(runs)))
 
 
 def stability_percent(cells: list[EROSCell]) -> dict[int, float]:
@@ -178,7 +193,7 @@ def _median_pitch(cells: list[EROSCell], ped: int) -> float:
 
 
 def eros_report(without: list[EROSCell], with_: list[EROSCell], distance: dict[int, Metrics],
-                lift_scale: float, double_support: float) -> dict:
+                lift_scale: float, double_support: float, tuned: list[EROSCell] | None = None) -> dict:
     """The experiment's numbers for scripts (``experiment eros --json``); fractions, not percent."""
     peds = sorted({c.pedestal for c in without})
 
@@ -193,6 +208,13 @@ def eros_report(without: list[EROSCell], with_: list[EROSCell], distance: dict[i
                 "t_fall_s": c.metrics.t_fall_s}
 
     sw, sh = stability_percent(without), stability_percent(with_)
+    extra = {}
+    if tuned:
+        st = stability_percent(tuned)
+        extra = {"tuned": {"stability": frac(st),
+                           "mean_stability": round(float(np.mean(list(st.values()))) / 100.0, 4),
+                           "pitch_pm_deg": {PEDESTALS[p]: round(_median_pitch(tuned, p), 3) for p in peds},
+                           "cells": [cell(c) for c in tuned]}}
     return {
         "lift_scale": lift_scale,
         "double_support": double_support,
@@ -209,14 +231,15 @@ def eros_report(without: list[EROSCell], with_: list[EROSCell], distance: dict[i
                                         "t_fall_s": m.t_fall_s} for k, m in distance.items()},
         "paper_distance_to_fall_m": {str(k): v for k, v in PAPER_DISTANCE_TO_FALL.items()},
         "cells": [cell(c) for c in without + with_],
+        **extra,
     }
 
 
-def format_eros(cells: list[EROSCell], optimised: bool) -> str:
+def format_eros(cells: list[EROSCell], optimised: bool, title: str | None = None) -> str:
     """Our matrix beside the paper's (S = stable, U = unstable; paper / ours per pedestal)."""
     paper = PAPER_TABLE8 if optimised else PAPER_TABLE7
     peds = sorted({c.pedestal for c in cells})
-    title = "Table 8 (with optimisation)" if optimised else "Table 7 (without optimisation)"
+    title = title or ("Table 8 (with optimisation)" if optimised else "Table 7 (without optimisation)")
     lines = [f"EROS {title}: cells are paper/ours, S = stable, U = unstable (fell)",
              "rows: step per step, the paper labels them cm, we read mm (see gaits/eros.py)"]
     head = "direction  step " + "".join(f"  P{p}:{PEDESTALS.get(p, '?'):8s}" for p in peds)

@@ -268,9 +268,9 @@ def _suggest(trial: optuna.Trial, spec: StudySpec) -> dict[str, Any]:
     out = {}
     for r in spec.space:
         if r.integer:
-            out[r.name] = trial.suggest_int(r.name, int(math.ceil(r.low)), int(math.floor(r.high)), log=r.log)
+            out[r.name] = trial.suggest_int(r.label, int(math.ceil(r.low)), int(math.floor(r.high)), log=r.log)
         else:
-            out[r.name] = trial.suggest_float(r.name, r.low, r.high, log=r.log)
+            out[r.name] = trial.suggest_float(r.label, r.low, r.high, log=r.log)
     return out
 
 
@@ -322,7 +322,7 @@ def _clip_to_space(spec: StudySpec, params: gaits.GaitParams) -> dict[str, Any]:
         else:
             v = getattr(params, r.name)
         v = min(max(v, r.low), r.high)
-        out[r.name] = int(round(v)) if r.integer else float(v)
+        out[r.label] = int(round(v)) if r.integer else float(v)
     return out
 
 
@@ -362,9 +362,9 @@ def trial_distributions(spec: StudySpec) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for r in spec.space:
         if r.integer:
-            out[r.name] = IntDistribution(int(math.ceil(r.low)), int(math.floor(r.high)), log=r.log)
+            out[r.label] = IntDistribution(int(math.ceil(r.low)), int(math.floor(r.high)), log=r.log)
         else:
-            out[r.name] = FloatDistribution(r.low, r.high, log=r.log)
+            out[r.label] = FloatDistribution(r.low, r.high, log=r.log)
     return out
 
 

@@ -108,6 +108,13 @@ class ParamRange:
     high: float
     log: bool = False
     integer: bool = False
+    unit: str = "-"
+
+    @property
+    def label(self) -> str:
+        """The parameter's name in Optuna's storage, with its SI unit (``t_mn [rad]``), so the
+        dashboard and Optuna's plots show it; dimensionless parameters keep their bare name."""
+        return self.name if self.unit in ("", "-") else f"{self.name} [{self.unit}]"
 
 
 @dataclass(frozen=True)
@@ -243,7 +250,7 @@ def load_study(path_or_name: str) -> StudySpec:
             _fail(source, f"space: {name} range [{low}, {high}] leaves the parameter's allowed range "
                           f"[{meta['lo']}, {meta['hi']}] {meta['unit']}")
         space.append(ParamRange(name, float(low), float(high), log,
-                                isinstance(numeric[name].default, int)))
+                                isinstance(numeric[name].default, int), meta["unit"]))
     surfaces = doc.get("surfaces", ["grass50"])
     if isinstance(surfaces, str):
         surfaces = [surfaces]
@@ -357,7 +364,7 @@ def _stabiliser_range(name: str, rng: Any, stabiliser: Any, source: str) -> Para
     lo, hi, unit = _RANGES[field_name]
     if low < lo or high > hi:
         _fail(source, f"space: {name} range [{low}, {high}] leaves the allowed range [{lo}, {hi}] {unit}")
-    return ParamRange(name, float(low), float(high), log, False)
+    return ParamRange(name, float(low), float(high), log, False, unit)
 
 
 def _study_robust(doc: Any, source: str) -> RobustSpec | None:

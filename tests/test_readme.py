@@ -1,0 +1,79 @@
+"""Every command of the README's command-line block, run through the real CLI as written.
+
+The block is read from README.md itself, so an example that stops working fails here. Run in
+order in a scratch directory (``studies/`` and ``examples/`` linked in), so that ``export`` finds
+what ``tune`` made and ``compare`` what ``export`` wrote. In the default run three long commands
+get a smaller budget, appended and listed in ``BUDGET`` (the same command, fewer trials or
+rollouts), and ``calibrate`` (~10 minutes) runs only in the slow suite, where every line runs
+exactly as written (``pytest -m slow tests/test_readme.py``). ``worker`` joins the study
+``tune`` just finished (it says so and stops), and ``view``, on a machine without a display,
+must fail in one line with exit 2: the README says it needs one.
+"""
+
+import os
+import re
+import shlex
+import subprocess
+
+import pytest
+
+from conftest import ROOT
+
+BUDGET = {"tune": ["--trials", "2"], "robustness": ["--rollouts", "4", "--push-rollouts", "2"]}
+SLOW_ONLY = {"calibrate"}
+
+
+def readme_commands() -> list[list[str]]:
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    section = text.split("## Command line", 1)[1]
+    block = re.search(r"```sh\n(.*?)```", section, re.S).group(1)
+    commands = []
+    for line in block.splitlines():
+        line = line.split(" #", 1)[0].strip()
+        if line.startswith("gait-tuner"):
+            commands.append(shlex.split(line)[1:])
+    return commands
+
+
+def test_the_block_is_found_and_covers_every_verb(gait_tuner_cmd, run_env):
+    cmds = readme_commands()
+    assert len(cmds) >= 15
+    verbs = {c[0] for c in cmds}
+    r = subprocess.run(gait_tuner_cmd + ["--help"], capture_output=True, text=True, env=run_env)
+    listed = set(re.findall(r"^  ([a-z]+)\s", r.stdout.split("Commands:", 1)[1], re.M))
+    assert listed - verbs == set(), f"verbs without a README example: {listed - verbs}"
+
+
+def _run_block(gait_tuner_cmd, run_env, tmp_path, literal: bool):
+    for name in ("studies", "examples"):
+        os.symlink(ROOT / name, tmp_path / name)
+    env = dict(run_env)
+    env.pop("DISPLAY", None)
+    env.pop("WAYLAND_DISPLAY", None)
+    for args in readme_commands():
+        verb = args[0]
+        if verb in SLOW_ONLY and not literal:
+            continue
+        if not literal:
+            args = args + BUDGET.get(verb, [])
+        r = subprocess.run(gait_tuner_cmd + args, capture_output=True, text=True, env=env, cwd=tmp_path,
+                           timeout=3600)
+        shown = "gait-tuner " + " ".join(args)
+        if verb == "view":
+            assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, (shown, r.stderr)
+            assert "display" in r.stderr
+            continue
+        assert r.returncode == 0, (shown, r.stdout[-2000:], r.stderr[-2000:])
+    # what the examples say they write is there
+    for path in ("runs/tk", "runs/sim/pitch.png", "runs/walk.mp4", "runs/tlipfm-robust/best.yaml",
+                 "runs/cmp", "runs/turn"):
+        assert (tmp_path / path).exists(), path
+
+
+def test_readme_commands_run(gait_tuner_cmd, run_env, tmp_path):
+    _run_block(gait_tuner_cmd, run_env, tmp_path, literal=False)
+
+
+@pytest.mark.slow
+def test_readme_commands_run_exactly_as_written(gait_tuner_cmd, run_env, tmp_path):
+    _run_block(gait_tuner_cmd, run_env, tmp_path, literal=True)
