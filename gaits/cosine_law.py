@@ -35,10 +35,19 @@ reference line; A is its angle at the hip (opposite l2), C at the ankle
 hip = A - theta_T (tilted leg, 0 for the vertical one), knee = hip + C
 (eq 22), ankle = -(knee - hip) (eq 20), mirrored in sign for the second leg
 (eqs 16, 21, 23), *if* the triangle side is the reference line minus 118 mm and
-l1 = 59.98 mm, l2 = 77.67 mm (:data:`SETIONO_TABLE_FIT`, fitted to all 54 table
-angles; see ``tests/test_cosine_law.py``). The paper's robot has a 380 mm leg,
-so these are not its link lengths: the tables are not consistent with a plain
-triangle of the real leg, and the fit is the reading that reproduces them.
+l1 = 59.98 mm, l2 = 77.67 mm (:data:`SETIONO_TABLE_FIT`, fitted to all 162 table
+angles, 3 tables x 9 rows x 6 angle columns; see ``tests/test_cosine_law.py``).
+The paper's robot has a 380 mm leg, so these are not its link lengths: the
+tables are not consistent with a plain triangle of the real leg, and the fit is
+the reading that reproduces them. What the fit identifies: l2 / l1 = 1.295, the
+118 mm offset and (measured, against a claim that only the ratio matters) the
+common scale too: links x0.9 or x1.2 with the offset re-fitted leave 1.8 / 2.6
+deg rms. What it contradicts: a triangle of these links spans hip heights of
+only 120 mm from folded to straight, where the paper's robot goes from 380 mm
+(straight) to 220 mm (squat); and with the tables' own angles its tilted leg
+puts the foot 4.7 mm from under the hip where S is 40 mm. So the tables'
+angles are a consistent triangle computation, but not of a leg that takes the
+paper's steps; the robot joint table below uses the real leg's geometry.
 Table 3 lists the ending motion's second half without the eq 34 bump; our
 generator follows the text (eq 34) and the test reports that difference.
 
