@@ -427,12 +427,23 @@ def calibrate(workers: int, lift_scale: float) -> None:
 
     n = len(ex.PEDESTALS) * int(np.prod([len(v) for v in cal.DEFAULT_GRID.values()]))
     with tqdm(total=n, desc="calibration", unit="grid point", **_bar_options()) as bar:
-        gain, best, _ = cal.calibrate(workers=workers, lift_scale=lift_scale, progress=bar.update)
+        gain, best, every = cal.calibrate(workers=workers, lift_scale=lift_scale, progress=bar.update)
     click.echo(f"heel gain (shared): {gain:g} rad/m; cells in Table 7 order, S = stable, . = fell")
-    for ped, c in best.items():
+    for ped in ex.PEDESTALS:
         now = cal.evaluate((ped, {}, (gain,), lift_scale))[0]
-        click.echo(f"P{ped} {c.surface:8s} {c.values}  agrees {c.agree}/20  "
-                   f"without {c.without}  with {c.with_}  (built-in surface: agrees {now.agree}/20)")
+        free = max((c for c in every if c.pedestal == ped and c.heel_gain == gain), key=lambda c: c.agree)
+        c = best.get(ped)
+        toe = (f"; toe test: landing pitch peak/final {now.toe[0]:.1f}/{now.toe[1]:.1f} deg"
+               if ped in cal.TOE_STICKING else "")
+        click.echo(f"P{ped} {ex.PEDESTALS[ped]:8s} built-in: agrees {now.agree}/20  without {now.without}  "
+                   f"with {now.with_}{toe}")
+        if c is None:
+            click.echo(f"   no grid point keeps the toe-sticking test; the best without it: {free.values} "
+                       f"agrees {free.agree}/20 (landing pitch {free.toe[0]:.1f}/{free.toe[1]:.1f} deg)")
+        else:
+            click.echo(f"   chosen: {c.values}  agrees {c.agree}/20  without {c.without}  with {c.with_}"
+                       + (f"  (the best without the toe test: {free.values}, {free.agree}/20)"
+                          if free.agree > c.agree else ""))
     click.echo("paper    without " + " | ".join(cal._paper_pattern(False, p) for p in ex.PEDESTALS)
                + "   with " + " | ".join(cal._paper_pattern(True, p) for p in ex.PEDESTALS))
 

@@ -76,15 +76,18 @@ SURFACES: dict[str, Surface] = {
     "carpet4": Surface(name="carpet4", layer_height=0.004, layer_timeconst=0.01, layer_dampratio=1.0,
                        layer_dmin=0.9, layer_dmax=0.95, friction=1.0, drag=0.0,
                        description="EROS pedestal 4: green carpet, 4 mm, smooth and soft (no blades to drag)"),
-    "grass10": Surface(name="grass10", layer_height=0.010, layer_timeconst=0.02, layer_dampratio=1.0,
-                       layer_dmin=0.6, layer_dmax=0.95, friction=0.9, drag=30.0,
-                       description="EROS pedestal 3: 10 mm blades, 5 mm apart (dense), rough"),
-    "grass30": Surface(name="grass30", layer_height=0.030, layer_timeconst=0.03, layer_dampratio=1.0,
-                       layer_dmin=0.5, layer_dmax=0.95, friction=0.8, drag=60.0,
-                       description="EROS pedestal 2: 30 mm blades, 5 mm apart (dense), smooth"),
+    "grass10": Surface(name="grass10", layer_height=0.010, layer_timeconst=0.01, layer_dampratio=1.0,
+                       layer_dmin=0.7, layer_dmax=0.95, friction=0.9, drag=30.0,
+                       description="EROS pedestal 3: 10 mm blades, 5 mm apart (dense), rough; support and drag "
+                                   "from gait-tuner calibrate (18 of 20 table cells)"),
+    "grass30": Surface(name="grass30", layer_height=0.030, layer_timeconst=0.02, layer_dampratio=1.0,
+                       layer_dmin=0.8, layer_dmax=0.95, friction=0.8, drag=200.0,
+                       description="EROS pedestal 2: 30 mm blades, 5 mm apart (dense), smooth; support and drag "
+                                   "from gait-tuner calibrate (16 of 20 table cells)"),
     "grass50": Surface(name="grass50", layer_height=0.050, layer_timeconst=0.04, layer_dampratio=1.0,
                        layer_dmin=0.4, layer_dmax=0.95, friction=0.8, drag=80.0,
-                       description="EROS pedestal 1: 50 mm blades, 10 mm apart (sparse), irregular"),
+                       description="EROS pedestal 1: 50 mm blades, 10 mm apart (sparse), irregular; soft enough "
+                                   "to catch a toe-first landing (no layer that carries the full-lift EROS walk does)"),
 }
 
 
