@@ -2,7 +2,12 @@
 
 * EROS stability matrix (Pristovani et al., Tables 7-8): pedestals x step
   distances x direction, STABLE when the walk completes without a fall; the
-  gait without and with its optimisation (heel strike + landing deceleration).
+  gait without and with its optimisation (heel strike + landing deceleration),
+  at the paper's full lift with our double-support phase (``gaits/eros.py``;
+  ``double_support=0`` walks the literal cycle). Table 7 is compared with both
+  of its readings: its cells (30/30/50/90 %) and its text (10/10/30/80 %).
+  Also the text's distance-to-fall walks on pedestal 1, and, given a tuned
+  set, Table 8's cells walked with its knobs (:data:`TUNED_KNOBS`).
 * TLIPFM Table 3 (Wong et al.): ZMP tracking error of LIPM, DLIPM and TLIPFM.
 """
 
