@@ -35,6 +35,20 @@ def test_render_writes_the_expected_video(gait_tuner_cmd, run_env, tmp_path):
     assert "51 frames, 320x240, 20 fps" in r.stdout
 
 
+def test_compare_video_films_every_set_on_every_surface(gait_tuner_cmd, run_env, tmp_path):
+    r = subprocess.run(gait_tuner_cmd + ["compare", "tkux-table2", "--no-baselines", "--surfaces", "rigid,carpet4",
+                                         "--random-rollouts", "0", "--workers", "1", "--video",
+                                         "--out", str(tmp_path)], capture_output=True, text=True, env=run_env,
+                       timeout=600)
+    assert r.returncode == 0, r.stderr
+    videos = sorted((tmp_path / "videos").glob("*.mp4"))
+    assert [v.name for v in videos] == ["tkux-table2--carpet4.mp4", "tkux-table2--rigid.mp4"]
+    for v in videos:
+        info = video_info(v)
+        assert info["frames"] > 30 and (info["width"], info["height"]) == (640, 480)
+    assert "wrote 2 videos" in r.stdout
+
+
 @pytest.mark.parametrize("args, words", [
     (["--size", "300x240"], "multiple of 16"),
     (["--size", "big"], "WIDTHxHEIGHT"),

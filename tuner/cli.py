@@ -731,8 +731,12 @@ def export(study_file: str, storage: str | None, runs_dir: Path, number: int | N
               help="Processes walking the (set, surface) pairs; the results do not depend on it.")
 @click.option("--random-rollouts", type=click.IntRange(0, 1000), default=10, show_default=True,
               help="Randomised walks per (set, surface) for the survival column (0: none).")
+@click.option("--video", is_flag=True,
+              help="Also film every set's own walk on every surface: --out/videos/SET--SURFACE.mp4 (H.264, "
+                   "~10 s each to render).")
 def compare(params_specs: tuple[str, ...], robot_name: str | None, surface_names: str, baselines: bool,
-            study_file: str | None, runs_dir: Path, out_dir: Path, workers: int, random_rollouts: int) -> None:
+            study_file: str | None, runs_dir: Path, out_dir: Path, workers: int, random_rollouts: int,
+            video: bool) -> None:
     """Compare parameter sets side by side: stability matrix, stability %, pitch, ZMP error, speed.
 
     Each set walks every surface at the EROS experiment's step distances (0-24 mm
@@ -757,6 +761,12 @@ def compare(params_specs: tuple[str, ...], robot_name: str | None, surface_names
         text = run_compare(list(params_specs), robot_name, names, baselines, study_file, runs_dir, out_dir,
                            workers=workers, progress=bar.update, random_rollouts=random_rollouts)
     click.echo(text)
+    if video:
+        from .report.compare import render_sets
+        with tqdm(total=n_rows(list(params_specs), names, baselines), desc="videos", unit="video",
+                  **_bar_options()) as bar:
+            paths = render_sets(list(params_specs), robot_name, names, baselines, out_dir, progress=bar.update)
+        click.echo(f"wrote {len(paths)} videos in {out_dir / 'videos'}")
 
 
 @cli.command()

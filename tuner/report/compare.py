@@ -37,9 +37,6 @@ __all__ = ["with_step", "n_rows", "run_compare", "BASELINES_FOR"]
 
 BASELINES_FOR = {"eros": ("eros-x24-without", "eros-x24-with"), "tlipfm": ("tkux-table2",),
                  "cosine": ("cosine-setiono",)}
-EROS_LIFT_SCALE = 0.2
-
-
 def with_step(params: gaits.GaitParams, step: float) -> gaits.GaitParams:
     """The same gait at another signed step length [m]."""
     fam = params.FAMILY
@@ -64,12 +61,7 @@ def _sets(specs: list[str], baselines: bool) -> list[tuple[str, gaits.GaitParams
             for name in BASELINES_FOR[fam]:
                 if name in specs:
                     continue                      # already compared under its own name
-                p = gaits.load_baseline(name).params
-                label = f"paper:{name}"
-                if fam == "eros":
-                    p = p.replace(foot_lift=p.foot_lift * EROS_LIFT_SCALE)
-                    label += f" (Z x{EROS_LIFT_SCALE:g})"
-                out.append((label, p, None))
+                out.append((f"paper:{name}", gaits.load_baseline(name).params, None))
     return out
 
 
@@ -112,6 +104,30 @@ def _row(task: tuple) -> dict:
     return {"set": label, "surface": surface.name, "cells": cells,
             "stability": 100.0 * sum(cells) / len(cells), "own": own, "covered": covered,
             "survival": survival, "n_random": n_random}
+
+
+def render_sets(specs: list[str], robot_name: str, surface_names: list[str], baselines: bool, out_dir: Path,
+                progress: Callable[[int], None] | None = None) -> list[Path]:
+    """A video of every compared set's own walk on every surface: ``out_dir/videos/SET--SURFACE.mp4``.
+
+    Rendered one after another in this process: one OpenGL context, never one per forked worker."""
+    import re
+
+    from .video import VideoOptions, render_trace
+    robot = _robot(robot_name)
+    written = []
+    for label, params, stab in _sets(specs, baselines):
+        for surface in (load_surface(s) for s in surface_names):
+            sim = Simulator(robot, surface)
+            trace = sim.rollout(gaits.generate(params, robot.leg, sim.control_period), stabiliser=stab,
+                                record_qpos=True)
+            stem = re.sub(r"[^A-Za-z0-9_.-]+", "_", Path(label).stem if label.endswith(".yaml") else label)
+            out = out_dir / "videos" / f"{stem}--{surface.name}.mp4"
+            render_trace(sim, trace, out, VideoOptions(), title=f"{label} | {robot.name} | {surface.name}")
+            written.append(out)
+            if progress is not None:
+                progress(1)
+    return written
 
 
 def n_rows(specs: list[str], surface_names: list[str], baselines: bool) -> int:
