@@ -128,7 +128,7 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
     # a light from above; neither touches the physics
     tex = spec.add_texture(name=PREFIX + "grid", type=mujoco.mjtTexture.mjTEXTURE_2D,
                            builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER, width=256, height=256,
-                           rgb1=[0.50, 0.40, 0.30], rgb2=[0.42, 0.33, 0.25])
+                           rgb1=[0.66, 0.56, 0.42], rgb2=[0.50, 0.40, 0.30])
     mat = spec.add_material(name=PREFIX + "grid")
     mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = tex.name
     mat.texrepeat = [10, 10]
@@ -156,7 +156,7 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
         blades.contype = 0
         blades.conaffinity = 0
         blades.group = 1
-        blades.rgba = [0.3, 0.75, 0.25, 0.35]
+        blades.rgba = [0.35, 0.85, 0.3, 0.22]
 
     spec.body(r.torso).add_site(default=gt, name=PREFIX + "imu", pos=[0, 0, 0.05])
     fl, fw = r.foot_size
