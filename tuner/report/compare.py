@@ -211,10 +211,12 @@ def _plots(rows, sets, surfaces, out_dir: Path, title: str) -> None:
         ax.set_xticks(x + width * (len(sets) - 1) / 2, [s.name for s in surfaces])
         ax.set_title(panel_title, fontsize=10)
         ax.grid(alpha=0.3, axis="y")
-    axes[0].legend(fontsize=7)
+    handles, labels = axes[0].get_legend_handles_labels()   # one legend, above the panels, off the bars
+    fig.legend(handles, labels, loc="upper center", ncol=min(len(sets), 4), fontsize=8,
+               bbox_to_anchor=(0.5, 0.935), frameon=False)
     fig.suptitle(title)
     fig.text(0.01, 0.01, FOOTNOTE, fontsize=7, wrap=True)
-    fig.tight_layout(rect=(0, 0.06, 1, 1))
+    fig.tight_layout(rect=(0, 0.06, 1, 0.88))
     fig.savefig(out_dir / "compare.png", dpi=110)
     plt.close(fig)
 
@@ -276,9 +278,10 @@ def _study_plots(study_file: str, runs_dir: Path, out_dir: Path) -> None:
     from .provenance import commit_of
     maximise = study.directions[0] == optuna.study.StudyDirection.MAXIMIZE
     target = "speed score (maximised)" if maximise else "pitch score [deg] (minimised)"
-    history_plot(study, out_dir / "study_history.png",
-                 f"study {spec.name}{commit_of(spec.source)}: robot {Path(spec.robot).stem}, "
-                 f"{', '.join(spec.surfaces)}", trial_feasible, target, maximise)
+    where = (f"study {spec.name}{commit_of(spec.source)}: robot {Path(spec.robot).stem}, "
+             f"{', '.join(spec.surfaces)}")
+    history_plot(study, out_dir / "study_history.png", where, trial_feasible, target, maximise)
+    titles = {"importances": f"parameter importances (fANOVA), {where}", "pareto": f"Pareto front, {where}"}
     plots = {"importances": lambda: ovm.plot_param_importances(study, target=lambda t: t.values[0],
                                                                target_name=target)}
     if len(spec.objectives) > 1:
@@ -290,6 +293,8 @@ def _study_plots(study_file: str, runs_dir: Path, out_dir: Path) -> None:
                 warnings.simplefilter("ignore")      # Optuna marks its matplotlib plots experimental
                 ax = make()
             fig = ax.figure if hasattr(ax, "figure") else ax[0].figure
+            first = ax if hasattr(ax, "set_title") else ax[0]
+            first.set_title(titles[name], fontsize=10)
             fig.set_size_inches(8, 5)
             fig.tight_layout()
             fig.savefig(out_dir / f"study_{name}.png", dpi=100)

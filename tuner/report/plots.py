@@ -89,13 +89,25 @@ def plot_zmp(trace, path: str | Path, foot_size: tuple[float, float], title: str
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig, axes = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
+    # double support (planned support 0 while the walk runs): the reference moves from one foot
+    # to the other there, so its frame switches and the curves jump; shade those spans
+    support = np.asarray(trace.support)
+    walking = np.zeros(len(support), dtype=bool)
+    moving = np.flatnonzero(support != 0)
+    if len(moving):
+        walking[moving[0]:moving[-1] + 1] = True
+    double = walking & (support == 0)
+    edges = np.flatnonzero(np.diff(np.r_[0, double.astype(int), 0]))
     for axis, (ax, label, half) in enumerate(zip(axes, ("sagittal", "lateral"),
                                                  (foot_size[0] / 2, foot_size[1] / 2))):
+        for k, (a, b) in enumerate(zip(edges[::2], edges[1::2])):
+            ax.axvspan(trace.t[a], trace.t[min(b, len(trace.t) - 1)], color="0.9", lw=0,
+                       label="double support (frame switches feet)" if k == 0 else None)
         ax.plot(trace.t, trace.zmp_ref_local[:, axis] * 100, "-.", label="ZMP reference")
         ax.plot(trace.t, trace.zmp_local[:, axis] * 100, "-", lw=1, label="measured ZMP (sole sensors)")
         ax.axhline(half * 100, ls="--", c="gray", lw=0.8)
         ax.axhline(-half * 100, ls="--", c="gray", lw=0.8, label="sole boundary (single support)")
-        ax.set_ylabel(f"{label} [cm]")
+        ax.set_ylabel(f"{label}, from the support\nfoot's centre [cm]")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8, loc="upper right")
     axes[1].set_xlabel("time [s]")
