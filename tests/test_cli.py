@@ -107,3 +107,20 @@ def test_bad_yaml_files_are_one_line_exit_2(gait_tuner_cmd, run_env, tmp_path, c
     r = run(gait_tuner_cmd, verb + [str(path)], run_env)
     assert r.returncode == 2, r.stderr
     assert r.stderr.count("\n") == 1 and message in r.stderr
+
+
+def test_progress_in_a_log_is_plain_lines(capsys):
+    """Off a terminal a bar is never silent for long: a plain line every 15 s, no carriage returns."""
+    from tqdm import tqdm
+
+    from tuner.cli import _bar_options
+    opts = _bar_options()
+    assert opts["disable"] is False and opts["mininterval"] == 15.0 and opts["delay"] == 15.0
+    opts.update(mininterval=0.0, delay=0.0, miniters=1)
+    with tqdm(total=3, desc="walks", **opts) as bar:
+        for _ in range(3):
+            bar.update(1)
+    err = capsys.readouterr().err
+    assert "\r" not in err
+    lines = err.strip().splitlines()
+    assert len(lines) >= 3 and lines[-1].startswith("walks: 100%") and "3/3" in lines[-1]

@@ -130,7 +130,9 @@ def plot_robustness(report, out_dir: str | Path) -> Path:
     axes[0].axhline(90, color="k", lw=0.8, ls="--", label="90 %")
     for i, v in enumerate(surv):
         axes[0].text(i, max(100 * v, 2), f"{100 * v:.0f}", ha="center", va="bottom", fontsize=8)
-    axes[0].set_xlabel("push impulse [N s] (0: randomisation only)")
+    n_push = sorted({len(rows) for rows in report.pushes.values()})
+    axes[0].set_xlabel(f"push impulse [N s] (0: randomisation only, {len(report.rollouts)} rollouts; "
+                       f"{'/'.join(map(str, n_push)) or 0} per push size)", fontsize=9)
     axes[0].set_ylabel("survival [%]")
     axes[0].set_ylim(0, 110)
     axes[0].legend(fontsize=8)
