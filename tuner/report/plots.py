@@ -73,7 +73,7 @@ def plot_pitch(traces: dict, path: str | Path, title: str = "") -> Path:
     a1.set_xlabel("time [s]")
     a2.set_xlabel("distance walked [mm]")
     for a in (a1, a2):
-        a.set_ylabel("torso pitch [deg]")
+        a.set_ylabel("torso pitch [deg], + = forward")
         a.grid(alpha=0.3)
         a.legend(fontsize=8)
     fig.suptitle(title or "torso pitch (x: fall)")
