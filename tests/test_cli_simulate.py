@@ -119,6 +119,21 @@ def test_compare_writes_report(gait_tuner_cmd, run_env, tmp_path):
     assert r.returncode == 2 and "no such parameter file" in r.stderr
 
 
+def test_compare_reports_the_stair_held_per_direction(tmp_path):
+    """The speed column: the shipped carpet4 set holds every stair of the speed studies' staircases on
+    carpet4; EROS takes no walk command and gets '-'."""
+    import re
+
+    from tuner.report.compare import run_compare
+    text = run_compare(["kidsize-omni-carpet4", "eros-x8-without"], "kidsize", ["carpet4"], False, None,
+                       tmp_path / "runs", tmp_path / "out", workers=1, random_rollouts=0)
+    rows = {line.split("|")[1].strip(): line.split("|")[-2].strip() for line in text.splitlines()
+            if line.startswith(("| kidsize", "| eros")) and line.count("|") > 10}
+    assert rows["kidsize-omni-carpet4"] == "0.48 / 0.32 / 0.16 / 1.60"
+    assert rows["eros-x8-without"] == "-"
+    assert re.search(r"Stair held: per direction", text)
+
+
 def test_compare_rows_do_not_depend_on_workers(tmp_path):
     from tuner.report.compare import run_compare
     args = (["tkux-table2"], "kidsize", ["rigid", "carpet4"], False, None, tmp_path / "runs")

@@ -37,6 +37,20 @@ __all__ = ["with_step", "n_rows", "run_compare", "BASELINES_FOR"]
 
 BASELINES_FOR = {"eros": ("eros-x24-without", "eros-x24-with"), "tlipfm": ("tkux-table2",),
                  "cosine": ("cosine-setiono",)}
+#: The staircases of the speed column: the shipped speed studies' (8 stairs of 4 steps up to these
+#: tops, a stair held when the robot is up and tracks >= 70% of it; tuner/sim/walk_speed.py).
+SPEED_STAIRS = {"forward": 0.48, "backward": 0.32, "left": 0.16, "turn_left": 1.6}
+
+
+def speed_per_direction(sim, params: gaits.GaitParams, stabiliser=None) -> dict[str, float] | None:
+    """The highest stair held per direction, or None for a family that takes no walk command."""
+    if not gaits.COMMANDS.get(params.FAMILY, "").startswith("any"):
+        return None
+    from ..sim.walk_speed import speed_test
+    return {d: speed_test(sim, params, gaits.SpeedStaircase(d, top, levels=8, steps_per_level=4),
+                          tolerance=0.3, stabiliser=stabiliser).reached for d, top in SPEED_STAIRS.items()}
+
+
 def with_step(params: gaits.GaitParams, step: float) -> gaits.GaitParams:
     """The same gait at another signed step length [m]."""
     fam = params.FAMILY
@@ -103,7 +117,8 @@ def _row(task: tuple) -> dict:
                 cells.append(False)
     return {"set": label, "surface": surface.name, "cells": cells,
             "stability": 100.0 * sum(cells) / len(cells), "own": own, "covered": covered,
-            "survival": survival, "n_random": n_random}
+            "survival": survival, "n_random": n_random,
+            "speeds": speed_per_direction(sim, params, stabiliser)}
 
 
 def render_sets(specs: list[str], robot_name: str, surface_names: list[str], baselines: bool, out_dir: Path,
@@ -130,6 +145,12 @@ def render_sets(specs: list[str], robot_name: str, surface_names: list[str], bas
     return written
 
 
+def _speeds_text(speeds: dict[str, float] | None) -> str:
+    if speeds is None:
+        return "-"
+    return " / ".join(f"{v:.2f}" for v in speeds.values())
+
+
 def n_rows(specs: list[str], surface_names: list[str], baselines: bool) -> int:
     """How many (set, surface) rows ``run_compare`` will walk (for a progress bar)."""
     return len(_sets(specs, baselines)) * len(surface_names)
@@ -148,8 +169,9 @@ def run_compare(specs: list[str], robot_name: str, surface_names: list[str], bas
     rows = map_in_order(_row, tasks, workers, progress)
     out_dir.mkdir(parents=True, exist_ok=True)
     lines = ["| set | surface | stability % | matrix fwd 0..24 / bwd 8..24 | pitch +- [deg] | pitch RMS [deg] "
-             "| ZMP err x/y [cm] | speed [m/s] | covered % of plan | own walk | survival % randomised |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| ZMP err x/y [cm] | speed [m/s] | covered % of plan | own walk | survival % randomised "
+             "| stair held fwd / bwd / left [m/s] / turn [rad/s] |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         o = r["own"]
         mat = "".join("S" if c else "." for c in r["cells"][:7]) + " / " + "".join(
@@ -157,7 +179,8 @@ def run_compare(specs: list[str], robot_name: str, surface_names: list[str], bas
         lines.append(f"| {r['set']} | {r['surface']} | {r['stability']:.0f} | `{mat}` | {o.pitch_pm_deg:.2f} "
                      f"| {o.pitch_rms_deg:.2f} | {o.zmp_error_x_cm:.2f}/{o.zmp_error_y_cm:.2f} "
                      f"| {o.speed_mps:.4f} | {r['covered']:.0f} | {'fell' if o.fell else 'stable'} "
-                     f"| {'-' if r['n_random'] == 0 else format(r['survival'], '.0f')} |")
+                     f"| {'-' if r['n_random'] == 0 else format(r['survival'], '.0f')} "
+                     f"| {_speeds_text(r['speeds'])} |")
     summary = ["", "| set | mean stability % |", "|---|---|"]
     for label, _, _ in sets:
         vals = [r["stability"] for r in rows if r["set"] == label]
@@ -172,7 +195,11 @@ def run_compare(specs: list[str], robot_name: str, surface_names: list[str], bas
             "relative to the support foot. Covered %: torso distance / planned distance of the own "
             "walk (a gait that slides in place stays up but covers little). Survival % randomised: of "
             f"{random_rollouts} walks under the default randomisation (tuner/sim/randomisation.py, evaluation seeds), "
-            "the share that did not fall (`gait-tuner robustness` gives more).")
+            "the share that did not fall (`gait-tuner robustness` gives more). Stair held: per direction, "
+            "the highest stair of a staircase (8 stairs of 4 steps up to "
+            + ", ".join(f"{d} {v:g}" for d, v in SPEED_STAIRS.items())
+            + "; held = still up and at least 70% of the command measured on it, as the speed studies score), "
+            "'-' for a family that takes no walk command (EROS, cosine law).")
     (out_dir / "compare.md").write_text(text + "\n" + defs + "\n", encoding="utf-8")
     _plots(rows, sets, surfaces, out_dir, f"robot {robot.name}; {study_label}; surfaces "
            f"{', '.join(s.name for s in surfaces)}")
