@@ -2,8 +2,8 @@
 
 Usage: ``python benchmarks/bench_search.py [--seeds 5] [--max-trials 60] [--rate-trials 24]``
 
-1. Trials to the first non-falling gait on grass50 at the paper's largest step
-   (the ``quickstart`` study: EROS, 24 mm), with and without the CasADi seed
+1. Trials to the first non-falling gait on grass50
+   (the ``quickstart`` study: TLIPFM on grass50), with and without the CasADi seed
    enqueued first (no baselines in either arm, so the seed alone is measured);
    also trials to the first *feasible* gait (stays up and walks at least half
    its plan: the search's own constraint, since a gait that stays up by
