@@ -16,6 +16,7 @@ chose from; the values in ``tuner.surfaces`` are its output.
 
 from __future__ import annotations
 
+import functools
 import itertools
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
@@ -48,6 +49,7 @@ class Candidate:
     toe_ok: bool = True                          # keeps the toe-sticking test (or not required)
 
 
+@functools.lru_cache(maxsize=None)
 def landing_pitch(surface) -> tuple[float, float]:
     """The toe-sticking test's landing (3 deg toe-down, 0.1 m/s forward): peak and final pitch [deg]."""
     import math

@@ -106,21 +106,27 @@ class EROSCell:
     metrics: Metrics
 
 
+def _walk_cell(sim: Simulator, ped: int, optimised: bool, direction: str, step: int, lift_scale: float,
+               double_support: float | None, base: ErosParams | None) -> EROSCell:
+    """One cell of Table 7 / 8: the setting's gait walked on ``sim``'s pedestal."""
+    p = eros_params(step, optimised, direction, base, double_support)
+    if lift_scale != 1.0:
+        p = p.replace(foot_lift=p.foot_lift * lift_scale)
+    m = summarize(sim.rollout(gaits.generate(p, sim.robot.leg, sim.control_period)))
+    return EROSCell(ped, sim.surface.name, direction, step, optimised, not m.fell, m)
+
+
 def eros_matrix(robot: RobotModel, surfaces: dict[int, Surface], optimised: bool,
                 base: ErosParams | None = None, lift_scale: float = 1.0, progress=None,
                 double_support: float | None = None) -> list[EROSCell]:
-    """Every cell of Table 7 (``optimised=False``) or Table 8 (``True``) on the given pedestals."""
+    """Every cell of Table 7 (``optimised=False``) or Table 8 (``True``) on the given pedestals,
+    in this process (:func:`eros_matrices` spreads both tables over processes)."""
     cells = []
     for ped, surface in surfaces.items():
         sim = Simulator(robot, surface)
         for direction, steps in EROS_STEPS_MM.items():
             for step in steps:
-                p = eros_params(step, optimised, direction, base, double_support)
-                if lift_scale != 1.0:
-                    p = p.replace(foot_lift=p.foot_lift * lift_scale)
-                trace = sim.rollout(gaits.generate(p, robot.leg, sim.control_period))
-                m = summarize(trace)
-                cells.append(EROSCell(ped, surface.name, direction, step, optimised, not m.fell, m))
+                cells.append(_walk_cell(sim, ped, optimised, direction, step, lift_scale, double_support, base))
                 if progress is not None:
                     progress(1)
     return cells
@@ -136,12 +142,7 @@ def _cell(task: tuple) -> EROSCell:
     if key not in _SIMS:
         from ..robots import load_robot
         _SIMS[key] = Simulator(load_robot(robot_name), surface)
-    sim = _SIMS[key]
-    p = eros_params(step, optimised, direction, base, double_support)
-    if lift_scale != 1.0:
-        p = p.replace(foot_lift=p.foot_lift * lift_scale)
-    m = summarize(sim.rollout(gaits.generate(p, sim.robot.leg, sim.control_period)))
-    return EROSCell(ped, surface.name, direction, step, optimised, not m.fell, m)
+    return _walk_cell(_SIMS[key], ped, optimised, direction, step, lift_scale, double_support, base)
 
 
 #: What a tuned EROS gait brings to the matrix: the paper's own knobs and our double-support share.
