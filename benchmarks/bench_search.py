@@ -66,8 +66,9 @@ def _walk(params: dict) -> None:
     global _EVALUATOR
     if _EVALUATOR is None:
         _EVALUATOR = Evaluator(_SPEC)
+    names = {r.label: r.name for r in _SPEC.space}       # Optuna's names carry units
     try:
-        params = _SPEC.params_for(params)
+        params = _SPEC.params_for({names.get(k, k): v for k, v in params.items()})
     except ParamError:
         return                          # the study scores these without walking, too
     _EVALUATOR.evaluate(params)
