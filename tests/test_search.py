@@ -145,7 +145,8 @@ def test_shipped_studies_load(gait_tuner_cmd, run_env):
 
 def test_ctrl_c_stops_cleanly_and_keeps_trials(gait_tuner_cmd, run_env, tmp_path):
     study = write_study(tmp_path, "interrupted")
-    proc = subprocess.Popen(gait_tuner_cmd + ["tune", str(study), "--trials", "500", "--workers", "2",
+    # a budget it cannot finish before the interrupt (its trials take ~0.1 s; 500 could end first)
+    proc = subprocess.Popen(gait_tuner_cmd + ["tune", str(study), "--trials", "100000", "--workers", "2",
                                               "--runs", str(tmp_path / "runs")],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=run_env,
                             start_new_session=True)
