@@ -2,11 +2,11 @@
 
 Usage: ``python benchmarks/bench_speed.py [--workers 2] [--shipped]``
 
-1. Runs the three shipped speed studies (``studies/kidsize-omni-{carpet4,grass50,robust}.yaml``,
+1. Runs the shipped speed studies (``studies/kidsize-omni-{rigid,carpet4,grass10,grass30,grass50,robust}.yaml``,
    at most 1,000 trials each, their own sampler seeds) afresh into a temporary folder with
    ``--workers`` processes, timing each study's wall time; ``--shipped`` skips this and
    measures the shipped results in ``studies/results/`` instead.
-2. Walks each best set's staircases (12 stairs, the study's tops) in every direction on
+2. Walks each best set's staircases (the study's own: stairs, tops, steps per stair) in every direction on
    every built-in surface and prints the highest stair held (commanded) and the velocity
    measured on it, and for forward on each surface the servos that hit their torque or speed
    limit on the stair after it (where the walk stopped gaining).
@@ -23,7 +23,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from gaits import CommandRamp, SpeedStaircase, WalkCommand, load_gait_file
+from gaits import CommandRamp, WalkCommand, load_gait_file
 from tuner.sim.metrics import summarize
 from tuner.robots import load_robot
 from tuner.sim.rollout import Simulator
@@ -32,7 +32,7 @@ from tuner.sim.surfaces import SURFACES, load_surface
 from tuner.sim.walk_speed import command_walk, speed_test
 
 ROOT = Path(__file__).resolve().parents[1]
-STUDIES = ("carpet4", "grass50", "robust")
+STUDIES = ("rigid", "carpet4", "grass10", "grass30", "grass50", "robust")
 
 
 def tune(name: str, folder: Path, workers: int) -> tuple[Path, float]:
@@ -75,8 +75,8 @@ def main() -> None:
             for surface, sim in sims.items():
                 cells, sat = [], None
                 for d, top, _ in spec.speed.directions:
-                    r = speed_test(sim, params, SpeedStaircase(d, top, levels=12, steps_per_level=4),
-                                   spec.speed.tolerance, limits=(d == "forward"))
+                    r = speed_test(sim, params, spec.speed.staircase(d, top), spec.speed.tolerance,
+                                   limits=(d == "forward"))
                     cells.append(f"{r.reached:6.3f} ({r.measured:6.3f}) {r.unit:>5s}")
                     if d == "forward":
                         sat = r.extra
