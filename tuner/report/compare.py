@@ -130,10 +130,13 @@ def render_sets(specs: list[str], robot_name: str, surface_names: list[str], bas
 
     from .video import VideoOptions, render_trace
     robot = _robot(robot_name)
+    sims = _CACHE["sims"]                                  # the simulators the rows walked, if built here
     written = []
     for label, params, stab in _sets(specs, baselines):
         for surface in (load_surface(s) for s in surface_names):
-            sim = Simulator(robot, surface)
+            if surface not in sims:
+                sims[surface] = Simulator(robot, surface)
+            sim = sims[surface]
             trace = sim.rollout(gaits.generate(params, robot.leg, sim.control_period), stabiliser=stab,
                                 record_qpos=True)
             stem = re.sub(r"[^A-Za-z0-9_.-]+", "_", Path(label).stem if label.endswith(".yaml") else label)

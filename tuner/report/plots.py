@@ -22,20 +22,14 @@ def plot_references(traj: GaitTrajectory, path: str | Path, title: str = "") -> 
     fig, axes = plt.subplots(4, 1, figsize=(10, 11), sharex=True)
     t = traj.t
     zlabel = "ZMP ref" if traj.zmp_source == "model" else "ZMP (cart-table of CoM)"
-    ax = axes[0]
-    ax.plot(t, traj.p_world_com[:, 0] * 100, label="CoM x")
-    ax.plot(t, traj.p_world_zmp_ref[:, 0] * 100, "--", label=f"{zlabel} x")
-    ax.plot(t, traj.p_world_foot_l[:, 0] * 100, ":", label="left foot x")
-    ax.plot(t, traj.p_world_foot_r[:, 0] * 100, ":", label="right foot x")
-    ax.set_ylabel("sagittal [cm]")
-    ax.legend(loc="upper left", fontsize=8)
-    ax = axes[1]
-    ax.plot(t, traj.p_world_com[:, 1] * 100, label="CoM y")
-    ax.plot(t, traj.p_world_zmp_ref[:, 1] * 100, "--", label=f"{zlabel} y")
-    ax.plot(t, traj.p_world_foot_l[:, 1] * 100, ":", label="left foot y")
-    ax.plot(t, traj.p_world_foot_r[:, 1] * 100, ":", label="right foot y")
-    ax.set_ylabel("lateral [cm]")
-    ax.legend(loc="upper left", fontsize=8)
+    for i, (c, plane) in enumerate((("x", "sagittal"), ("y", "lateral"))):
+        ax = axes[i]
+        ax.plot(t, traj.p_world_com[:, i] * 100, label=f"CoM {c}")
+        ax.plot(t, traj.p_world_zmp_ref[:, i] * 100, "--", label=f"{zlabel} {c}")
+        ax.plot(t, traj.p_world_foot_l[:, i] * 100, ":", label=f"left foot {c}")
+        ax.plot(t, traj.p_world_foot_r[:, i] * 100, ":", label=f"right foot {c}")
+        ax.set_ylabel(f"{plane} [cm]")
+        ax.legend(loc="upper left", fontsize=8)
     if traj.zmp_source != "model":
         lim = np.nanpercentile(np.abs(traj.p_world_com[:, :2]), 100) * 100 * 1.5 + 1
         axes[1].set_ylim(-lim, lim)
