@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from typing import Callable
 
+import numpy as np
+
 from . import cosine_law, eros, tlipfm
 from .baselines import list_baselines, load_baseline
 from .cosine_law import CosineLawParams
@@ -25,6 +27,7 @@ from .walk_command import DIRECTIONS, CommandRamp, SpeedStaircase, WalkCommand, 
 __all__ = [
     "ArmGeometry",
     "COMMANDS",
+    "COMMAND_AXES",
     "CommandRamp",
     "DIRECTIONS",
     "FootstepPlan",
@@ -59,6 +62,8 @@ __all__ = [
     "params_from_mapping",
     "save_gait_file",
     "stabiliser_corrections",
+    "step_period",
+    "step_starts",
 ]
 
 _GENERATORS: dict[str, Callable[..., GaitTrajectory]] = {
@@ -71,22 +76,45 @@ _GENERATORS: dict[str, Callable[..., GaitTrajectory]] = {
 #: What each family does with a walk command (``gaits/walk_command.py``), as ``params`` says it.
 COMMANDS: dict[str, str] = {
     "tlipfm": "any (vx, vy, wz): the footstep planner's steps, hip yaw turns the feet",
-    "eros": "none: its quarter-circle steps walk straight ahead only (lateral and turning via "
-            "points are not built)",
-    "cosine": "none: the 5-DoF leg has no hip yaw, so forward and backward only in principle, "
-              "and per-step commands are not built",
+    "eros": "any (vx, vy, wz): the footstep planner's steps walked with the paper's quarter-circle "
+            "via points (side steps and turns follow eq 37's X profile, ours), hip yaw turns the feet",
+    "cosine": "forward and backward (vx) only: one motion per step, S = vx t_f; the 5-DoF leg has "
+              "no hip yaw and the paper keeps the roll static, so no side steps or turns",
 }
+
+#: Which command axes (vx, vy, wz) each family walks.
+COMMAND_AXES: dict[str, tuple[bool, bool, bool]] = {
+    "tlipfm": (True, True, True),
+    "eros": (True, True, True),
+    "cosine": (True, False, False),
+}
+
+_STEP_PERIODS: dict[str, Callable[..., float]] = {
+    "eros": eros.step_period,
+    "tlipfm": lambda p: p.period,
+    "cosine": cosine_law.step_period,
+}
+
+
+def step_period(params: GaitParams) -> float:
+    """Duration of one step of a family's walk [s]: the T a walk command is planned with."""
+    return float(_STEP_PERIODS[params.FAMILY](params))
+
+
+def step_starts(params: GaitParams, n_steps: int) -> np.ndarray:
+    """Start time [s] of each of ``n_steps`` commanded steps and the end of the last, (n_steps + 1,)."""
+    if params.FAMILY == "eros":
+        return eros.step_starts(params, n_steps)
+    return params.t_start + np.arange(n_steps + 1) * step_period(params)
 
 
 def generate(params: GaitParams, leg: LegGeometry = LegGeometry(), dt: float = 0.01,
              commands=None, limits: StepLimits | None = None) -> GaitTrajectory:
     """Joint table of any family's parameters, sampled every ``dt`` seconds.
 
-    ``commands`` (n_steps, 3): a walk command per step (vx [m/s], vy [m/s], wz [rad/s]); only
-    the families whose :data:`COMMANDS` entry allows it take one, others raise ParamError.
+    ``commands`` (n_steps, 3): a walk command per step (vx [m/s], vy [m/s], wz [rad/s]) on the
+    axes :data:`COMMAND_AXES` allows; a step the family cannot take raises PlanError naming it.
     """
     if commands is None:
         return _GENERATORS[params.FAMILY](params, leg, dt)
-    if params.FAMILY != "tlipfm":
-        raise ParamError(f"gait {params.FAMILY!r} takes no walk command: {COMMANDS[params.FAMILY]}")
-    return tlipfm.generate(params, leg, dt, commands=commands, limits=limits or StepLimits())
+    return _GENERATORS[params.FAMILY](params, leg, dt, commands=commands, limits=limits or StepLimits())

@@ -67,6 +67,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .footstep_planner import PlanError, StepLimits
 from .leg_kinematics import LegGeometry
 from .params import GaitParams, ParamError, param, register_family
 from .trajectory import GaitTrajectory, assemble
@@ -79,6 +80,9 @@ __all__ = [
     "paper_leg_angles",
     "triangle_leg_angles",
     "walk_schedule",
+    "command_steps",
+    "step_period",
+    "step_starts",
     "generate",
 ]
 
@@ -119,12 +123,15 @@ class MotionSample:
     ref_vertical: np.ndarray    # reference line of the vertical leg
 
 
-def motion_profiles(kind: str, t: np.ndarray, p: CosineLawParams) -> MotionSample:
-    """Hip height, step, swing heights and reference lines of one motion (eqs 5-15, 24-34)."""
+def motion_profiles(kind: str, t: np.ndarray, p: CosineLawParams, step: float | None = None) -> MotionSample:
+    """Hip height, step, swing heights and reference lines of one motion (eqs 5-15, 24-34).
+
+    ``step`` [m] replaces ``p.step`` for this motion (a walk command's step, ours)."""
     if kind not in ("starting", "full", "ending"):
         raise ValueError(f"kind must be starting, full or ending, got {kind!r}")
     t = np.asarray(t, dtype=float)
-    tf, h, Hh, S = p.motion_time, p.swing_height, p.hip_height, p.step
+    tf, h, Hh = p.motion_time, p.swing_height, p.hip_height
+    S = p.step if step is None else float(step)
     half = tf / 2
     first = t <= half
     hip = np.where(first, Hh - h * t / half, (Hh - h) + h * (t - half) / half)   # eqs 26-27
@@ -198,11 +205,60 @@ def walk_schedule(p: CosineLawParams) -> list[tuple[str, int]]:
     return out
 
 
-def generate(p: CosineLawParams, leg: LegGeometry = LegGeometry(), dt: float = 0.01) -> GaitTrajectory:
-    """The whole walk (starting, n_full full motions, ending) as a joint table every ``dt``."""
+def step_period(p: CosineLawParams) -> float:
+    """Duration of one step [s]: a motion, in which the hip advances by one step S."""
+    return p.motion_time
+
+
+def step_starts(p: CosineLawParams, n_steps: int) -> np.ndarray:
+    """Start time [s] of each of ``n_steps`` motions, and the end of the last, shape (n_steps + 1,)."""
+    return p.t_start + np.arange(n_steps + 1) * p.motion_time
+
+
+def command_steps(p: CosineLawParams, commands: np.ndarray, limits: StepLimits) -> np.ndarray:
+    """Signed step S [m] of each motion for per-step commands (n, 3) (ours): S = vx t_f.
+
+    The paper's walker only goes straight: its 5-DoF leg has no hip yaw and its roll is
+    static, so a sideways or turning command is rejected, as is a step beyond ``limits``
+    (the front foot S ahead of the rear one at mid-motion) or a walk of fewer than two
+    motions (a starting and an ending one). PlanError names the step.
+    """
+    cmd = np.asarray(commands, dtype=float)
+    if cmd.ndim != 2 or cmd.shape[1] != 3 or len(cmd) < 2:
+        raise PlanError(f"cosine: commands must have shape (n_steps, 3) with n_steps >= 2 "
+                        f"(a starting and an ending motion), got {cmd.shape}")
+    if not np.all(np.isfinite(cmd)):
+        raise PlanError("commands must be finite")
+    steps = cmd[:, 0] * p.motion_time
+    for k, (vx, vy, wz) in enumerate(cmd):
+        where = f"step {k} (command {vx:g},{vy:g},{wz:g})"
+        if vy != 0.0 or wz != 0.0:
+            raise PlanError(f"{where}: the cosine-law walker walks forward and backward only "
+                            "(its 5-DoF leg has no hip yaw and the paper keeps the roll static)")
+        if steps[k] > limits.max_forward + 1e-12:
+            raise PlanError(f"{where}: puts the front foot {steps[k]:.3f} m ahead of the rear one, "
+                            f"beyond max_forward = {limits.max_forward:.3f} m")
+        if -steps[k] > limits.max_backward + 1e-12:
+            raise PlanError(f"{where}: puts the rear foot {-steps[k]:.3f} m behind the front one, "
+                            f"beyond max_backward = {limits.max_backward:.3f} m")
+    return steps
+
+
+def generate(p: CosineLawParams, leg: LegGeometry = LegGeometry(), dt: float = 0.01,
+             commands: np.ndarray | None = None, limits: StepLimits | None = None) -> GaitTrajectory:
+    """The whole walk (starting, n_full full motions, ending) as a joint table every ``dt``.
+
+    With ``commands`` (n, 3) (ours) the walk has n motions, the first a starting and the
+    last an ending one, and motion k steps S_k = vx_k t_f (:func:`command_steps`);
+    ``n_full`` and ``step`` are then unused.
+    """
     if not (1e-4 <= dt <= 0.1):
         raise ParamError(f"dt = {dt!r} s is out of range [0.0001, 0.1] s")
     schedule = walk_schedule(p)
+    steps = np.full(len(schedule), p.step)
+    if commands is not None:
+        steps = command_steps(p, commands, limits or StepLimits())
+        schedule = walk_schedule(p.replace(n_full=len(steps) - 2))
     total = p.t_start + len(schedule) * p.motion_time + p.t_end
     t = np.arange(int(round(total / dt)) + 1) * dt
     n = len(t)
@@ -214,13 +270,14 @@ def generate(p: CosineLawParams, leg: LegGeometry = LegGeometry(), dt: float = 0
     s_all = t - p.t_start
     for k, (kind, vertical) in enumerate(schedule):
         tilted = -vertical
+        S = float(steps[k])
         lo = k * p.motion_time
         mask = (s_all >= lo) & (s_all < lo + p.motion_time)
-        ms = motion_profiles(kind, s_all[mask] - lo, p)
+        ms = motion_profiles(kind, s_all[mask] - lo, p, S)
         first = ms.t <= p.motion_time / 2
         # first half: the hip (and the vertical foot under it) moves by S(t) from the
         # tilted foot; second half: the hip holds and the tilted foot catches up.
-        hx = np.where(first, x_hip + ms.step, x_hip + p.step)
+        hx = np.where(first, x_hip + ms.step, x_hip + S)
         hip_x[mask] = hx
         hip_z[mask] = ms.hip_height
         foot[vertical][mask, 0] = hx
@@ -228,7 +285,7 @@ def generate(p: CosineLawParams, leg: LegGeometry = LegGeometry(), dt: float = 0
         foot[tilted][mask, 0] = hx - ms.step
         foot[tilted][mask, 2] = ms.lift_tilted
         support[mask] = np.where(first, tilted, vertical)
-        x_hip += p.step
+        x_hip += S
         after = s_all >= lo + p.motion_time
         hip_x[after] = x_hip
         hip_z[after] = p.hip_height
@@ -240,6 +297,9 @@ def generate(p: CosineLawParams, leg: LegGeometry = LegGeometry(), dt: float = 0
     foot[-1][:, 1] = -half
     support = np.where((foot[1][:, 2] > 0) | (foot[-1][:, 2] > 0), support, 0)
     pelvis = np.column_stack([hip_x, np.zeros(n), hip_z + leg.hip_offset_z])
+    meta = {"schedule": [k for k, _ in schedule], "cycle_time": 2 * p.motion_time,
+            "step_starts": step_starts(p, len(schedule)).tolist()}
+    if commands is not None:
+        meta["commands"] = np.asarray(commands, dtype=float).tolist()
     return assemble("cosine", t, leg, p_world_pelvis=pelvis, p_world_foot_l=foot[1],
-                    p_world_foot_r=foot[-1], support=support,
-                    meta={"schedule": [k for k, _ in schedule], "cycle_time": 2 * p.motion_time})
+                    p_world_foot_r=foot[-1], support=support, meta=meta)

@@ -81,6 +81,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .footstep_planner import FootstepPlan, StepLimits, plan_footsteps
 from .leg_kinematics import LegGeometry
 from .params import GaitParams, ParamError, param, register_family
 from .trajectory import GaitTrajectory, assemble, resample
@@ -92,14 +93,22 @@ __all__ = [
     "angle_steps",
     "decelerated_angle_steps",
     "dsp_ticks",
+    "step_ticks",
+    "step_period",
+    "step_starts",
     "via_points",
     "eros_references",
     "generate",
 ]
 
 # state vector of a via point: foot x (left, right), foot z (left, right), body x, body sway y
-XL, XR, ZL, ZR, BX, BY = range(6)
-X_COORDS = (XL, XR, BX)
+# (in the body's heading frame), then for walk commands foot y (left, right), foot yaw (left,
+# right), body y and body yaw (the world pose of the midpoint the sway is measured from)
+XL, XR, ZL, ZR, BX, BY, YL, YR, AL, AR, BW, BA = range(12)
+#: Coordinates that follow eq 37's X profile: the paper's x, and (ours) every other horizontal
+#: coordinate of a commanded step, so a side step or a turn moves like a forward step.
+X_COORDS = (XL, XR, BX, YL, YR, AL, AR, BW, BA)
+N_STATE = 12
 
 
 @register_family
@@ -142,8 +151,8 @@ class Transition:
 
     kind: str          # "lift" (DSP->SSP, eqs 38/42), "land" (SSP->DSP, eqs 39/43), or a start/stop kind
     swing: int         # +1 left leg moves, -1 right leg
-    start: np.ndarray  # (6,) via point PP_i: xl, xr, zl, zr, body x, body y
-    end: np.ndarray    # (6,) via point PP_i+1
+    start: np.ndarray  # (12,) via point PP_i: xl, xr, zl, zr, body x, sway y, yl, yr, yaw l, yaw r, body y, body yaw
+    end: np.ndarray    # (12,) via point PP_i+1
     theta: np.ndarray  # (K,) T_T samples after the start, last = pi/2
 
 
@@ -208,8 +217,35 @@ def dsp_ticks(p: ErosParams) -> int:
     return max(1, int(round(p.double_support / (1.0 - p.double_support) * ssp / 2.0)))
 
 
-def via_points(p: ErosParams) -> list[Transition]:
-    """The chain of transitions: start-up, ``n_steps`` steps, stop, and a final settle.
+def step_ticks(p: ErosParams) -> int:
+    """Controller ticks of one step: its DSP halves, lift-off and (decelerated) landing."""
+    landing = (decelerated_angle_steps(p.t_mn, p.c_dc, p.n_areas)
+               if p.landing_deceleration else angle_steps(p.t_mn))
+    return 2 * dsp_ticks(p) + len(angle_steps(p.t_mn)) + len(landing)
+
+
+def step_period(p: ErosParams) -> float:
+    """Duration of one step [s]: the T a walk command's step is planned with."""
+    return step_ticks(p) * p.tick
+
+
+def _sway_angles(p: ErosParams) -> np.ndarray:
+    plain = angle_steps(p.t_mn)
+    half = dsp_ticks(p)
+    return plain if half == 0 else np.linspace(0.0, np.pi / 2, half + len(plain) + 1)[1:]
+
+
+def step_starts(p: ErosParams, n_steps: int) -> np.ndarray:
+    """Start time [s] of each of ``n_steps`` steps, and the end of the last, shape (n_steps + 1,).
+
+    The steps follow the start-up shifts ("shift", "pre"); each begins with its first DSP half.
+    """
+    first = int(round(p.t_start / p.tick)) + 2 * len(_sway_angles(p))
+    return (first + np.arange(n_steps + 1) * step_ticks(p)) * p.tick
+
+
+def via_points(p: ErosParams, plan: FootstepPlan | None = None) -> list[Transition]:
+    """The chain of transitions: start-up, the steps, stop, and a final settle.
 
     The paper's cycle makes the hip sway a smooth sinusoid (1 - cos on landings
     followed by sin on lift-offs), but starting it from rest with a lift-off would
@@ -224,14 +260,35 @@ def via_points(p: ErosParams) -> list[Transition]:
     With ``double_support > 0`` each step is framed by two "dsp" transitions of
     ``dsp_ticks(p)`` ticks that move no foot (their sway is set by
     :func:`eros_references`).
+
+    Without ``plan`` the walk is the paper's: ``n_steps`` steps of ``step_x``
+    straight ahead, the last one setting the swing foot beside the support foot.
+    With a :class:`~gaits.footstep_planner.FootstepPlan` (a walk command, ours) each
+    step's swing foot goes from where it stands to the plan's target pose (x, y,
+    yaw): the apex via point is halfway in every horizontal coordinate, all of them
+    follow eq 37's X profile, the lift and the sway are the paper's. The body's
+    pose (the midpoint of the feet) moves like the paper's body x, and the sway
+    is taken across the body's heading.
     """
-    state = np.zeros(6)
+    half_w = p.stance_width / 2
+    state = np.zeros(N_STATE)
+    state[YL], state[YR] = half_w, -half_w
     swing = 1 if p.first_swing == "left" else -1
+    if plan is not None:
+        if plan.n_steps < 1 or int(plan.support_side[0]) != -swing:
+            raise ParamError(f"eros: the footstep plan must start with the "
+                             f"{'right' if swing == 1 else 'left'} foot supporting "
+                             f"(first_swing = {p.first_swing})")
+        for side, start in ((1, plan.start_left), (-1, plan.start_right)):
+            if not np.allclose(start, [0.0, side * half_w, 0.0], atol=1e-12):
+                raise ParamError("eros: the footstep plan must start from the stance width "
+                                 f"{p.stance_width:g} m, feet side by side at x = 0")
+    n_steps = p.n_steps if plan is None else plan.n_steps
     plain = angle_steps(p.t_mn)
     landing = (decelerated_angle_steps(p.t_mn, p.c_dc, p.n_areas)
                if p.landing_deceleration else plain)
     half = dsp_ticks(p)
-    sway = plain if half == 0 else np.linspace(0.0, np.pi / 2, half + len(plain) + 1)[1:]
+    sway = _sway_angles(p)
     chain: list[Transition] = []
 
     def hold(n: int, swing: int, at: np.ndarray) -> None:
@@ -242,23 +299,29 @@ def via_points(p: ErosParams) -> list[Transition]:
     lean[BY] = swing * p.sway_y                 # toward the first swing foot, at rest
     chain.append(Transition("shift", 0, state, lean, sway))
     chain.append(Transition("pre", 0, lean, state.copy(), sway))
-    for j in range(p.n_steps):
-        xs, xp = (XL, XR) if swing == 1 else (XR, XL)
-        zs = ZL if swing == 1 else ZR
-        last = j == p.n_steps - 1
-        target = state[xp] + (0.0 if last else p.step_x)
-        body_next = 0.5 * (target + state[xp])
+    for j in range(n_steps):
+        xs, ys, as_, zs = (XL, YL, AL, ZL) if swing == 1 else (XR, YR, AR, ZR)
+        xp, yp, ap = (XR, YR, AR) if swing == 1 else (XL, YL, AL)
+        support = state[[xp, yp, ap]]
+        if plan is None:
+            last = j == n_steps - 1
+            target = np.array([state[xp] + (0.0 if last else p.step_x), swing * half_w, 0.0])
+        else:
+            target = plan.swing_target[j]
+            if int(plan.support_side[j]) != -swing:
+                raise ParamError(f"eros: step {j} of the footstep plan does not alternate the feet")
+        body_next = 0.5 * (target + support)
         apex = state.copy()
-        apex[xs] = 0.5 * (state[xs] + target)
+        apex[[xs, ys, as_]] = 0.5 * (state[[xs, ys, as_]] + target)
         apex[zs] = p.foot_lift
-        apex[BX] = 0.5 * (state[BX] + body_next)
+        apex[[BX, BW, BA]] = 0.5 * (state[[BX, BW, BA]] + body_next)
         apex[BY] = -swing * p.sway_y            # toward the support foot
         hold(half, swing, state)
         chain.append(Transition("lift", swing, state, apex, plain))
         down = apex.copy()
-        down[xs] = target
+        down[[xs, ys, as_]] = target
         down[zs] = 0.0
-        down[BX] = body_next
+        down[[BX, BW, BA]] = body_next
         down[BY] = 0.0
         chain.append(Transition("land", swing, apex, down, landing))
         hold(half, swing, down)
@@ -319,11 +382,11 @@ class ErosReferences:
     """World references on the controller's own tick timeline (before resampling)."""
 
     t: np.ndarray            # (K,) [s]
-    state: np.ndarray        # (K, 6) xl, xr, zl, zr, body x, body sway y [m]
+    state: np.ndarray        # (K, 12) the via-point coordinates (XL ... BA) [m, rad]
     ankle_offset: np.ndarray  # (K, 2) [rad] left, right
     support: np.ndarray      # (K,)
     via_ticks: np.ndarray    # tick index at which each via point is reached (first = 0)
-    via_states: np.ndarray   # (len(chain) + 1, 6)
+    via_states: np.ndarray   # (len(chain) + 1, 12)
     transition_ticks: np.ndarray  # (len(chain),) ticks spent in each transition
 
 
@@ -366,9 +429,9 @@ def _spread_sway(state: np.ndarray, chain: list[Transition], via_ticks: np.ndarr
         state[t0 + 1:t1 + 1, BY] = y
 
 
-def eros_references(p: ErosParams) -> ErosReferences:
-    """Run the quarter-circle chain tick by tick (eqs 36-49)."""
-    chain = via_points(p)
+def eros_references(p: ErosParams, plan: FootstepPlan | None = None) -> ErosReferences:
+    """Run the quarter-circle chain tick by tick (eqs 36-49); ``plan``: see :func:`via_points`."""
+    chain = via_points(p, plan)
     heel_ends = _heel_targets(p, chain)
     n_start = int(round(p.t_start / p.tick))
     n_end = int(round(p.t_end / p.tick))
@@ -384,7 +447,7 @@ def eros_references(p: ErosParams) -> ErosReferences:
         prof_x, prof_yz = quarter_circle(tr.theta, PROFILE[tr.kind])
         delta = tr.end - tr.start                               # eq 36
         seg = np.repeat(tr.start[None, :], len(tr.theta), axis=0)
-        for c in range(6):
+        for c in range(N_STATE):
             prof = prof_x if c in X_COORDS else prof_yz
             seg[:, c] = tr.start[c] + prof * delta[c]
         seg[-1] = tr.end                                        # the via point, exactly
@@ -415,12 +478,25 @@ def eros_references(p: ErosParams) -> ErosReferences:
                           np.array(via_ticks), via_states, np.array(spent))
 
 
-def generate(p: ErosParams, leg: LegGeometry = LegGeometry(), dt: float | None = None) -> GaitTrajectory:
-    """The EROS walk as a joint table sampled every ``dt`` (default: the controller tick)."""
-    ref = eros_references(p)
+def generate(p: ErosParams, leg: LegGeometry = LegGeometry(), dt: float | None = None,
+             commands: np.ndarray | None = None, limits: StepLimits | None = None) -> GaitTrajectory:
+    """The EROS walk as a joint table sampled every ``dt`` (default: the controller tick).
+
+    With ``commands`` (n, 3) (vx [m/s], vy [m/s], wz [rad/s] per step, ours; see
+    ``gaits/walk_command.py``) the steps are those of ``gaits/footstep_planner.py`` for
+    the step period :func:`step_period` (its checks against ``limits`` reject a step
+    the feet cannot take), walked with the paper's via-point transitions
+    (:func:`via_points`); ``n_steps`` and ``step_x`` are then unused. The pelvis
+    heading is the body's (the mean of the feet's), the hip-yaw joints turn the feet.
+    """
     dt = p.tick if dt is None else dt
     if not (1e-4 <= dt <= 0.1):
         raise ParamError(f"dt = {dt!r} s is out of range [0.0001, 0.1] s")
+    plan = None
+    if commands is not None:
+        plan = plan_footsteps(commands, step_period(p), p.stance_width / 2,
+                              -1 if p.first_swing == "left" else 1, limits or StepLimits())
+    ref = eros_references(p, plan)
     if abs(dt - p.tick) < 1e-12:
         t, state, off, support = ref.t, ref.state, ref.ankle_offset, ref.support
     else:
@@ -429,14 +505,22 @@ def generate(p: ErosParams, leg: LegGeometry = LegGeometry(), dt: float | None =
         off = resample(ref.t, ref.ankle_offset, t)
         idx = np.clip(np.searchsorted(ref.t, t, side="right") - 1, 0, len(ref.t) - 1)
         support = ref.support[idx]
-    n = len(t)
-    half = p.stance_width / 2
-    left = np.column_stack([state[:, XL], np.full(n, half), state[:, ZL]])
-    right = np.column_stack([state[:, XR], np.full(n, -half), state[:, ZR]])
-    pelvis = np.column_stack([state[:, BX], state[:, BY],
-                              np.full(n, p.hip_height + leg.hip_offset_z)])
+    left = state[:, [XL, YL, ZL]]
+    right = state[:, [XR, YR, ZR]]
+    # the sway is across the body's heading (zero on the paper's straight walk)
+    yaw = state[:, BA]
+    pelvis = np.column_stack([state[:, BX] - np.sin(yaw) * state[:, BY],
+                              state[:, BW] + np.cos(yaw) * state[:, BY],
+                              np.full(len(t), p.hip_height + leg.hip_offset_z)])
     support = np.where((state[:, ZL] > 0) | (state[:, ZR] > 0), support, 0)
+    n_steps = p.n_steps if plan is None else plan.n_steps
+    meta = {"transition_ticks": ref.transition_ticks.tolist(),
+            "cycle_time": (4 * (math.pi / 2) / p.t_mn + 4 * dsp_ticks(p)) * p.tick,
+            "step_starts": step_starts(p, n_steps).tolist()}
+    if plan is None:
+        return assemble("eros", t, leg, p_world_pelvis=pelvis, p_world_foot_l=left,
+                        p_world_foot_r=right, support=support, ankle_pitch_offset=off, meta=meta)
+    meta["commands"] = np.asarray(commands, dtype=float).tolist()
     return assemble("eros", t, leg, p_world_pelvis=pelvis, p_world_foot_l=left,
                     p_world_foot_r=right, support=support, ankle_pitch_offset=off,
-                    meta={"transition_ticks": ref.transition_ticks.tolist(),
-                          "cycle_time": (4 * (math.pi / 2) / p.t_mn + 4 * dsp_ticks(p)) * p.tick})
+                    yaw_world_pelvis=yaw, yaw_world_feet=state[:, [AL, AR]], meta=meta)

@@ -264,7 +264,7 @@ OPTIONS = [
     (["simulate", "--params", "tkux-table2", "--command", "0.1,0"], "command"),
     (["simulate", "--params", "tkux-table2", "--command", "9,0,0"], "command"),
     (["simulate", "--params", "tkux-table2", "--command", "nan,0,0"], "command"),
-    (["simulate", "--params", "eros-x8-with", "--command", "0.1,0,0"], "command"),
+    (["simulate", "--params", "cosine-setiono", "--command", "0,0,0.1"], "command"),
     (["simulate", "--params", "tkux-table2", "--robot", "nope-robot"], "nope-robot"),
     (["simulate", "--gait", "nope"], "nope"),
     (["simulate", "--nope"], "nope"),

@@ -121,16 +121,18 @@ def test_compare_writes_report(gait_tuner_cmd, run_env, tmp_path):
 
 def test_compare_reports_the_stair_held_per_direction(tmp_path):
     """The speed column: the shipped carpet4 set holds every stair of the speed studies' staircases on
-    carpet4; EROS takes no walk command and gets '-'."""
+    carpet4; EROS walks the stairs its step period allows; the cosine law gets '-' sideways and
+    turning (it walks forward and backward only)."""
     import re
 
     from tuner.report.compare import run_compare
-    text = run_compare(["kidsize-omni-carpet4", "eros-x8-without"], "kidsize", ["carpet4"], False, None,
-                       tmp_path / "runs", tmp_path / "out", workers=1, random_rollouts=0)
+    text = run_compare(["kidsize-omni-carpet4", "eros-x8-without", "cosine-setiono"], "kidsize", ["carpet4"],
+                       False, None, tmp_path / "runs", tmp_path / "out", workers=1, random_rollouts=0)
     rows = {line.split("|")[1].strip(): line.split("|")[-2].strip() for line in text.splitlines()
-            if line.startswith(("| kidsize", "| eros")) and line.count("|") > 10}
+            if line.startswith(("| kidsize", "| eros", "| cosine")) and line.count("|") > 10}
     assert rows["kidsize-omni-carpet4"] == "0.48 / 0.32 / 0.16 / 1.60"
-    assert rows["eros-x8-without"] == "-"
+    assert re.fullmatch(r"\d\.\d\d / \d\.\d\d / \d\.\d\d / \d\.\d\d", rows["eros-x8-without"])
+    assert re.fullmatch(r"\d\.\d\d / \d\.\d\d / - / -", rows["cosine-setiono"])
     assert re.search(r"Stair held: per direction", text)
 
 

@@ -38,12 +38,25 @@ def test_simulate_command_json_reports_achieved_beside_commanded(gait_tuner_cmd,
 @pytest.mark.parametrize("args, text", [
     (["--params", "tkux-table2", "--command", "0.5,0,0"], "beyond max_forward"),
     (["--params", "tkux-table2", "--command", "0.1,0"], "three numbers"),
-    (["--params", "eros-x24-with", "--command", "0.05,0,0"], "takes no walk command"),
+    (["--params", "cosine-setiono", "--command", "0,0.01,0"], "takes no vy command"),
+    (["--params", "eros-x24-with", "--command", "0,0,0.5"], "closer than min_gap"),
 ])
 def test_bad_commands_are_one_line_exit_2(gait_tuner_cmd, run_env, args, text):
     r = _run(gait_tuner_cmd, ["simulate", *args], run_env)
     assert r.returncode == 2
     assert text in r.stderr and len(r.stderr.strip().splitlines()) == 1 and "Traceback" not in r.stderr
+
+
+@pytest.mark.parametrize("command, axis, low, high", [("0.05,0,0", "vx_mps", 0.04, 0.06),
+                                                     ("0,0,0.2", "wz_radps", 0.15, 0.3)])
+def test_eros_walks_a_command(gait_tuner_cmd, run_env, command, axis, low, high):
+    """EROS's paper gait at 8 mm settings walks forward and turns on carpet (measured: 0.049 m/s
+    for 0.05, 0.26 rad/s for 0.2)."""
+    r = _run(gait_tuner_cmd, ["simulate", "--params", "eros-x8-with", "--surface", "carpet4",
+                              f"--command={command}", "--json"], run_env)
+    assert r.returncode == 0, r.stderr
+    m = json.loads(r.stdout)["metrics"]
+    assert not m["fell"] and low <= m[axis] <= high
 
 
 def test_trajectory_command_writes_a_turning_table(gait_tuner_cmd, run_env, tmp_path):

@@ -37,7 +37,7 @@ def cli() -> None:
 COMMAND_OPTION = click.option(
     "--command", metavar="VX,VY,WZ",
     help="Walk this velocity (m/s forward, m/s left, rad/s counter-clockwise), ramped from rest "
-         "and back; tlipfm gaits only. A command beyond the parameter set's step limits is an error "
+         "and back (eros and tlipfm: any direction; cosine: forward and backward only). A command beyond the parameter set's step limits is an error "
          "naming the step and the limit.")
 
 
@@ -899,11 +899,13 @@ def baselines() -> None:
 @cli.command(name="params")
 @click.argument("family", type=click.Choice(["eros", "tlipfm", "cosine"]))
 def params_cmd(family: str) -> None:
-    """Print a family's parameters: name, default, unit, allowed range, paper symbol."""
+    """Print a family's parameters (name, default, unit, allowed range, paper symbol) and the walk
+    commands it takes."""
     for row in family_class(family).field_table():
         paper = row["paper"] or ""
         click.echo(f"{row['name']:22s} {str(row['default']):>12.12s}  {row['range']:28s} "
                    f"{paper:8s} {row['doc']}")
+    click.echo(f"walk command (--command): {gaits.COMMANDS[family]}")
 
 
 def main(argv: list[str] | None = None) -> int:

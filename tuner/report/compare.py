@@ -42,13 +42,14 @@ BASELINES_FOR = {"eros": ("eros-x24-without", "eros-x24-with"), "tlipfm": ("tkux
 SPEED_STAIRS = {"forward": 0.48, "backward": 0.32, "left": 0.16, "turn_left": 1.6}
 
 
-def speed_per_direction(sim, params: gaits.GaitParams, stabiliser=None) -> dict[str, float] | None:
-    """The highest stair held per direction, or None for a family that takes no walk command."""
-    if not gaits.COMMANDS.get(params.FAMILY, "").startswith("any"):
-        return None
+def speed_per_direction(sim, params: gaits.GaitParams, stabiliser=None) -> dict[str, float | None]:
+    """The highest stair held per direction (None for a direction the family does not walk)."""
     from ..sim.walk_speed import speed_test
-    return {d: speed_test(sim, params, gaits.SpeedStaircase(d, top, levels=8, steps_per_level=4),
-                          tolerance=0.3, stabiliser=stabiliser).reached for d, top in SPEED_STAIRS.items()}
+    axes = gaits.COMMAND_AXES[params.FAMILY]
+    return {d: (speed_test(sim, params, gaits.SpeedStaircase(d, top, levels=8, steps_per_level=4),
+                           tolerance=0.3, stabiliser=stabiliser).reached
+                if all(ok or u == 0 for ok, u in zip(axes, gaits.DIRECTIONS[d])) else None)
+            for d, top in SPEED_STAIRS.items()}
 
 
 def with_step(params: gaits.GaitParams, step: float) -> gaits.GaitParams:
@@ -148,10 +149,8 @@ def render_sets(specs: list[str], robot_name: str, surface_names: list[str], bas
     return written
 
 
-def _speeds_text(speeds: dict[str, float] | None) -> str:
-    if speeds is None:
-        return "-"
-    return " / ".join(f"{v:.2f}" for v in speeds.values())
+def _speeds_text(speeds: dict[str, float | None]) -> str:
+    return " / ".join("-" if v is None else f"{v:.2f}" for v in speeds.values())
 
 
 def n_rows(specs: list[str], surface_names: list[str], baselines: bool) -> int:
@@ -202,7 +201,7 @@ def run_compare(specs: list[str], robot_name: str, surface_names: list[str], bas
             "the highest stair of a staircase (8 stairs of 4 steps up to "
             + ", ".join(f"{d} {v:g}" for d, v in SPEED_STAIRS.items())
             + "; held = still up and at least 70% of the command measured on it, as the speed studies score), "
-            "'-' for a family that takes no walk command (EROS, cosine law).")
+            "'-' for a direction the family does not walk (the cosine law walks forward and backward only).")
     (out_dir / "compare.md").write_text(text + "\n" + defs + "\n", encoding="utf-8")
     _plots(rows, sets, surfaces, out_dir, f"robot {robot.name}; {study_label}; surfaces "
            f"{', '.join(s.name for s in surfaces)}")

@@ -337,7 +337,7 @@ def enqueue_starts(study: optuna.Study, spec: StudySpec) -> list[str]:
             from ..sim.surfaces import load_surface
             layer = max(load_surface(name).layer_height for name in spec.surfaces)
             base = spec.base
-            if spec.speed is not None:
+            if spec.speed is not None and spec.gait == "tlipfm":
                 # plan the seed for half the forward top stair at a 0.3 s step (ours: the seed's
                 # step length is a parameter of the problem, not a decision variable)
                 top = dict((d, t) for d, t, _ in spec.speed.directions).get("forward", 0.2)

@@ -26,7 +26,7 @@ A study tunes one gait family on one robot against one or several surfaces::
       randomisation: {}            #   overrides of tuner/sim/randomisation.py's defaults, or none
     stabiliser: {enabled: true}    # optional: the IMU stabiliser's fixed values; its gains may be
                                    #   searched as space keys stabiliser.k_ankle_pitch etc.
-    speed:                         # optional (tlipfm): a speed study, scored by tuner/sim/walk_speed.py
+    speed:                         # optional: a speed study, scored by tuner/sim/walk_speed.py
       directions:                  #   forward, backward, left, right, turn_left, turn_right
         forward: {top: 0.45, weight: 1.0}     # top stair [m/s or rad/s], weight in the score
         turn_left: {top: 1.6, weight: 0.2}
@@ -53,7 +53,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 
-from gaits import GaitParams, families, family_class
+from gaits import COMMAND_AXES, COMMANDS, DIRECTIONS, GaitParams, families, family_class
 
 from ..errors import UserError
 from ..params_io import resolve_params
@@ -271,8 +271,9 @@ def load_study(path_or_name: str) -> StudySpec:
     if speed is not None:
         if "objectives" in doc:
             _fail(source, "a speed study takes its objectives from speed.mode: remove 'objectives'")
-        if gait != "tlipfm":
-            _fail(source, f"speed: gait {gait!r} takes no walk command (only tlipfm does)")
+        for name, _, _ in speed.directions:
+            if not all(ok or u == 0 for ok, u in zip(COMMAND_AXES[gait], DIRECTIONS[name])):
+                _fail(source, f"speed.directions: gait {gait!r} does not walk {name} ({COMMANDS[gait]})")
         if doc.get("robust") is not None:
             _fail(source, "speed and robust together are not built: list the pedestals under surfaces")
     objectives = doc.get("objectives", ["pitch_rms"])
@@ -396,7 +397,6 @@ def _study_robust(doc: Any, source: str) -> RobustSpec | None:
 def _study_speed(doc: Any, source: str) -> SpeedSpec | None:
     if doc is None:
         return None
-    from gaits import DIRECTIONS
     allowed = ("directions", "levels", "steps_per_level", "tolerance", "pitch_weight", "mode")
     if not isinstance(doc, Mapping):
         _fail(source, f"speed must be a mapping of {', '.join(allowed)}")

@@ -49,7 +49,8 @@ def _generate(params, robot, dt: float, commands: np.ndarray) -> gaits.GaitTraje
     except UnreachableTargetError as exc:
         if exc.t is None:
             raise
-        step = int((exc.t - params.t_start) // params.period)
+        starts = gaits.step_starts(params, len(commands))
+        step = int(np.clip(np.searchsorted(starts, exc.t, side="right") - 1, 0, len(commands) - 1))
         raise PlanError(f"step {step} of the command walk is out of the leg's reach: {exc}") from None
 
 
@@ -60,20 +61,30 @@ def command_walk(params: gaits.GaitParams, robot, command: WalkCommand, dt: floa
     ramp = ramp or CommandRamp(command)
     if ramp.target != command:
         ramp = dataclasses.replace(ramp, target=command)
-    traj = _generate(params, robot, dt, ramp.per_step())
+    commands = ramp.per_step()
+    _check_axes(params, commands)
+    traj = _generate(params, robot, dt, commands)
     first, last = ramp.steady_steps()
-    traj.meta["steady"] = (params.t_start + first * params.period, params.t_start + last * params.period)
+    starts = gaits.step_starts(params, len(commands))
+    traj.meta["steady"] = (float(starts[first]), float(starts[last]))
     traj.meta["command"] = [command.vx, command.vy, command.wz]
     return traj
 
 
+def _check_axes(params: gaits.GaitParams, commands: np.ndarray) -> None:
+    axes = gaits.COMMAND_AXES[params.FAMILY]
+    for name, ok, col in zip(("vx", "vy", "wz"), axes, np.asarray(commands).T):
+        if not ok and np.any(col != 0.0):
+            raise PlanError(f"gait {params.FAMILY!r} takes no {name} command: {gaits.COMMANDS[params.FAMILY]}")
+
+
 def command_limit(params: gaits.GaitParams, robot, direction: str) -> float:
     """The largest command along a direction the step limits allow for these parameters
-    (m/s or rad/s); 0 for a family that takes no command."""
-    if params.FAMILY != "tlipfm":
+    (m/s or rad/s); 0 for a direction the family does not walk."""
+    if not all(ok or u == 0 for ok, u in zip(gaits.COMMAND_AXES[params.FAMILY], DIRECTIONS[direction])):
         return 0.0
     lim = step_limits_for(robot, params)
-    T = params.period
+    T = gaits.step_period(params)
     return {"forward": lim.max_forward / T, "backward": lim.max_backward / T,
             "left": lim.max_outward / (2 * T), "right": lim.max_outward / (2 * T),
             "turn_left": lim.max_turn / (2 * T), "turn_right": lim.max_turn / (2 * T)}[direction]
@@ -102,6 +113,9 @@ def speed_test(sim, params: gaits.GaitParams, stairs: SpeedStaircase, tolerance:
     ``limits``: also report in ``extra["saturation"]`` the servos that hit their torque or speed
     limit on the stair after the highest one held (where the walk stopped gaining)."""
     robot = sim.robot
+    if not all(ok or u == 0 for ok, u in zip(gaits.COMMAND_AXES[params.FAMILY], DIRECTIONS[stairs.direction])):
+        return DirectionResult(stairs.direction, 0.0, 0.0, (), (), False, float("nan"),
+                               f"gait {params.FAMILY!r} does not walk {stairs.direction}", stairs.unit)
     top = min(stairs.top, command_limit(params, robot, stairs.direction))
     values = stairs.level_values()
     n_ok = int(np.sum(values <= top + 1e-12))
@@ -124,9 +138,10 @@ def speed_test(sim, params: gaits.GaitParams, stairs: SpeedStaircase, tolerance:
     trace = sim.rollout(traj, stabiliser=stabiliser)
     unit = np.array(DIRECTIONS[stairs.direction])
     achieved, reached, measured, holding = [], 0.0, 0.0, True
+    starts = gaits.step_starts(params, len(stairs.per_step()))
     for i, value in enumerate(stairs.level_values()):
         a, b = stairs.level_steps(i)
-        t0, t1 = params.t_start + a * params.period, params.t_start + b * params.period
+        t0, t1 = float(starts[a]), float(starts[b])
         v = heading_velocity(trace.t, trace.p_torso, trace.yaw, t0, t1)
         along = float(v @ unit)
         achieved.append(along)
@@ -142,8 +157,7 @@ def speed_test(sim, params: gaits.GaitParams, stairs: SpeedStaircase, tolerance:
         i = min(values.index(reached) + 1 if reached in values else 0, len(values) - 1)
         a, b = stairs.level_steps(i)
         extra["saturation_stair"] = float(values[i])
-        extra["saturation"] = saturation(sim, trace, params.t_start + a * params.period,
-                                         params.t_start + b * params.period)[:3]
+        extra["saturation"] = saturation(sim, trace, float(starts[a]), float(starts[b]))[:3]
     return DirectionResult(stairs.direction, reached, measured, tuple(float(x) for x in stairs.level_values()),
                            tuple(achieved), trace.fell,
                            pitch_rms(np.degrees(trace.pitch[w])) if w.any() else float("nan"),
