@@ -183,3 +183,15 @@ def test_tiny_eros_speed_study_end_to_end(gait_tuner_cmd, run_env, tmp_path):
     r = subprocess.run(gait_tuner_cmd + ["tune", str(bad), "--runs", str(tmp_path / "runs")],
                        capture_output=True, text=True, env=run_env, timeout=120)
     assert r.returncode == 2 and "gait 'cosine' does not walk left" in r.stderr
+
+
+def test_an_unreachable_eros_step_is_rejected_naming_it(monkeypatch):
+    """Step limits wider than the leg: the IK fails, and the error names the step it fails in."""
+    from tuner.robots import load_robot
+    from tuner.sim import walk_speed
+    monkeypatch.setattr(walk_speed, "step_limits_for",
+                        lambda robot, params=None: StepLimits(max_forward=0.5, sole_length=0.10, sole_width=0.055))
+    robot = load_robot("kidsize")
+    cmd = np.array([[0.05, 0, 0], [0.05, 0, 0], [0.5, 0, 0], [0.5, 0, 0], [0, 0, 0]])
+    with pytest.raises(PlanError, match=r"^step 2 of the command walk is out of the leg's reach"):
+        walk_speed._generate(WIDE, robot, 0.01, cmd)
