@@ -150,14 +150,14 @@ def test_ctrl_c_stops_cleanly_and_keeps_trials(gait_tuner_cmd, run_env, tmp_path
                                               "--runs", str(tmp_path / "runs")],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=run_env,
                             start_new_session=True)
+    # wait for the journal, then give the workers time for a few trials (each walks 2 s of
+    # physics in ~0.03 s); the journal is not read while they write to it (at ~50 trials/s its
+    # file lock kept a polling reader out, and the journal grew to thousands of trials)
+    journal = tmp_path / "runs" / "interrupted.journal"
     deadline = time.time() + 120
-    while time.time() < deadline:
-        time.sleep(0.5)
-        try:
-            if len([t for t in load(tmp_path, "interrupted").trials if t.state.is_finished()]) >= 4:
-                break
-        except Exception:
-            pass
+    while time.time() < deadline and not (journal.exists() and journal.stat().st_size > 0):
+        time.sleep(0.2)
+    time.sleep(6.0)
     os.killpg(proc.pid, signal.SIGINT)                  # what Ctrl-C sends to the terminal's group
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err
