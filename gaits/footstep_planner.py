@@ -192,8 +192,8 @@ def plan_footsteps(commands: np.ndarray, period: float, half_width: float, first
             pose = start + f * (target - start)
             gap = sole_gap(F, pose, limits.sole_length, limits.sole_width)
             if gap < limits.min_gap - 1e-12:
-                raise PlanError(f"{where}: the soles come {gap:.3f} m apart during the swing, "
-                                f"closer than min_gap = {limits.min_gap:.3f} m")
+                raise PlanError(f"{where}: the soles come {gap * 1000:.2f} mm apart during the swing, "
+                                f"closer than min_gap = {limits.min_gap * 1000:.2f} mm")
         sides[k], sup[k], s0[k], s1[k] = sigma, F, start, target
         feet[s] = target
         sigma = s

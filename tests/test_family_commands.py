@@ -195,3 +195,18 @@ def test_an_unreachable_eros_step_is_rejected_naming_it(monkeypatch):
     cmd = np.array([[0.05, 0, 0], [0.05, 0, 0], [0.5, 0, 0], [0.5, 0, 0], [0, 0, 0]])
     with pytest.raises(PlanError, match=r"^step 2 of the command walk is out of the leg's reach"):
         walk_speed._generate(WIDE, robot, 0.01, cmd)
+
+
+def test_the_gap_rule_follows_a_narrow_stance():
+    """The soles keep 10 mm, or the set's own standing gap if narrower: EROS's 65 mm stance
+    (5 mm between the robot's 60 mm soles) walks a forward command, and no turn."""
+    from tuner.robots import load_robot
+    from tuner.sim.walk_speed import command_walk, step_limits_for
+    robot = load_robot("kidsize")
+    narrow = gaits.load_baseline("eros-x24-with").params
+    assert step_limits_for(robot, narrow).min_gap == pytest.approx(narrow.stance_width - robot.foot_size[1])
+    assert step_limits_for(robot, WIDE).min_gap == StepLimits().min_gap
+    traj = command_walk(narrow, robot, WalkCommand(0.02, 0.0, 0.0), 0.01)
+    assert traj.p_world_pelvis[-1, 0] > 0.2
+    with pytest.raises(PlanError, match=r"step 0 .*4\.\d\d mm apart during the swing, closer than min_gap = 5\.00 mm"):
+        command_walk(narrow, robot, WalkCommand(0.0, 0.0, 0.05), 0.01)

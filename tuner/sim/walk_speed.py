@@ -33,14 +33,23 @@ __all__ = ["step_limits_for", "command_walk", "speed_test", "DirectionResult", "
 def step_limits_for(robot, params=None) -> StepLimits:
     """Step limits for a robot's legs and a parameter set (ours): the set's reaches (TLIPFM
     ``reach_forward``, ``reach_backward``, ``reach_outward`` in thigh + shank lengths, defaults
-    0.45, 0.32, 0.27, and ``max_turn``) and the robot's sole bounding box for the gap check."""
+    0.45, 0.32, 0.27, and ``max_turn``) and the robot's sole bounding box for the gap check.
+    The gap the soles keep is 10 mm, or the set's own standing gap if that is narrower (EROS's
+    65 mm stance leaves 5 mm between 60 mm soles: it walks straight at that gap, and a turn,
+    which brings the soles closer, is rejected)."""
     legs = robot.leg.thigh + robot.leg.shank
     length, width = robot.foot_size
     reach = [getattr(params, k, d) for k, d in (("reach_forward", 0.45), ("reach_backward", 0.32),
                                                 ("reach_outward", 0.27), ("max_turn", 0.6))]
+    stance = getattr(params, "stance_width", None)
+    if stance is None and hasattr(params, "half_width"):
+        stance = 2.0 * params.half_width
+    min_gap = StepLimits().min_gap
+    if stance is not None:
+        min_gap = min(min_gap, max(stance - width, 0.0))
     return StepLimits(max_forward=min(reach[0] * legs, 0.5), max_backward=min(reach[1] * legs, 0.5),
                       max_outward=min(reach[2] * legs, 0.3), max_turn=min(reach[3], 1.6),
-                      sole_length=length, sole_width=width)
+                      min_gap=min_gap, sole_length=length, sole_width=width)
 
 
 def _generate(params, robot, dt: float, commands: np.ndarray) -> gaits.GaitTrajectory:
