@@ -72,6 +72,15 @@ The default 0.4 is the middle of the 35-45% band that walked at the paper's
 full lift in an independent check (the issue tracker, issue 12); the stance
 width that goes with it is set per experiment setting (``tuner`` reads it as
 2Y + 5 mm, at least 65 mm).
+
+Walk commands (ours; the paper walks straight ahead only). :func:`generate` takes
+per-step commands (vx, vy, wz); the footsteps come from ``gaits/footstep_planner.py``
+with the step period :func:`step_period`, and each step is the paper's lift-off and
+landing pair of transitions toward the planned swing pose: the apex via point is halfway
+in x, y and yaw, all horizontal coordinates follow eq 37's X profile, the lift and the
+sway keep eqs 38-39, the sway is measured across the body's heading, and the hip-yaw
+joints turn the feet. A constant forward command of ``step_x / step_period`` reproduces
+the straight walk exactly.
 """
 
 from __future__ import annotations
