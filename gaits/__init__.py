@@ -64,6 +64,7 @@ __all__ = [
     "stabiliser_corrections",
     "step_period",
     "step_starts",
+    "walks_direction",
 ]
 
 _GENERATORS: dict[str, Callable[..., GaitTrajectory]] = {
@@ -95,6 +96,17 @@ _STEP_PERIODS: dict[str, Callable[..., float]] = {
     "cosine": cosine_law.step_period,
 }
 
+_STEP_STARTS: dict[str, Callable[..., np.ndarray]] = {
+    "eros": eros.step_starts,
+    "tlipfm": lambda p, n: p.t_start + np.arange(n + 1) * p.period,
+    "cosine": cosine_law.step_starts,
+}
+
+
+def walks_direction(family: str, direction: str) -> bool:
+    """Whether a family walks a speed-test direction (``DIRECTIONS``) on its command axes."""
+    return all(ok or u == 0 for ok, u in zip(COMMAND_AXES[family], DIRECTIONS[direction]))
+
 
 def step_period(params: GaitParams) -> float:
     """Duration of one step of a family's walk [s]: the T a walk command is planned with."""
@@ -103,9 +115,7 @@ def step_period(params: GaitParams) -> float:
 
 def step_starts(params: GaitParams, n_steps: int) -> np.ndarray:
     """Start time [s] of each of ``n_steps`` commanded steps and the end of the last, (n_steps + 1,)."""
-    if params.FAMILY == "eros":
-        return eros.step_starts(params, n_steps)
-    return params.t_start + np.arange(n_steps + 1) * step_period(params)
+    return np.asarray(_STEP_STARTS[params.FAMILY](params, n_steps), dtype=float)
 
 
 def generate(params: GaitParams, leg: LegGeometry = LegGeometry(), dt: float = 0.01,

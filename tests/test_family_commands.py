@@ -148,6 +148,8 @@ def test_cosine_rejects_side_steps_turns_and_long_steps_naming_the_step():
 def test_every_family_says_what_it_walks():
     assert set(gaits.COMMANDS) == set(gaits.COMMAND_AXES) == set(gaits.families())
     assert gaits.COMMAND_AXES["cosine"] == (True, False, False)
+    assert [d for d in gaits.DIRECTIONS if gaits.walks_direction("cosine", d)] == ["forward", "backward"]
+    assert all(gaits.walks_direction("eros", d) for d in gaits.DIRECTIONS)
     for fam in gaits.families():
         p = gaits.family_class(fam)()
         assert gaits.step_starts(p, 3)[1] - gaits.step_starts(p, 3)[0] == pytest.approx(gaits.step_period(p))

@@ -45,10 +45,9 @@ SPEED_STAIRS = {"forward": 0.48, "backward": 0.32, "left": 0.16, "turn_left": 1.
 def speed_per_direction(sim, params: gaits.GaitParams, stabiliser=None) -> dict[str, float | None]:
     """The highest stair held per direction (None for a direction the family does not walk)."""
     from ..sim.walk_speed import speed_test
-    axes = gaits.COMMAND_AXES[params.FAMILY]
     return {d: (speed_test(sim, params, gaits.SpeedStaircase(d, top, levels=8, steps_per_level=4),
                            tolerance=0.3, stabiliser=stabiliser).reached
-                if all(ok or u == 0 for ok, u in zip(axes, gaits.DIRECTIONS[d])) else None)
+                if gaits.walks_direction(params.FAMILY, d) else None)
             for d, top in SPEED_STAIRS.items()}
 
 

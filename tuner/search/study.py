@@ -53,7 +53,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 
-from gaits import COMMAND_AXES, COMMANDS, DIRECTIONS, GaitParams, families, family_class
+from gaits import COMMANDS, DIRECTIONS, GaitParams, families, family_class, walks_direction
 
 from ..errors import UserError
 from ..params_io import resolve_params
@@ -272,7 +272,7 @@ def load_study(path_or_name: str) -> StudySpec:
         if "objectives" in doc:
             _fail(source, "a speed study takes its objectives from speed.mode: remove 'objectives'")
         for name, _, _ in speed.directions:
-            if not all(ok or u == 0 for ok, u in zip(COMMAND_AXES[gait], DIRECTIONS[name])):
+            if not walks_direction(gait, name):
                 _fail(source, f"speed.directions: gait {gait!r} does not walk {name} ({COMMANDS[gait]})")
         if doc.get("robust") is not None:
             _fail(source, "speed and robust together are not built: list the pedestals under surfaces")

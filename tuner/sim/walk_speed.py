@@ -90,7 +90,7 @@ def _check_axes(params: gaits.GaitParams, commands: np.ndarray) -> None:
 def command_limit(params: gaits.GaitParams, robot, direction: str) -> float:
     """The largest command along a direction the step limits allow for these parameters
     (m/s or rad/s); 0 for a direction the family does not walk."""
-    if not all(ok or u == 0 for ok, u in zip(gaits.COMMAND_AXES[params.FAMILY], DIRECTIONS[direction])):
+    if not gaits.walks_direction(params.FAMILY, direction):
         return 0.0
     lim = step_limits_for(robot, params)
     T = gaits.step_period(params)
@@ -122,7 +122,7 @@ def speed_test(sim, params: gaits.GaitParams, stairs: SpeedStaircase, tolerance:
     ``limits``: also report in ``extra["saturation"]`` the servos that hit their torque or speed
     limit on the stair after the highest one held (where the walk stopped gaining)."""
     robot = sim.robot
-    if not all(ok or u == 0 for ok, u in zip(gaits.COMMAND_AXES[params.FAMILY], DIRECTIONS[stairs.direction])):
+    if not gaits.walks_direction(params.FAMILY, stairs.direction):
         return DirectionResult(stairs.direction, 0.0, 0.0, (), (), False, float("nan"),
                                f"gait {params.FAMILY!r} does not walk {stairs.direction}", stairs.unit)
     top = min(stairs.top, command_limit(params, robot, stairs.direction))
