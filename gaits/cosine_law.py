@@ -297,8 +297,7 @@ def generate(p: CosineLawParams, leg: LegGeometry = LegGeometry(), dt: float = 0
     foot[-1][:, 1] = -half
     support = np.where((foot[1][:, 2] > 0) | (foot[-1][:, 2] > 0), support, 0)
     pelvis = np.column_stack([hip_x, np.zeros(n), hip_z + leg.hip_offset_z])
-    meta = {"schedule": [k for k, _ in schedule], "cycle_time": 2 * p.motion_time,
-            "step_starts": step_starts(p, len(schedule)).tolist()}
+    meta = {"schedule": [k for k, _ in schedule], "cycle_time": 2 * p.motion_time}
     if commands is not None:
         meta["commands"] = np.asarray(commands, dtype=float).tolist()
     return assemble("cosine", t, leg, p_world_pelvis=pelvis, p_world_foot_l=foot[1],

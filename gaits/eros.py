@@ -522,10 +522,8 @@ def generate(p: ErosParams, leg: LegGeometry = LegGeometry(), dt: float | None =
                               state[:, BW] + np.cos(yaw) * state[:, BY],
                               np.full(len(t), p.hip_height + leg.hip_offset_z)])
     support = np.where((state[:, ZL] > 0) | (state[:, ZR] > 0), support, 0)
-    n_steps = p.n_steps if plan is None else plan.n_steps
     meta = {"transition_ticks": ref.transition_ticks.tolist(),
-            "cycle_time": (4 * (math.pi / 2) / p.t_mn + 4 * dsp_ticks(p)) * p.tick,
-            "step_starts": step_starts(p, n_steps).tolist()}
+            "cycle_time": (4 * (math.pi / 2) / p.t_mn + 4 * dsp_ticks(p)) * p.tick}
     if plan is None:
         return assemble("eros", t, leg, p_world_pelvis=pelvis, p_world_foot_l=left,
                         p_world_foot_r=right, support=support, ankle_pitch_offset=off, meta=meta)

@@ -38,7 +38,7 @@ def test_simulate_command_json_reports_achieved_beside_commanded(gait_tuner_cmd,
 @pytest.mark.parametrize("args, text", [
     (["--params", "tkux-table2", "--command", "0.5,0,0"], "beyond max_forward"),
     (["--params", "tkux-table2", "--command", "0.1,0"], "three numbers"),
-    (["--params", "cosine-setiono", "--command", "0,0.01,0"], "takes no vy command"),
+    (["--params", "cosine-setiono", "--command", "0,0.01,0"], "walks forward and backward only"),
     (["--params", "eros-x24-with", "--command", "0,0,0.5"], "closer than min_gap"),
 ])
 def test_bad_commands_are_one_line_exit_2(gait_tuner_cmd, run_env, args, text):

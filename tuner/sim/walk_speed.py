@@ -71,20 +71,12 @@ def command_walk(params: gaits.GaitParams, robot, command: WalkCommand, dt: floa
     if ramp.target != command:
         ramp = dataclasses.replace(ramp, target=command)
     commands = ramp.per_step()
-    _check_axes(params, commands)
     traj = _generate(params, robot, dt, commands)
     first, last = ramp.steady_steps()
     starts = gaits.step_starts(params, len(commands))
     traj.meta["steady"] = (float(starts[first]), float(starts[last]))
     traj.meta["command"] = [command.vx, command.vy, command.wz]
     return traj
-
-
-def _check_axes(params: gaits.GaitParams, commands: np.ndarray) -> None:
-    axes = gaits.COMMAND_AXES[params.FAMILY]
-    for name, ok, col in zip(("vx", "vy", "wz"), axes, np.asarray(commands).T):
-        if not ok and np.any(col != 0.0):
-            raise PlanError(f"gait {params.FAMILY!r} takes no {name} command: {gaits.COMMANDS[params.FAMILY]}")
 
 
 def command_limit(params: gaits.GaitParams, robot, direction: str) -> float:
