@@ -33,11 +33,13 @@ from gaits import JOINT_NAMES
 from ..sim.surfaces import Surface
 from .robot_model import RobotModel
 
-__all__ = ["PREFIX", "SceneLayout", "build_scene", "CORNERS"]
+__all__ = ["PREFIX", "SceneLayout", "build_scene", "CORNERS", "IMU_SITE_POS"]
 
 PREFIX = "gt/"
 #: Sole corners and touch quadrants, (sign x, sign y): toe-left, toe-right, heel-left, heel-right.
 CORNERS = ((1, 1), (1, -1), (-1, 1), (-1, -1))
+#: [m] the IMU site in the torso frame (axes the torso's)
+IMU_SITE_POS = (0.0, 0.0, 0.05)
 
 
 @dataclass(frozen=True)
@@ -158,7 +160,7 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
         blades.group = 1
         blades.rgba = [0.35, 0.85, 0.3, 0.22]
 
-    spec.body(r.torso).add_site(default=gt, name=PREFIX + "imu", pos=[0, 0, 0.05])
+    spec.body(r.torso).add_site(default=gt, name=PREFIX + "imu", pos=list(IMU_SITE_POS))
     fl, fw = r.foot_size
     depth = s.layer_height + 0.03
     pad = 0.005           # reach past the sole's edge so corner contacts are not lost
@@ -246,6 +248,9 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
                    objtype=O.mjOBJ_SITE, objname=f"{PREFIX}{side}_touch{k}_0")
     for ours in servo_joints:
         sensor("q", 1, name=f"{PREFIX}q/{ours}", type=S.mjSENS_ACTUATORPOS, objtype=O.mjOBJ_ACTUATOR,
+               objname=f"{PREFIX}servo/{ours}")
+    for ours in servo_joints:
+        sensor("dq", 1, name=f"{PREFIX}dq/{ours}", type=S.mjSENS_ACTUATORVEL, objtype=O.mjOBJ_ACTUATOR,
                objname=f"{PREFIX}servo/{ours}")
     for ours in servo_joints:
         sensor("tau", 1, name=f"{PREFIX}tau/{ours}", type=S.mjSENS_ACTUATORFRC, objtype=O.mjOBJ_ACTUATOR,

@@ -19,7 +19,10 @@ Defaults (all ours; each a uniform draw unless said):
   a study can ask for that);
 * control latency: 0-2 ticks (0-20 ms) between a command and the servo receiving it;
 * IMU: tilt noise 0.5 deg and gyro noise 0.05 rad/s (standard deviations per tick), 0-2 ticks
-  latency: typical of the MPU-class IMUs in kid-size robots after filtering;
+  latency: typical of the MPU-class IMUs in kid-size robots after filtering; accelerometer noise
+  0.05 m/s^2 (an MPU-6050's noise density, 400 ug/sqrt(Hz), over a 100 Hz band is 0.04);
+* encoders: 0.001 rad (a 4096-tick-per-turn servo resolves 0.0015 rad) and 0.05 rad/s per tick;
+  sole force sensors: 0.5 N per reading (strain gauges or FSRs under a 5 kg robot);
 * sole friction x U(1 -+ 0.2); the surface's layer stiffness (time constant) x U(1 -+ 0.3),
   layer height x U(1 -+ 0.2) and blade drag x U(1 -+ 0.3): turf differs between fields;
 * ground tilt: up to 2 deg in a random direction (gravity turned by that much: the same as a
@@ -55,7 +58,9 @@ _RANGES = {"mass_scale": (0.0, 0.5, "-"), "com_shift": (0.0, 0.05, "m"), "kp_sca
            "gyro_noise": (0.0, 1.0, "rad/s"), "imu_latency_ticks": (0, 5, "ticks"),
            "friction_scale": (0.0, 0.8, "-"), "layer_stiffness_scale": (0.0, 0.8, "-"),
            "layer_height_scale": (0.0, 0.8, "-"), "drag_scale": (0.0, 0.8, "-"), "tilt_deg": (0.0, 10.0, "deg"),
-           "initial_pose": (0.0, 0.2, "rad"), "push": (0.0, 50.0, "N s")}
+           "initial_pose": (0.0, 0.2, "rad"), "push": (0.0, 50.0, "N s"),
+           "accel_noise": (0.0, 5.0, "m/s^2"), "encoder_noise": (0.0, 0.1, "rad"),
+           "encoder_rate_noise": (0.0, 5.0, "rad/s"), "force_noise": (0.0, 20.0, "N")}
 _INTEGER = ("latency_ticks", "imu_latency_ticks")
 
 
@@ -80,6 +85,10 @@ class Randomisation:
     tilt_deg: float = 2.0               # [deg] ground tilt U(0, a), random direction
     initial_pose: float = 0.02          # [rad] start angle offset per servo, U(-a, a)
     push: float = 0.0                   # [N s] one horizontal push of this size (0: none)
+    accel_noise: float = 0.05           # [m/s^2] std of each accelerometer axis per tick
+    encoder_noise: float = 0.001        # [rad] std of each encoder angle per tick
+    encoder_rate_noise: float = 0.05    # [rad/s] std of each encoder velocity per tick
+    force_noise: float = 0.5            # [N] std of each sole force reading per tick
 
     def __post_init__(self) -> None:
         for name, (lo, hi, unit) in _RANGES.items():
@@ -144,7 +153,11 @@ class Perturbation:
     push_impulse: float          # [N s]
     push_time: float             # [0, 1): fraction of the walk at which the push comes
     push_angle: float            # [rad] direction in the horizontal plane (0: +x, pushes forward)
-    noise_seed: int              # for the per-tick IMU noise stream
+    noise_seed: int              # for the per-tick sensor noise streams
+    accel_noise: float = 0.0     # [m/s^2] std
+    encoder_noise: float = 0.0   # [rad] std
+    encoder_rate_noise: float = 0.0  # [rad/s] std
+    force_noise: float = 0.0     # [N] std
 
 
 def draw(r: Randomisation, seed: int | tuple[int, ...], n_body: int, n_act: int, n_servo: int,
@@ -179,4 +192,5 @@ def draw(r: Randomisation, seed: int | tuple[int, ...], n_body: int, n_act: int,
     noise_seed = int(rng.integers(0, 2 ** 63 - 1))
     return Perturbation(parts[-1] if len(parts) == 1 else tuple(int(v) for v in parts), int(namespace), body_mass, body_com, kp, torque, speed, backlash, latency,
                         math.radians(r.imu_noise_deg), r.gyro_noise, imu_latency, friction, timeconst, height,
-                        drag, gravity_dir, initial, r.push, push_time, push_angle, noise_seed)
+                        drag, gravity_dir, initial, r.push, push_time, push_angle, noise_seed,
+                        r.accel_noise, r.encoder_noise, r.encoder_rate_noise, r.force_noise)

@@ -1,33 +1,46 @@
-"""MuJoCo walking rollouts: q_ref(t) -> position servos -> a trace of what the robot did.
+"""MuJoCo walking rollouts: a controller drives position servos -> a trace of what the robot did.
 
-This is the only module that reads physics. A :class:`Simulator` is built once
-per (robot, surface) and runs many rollouts. Per control tick (10 ms by
-default) it rate-limits the joint targets to the servos' speed, sets the
-position actuators (torque-limited), applies the grass drag (see
-``tuner.surfaces``), advances MuJoCo by ``nstep`` steps in one call, copies the
-sensor vector, and checks for a fall or a diverging simulation.
+This is the only module that steps physics. A :class:`Simulator` is built once per (robot,
+surface) and runs many rollouts. :meth:`Simulator.run` is the closed loop, per control tick
+(10 ms by default):
 
-Sensors: an IMU site on the torso (orientation, gyro), the whole-body CoM, each
-sole centre, and four touch sensors per sole (toe-left, toe-right, heel-left,
-heel-right quadrants), the quantity the TLIPFM paper measured with four force
-sensors per sole; the measured ZMP is their centre of pressure.
+1. the sensor reader (``sensors.py``) makes the controller's :class:`gaits.control.Measurement`
+   from the state (encoders, IMU, sole forces; noise and latency from the perturbation);
+2. the controller (``gaits/control.py``: a table player, the stabiliser around any controller,
+   a walk engine, or a user's own) returns joint targets for the next tick;
+3. the plant: targets rate-limited to the servos' speed and clipped to the joint ranges, held
+   back by the command latency and the backlash dead band, sent to the position actuators
+   (torque-limited); the grass drag gated to the sole corners inside the blades; pushes;
+4. MuJoCo advances by ``nstep`` physics steps in one call;
+5. the recorder keeps the sensor vector (ground truth included, for the metrics only) and the
+   loop checks for a fall or a diverging simulation.
+
+:meth:`Simulator.rollout` plays a joint table (the open loop the papers describe) through it.
+
+Sensors in the model: an IMU site on the torso (orientation, position), the whole-body CoM,
+each sole centre, four touch sensors per sole (toe-left, toe-right, heel-left, heel-right
+quadrants, the quantity the TLIPFM paper measured with four force sensors per sole; the
+measured ZMP is their centre of pressure), and each servo's position, velocity and torque.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+from collections import deque
 from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
 
-from gaits import JOINT_NAMES, GaitTrajectory, StabiliserParams, stabiliser_corrections
+from gaits import JOINT_NAMES, GaitTrajectory, StabiliserParams
+from gaits.control import Controller, HoldPose, PlanRecord, Stabilised, TablePlayer
 
 from .centre_of_pressure import centre_of_pressure
 from .randomisation import Perturbation
+from .sensors import SensorReader, tilt_from_quat
 from ..robots import PREFIX, RobotModel, SimOptions, build_scene
-from ..robots.scene import CORNERS
+from ..robots.scene import CORNERS, IMU_SITE_POS
 from .surfaces import Surface
 
 __all__ = ["FallCriteria", "Trace", "Simulator", "dead_band"]
@@ -87,15 +100,7 @@ def dead_band(target: np.ndarray, q: np.ndarray, half_width: np.ndarray) -> np.n
     return q + np.sign(e) * np.maximum(np.abs(e) - half_width, 0.0)
 
 
-def _quat_pitch_roll(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Z-Y-X Euler pitch and roll from quaternions (K, 4) [w, x, y, z]."""
-    w, x, y, z = q.T
-    r20 = 2 * (x * z - w * y)
-    r21 = 2 * (y * z + w * x)
-    r22 = 1 - 2 * (x * x + y * y)
-    pitch = np.arcsin(np.clip(-r20, -1.0, 1.0))
-    roll = np.arctan2(r21, r22)
-    return pitch, roll
+_quat_pitch_roll = tilt_from_quat
 
 
 def _quat_yaw(q: np.ndarray) -> np.ndarray:
@@ -133,14 +138,6 @@ class Simulator:
         self._nominal_gravity = m.opt.gravity.copy()
         self._ground = [m.geom(PREFIX + "soil").id] + ([m.geom(PREFIX + "layer").id] if not surface.rigid else [])
         self._layer = m.geom(PREFIX + "layer").id if not surface.rigid else None
-        # stabiliser: which servo columns each of its four corrections moves, with the joint's sign
-        self._stab = np.zeros((self._n_servo, 4))
-        for c, kind in enumerate(("ankle_pitch", "hip_pitch", "ankle_roll", "hip_roll")):
-            for side in "lr":
-                name = f"{side}_{kind}"
-                if name in self.joint_names:
-                    i = self.joint_names.index(name)
-                    self._stab[i, c] = self._sign[i]
 
     def _index(self) -> None:
         m, r, lay = self.model, self.robot, self.layout
@@ -152,7 +149,8 @@ class Simulator:
         assert o == m.nsensordata, (o, m.nsensordata)
         self._s_quat, self._s_pos, self._s_com = blocks["quat"], blocks["pos"], blocks["com"]
         self._s_sole, self._s_touch, self._s_touchpos = blocks["sole"], blocks["touch"], blocks["touchpos"]
-        self._s_q, self._s_tau = blocks["q"], blocks["tau"]
+        self._s_q, self._s_dq, self._s_tau = blocks["q"], blocks["dq"], blocks["tau"]
+        self._imu_offset = np.array(IMU_SITE_POS, dtype=float)
         self._torso = m.body(r.torso).id
         self._feet = np.array([m.body(f).id for f in r.feet])
         theirs = [r.joint_map[j][0] for j in self.joint_names]
@@ -215,38 +213,17 @@ class Simulator:
 
         The robot, holding the joint pose ``q0`` (gait-tuner order), starts pitched forward by
         ``pitch`` [rad] with its toes ``drop`` [m] above the blade tips, moving forward at
-        ``forward_speed`` and down at ``sink_speed`` [m/s]; the servos hold ``q0``.
+        ``forward_speed`` and down at ``sink_speed`` [m/s]; the servos hold ``q0``; only a tilt
+        beyond the fall limit ends it early (it starts low on purpose).
         Returns the trace (time from the release).
         """
-        m, d = self.model, self.data
-        q0 = self.to_robot(q0)
-        self._place(q0, np.zeros(2))
-        d.qpos[3:7] = [math.cos(pitch / 2), 0.0, math.sin(pitch / 2), 0.0]
-        d.qpos[2] += self.surface.layer_height + drop - self._lowest_sole_z()
-        d.qvel[0] = forward_speed
-        d.qvel[2] = -sink_speed
-        mujoco.mj_forward(m, d)
-        n = int(round(duration / self.control_period)) + 1
-        t = np.arange(n) * self.control_period
-        from gaits import GaitTrajectory
-        zeros3 = np.zeros((n, 3))
-        traj = GaitTrajectory("landing-test", t, np.zeros((n, len(JOINT_NAMES))), zeros3, zeros3,
-                              np.zeros((n, 2)), zeros3, zeros3, np.zeros(n, dtype=int))
-        sens = np.empty((n, m.nsensordata))
-        sens[0] = d.sensordata
-        d.ctrl[:self._n_servo] = q0
-        drag = self.surface.drag > 0.0
-        k_end, reason = n, "completed"
-        for k in range(1, n):
-            if drag:
-                self._drag()
-            mujoco.mj_step(m, d, nstep=self.nstep)
-            sens[k] = d.sensordata
-            if d.xmat[self._torso, 8] < math.cos(self.fall.max_tilt):
-                k_end, reason = k + 1, "fell"
-                break
-        cmds = np.repeat(q0[None, :], k_end, axis=0)
-        return self._trace(traj, sens[:k_end], cmds, cmds, reason, float(d.qpos[2]))
+        def release(m, d) -> None:
+            d.qpos[3:7] = [math.cos(pitch / 2), 0.0, math.sin(pitch / 2), 0.0]
+            d.qpos[2] += self.surface.layer_height + drop - self._lowest_sole_z()
+            d.qvel[0] = forward_speed
+            d.qvel[2] = -sink_speed
+            mujoco.mj_forward(m, d)
+        return self.run(HoldPose(q0, self.control_period), duration=duration, start=release, height_check=False)
 
     def _drag(self) -> None:
         """Switch on the drag dampers of the sole corners that are inside the layer (module
@@ -298,123 +275,157 @@ class Simulator:
 
     def rollout(self, traj: GaitTrajectory, *, duration: float | None = None, perturb: Perturbation | None = None,
                 stabiliser: StabiliserParams | None = None, record_qpos: bool = False) -> Trace:
-        """Play a gait's joint table on the robot; stop at the end, a fall, or divergence.
-
-        ``perturb`` (see ``tuner/sim/randomisation.py``) changes the model for this rollout only and
-        adds backlash, command and IMU latency, IMU noise, a start-pose error and a push;
-        ``stabiliser`` closes the IMU loop of ``gaits/imu_stabiliser.py`` every tick.
-        ``record_qpos`` keeps the model's full qpos per tick in ``Trace.qpos`` (for a video).
-        """
+        """Play a gait's joint table on the robot (:class:`gaits.control.TablePlayer`), with the IMU
+        stabiliser around it when ``stabiliser`` is given and enabled; see :meth:`run`."""
         if abs(traj.dt - self.control_period) > 1e-9:
             raise ValueError(f"the joint table's dt ({traj.dt:g} s) must equal the control period "
                              f"({self.control_period:g} s)")
+        controller = TablePlayer(traj)
+        if stabiliser is not None and stabiliser.enabled:
+            controller = Stabilised(controller, stabiliser)
+        return self.run(controller, duration=duration, perturb=perturb, record_qpos=record_qpos)
+
+    def run(self, controller: Controller, *, duration: float | None = None, perturb: Perturbation | None = None,
+            commands=None, pushes=(), record_qpos: bool = False, start=None, height_check: bool = True) -> Trace:
+        """Walk the robot under ``controller`` (``gaits/control.py``); stop at the end, a fall, or
+        divergence.
+
+        ``duration`` [s]: how long (default, and at most: the controller's own ``duration``).
+        ``perturb`` (``tuner/sim/randomisation.py``) changes the model for this rollout only and
+        adds backlash, command and IMU latency, sensor noise, a start-pose error and a push (at
+        its fraction of the controller's walking window). ``commands``: an object whose
+        ``at(t)`` gives the walk command (vx, vy, wz) of time t, handed to the controller every
+        tick. ``pushes``: (t [s], impulse (3,) [N s]) pairs, each applied to the torso over one
+        control tick. ``record_qpos`` keeps the model's qpos per tick (for a video). ``start``
+        (ours, for experiments): ``start(model, data)`` changes the placed state before the
+        first measurement.
+        """
+        dt = float(controller.dt)
+        if abs(dt - self.control_period) > 1e-9:
+            raise ValueError(f"the controller's control period ({dt:g} s) must equal the robot's "
+                             f"({self.control_period:g} s)")
+        own = getattr(controller, "duration", None)
+        if own is None and duration is None:
+            raise ValueError("give a duration: this controller walks as long as it is run")
+        length = own if duration is None else (duration if own is None else min(duration, own))
         if perturb is None:
-            return self._rollout(traj, duration, None, stabiliser, record_qpos)
+            return self._run(controller, length, None, commands, pushes, record_qpos, start, height_check)
         self._apply(perturb)
         try:
-            return self._rollout(traj, duration, perturb, stabiliser, record_qpos)
+            return self._run(controller, length, perturb, commands, pushes, record_qpos, start, height_check)
         finally:
             self._restore()
 
-    def _rollout(self, traj: GaitTrajectory, duration: float | None, pert: Perturbation | None,
-                 stabiliser: StabiliserParams | None, record_qpos: bool = False) -> Trace:
+    def _run(self, controller: Controller, length: float, pert: Perturbation | None, commands, pushes,
+             record_qpos: bool, start, height_check: bool) -> Trace:
         m, d = self.model, self.data
-        q_ref = self.to_robot(traj.q_ref)                            # into the robot's joints
-        n_ticks = len(traj.t)
-        if duration is not None:
-            n_ticks = min(n_ticks, int(round(duration / self.control_period)) + 1)
-        z0 = self._place(q_ref[0], traj.p_world_pelvis[0, :2])
-        cmd = q_ref[0].copy()
-        sens = np.empty((n_ticks, m.nsensordata))
-        cmds = np.empty((n_ticks, len(cmd)))
-        sent_log = np.empty((n_ticks, len(cmd)))
-        sens[0] = d.sensordata
-        cmds[0] = cmd
-        sent_log[0] = cmd
-        qpos_log = np.empty((n_ticks, m.nq)) if record_qpos else None
-        cos_tilt = math.cos(self.fall.max_tilt)
-        z_min = self.fall.min_height_ratio * z0
-        drag = self.surface.drag > 0.0
-        warn = mujoco.mjtWarning.mjWARN_BADQACC
-        reason, k_end = "completed", n_ticks
-        torso = self._torso
+        dt = self.control_period
+        n_ticks = int(round(length / dt)) + 1
+        pose = controller.start_pose()
+        q0 = self.to_robot(pose.q)
+        z0 = self._place(q0, np.asarray(pose.p_world_pelvis_xy, dtype=float))
+        cmd = q0.copy()
         step = self._max_step
-        stab = stabiliser is not None and stabiliser.enabled
-        latency = imu_latency = 0
+        latency = 0
         backlash = None
-        push_tick = -1
+        kicks: dict[int, np.ndarray] = {}
+        for t_push, impulse in pushes:
+            kicks[int(round(t_push / dt))] = np.asarray(impulse, dtype=float) / dt
         if pert is not None:
             step = step * pert.speed
             d.qpos[self._qadr] += pert.initial_pose
             mujoco.mj_forward(m, d)
-            latency, imu_latency = pert.latency, pert.imu_latency
+            latency = pert.latency
             backlash = pert.backlash / 2 if np.any(pert.backlash > 0) else None
-            noise = np.random.default_rng(pert.noise_seed)
             if pert.push_impulse > 0:
-                walking = np.flatnonzero(traj.support[:n_ticks] != 0)
-                first = int(walking[0]) if len(walking) else 1
-                push_tick = first + int(pert.push_time * max(n_ticks - 1 - first, 1))
-                push = (pert.push_impulse / self.control_period) * np.array(
+                first = int(round(getattr(controller, "walk_start", 0.0) / dt)) or 1
+                tick = first + int(pert.push_time * max(n_ticks - 1 - first, 1))
+                kicks[tick - 1] = (pert.push_impulse / dt) * np.array(
                     [math.cos(pert.push_angle), math.sin(pert.push_angle), 0.0])
+        if start is not None:
+            start(m, d)
+            z0 = float(d.qpos[2])
+        sens = np.empty((n_ticks, m.nsensordata))
+        cmds = np.empty((n_ticks, len(cmd)))
+        sent_log = np.empty((n_ticks, len(cmd)))
+        targets = np.empty((n_ticks, len(JOINT_NAMES)))
+        sens[0] = d.sensordata
+        cmds[0] = cmd
+        sent_log[0] = cmd
+        targets[0] = pose.q
+        qpos_log = np.empty((n_ticks, m.nq)) if record_qpos else None
         if qpos_log is not None:
             qpos_log[0] = d.qpos
-        sent = [cmd.copy() for _ in range(latency)]       # commands on their way to the servos
-        imu = [np.zeros(4) for _ in range(imu_latency)]   # readings on their way from the IMU
+        reader = SensorReader(self, getattr(controller, "senses", None), pert)
+        cos_tilt = math.cos(self.fall.max_tilt)
+        z_min = self.fall.min_height_ratio * z0 if height_check else -math.inf
+        drag = self.surface.drag > 0.0
+        warn = d.warning[mujoco.mjtWarning.mjWARN_BADQACC]
+        reason, k_end = "completed", n_ticks
+        torso = self._torso
+        col, sign, offset, q_lo, q_hi = self._col_in_gait, self._sign, self._offset, self._q_lo, self._q_hi
+        lo_step = -step
+        vmax, vmin = np.maximum, np.minimum        # np.clip's own arithmetic, without its 2 us wrapper
+        ctrl, sdata, qacc, xmat, xpos = d.ctrl, d.sensordata, d.qacc, d.xmat, d.xpos
+        n_servo = self._n_servo
+        sent = deque(cmd.copy() for _ in range(latency))   # commands on their way to the servos
+        meas = reader.read(0.0)
+        controller.reset(meas)
         for k in range(1, n_ticks):
-            target = q_ref[k]
-            if stab:
-                pitch, roll = _quat_pitch_roll(d.sensordata[self._s_quat][None, :])
-                reading = np.array([pitch[0], roll[0], d.qvel[4], d.qvel[3]])
-                if pert is not None:
-                    reading += noise.normal(0.0, 1.0, 4) * [pert.imu_noise, pert.imu_noise,
-                                                            pert.gyro_noise, pert.gyro_noise]
-                imu.append(reading)
-                p_, r_, pr, rr = imu.pop(0)
-                target = target + self._stab @ stabiliser_corrections(stabiliser, p_, r_, pr, rr)
-            cmd += np.clip(target - cmd, -step, step)
-            np.clip(cmd, self._q_lo, self._q_hi, out=cmd)
+            if k > 1:
+                meas = reader.read((k - 1) * dt)
+            command = None if commands is None else commands.at((k - 1) * dt)
+            target = controller.step(meas, command)
+            targets[k] = target
+            delta = target[col] * sign + offset - cmd
+            cmd += vmin(vmax(delta, lo_step, out=delta), step, out=delta)
+            vmin(vmax(cmd, q_lo, out=cmd), q_hi, out=cmd)
             if latency:
                 sent.append(cmd.copy())
-                out = sent.pop(0)
+                out = sent.popleft()
             else:
                 out = cmd
             if backlash is not None:
                 out = dead_band(out, d.qpos[self._qadr], backlash)
-            d.ctrl[:self._n_servo] = out
+            ctrl[:n_servo] = out
             sent_log[k] = out
             if drag:
                 self._drag()
-            if k == push_tick:
-                d.xfrc_applied[torso, :3] = push
+            kick = kicks.get(k - 1)
+            if kick is not None:
+                d.xfrc_applied[torso, :3] = kick
             mujoco.mj_step(m, d, nstep=self.nstep)
-            if k == push_tick:
+            if kick is not None:
                 d.xfrc_applied[torso, :3] = 0.0
-            sens[k] = d.sensordata
+            sens[k] = sdata
             cmds[k] = cmd
             if qpos_log is not None:
                 qpos_log[k] = d.qpos
-            if d.warning[warn].number or not math.isfinite(d.qacc[0]):
-                reason, k_end = f"diverged: MuJoCo reported unstable accelerations at t = {k * self.control_period:.2f} s", k
+            if warn.number or not math.isfinite(qacc[0]):
+                reason, k_end = f"diverged: MuJoCo reported unstable accelerations at t = {k * dt:.2f} s", k
                 break
-            if d.xmat[torso, 8] < cos_tilt or d.xpos[torso, 2] < z_min:
+            if xmat[torso, 8] < cos_tilt or xpos[torso, 2] < z_min:
                 k_end = k + 1
                 reason = "fell"
                 break
-        sens = sens[:k_end]
-        trace = self._trace(traj, sens, cmds[:k_end], q_ref[:k_end], reason, z0)
+        trace = self._trace(controller.plan(k_end), sens[:k_end], cmds[:k_end], targets[:k_end, col],
+                            reason, z0)
         trace.q_sent = self.from_robot(sent_log[:k_end])
         if qpos_log is not None:
             trace.qpos = qpos_log[:k_end]
         if pert is not None:
             trace.meta.update({"seed": pert.seed, "namespace": pert.namespace,
-                               "push_t": None if push_tick < 0 else float(traj.t[push_tick]),
+                               "push_t": float(tick * dt) if pert.push_impulse > 0 else None,
                                "push_impulse": pert.push_impulse})
+        if pushes:
+            trace.meta["pushes"] = [(float(t), np.asarray(j, dtype=float).tolist()) for t, j in pushes]
         return trace
 
-    def _trace(self, traj: GaitTrajectory, sens: np.ndarray, cmds: np.ndarray, q_ref: np.ndarray,
+    def _trace(self, plan: PlanRecord, sens: np.ndarray, cmds: np.ndarray, q_ref: np.ndarray,
                reason: str, z0: float) -> Trace:
+        """The recorder: ground truth of every tick (the sensor vector) beside the controller's plan."""
         k = len(sens)
-        t = traj.t[:k]
+        t = np.arange(k) * self.control_period
         pitch, roll = _quat_pitch_roll(sens[:, self._s_quat])
         force = sens[:, self._s_touch] @ self._touch_sum
         p_touch = sens[:, self._s_touchpos].reshape(k, 8, 3)
@@ -422,9 +433,9 @@ class Simulator:
         zmp = centre_of_pressure(force, p_touch, min_total=0.1 * weight)
         # relative to the support foot (the midpoint of both in double support), so that an
         # open-loop drift of the whole walk does not count as ZMP tracking error
-        sup = traj.support[:k, None]
+        sup = plan.support[:k, None]
         sole_l, sole_r = sens[:, self._s_sole][:, :2], sens[:, self._s_sole][:, 3:5]
-        plan_l, plan_r = traj.p_world_foot_l[:k, :2], traj.p_world_foot_r[:k, :2]
+        plan_l, plan_r = plan.p_world_foot_l[:k], plan.p_world_foot_r[:k]
         anchor = np.where(sup == 1, sole_l, np.where(sup == -1, sole_r, (sole_l + sole_r) / 2))
         anchor_ref = np.where(sup == 1, plan_l, np.where(sup == -1, plan_r, (plan_l + plan_r) / 2))
         fell = reason == "fell"
@@ -435,19 +446,18 @@ class Simulator:
             reason = (f"fell at t = {t_fall:.2f} s, x = {p_fall[0]:.3f} m: torso pitch "
                       f"{math.degrees(pitch[-1]):+.0f} deg, roll {math.degrees(roll[-1]):+.0f} deg, "
                       f"height {p_fall[2] / z0:.0%} of start")
-        walking = np.flatnonzero(traj.support != 0)
-        walk_start = float(traj.t[walking[0]]) if len(walking) else 0.0
+        zmp_ref = plan.p_world_zmp_ref[:k]
         return Trace(t=t, pitch=pitch, roll=roll, p_torso=sens[:, self._s_pos],
                      p_com=sens[:, self._s_com], p_sole_l=sens[:, self._s_sole][:, :3],
                      p_sole_r=sens[:, self._s_sole][:, 3:], force=force, p_touch=p_touch, zmp=zmp,
-                     zmp_ref=traj.p_world_zmp_ref[:k], zmp_local=zmp - anchor,
-                     zmp_ref_local=traj.p_world_zmp_ref[:k] - anchor_ref, support=traj.support[:k],
+                     zmp_ref=zmp_ref, zmp_local=zmp - anchor,
+                     zmp_ref_local=zmp_ref - anchor_ref, support=plan.support[:k],
                      q=self.from_robot(sens[:, self._s_q]), q_cmd=self.from_robot(cmds),
-                     q_ref=self.from_robot(q_ref),
+                     q_ref=np.array(q_ref),
                      tau=sens[:, self._s_tau] * self._sign, joint_names=self.joint_names, fell=fell,
-                     t_fall=t_fall, p_fall=p_fall, reason=reason, walk_start=walk_start,
-                     cycle_time=float(traj.meta.get("cycle_time", 1.0)),
+                     t_fall=t_fall, p_fall=p_fall, reason=reason, walk_start=plan.walk_start,
+                     cycle_time=plan.cycle_time,
                      meta={"robot": self.robot.name, "surface": self.surface.name,
-                           "family": traj.family, "zmp_source": traj.zmp_source,
-                           **({"steady": traj.meta["steady"]} if "steady" in traj.meta else {})},
+                           "family": plan.family, "zmp_source": plan.zmp_source,
+                           **({"steady": plan.meta["steady"]} if "steady" in plan.meta else {})},
                      yaw=_quat_yaw(sens[:, self._s_quat]))

@@ -1,0 +1,259 @@
+"""What drives the joints: the controller interface, and the two controllers every table walk uses.
+
+A controller runs on the robot's computer, so it is pure numpy and sees only what a kid-size
+robot senses. Every control tick the loop (``tuner/sim/rollout.py`` in simulation,
+``examples/robot_loop.py`` on a robot) hands it a :class:`Measurement` and the current walk
+command, and sends the joint targets it returns to the servos; after the walk it asks for
+:class:`PlanRecord`, what the controller planned tick by tick (support foot, planned soles, ZMP
+reference), which the metrics compare with what the robot did. The controller never sees the
+simulator's ground truth (the free joint's pose, the CoM): those go to the recorder only.
+
+Timing, the convention of every joint table the project writes: at tick i (time t_i = i dt) the
+controller reads the measurement of t_i and returns the targets the servos should reach at
+t_{i+1}; the servos move toward them during [t_i, t_{i+1}].
+
+Joint convention: gait-tuner's names (:data:`gaits.JOINT_NAMES`) and signs; a controller returns
+all 20 columns, and the loop sends those the robot has. ``Measurement.joint_names`` says which
+joints the encoders report.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from .imu_stabiliser import StabiliserParams, stabiliser_corrections
+from .trajectory import JOINT_NAMES, GaitTrajectory
+
+__all__ = ["READINGS", "Measurement", "PlanRecord", "StartPose", "Controller", "TablePlayer", "Stabilised", "HoldPose",
+           "FOOT_FORCE_LABELS", "rpy_from_quat", "GRAVITY_ACCEL"]
+
+GRAVITY_ACCEL = 9.81  # [m/s^2] what a resting accelerometer reads, upward
+
+#: The eight foot-force readings, in order: four sole quadrants per foot.
+FOOT_FORCE_LABELS = ("l_toe_left", "l_toe_right", "l_heel_left", "l_heel_right",
+                     "r_toe_left", "r_toe_right", "r_heel_left", "r_heel_right")
+
+
+def rpy_from_quat(quat: np.ndarray) -> np.ndarray:
+    """Z-Y-X Euler angles (roll, pitch, yaw) [rad] of an orientation quaternion [w, x, y, z].
+
+    Pitch is positive for a forward lean, roll positive with the left side up, yaw
+    counter-clockwise; the IMU filters of kid-size robots report these.
+    """
+    w, x, y, z = (float(v) for v in quat)
+    roll = math.atan2(2 * (y * z + w * x), 1 - 2 * (x * x + y * y))
+    pitch = math.asin(min(max(-2 * (x * z - w * y), -1.0), 1.0))
+    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    return np.array([roll, pitch, yaw])
+
+
+#: Every reading a :class:`Measurement` can carry; a controller names those it uses (``senses``).
+READINGS = ("q", "dq", "imu_rpy", "gyro", "accel", "foot_force")
+
+
+@dataclass(slots=True)
+class Measurement:
+    """What a kid-size robot senses at one control tick (SI units, gait-tuner's joint signs).
+
+    ``q`` and ``dq`` are the encoders, columns ``joint_names``; ``imu_rpy`` the IMU's
+    orientation (roll, pitch, yaw, see :func:`rpy_from_quat`); ``gyro`` the body rates about
+    the IMU's x (roll), y (pitch), z (yaw) axes; ``accel`` its specific force (gravity
+    included: +9.81 m/s^2 along z standing upright); ``foot_force`` the eight sole force
+    readings (:data:`FOOT_FORCE_LABELS`, N). In simulation the randomisation's noise and
+    latency are already applied (``tuner/sim/sensors.py``). A reading the controller does not
+    use (its ``senses``) is None. A value is valid for its tick: copy an array to keep it.
+    """
+
+    t: float                                # [s] since the controller's reset
+    q: np.ndarray | None = None             # (n,) [rad]
+    dq: np.ndarray | None = None            # (n,) [rad/s]
+    imu_rpy: np.ndarray | None = None       # (3,) [rad]
+    gyro: np.ndarray | None = None          # (3,) [rad/s]
+    accel: np.ndarray | None = None         # (3,) [m/s^2]
+    foot_force: np.ndarray | None = None    # (8,) [N]
+    joint_names: tuple[str, ...] = JOINT_NAMES
+
+    def joint(self, name: str) -> float:
+        """One encoder angle by our joint name [rad]."""
+        return float(self.q[self.joint_names.index(name)])
+
+
+@dataclass(frozen=True)
+class StartPose:
+    """Where a controller wants the robot at t = 0: its joint pose and the pelvis's ground position."""
+
+    q: np.ndarray                          # (20,) [rad] JOINT_NAMES
+    p_world_pelvis_xy: np.ndarray = field(default_factory=lambda: np.zeros(2))   # [m]
+
+
+@dataclass
+class PlanRecord:
+    """What a controller planned at every tick it ran (K ticks; the metrics' reference).
+
+    ``support`` +1 left single support, -1 right, 0 double support; ``p_world_zmp_ref`` and the
+    planned sole centres are in the controller's own world frame (the robot's start pose);
+    ``walk_start`` the first planned single support [s]; ``cycle_time`` two steps [s];
+    ``meta`` what else a metric may read (``steady``: the (t0, t1) window a velocity is
+    measured over; ``commands``).
+    """
+
+    family: str
+    support: np.ndarray            # (K,) int
+    p_world_zmp_ref: np.ndarray    # (K, 2) [m]
+    p_world_foot_l: np.ndarray     # (K, 2) [m]
+    p_world_foot_r: np.ndarray     # (K, 2) [m]
+    walk_start: float              # [s]
+    cycle_time: float              # [s]
+    zmp_source: str = "model"
+    meta: dict = field(default_factory=dict)
+
+
+@runtime_checkable
+class Controller(Protocol):
+    """The interface every controller implements (a class of a user's own included).
+
+    * ``dt`` [s]: its control period; the loop refuses another.
+    * ``senses`` (optional): the readings of :data:`READINGS` it uses; the others arrive as None
+      (default: all of them). An open-loop table senses nothing.
+    * ``duration`` [s] or None: how long its walk lasts on its own (a table's length); None:
+      as long as the loop runs it.
+    * ``start_pose()``: the pose the robot stands in at t = 0.
+    * ``reset(m)``: called once with the first measurement (t = 0), before ``step``.
+    * ``step(m, command)``: the joint targets (20,) [rad, JOINT_NAMES] for the next tick;
+      ``command`` is the walk command (vx [m/s], vy [m/s], wz [rad/s]) of this tick, (3,),
+      or None when the walk has none.
+    * ``plan(n)``: the :class:`PlanRecord` of the first ``n`` ticks.
+    """
+
+    dt: float
+    duration: float | None
+
+    def start_pose(self) -> StartPose: ...
+
+    def reset(self, m: Measurement) -> None: ...
+
+    def step(self, m: Measurement, command: np.ndarray | None) -> np.ndarray: ...
+
+    def plan(self, n: int) -> PlanRecord: ...
+
+
+class TablePlayer:
+    """Plays a joint table planned in advance (a :class:`GaitTrajectory`): the open loop the papers
+    describe. At tick i it returns row i + 1 (the targets for the next tick), whatever it senses;
+    past the table's end it holds the last row. Commands are ignored: the table has them."""
+
+    senses: frozenset[str] = frozenset()
+
+    def __init__(self, traj: GaitTrajectory) -> None:
+        if len(traj.t) < 2:
+            raise ValueError("a joint table needs at least two samples")
+        self.traj = traj
+        self.dt = traj.dt
+        self.duration = float(traj.t[-1])
+        self._q = np.ascontiguousarray(traj.q_ref)
+        self._last = len(traj.t) - 1
+        walking = np.flatnonzero(traj.support != 0)
+        self.walk_start = float(traj.t[walking[0]]) if len(walking) else 0.0
+        self._i = 0
+
+    def start_pose(self) -> StartPose:
+        return StartPose(self._q[0].copy(), np.asarray(self.traj.p_world_pelvis[0, :2], dtype=float))
+
+    def reset(self, m: Measurement) -> None:
+        self._i = 0
+
+    def step(self, m: Measurement, command: np.ndarray | None = None) -> np.ndarray:
+        self._i += 1
+        return self._q[min(self._i, self._last)]
+
+    def plan(self, n: int) -> PlanRecord:
+        tr = self.traj
+        k = min(n, len(tr.t))
+        pad = n - k
+
+        def rows(a: np.ndarray) -> np.ndarray:
+            a = np.asarray(a[:k])
+            return np.concatenate([a, np.repeat(a[-1:], pad, axis=0)]) if pad else a
+        meta: dict[str, Any] = {}
+        for key in ("steady", "commands", "command"):
+            if key in tr.meta:
+                meta[key] = tr.meta[key]
+        return PlanRecord(family=tr.family, support=rows(tr.support), p_world_zmp_ref=rows(tr.p_world_zmp_ref),
+                          p_world_foot_l=rows(tr.p_world_foot_l[:, :2]), p_world_foot_r=rows(tr.p_world_foot_r[:, :2]),
+                          walk_start=self.walk_start, cycle_time=float(tr.meta.get("cycle_time", 1.0)),
+                          zmp_source=tr.zmp_source, meta=meta)
+
+
+#: The joints each of the stabiliser's four corrections moves, both legs (gaits/imu_stabiliser.py).
+_STAB_COLUMNS = tuple(tuple(JOINT_NAMES.index(f"{side}_{kind}") for side in "lr")
+                      for kind in ("ankle_pitch", "hip_pitch", "ankle_roll", "hip_roll"))
+
+
+class Stabilised:
+    """Any controller with the IMU stabiliser (``gaits/imu_stabiliser.py``) added to its targets.
+
+    Reads the IMU's pitch and roll and the gyro's pitch and roll rates of each measurement,
+    and adds the four clipped PD corrections to both legs' ankle and hip pitch and roll targets.
+    """
+
+    def __init__(self, inner: Controller, params: StabiliserParams) -> None:
+        self.inner = inner
+        self.params = params
+        self.dt = inner.dt
+        self.duration = inner.duration
+        self._out = np.zeros(len(JOINT_NAMES))
+        self.senses = frozenset(getattr(inner, "senses", READINGS)) | {"imu_rpy", "gyro"}
+
+    @property
+    def walk_start(self) -> float:
+        return getattr(self.inner, "walk_start", 0.0)
+
+    def start_pose(self) -> StartPose:
+        return self.inner.start_pose()
+
+    def reset(self, m: Measurement) -> None:
+        self.inner.reset(m)
+
+    def step(self, m: Measurement, command: np.ndarray | None = None) -> np.ndarray:
+        out = self._out
+        out[:] = self.inner.step(m, command)
+        if self.params.enabled:
+            c = stabiliser_corrections(self.params, m.imu_rpy[1], m.imu_rpy[0], m.gyro[1], m.gyro[0])
+            for value, cols in zip(c, _STAB_COLUMNS):
+                out[cols[0]] += value
+                out[cols[1]] += value
+        return out
+
+    def plan(self, n: int) -> PlanRecord:
+        return self.inner.plan(n)
+
+
+class HoldPose:
+    """Holds one joint pose (20,) [rad] whatever it senses: a stand test, a landing experiment."""
+
+    senses: frozenset[str] = frozenset()
+    walk_start = 0.0
+
+    def __init__(self, q: np.ndarray, dt: float, duration: float | None = None) -> None:
+        self.q = np.array(q, dtype=float)
+        if self.q.shape != (len(JOINT_NAMES),):
+            raise ValueError(f"a pose has {len(JOINT_NAMES)} joint angles (JOINT_NAMES), got shape {self.q.shape}")
+        self.dt = float(dt)
+        self.duration = duration
+
+    def start_pose(self) -> StartPose:
+        return StartPose(self.q.copy())
+
+    def reset(self, m: Measurement) -> None:
+        pass
+
+    def step(self, m: Measurement, command: np.ndarray | None = None) -> np.ndarray:
+        return self.q
+
+    def plan(self, n: int) -> PlanRecord:
+        return PlanRecord("hold", np.zeros(n, dtype=int), np.zeros((n, 2)), np.zeros((n, 2)), np.zeros((n, 2)),
+                          walk_start=0.0, cycle_time=1.0)
