@@ -29,7 +29,8 @@ from tuner.robots import load_robot
 from tuner.sim.rollout import Simulator
 from tuner.search.study import load_study
 from tuner.sim.surfaces import SURFACES, load_surface
-from tuner.sim.walk_speed import command_walk, speed_test
+from gaits import command_walk
+from tuner.sim.walk_speed import speed_test
 
 ROOT = Path(__file__).resolve().parents[1]
 STUDIES = ("rigid", "carpet4", "grass10", "grass30", "grass50", "robust")

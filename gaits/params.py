@@ -7,8 +7,8 @@ description and the symbol the source paper uses for it. Validation runs in
 ``__post_init__``, so a parameter set that exists is a valid one, whether it was
 read from YAML, built by hand or sampled by an optimiser.
 
-YAML is only the boundary: :func:`load_gait_file` and :func:`save_gait_file`
-read and write ``{gait: FAMILY, params: {...}}`` files, and every error names
+YAML is only the boundary: ``gaits/gait_file.py`` reads and writes
+``{gait: FAMILY, params: {...}, stabiliser: {...}}`` files, and every error names
 the file, the field, the value and the allowed range.
 """
 
@@ -17,21 +17,15 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field, fields
-from pathlib import Path
 from typing import Any, ClassVar, Mapping
-
-import yaml
 
 __all__ = [
     "ParamError",
     "GaitParams",
     "param",
-    "GaitFile",
     "register_family",
     "families",
     "family_class",
-    "load_gait_file",
-    "save_gait_file",
     "params_from_mapping",
 ]
 
@@ -171,108 +165,3 @@ def params_from_mapping(family: str, data: Mapping[str, Any] | None,
         return cls(**dict(data))
     except ParamError as exc:
         raise ParamError(f"{source}: {exc}") from None
-
-
-@dataclass(frozen=True)
-class GaitFile:
-    """A parameter file: the family, its parameters and free text saying where they come from."""
-
-    params: GaitParams
-    description: str = ""
-    stabiliser: Any = None          # gaits.imu_stabiliser.StabiliserParams, or None (open loop)
-
-    @property
-    def family(self) -> str:
-        return self.params.FAMILY
-
-
-_TOP_KEYS = ("gait", "description", "params", "stabiliser")
-
-
-def read_yaml(path: str | Path, what: str, error: type[Exception] = ParamError) -> Any:
-    """The parsed document of a user's YAML file; every way it can be wrong is one ``error``
-    naming the file: a directory, a missing file, binary or non-UTF-8 content, YAML syntax, and
-    nesting deep enough to exhaust the parser. ``what`` names the kind of file in messages."""
-    path = Path(path)
-    if path.is_dir():
-        raise error(f"{path}: is a directory, expected a {what} YAML file")
-    try:
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        raise error(f"{path}: no such {what} file") from None
-    except OSError as exc:
-        raise error(f"{path}: cannot read the {what} file ({exc.strerror})") from None
-    if b"\x00" in raw:
-        raise error(f"{path}: is a binary file, expected a {what} YAML file")
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise error(f"{path}: is not UTF-8 text (byte {exc.start})") from None
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        raise error(f"{path}: not valid YAML{where}") from None
-    except RecursionError:
-        raise error(f"{path}: nested too deeply to be a {what} file") from None
-
-
-def load_gait_file(path: str | Path) -> GaitFile:
-    """Read and validate a ``{gait, description, params}`` YAML file."""
-    path = Path(path)
-    source = str(path)
-    doc = read_yaml(path, "parameter")
-    if not isinstance(doc, Mapping):
-        raise ParamError(f"{source}: expected a mapping with keys {', '.join(_TOP_KEYS)}")
-    for key in doc:
-        if key not in _TOP_KEYS:
-            raise ParamError(f"{source}: unknown top-level key {key!r} "
-                             f"(allowed: {', '.join(_TOP_KEYS)})")
-    if "gait" not in doc:
-        raise ParamError(f"{source}: missing 'gait' (one of {', '.join(families())})")
-    family = doc["gait"]
-    if not isinstance(family, str):
-        raise ParamError(f"{source}: 'gait' must be a family name, got {family!r}")
-    try:
-        family_class(family)
-    except ParamError as exc:
-        raise ParamError(f"{source}: {exc}") from None
-    description = doc.get("description") or ""
-    if not isinstance(description, str):
-        raise ParamError(f"{source}: 'description' must be text")
-    stabiliser = None
-    if doc.get("stabiliser") is not None:
-        from .imu_stabiliser import stabiliser_from_mapping
-        stabiliser = stabiliser_from_mapping(doc["stabiliser"], f"{source}: stabiliser")
-    return GaitFile(params_from_mapping(family, doc.get("params"), source), description, stabiliser)
-
-
-def save_gait_file(path: str | Path, params: GaitParams, description: str = "", stabiliser: Any = None) -> Path:
-    """Write a parameter file that :func:`load_gait_file` reads back identically.
-
-    Each value carries its unit and meaning as a YAML comment; the IMU stabiliser's gains
-    (``gaits/imu_stabiliser.py`` gives the formula) follow when one is given.
-    """
-    path = Path(path)
-    lines = [f"gait: {params.FAMILY}"]
-    if description:
-        lines.append("description: " + yaml.safe_dump(description, default_style='"',
-                                                       width=10_000).strip())
-    lines.append("params:")
-    for row in params.field_table():
-        value = getattr(params, row["name"])
-        text = yaml.safe_dump(value, default_flow_style=True).strip()
-        if text.endswith("\n...") or text.endswith("..."):
-            text = text.split("\n")[0]
-        paper = f" ({row['paper']})" if row["paper"] else ""
-        unit = f"[{row['unit']}] " if row["unit"] and row["unit"] != "-" else ""
-        lines.append(f"  {row['name']}: {text}  # {unit}{row['doc']}{paper}")
-    if stabiliser is not None:
-        lines.append("stabiliser:  # IMU feedback, ours: see gaits/imu_stabiliser.py for the formula")
-        for name, value in stabiliser.to_mapping().items():
-            text = yaml.safe_dump(value, default_flow_style=True).strip().split("\n")[0]
-            lines.append(f"  {name}: {text}")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    return path

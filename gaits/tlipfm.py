@@ -73,6 +73,7 @@ __all__ = [
     "com_trajectory",
     "cycloid_swing",
     "generate",
+    "straight_commands",
     "command_zmp_segments",
 ]
 
@@ -421,35 +422,6 @@ def cycloid_swing(s: np.ndarray, t1: float, t2: float, dx: float, w_y: float,
     return np.column_stack([fx, fy, fz])
 
 
-def _feet(p: TlipfmParams, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    pc = step_locations(p)
-    n_steps = p.n_steps
-    foot = {+1: np.array([0.0, p.half_width, 0.0]), -1: np.array([0.0, -p.half_width, 0.0])}
-    left = np.empty((len(t), 3))
-    right = np.empty((len(t), 3))
-    support = np.zeros(len(t), dtype=int)
-    s_all = t - p.t_start
-    left[:] = foot[+1]
-    right[:] = foot[-1]
-    for n in range(n_steps):
-        sup_side = 1 if pc[n, 1] > 0 else -1
-        sw_side = -sup_side
-        start = foot[sw_side].copy()
-        target_x = pc[n + 1, 0] if n + 1 < n_steps else pc[n, 0]
-        lo, hi = n * p.period, (n + 1) * p.period
-        mask = (s_all >= lo) & (s_all < hi)
-        s = s_all[mask] - lo
-        sw = start + cycloid_swing(s, p.t1, p.t2, target_x - start[0], p.w_y * sw_side, p.h_z)
-        st = np.broadcast_to(foot[sup_side], sw.shape)
-        (left if sw_side == 1 else right)[mask] = sw
-        (left if sup_side == 1 else right)[mask] = st
-        support[mask] = np.where((s > p.t1) & (s <= p.t2), sup_side, 0)
-        foot[sw_side] = np.array([target_x, start[1], 0.0])
-        after = s_all >= hi
-        (left if sw_side == 1 else right)[after] = foot[sw_side]
-    return left, right, support
-
-
 def _command_feet(p: TlipfmParams, plan: FootstepPlan, t: np.ndarray):
     """Feet poses along a plan: the cycloid of eq 27 applied to the swing's whole (x, y, yaw)
     displacement, W_y across the support foot's heading. Returns left, right (len(t), 3),
@@ -487,22 +459,34 @@ def _command_feet(p: TlipfmParams, plan: FootstepPlan, t: np.ndarray):
     return left, right, yaw, support
 
 
+def straight_commands(p: TlipfmParams) -> np.ndarray:
+    """The per-step commands of the paper's straight walk (eqs 6-8): S_L / T forward on every step
+    but the last, which sets the swing foot down beside the support foot, shape (N, 3)."""
+    cmd = np.zeros((p.n_steps, 3))
+    cmd[:-1, 0] = p.step_length / p.period
+    return cmd
+
+
 def generate(p: TlipfmParams, leg: LegGeometry = LegGeometry(), dt: float = 0.01,
              model: str | None = None, commands: np.ndarray | None = None,
-             limits: StepLimits = StepLimits()) -> GaitTrajectory:
+             limits: StepLimits | None = None) -> GaitTrajectory:
     """The full TLIPFM (or LIPM / DLIPM) walk sampled every ``dt`` seconds.
 
-    With ``commands`` (n, 3) (vx [m/s], vy [m/s], wz [rad/s] per step, see
-    ``gaits/walk_command.py``) the walk follows the footsteps of
-    ``gaits/footstep_planner.py`` instead of eqs 6-8: ``n_steps`` and ``step_length``
-    are then unused (the commands give both), d1 and d2 only set where the ZMP crosses
-    between the feet. The pelvis heading is the mean of the feet's (ours).
+    One path for every walk: footsteps from ``gaits/footstep_planner.py`` for per-step
+    ``commands`` (n, 3) (vx [m/s], vy [m/s], wz [rad/s], see ``gaits/walk_command.py``), the
+    natural ZMP along them, the closed-form CoM and the cycloid swing. Without ``commands`` the
+    walk is the paper's straight one, the constant command :func:`straight_commands` (its
+    footsteps are eqs 6-8 exactly, tested), planned without step limits. With commands,
+    ``n_steps`` and ``step_length`` are unused (the commands give both), d1 and d2 only set
+    where the ZMP crosses between the feet. The pelvis heading is the mean of the feet's (ours).
     """
     if not (1e-4 <= dt <= 0.1):
         raise ParamError(f"dt = {dt!r} s is out of range [0.0001, 0.1] s")
-    if commands is None:
-        return _generate_straight(p, leg, dt, model)
-    plan = plan_footsteps(commands, p.period, p.half_width, p.first_support, limits)
+    straight = commands is None
+    if straight:
+        commands = straight_commands(p)
+        limits = StepLimits(max_forward=0.5, max_backward=0.5, min_gap=0.0)
+    plan = plan_footsteps(commands, p.period, p.half_width, p.first_support, limits or StepLimits())
     total = p.t_start + plan.n_steps * p.period + p.t_end
     t = np.arange(int(round(total / dt)) + 1) * dt
     com = com_trajectory(p, t, model, plan)
@@ -510,26 +494,13 @@ def generate(p: TlipfmParams, leg: LegGeometry = LegGeometry(), dt: float = 0.01
     left, right, yaw_feet, support = _command_feet(p, plan, t)
     p_com = np.column_stack([com.pos, np.full(len(t), p.z_c)])
     pelvis = p_com - np.array([0.0, 0.0, leg.com_above_pelvis])
+    meta = {"model": com.constants.model, "T_TF": com.constants.T, "C_tau2": com.constants.c_tau2,
+            "tau": com.constants.tau, "cycle_time": 2 * p.period}
+    if not straight:
+        meta.update({"t_start": p.t_start, "period": p.period,
+                     "commands": np.asarray(commands, dtype=float).tolist()})
     return assemble("tlipfm", t, leg, p_world_pelvis=pelvis, p_world_foot_l=left,
                     p_world_foot_r=right, support=support, p_world_zmp_ref=zmp,
-                    yaw_world_pelvis=yaw_feet.mean(axis=1), yaw_world_feet=yaw_feet,
-                    pitch_pelvis=p.torso_pitch, meta={"model": com.constants.model, "T_TF": com.constants.T,
-                          "C_tau2": com.constants.c_tau2, "tau": com.constants.tau,
-                          "cycle_time": 2 * p.period, "t_start": p.t_start, "period": p.period,
-                          "commands": np.asarray(commands, dtype=float).tolist()})
-
-
-def _generate_straight(p: TlipfmParams, leg: LegGeometry, dt: float, model: str | None) -> GaitTrajectory:
-    total = p.t_start + p.n_steps * p.period + p.t_end
-    t = np.arange(int(round(total / dt)) + 1) * dt
-    com = com_trajectory(p, t, model)
-    zmp = natural_zmp(p, t)
-    left, right, support = _feet(p, t)
-    p_com = np.column_stack([com.pos, np.full(len(t), p.z_c)])
-    pelvis = p_com - np.array([0.0, 0.0, leg.com_above_pelvis])
-    return assemble("tlipfm", t, leg, p_world_pelvis=pelvis, p_world_foot_l=left,
-                    p_world_foot_r=right, support=support, p_world_zmp_ref=zmp,
-                    pitch_pelvis=p.torso_pitch,
-                    meta={"model": com.constants.model, "T_TF": com.constants.T,
-                          "C_tau2": com.constants.c_tau2, "tau": com.constants.tau,
-                          "cycle_time": 2 * p.period})
+                    yaw_world_pelvis=None if straight else yaw_feet.mean(axis=1),
+                    yaw_world_feet=None if straight else yaw_feet,
+                    pitch_pelvis=p.torso_pitch, meta=meta)

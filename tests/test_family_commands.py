@@ -146,8 +146,8 @@ def test_cosine_rejects_side_steps_turns_and_long_steps_naming_the_step():
 
 
 def test_every_family_says_what_it_walks():
-    assert set(gaits.COMMANDS) == set(gaits.COMMAND_AXES) == set(gaits.families())
-    assert gaits.COMMAND_AXES["cosine"] == (True, False, False)
+    assert {f.name for f in gaits.all_families()} == set(gaits.families())
+    assert gaits.family("cosine").command_axes == (True, False, False)
     assert [d for d in gaits.DIRECTIONS if gaits.walks_direction("cosine", d)] == ["forward", "backward"]
     assert all(gaits.walks_direction("eros", d) for d in gaits.DIRECTIONS)
     for fam in gaits.families():
@@ -187,27 +187,26 @@ def test_tiny_eros_speed_study_end_to_end(gait_tuner_cmd, run_env, tmp_path):
     assert r.returncode == 2 and "gait 'cosine' does not walk left" in r.stderr
 
 
-def test_an_unreachable_eros_step_is_rejected_naming_it(monkeypatch):
+def test_an_unreachable_eros_step_is_rejected_naming_it():
     """Step limits wider than the leg: the IK fails, and the error names the step it fails in."""
     from tuner.robots import load_robot
-    from tuner.sim import walk_speed
-    monkeypatch.setattr(walk_speed, "step_limits_for",
-                        lambda robot, params=None: StepLimits(max_forward=0.5, sole_length=0.10, sole_width=0.055))
     robot = load_robot("kidsize")
     cmd = np.array([[0.05, 0, 0], [0.05, 0, 0], [0.5, 0, 0], [0.5, 0, 0], [0, 0, 0]])
     with pytest.raises(PlanError, match=r"^step 2 of the command walk is out of the leg's reach"):
-        walk_speed._generate(WIDE, robot, 0.01, cmd)
+        gaits.family("eros").walk(WIDE, robot, 0.01, cmd,
+                                  limits=StepLimits(max_forward=0.5, sole_length=0.10, sole_width=0.055))
 
 
 def test_the_gap_rule_follows_a_narrow_stance():
     """The soles keep 10 mm, or the set's own standing gap if narrower: EROS's 65 mm stance
     (5 mm between the robot's 60 mm soles) walks a forward command, and no turn."""
     from tuner.robots import load_robot
-    from tuner.sim.walk_speed import command_walk, step_limits_for
+    from gaits import command_walk
     robot = load_robot("kidsize")
     narrow = gaits.load_baseline("eros-x24-with").params
-    assert step_limits_for(robot, narrow).min_gap == pytest.approx(narrow.stance_width - robot.foot_size[1])
-    assert step_limits_for(robot, WIDE).min_gap == StepLimits().min_gap
+    eros_family = gaits.family("eros")
+    assert eros_family.step_limits(narrow, robot).min_gap == pytest.approx(narrow.stance_width - robot.foot_size[1])
+    assert eros_family.step_limits(WIDE, robot).min_gap == StepLimits().min_gap
     traj = command_walk(narrow, robot, WalkCommand(0.02, 0.0, 0.0), 0.01)
     assert traj.p_world_pelvis[-1, 0] > 0.2
     with pytest.raises(PlanError, match=r"step 0 .*4\.\d\d mm apart during the swing, closer than min_gap = 5\.00 mm"):

@@ -103,8 +103,7 @@ def trajectory(family: str | None, params_spec: str | None, robot_name: str, out
     if cmd is None:
         traj = gaits.generate(params, robot.leg, dt=dt)
     else:
-        from .sim.walk_speed import command_walk
-        traj = command_walk(params, robot, cmd, dt)
+        traj = gaits.command_walk(params, robot, cmd, dt)
     out_dir.mkdir(parents=True, exist_ok=True)
     label = params_spec or DEFAULT_BASELINE[params.FAMILY]
     if cmd is not None:
@@ -147,8 +146,7 @@ def _walk_setup(robot_name: str, surface_name: str, family: str | None, params_s
     if cmd is None:
         traj = gaits.generate(gait_file.params, robot.leg, sim.control_period)
     else:
-        from .sim.walk_speed import command_walk
-        traj = command_walk(gait_file.params, robot, cmd, sim.control_period)
+        traj = gaits.command_walk(gait_file.params, robot, cmd, sim.control_period)
     if save_scene is not None:
         from .report.video import save_scene as write_scene
         click.echo(f"wrote {write_scene(sim, save_scene)}", err=True)
@@ -905,7 +903,7 @@ def params_cmd(family: str) -> None:
         paper = row["paper"] or ""
         click.echo(f"{row['name']:22s} {str(row['default']):>12.12s}  {row['range']:28s} "
                    f"{paper:8s} {row['doc']}")
-    click.echo(f"walk command (--command): {gaits.COMMANDS[family]}")
+    click.echo(f"walk command (--command): {gaits.family(family).commands_text}")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from gaits import GaitFile, list_baselines, load_baseline, load_gait_file
+from gaits import GaitFile, all_families, list_baselines, load_baseline, load_gait_file
 
 from .errors import UserError
 
@@ -20,7 +20,7 @@ def list_results() -> list[str]:
     return sorted(p.stem for p in RESULTS_DIR.glob("*.yaml"))
 
 #: The parameter set each family uses when ``--params`` is not given.
-DEFAULT_BASELINE = {"tlipfm": "tkux-table2", "eros": "eros-x8-without", "cosine": "cosine-setiono"}
+DEFAULT_BASELINE = {f.name: f.default_baseline for f in all_families()}
 
 
 def resolve_params(spec: str | None, family: str | None) -> GaitFile:

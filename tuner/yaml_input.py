@@ -9,7 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from gaits.params import read_yaml
+from gaits.gait_file import read_yaml
 
 from .errors import UserError
 
@@ -17,6 +17,6 @@ __all__ = ["read_yaml_file"]
 
 
 def read_yaml_file(path: Path, what: str) -> Any:
-    """The parsed document of a YAML file (:func:`gaits.params.read_yaml`), errors as
+    """The parsed document of a YAML file (:func:`gaits.gait_file.read_yaml`), errors as
     :class:`UserError`; ``what`` names the kind of file in messages."""
     return read_yaml(path, what, UserError)

@@ -1,7 +1,7 @@
 """The papers' own parameter sets, shipped as YAML files beside this module.
 
 ``list_baselines()`` names them; ``load_baseline(name)`` returns a validated
-:class:`gaits.params.GaitFile`. Each file's ``description`` says where every
+:class:`gaits.gait_file.GaitFile`. Each file's ``description`` says where every
 number comes from and which readings of the paper it rests on.
 """
 
@@ -9,7 +9,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..params import GaitFile, ParamError, load_gait_file
+from ..gait_file import GaitFile, load_gait_file
+from ..params import ParamError
 
 __all__ = ["BASELINE_DIR", "list_baselines", "load_baseline", "baseline_path"]
 

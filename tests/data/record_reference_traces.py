@@ -14,13 +14,12 @@ from pathlib import Path
 import numpy as np
 
 import gaits
-from gaits import WalkCommand
+from gaits import WalkCommand, command_walk
 from tuner.params_io import resolve_params
 from tuner.robots import load_robot
 from tuner.sim.randomisation import EVALUATE, Randomisation, draw
 from tuner.sim.rollout import Simulator
 from tuner.sim.surfaces import SURFACES
-from tuner.sim.walk_speed import command_walk
 
 OUT = Path(__file__).with_name("reference_traces.npz")
 FIELDS = ("t", "q", "q_cmd", "q_sent", "pitch", "roll", "yaw", "p_com", "force")

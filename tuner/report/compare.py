@@ -35,8 +35,7 @@ from ..sim.surfaces import load_surface  # noqa: E402
 
 __all__ = ["with_step", "n_rows", "run_compare", "BASELINES_FOR"]
 
-BASELINES_FOR = {"eros": ("eros-x24-without", "eros-x24-with"), "tlipfm": ("tkux-table2",),
-                 "cosine": ("cosine-setiono",)}
+BASELINES_FOR = {f.name: f.baselines for f in gaits.all_families()}
 #: The staircases of the speed column: the shipped speed studies' (8 stairs of 4 steps up to these
 #: tops, a stair held when the robot is up and tracks >= 70% of it; tuner/sim/walk_speed.py).
 SPEED_STAIRS = {"forward": 0.48, "backward": 0.32, "left": 0.16, "turn_left": 1.6}
@@ -52,14 +51,8 @@ def speed_per_direction(sim, params: gaits.GaitParams, stabiliser=None) -> dict[
 
 
 def with_step(params: gaits.GaitParams, step: float) -> gaits.GaitParams:
-    """The same gait at another signed step length [m]."""
-    fam = params.FAMILY
-    if fam == "eros":
-        return params.replace(step_x=step)
-    if fam == "tlipfm":
-        ratio = params.d1 / params.step_length if params.step_length else 0.5
-        return params.replace(step_length=step, d1=step * ratio, d2=step * (1 - ratio))
-    return params.replace(step=step)
+    """The same gait at another signed step length [m] (the family's step rule)."""
+    return gaits.family_of(params).with_step(params, step)
 
 
 def _sets(specs: list[str], baselines: bool) -> list[tuple[str, gaits.GaitParams, object]]:

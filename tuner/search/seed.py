@@ -153,21 +153,6 @@ class SeedResult:
     min_margin: float        # [m] smallest distance of the ZMP to its support-polygon edge
     meta: dict = field(default_factory=dict)
 
-    def eros(self, base: ErosParams | None = None) -> ErosParams:
-        """Map onto EROS: step X = S_L, sway Y = the CoM's lateral amplitude, one step = two
-        transitions of T/2, i.e. T_mn = 90 deg per T/2 of ticks."""
-        base = base or ErosParams()
-        ticks = max(2, round(self.tlipfm.period / 2 / base.tick))
-        sway = float(np.clip(np.max(np.abs(self.com[:, 1])), 0.0, min(0.08, base.stance_width)))
-        return base.replace(step_x=self.tlipfm.step_length, sway_y=sway,
-                            t_mn=float(np.clip((math.pi / 2) / ticks, math.radians(0.25), math.radians(45))))
-
-    def cosine(self, base: CosineLawParams | None = None) -> CosineLawParams:
-        """Map onto the cosine-law walker: step S = S_L, one motion per step period."""
-        base = base or CosineLawParams()
-        return base.replace(step=self.tlipfm.step_length,
-                            motion_time=float(np.clip(2 * self.tlipfm.period, 0.2, 20.0)))
-
 
 class SeedProblem:
     """Build the NLP once for a plan layout and model; ``solve`` it for many plans."""
@@ -397,7 +382,7 @@ def _clear_layer(params: gaits.GaitParams, layer_height: float) -> gaits.GaitPar
 def seed_for(family: str, base: gaits.GaitParams, problem: SeedProblem | None = None,
              layer_height: float = 0.0) -> gaits.GaitParams:
     """The CasADi seed mapped onto a family's parameters (TLIPFM directly; EROS and cosine by
-    correspondence, see :class:`SeedResult`).
+    correspondence: the family's ``from_seed`` in ``gaits/families.py``).
 
     ``layer_height`` [m] is the tallest carpet or grass layer the gait must walk on. The
     CoM problem says nothing about the swing foot, but a foot that stays inside the
@@ -408,18 +393,11 @@ def seed_for(family: str, base: gaits.GaitParams, problem: SeedProblem | None = 
     """
     if layer_height < 0:
         raise ValueError(f"layer_height must be >= 0 m, got {layer_height!r}")
-    if family == "tlipfm":
-        assert isinstance(base, TlipfmParams)
-        problem = problem or SeedProblem(base)
-        return _clear_layer(problem.solve(base.step_length, base.half_width).tlipfm, layer_height)
-    problem = problem or SeedProblem()
-    if family == "eros":
-        assert isinstance(base, ErosParams)
-        res = problem.solve(step_length=abs(base.step_x) if base.step_x else 0.02,
-                            half_width=base.stance_width / 2)
-        return _clear_layer(res.eros(base).replace(step_x=base.step_x), layer_height)
-    if family == "cosine":
-        assert isinstance(base, CosineLawParams)
-        out = problem.solve(step_length=abs(base.step) or 0.02).cosine(base).replace(step=base.step)
-        return _clear_layer(out, layer_height)
-    raise ValueError(f"unknown family {family!r}")
+    fam = gaits.family(family)
+    if not isinstance(base, fam.params_class):
+        raise ValueError(f"seed_for({family!r}): the base holds {base.FAMILY!r} parameters")
+    problem = problem or SeedProblem(base if fam.seed_on_own_masses else TlipfmParams())
+    step_length, half_width = fam.seed_inputs(base)
+    res = problem.solve(step_length, half_width)
+    sway = float(np.max(np.abs(res.com[:, 1])))
+    return _clear_layer(fam.from_seed(res.tlipfm, sway, base), layer_height)

@@ -53,7 +53,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 
-from gaits import COMMANDS, DIRECTIONS, GaitParams, families, family_class, walks_direction
+from gaits import DIRECTIONS, GaitParams, families, family, family_class, walks_direction
 
 from ..errors import UserError
 from ..params_io import resolve_params
@@ -151,11 +151,10 @@ class StudySpec:
         return dataclasses.replace(self.stabiliser, **gains)
 
     def params_for(self, sampled: Mapping[str, Any]) -> GaitParams:
-        """The base with the sampled values (TLIPFM: d2 follows as step_length - d1)."""
+        """The base with the sampled values and the fields that follow from them (the family's
+        ``derived`` rule, e.g. TLIPFM's d2 = step_length - d1)."""
         values = {k: v for k, v in sampled.items() if not k.startswith(STAB_PREFIX)}
-        if self.gait == "tlipfm" and "d2" not in values and ("d1" in values or "step_length" in values):
-            sl = values.get("step_length", getattr(self.base, "step_length"))
-            values["d2"] = sl - values.get("d1", getattr(self.base, "d1"))
+        values.update(family(self.gait).derived(values, self.base))
         return self.base.replace(**values)
 
 
@@ -223,9 +222,7 @@ def load_study(path_or_name: str) -> StudySpec:
         if k not in {f.name for f in fields(cls)}:
             _fail(source, f"fixed: unknown parameter {k!r} for gait {gait!r}")
     fixed_values = dict(fixed)
-    if gait == "tlipfm" and "d2" not in fixed_values and {"step_length", "d1"} & set(fixed_values):
-        fixed_values["d2"] = (fixed_values.get("step_length", getattr(base, "step_length"))
-                              - fixed_values.get("d1", getattr(base, "d1")))      # keep d1 + d2 = S_L
+    fixed_values.update(family(gait).derived(fixed_values, base))
     try:
         base = base.replace(**fixed_values)
     except Exception as exc:
@@ -273,7 +270,7 @@ def load_study(path_or_name: str) -> StudySpec:
             _fail(source, "a speed study takes its objectives from speed.mode: remove 'objectives'")
         for name, _, _ in speed.directions:
             if not walks_direction(gait, name):
-                _fail(source, f"speed.directions: gait {gait!r} does not walk {name} ({COMMANDS[gait]})")
+                _fail(source, f"speed.directions: gait {gait!r} does not walk {name} ({family(gait).commands_text})")
         if doc.get("robust") is not None:
             _fail(source, "speed and robust together are not built: list the pedestals under surfaces")
     objectives = doc.get("objectives", ["pitch_rms"])

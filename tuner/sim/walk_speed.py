@@ -1,8 +1,4 @@
-"""Walking at a command, and the speed test of a speed study (ours).
-
-:func:`command_walk` turns a parameter set and a :class:`gaits.WalkCommand` into the
-joint table of a ramped walk (``gaits.CommandRamp``) for a robot, with the steady
-window the metrics measure the velocity over.
+"""The speed test of a speed study (ours); the commanded walk itself is ``gaits.command_walk``.
 
 :func:`speed_test` walks one direction's staircase (``gaits.SpeedStaircase``) in one
 rollout and finds the highest stair the robot *holds*: it is still up at the stair's
@@ -22,73 +18,18 @@ from dataclasses import dataclass, field
 import numpy as np
 
 import gaits
-from gaits import CommandRamp, ParamError, PlanError, SpeedStaircase, StepLimits, UnreachableTargetError, WalkCommand
+from gaits import ParamError, SpeedStaircase
 from gaits.walk_command import DIRECTIONS
 
 from .metrics import heading_velocity, pitch_rms
 
-__all__ = ["step_limits_for", "command_walk", "speed_test", "DirectionResult", "command_limit", "saturation"]
-
-
-def step_limits_for(robot, params=None) -> StepLimits:
-    """Step limits for a robot's legs and a parameter set (ours): the set's reaches (TLIPFM
-    ``reach_forward``, ``reach_backward``, ``reach_outward`` in thigh + shank lengths, defaults
-    0.45, 0.32, 0.27, and ``max_turn``) and the robot's sole bounding box for the gap check.
-    The gap the soles keep is 10 mm, or the set's own standing gap if that is narrower (EROS's
-    65 mm stance leaves 5 mm between 60 mm soles: it walks straight at that gap, and a turn,
-    which brings the soles closer, is rejected)."""
-    legs = robot.leg.thigh + robot.leg.shank
-    length, width = robot.foot_size
-    reach = [getattr(params, k, d) for k, d in (("reach_forward", 0.45), ("reach_backward", 0.32),
-                                                ("reach_outward", 0.27), ("max_turn", 0.6))]
-    stance = getattr(params, "stance_width", None)
-    if stance is None and hasattr(params, "half_width"):
-        stance = 2.0 * params.half_width
-    min_gap = StepLimits().min_gap
-    if stance is not None:
-        min_gap = min(min_gap, max(stance - width, 0.0))
-    return StepLimits(max_forward=min(reach[0] * legs, 0.5), max_backward=min(reach[1] * legs, 0.5),
-                      max_outward=min(reach[2] * legs, 0.3), max_turn=min(reach[3], 1.6),
-                      min_gap=min_gap, sole_length=length, sole_width=width)
-
-
-def _generate(params, robot, dt: float, commands: np.ndarray) -> gaits.GaitTrajectory:
-    try:
-        return gaits.generate(params, robot.leg, dt, commands=commands, limits=step_limits_for(robot, params))
-    except UnreachableTargetError as exc:
-        if exc.t is None:
-            raise
-        starts = gaits.step_starts(params, len(commands))
-        step = int(np.clip(np.searchsorted(starts, exc.t, side="right") - 1, 0, len(commands) - 1))
-        raise PlanError(f"step {step} of the command walk is out of the leg's reach: {exc}") from None
-
-
-def command_walk(params: gaits.GaitParams, robot, command: WalkCommand, dt: float,
-                 ramp: CommandRamp | None = None) -> gaits.GaitTrajectory:
-    """The ramped walk at ``command``; raises ParamError (PlanError) naming the step and limit
-    that a command beyond the parameter set's reach breaks."""
-    ramp = ramp or CommandRamp(command)
-    if ramp.target != command:
-        ramp = dataclasses.replace(ramp, target=command)
-    commands = ramp.per_step()
-    traj = _generate(params, robot, dt, commands)
-    first, last = ramp.steady_steps()
-    starts = gaits.step_starts(params, len(commands))
-    traj.meta["steady"] = (float(starts[first]), float(starts[last]))
-    traj.meta["command"] = [command.vx, command.vy, command.wz]
-    return traj
+__all__ = ["speed_test", "DirectionResult", "command_limit", "saturation"]
 
 
 def command_limit(params: gaits.GaitParams, robot, direction: str) -> float:
     """The largest command along a direction the step limits allow for these parameters
     (m/s or rad/s); 0 for a direction the family does not walk."""
-    if not gaits.walks_direction(params.FAMILY, direction):
-        return 0.0
-    lim = step_limits_for(robot, params)
-    T = gaits.step_period(params)
-    return {"forward": lim.max_forward / T, "backward": lim.max_backward / T,
-            "left": lim.max_outward / (2 * T), "right": lim.max_outward / (2 * T),
-            "turn_left": lim.max_turn / (2 * T), "turn_right": lim.max_turn / (2 * T)}[direction]
+    return gaits.family_of(params).command_limit(params, robot, DIRECTIONS[direction])
 
 
 @dataclass(frozen=True)
@@ -128,7 +69,7 @@ def speed_test(sim, params: gaits.GaitParams, stairs: SpeedStaircase, tolerance:
     traj = None
     while stairs.levels >= 1:
         try:
-            traj = _generate(params, robot, sim.control_period, stairs.per_step())
+            traj = gaits.family_of(params).walk(params, robot, sim.control_period, stairs.per_step())
             break
         except ParamError:
             if stairs.levels == 1:

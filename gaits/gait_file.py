@@ -1,0 +1,125 @@
+"""Gait parameter files: ``{gait: FAMILY, description: ..., params: {...}, stabiliser: {...}}`` YAML.
+
+The boundary between a user's files and the typed parameters of ``gaits/params.py`` and the
+IMU stabiliser's gains (``gaits/imu_stabiliser.py``): :func:`load_gait_file` validates a file
+(every error names the file, the field, the value and the allowed range), :func:`save_gait_file`
+writes one it reads back identically.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Mapping
+
+import yaml
+
+from .imu_stabiliser import StabiliserParams, stabiliser_from_mapping
+from .params import GaitParams, ParamError, families, family_class, params_from_mapping
+
+__all__ = ["GaitFile", "read_yaml", "load_gait_file", "save_gait_file"]
+
+
+@dataclass(frozen=True)
+class GaitFile:
+    """A parameter file: the family, its parameters and free text saying where they come from."""
+
+    params: GaitParams
+    description: str = ""
+    stabiliser: StabiliserParams | None = None     # the IMU stabiliser, or None (open loop)
+
+    @property
+    def family(self) -> str:
+        return self.params.FAMILY
+
+
+_TOP_KEYS = ("gait", "description", "params", "stabiliser")
+
+
+def read_yaml(path: str | Path, what: str, error: type[Exception] = ParamError) -> Any:
+    """The parsed document of a user's YAML file; every way it can be wrong is one ``error``
+    naming the file: a directory, a missing file, binary or non-UTF-8 content, YAML syntax, and
+    nesting deep enough to exhaust the parser. ``what`` names the kind of file in messages."""
+    path = Path(path)
+    if path.is_dir():
+        raise error(f"{path}: is a directory, expected a {what} YAML file")
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise error(f"{path}: no such {what} file") from None
+    except OSError as exc:
+        raise error(f"{path}: cannot read the {what} file ({exc.strerror})") from None
+    if b"\x00" in raw:
+        raise error(f"{path}: is a binary file, expected a {what} YAML file")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise error(f"{path}: is not UTF-8 text (byte {exc.start})") from None
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        raise error(f"{path}: not valid YAML{where}") from None
+    except RecursionError:
+        raise error(f"{path}: nested too deeply to be a {what} file") from None
+
+
+def load_gait_file(path: str | Path) -> GaitFile:
+    """Read and validate a ``{gait, description, params}`` YAML file."""
+    path = Path(path)
+    source = str(path)
+    doc = read_yaml(path, "parameter")
+    if not isinstance(doc, Mapping):
+        raise ParamError(f"{source}: expected a mapping with keys {', '.join(_TOP_KEYS)}")
+    for key in doc:
+        if key not in _TOP_KEYS:
+            raise ParamError(f"{source}: unknown top-level key {key!r} "
+                             f"(allowed: {', '.join(_TOP_KEYS)})")
+    if "gait" not in doc:
+        raise ParamError(f"{source}: missing 'gait' (one of {', '.join(families())})")
+    family = doc["gait"]
+    if not isinstance(family, str):
+        raise ParamError(f"{source}: 'gait' must be a family name, got {family!r}")
+    try:
+        family_class(family)
+    except ParamError as exc:
+        raise ParamError(f"{source}: {exc}") from None
+    description = doc.get("description") or ""
+    if not isinstance(description, str):
+        raise ParamError(f"{source}: 'description' must be text")
+    stabiliser = None
+    if doc.get("stabiliser") is not None:
+        stabiliser = stabiliser_from_mapping(doc["stabiliser"], f"{source}: stabiliser")
+    return GaitFile(params_from_mapping(family, doc.get("params"), source), description, stabiliser)
+
+
+def save_gait_file(path: str | Path, params: GaitParams, description: str = "",
+                   stabiliser: StabiliserParams | None = None) -> Path:
+    """Write a parameter file that :func:`load_gait_file` reads back identically.
+
+    Each value carries its unit and meaning as a YAML comment; the IMU stabiliser's gains
+    (``gaits/imu_stabiliser.py`` gives the formula) follow when one is given.
+    """
+    path = Path(path)
+    lines = [f"gait: {params.FAMILY}"]
+    if description:
+        lines.append("description: " + yaml.safe_dump(description, default_style='"',
+                                                       width=10_000).strip())
+    lines.append("params:")
+    for row in params.field_table():
+        value = getattr(params, row["name"])
+        text = yaml.safe_dump(value, default_flow_style=True).strip()
+        if text.endswith("\n...") or text.endswith("..."):
+            text = text.split("\n")[0]
+        paper = f" ({row['paper']})" if row["paper"] else ""
+        unit = f"[{row['unit']}] " if row["unit"] and row["unit"] != "-" else ""
+        lines.append(f"  {row['name']}: {text}  # {unit}{row['doc']}{paper}")
+    if stabiliser is not None:
+        lines.append("stabiliser:  # IMU feedback, ours: see gaits/imu_stabiliser.py for the formula")
+        for name, value in stabiliser.to_mapping().items():
+            text = yaml.safe_dump(value, default_flow_style=True).strip().split("\n")[0]
+            lines.append(f"  {name}: {text}")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path
