@@ -29,7 +29,7 @@ import gaits
 from gaits import StabiliserParams
 from tuner.params_io import resolve_params
 from tuner.robots import load_robot
-from tuner.search.process_pool import map_in_order
+from tuner.process_pool import map_in_order
 from tuner.sim.randomisation import TUNE, Randomisation, draw
 from tuner.sim.robustness import evaluate
 from tuner.sim.rollout import Simulator

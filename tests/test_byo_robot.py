@@ -12,9 +12,10 @@ import gaits
 import third_party_robot as T
 from tuner.errors import UserError
 from tuner.sim.metrics import summarize
-from tuner.robots import PREFIX, load_robot
+from tuner.robots import load_robot
+from tuner.sim.scene import PREFIX
 from tuner.robots.mjcf_geometry import axis_line_distance
-from tuner.robots.robot_check import robot_report
+from tuner.report.robot_check import robot_report
 from tuner.sim.rollout import Simulator
 from tuner.sim.surfaces import SURFACES
 

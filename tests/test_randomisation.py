@@ -12,7 +12,7 @@ from gaits import StabiliserParams
 from tuner.errors import UserError
 from tuner.sim.randomisation import EVALUATE, NONE, TUNE, Randomisation, draw, randomisation_from_mapping
 from tuner.robots import load_robot
-from tuner.robots.robot_check import stand_trajectory
+from tuner.report.robot_check import stand_trajectory
 from tuner.sim.rollout import Simulator
 from tuner.sim.surfaces import SURFACES
 

@@ -861,7 +861,7 @@ def robot_check(robot_spec: str, as_json: bool, no_stand: bool, duration: float)
     import json
 
     from .robots import load_robot
-    from .robots.robot_check import format_report, robot_report
+    from .report.robot_check import format_report, robot_report
 
     report = robot_report(load_robot(robot_spec), stand=not no_stand, duration=duration)
     click.echo(json.dumps(report, indent=2, allow_nan=False) if as_json else format_report(report))

@@ -27,7 +27,7 @@ from ..errors import UserError  # noqa: E402
 from .experiments import EROS_STEPS_MM  # noqa: E402
 from ..sim.metrics import summarize  # noqa: E402
 from ..params_io import resolve_params  # noqa: E402
-from ..search.process_pool import map_in_order  # noqa: E402
+from ..process_pool import map_in_order  # noqa: E402
 from ..sim.randomisation import EVALUATE, Randomisation, draw  # noqa: E402
 from ..robots import load_robot  # noqa: E402
 from ..sim.rollout import Simulator  # noqa: E402

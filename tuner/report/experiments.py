@@ -160,7 +160,7 @@ def eros_matrices(robot_name: str, surfaces: dict[int, Surface], lift_scale: flo
                   tuned: ErosParams | None = None) -> tuple[list[EROSCell], ...]:
     """Tables 7 and 8 (the baselines' gait), and with ``tuned`` a third matrix: Table 8's cells
     walked with the tuned knobs. The walks are spread over ``workers`` processes."""
-    from ..search.process_pool import map_in_order
+    from ..process_pool import map_in_order
     runs = [(False, None, double_support), (True, None, double_support)]
     if tuned is not None:
         runs.append((True, tuned_base(tuned), None))

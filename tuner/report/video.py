@@ -3,7 +3,7 @@
 The video replays a rollout's recorded qpos (``Simulator.rollout(record_qpos=True)``) through
 MuJoCo's offscreen renderer: the physics ran once, in the simulator; here only kinematics
 (``mj_forward``) and drawing happen. A camera tracks the torso from the front-left; the grass
-layer is drawn as a translucent slab as tall as its blades (``robots/scene.py``), so the
+layer is drawn as a translucent slab as tall as its blades (``sim/scene.py``), so the
 depth the feet sink to is visible. Each frame carries a text overlay: time, forward speed
 (torso, over the last 0.5 s), torso pitch, and after a fall a red "FELL at t" banner held
 for a second.

@@ -3,8 +3,9 @@ our simulation (a robot map YAML naming its torso, feet and leg joints).
 
 * ``kidsize.py``: the built-in robot; ``robot_map.py``: reading and checking a map;
   ``mjcf_geometry.py``: what is derived from a model (axis lines, sole hull, CoM);
-  ``servo.py``: the servo model and presets; ``scene.py``: the robot on a surface with our
-  servos, sensors and drag in their own namespace; ``robot_check.py``: ``gait-tuner robot check``.
+  ``servo.py``: the servo model and presets; ``solver.py``: the solver options a file may set.
+  The robot on a surface (our servos, sensors and drag) is built by ``tuner/sim/scene.py``; the
+  ``robot check`` report is ``tuner/report/robot_check.py``.
 """
 
 from __future__ import annotations
@@ -16,11 +17,10 @@ from ..errors import UserError
 from .kidsize import RobotSpec, kidsize_model, kidsize_spec, kidsize_xml
 from .robot_map import LEG_AXES, load_map
 from .robot_model import RobotModel, SimOptions
-from .scene import PREFIX, SceneLayout, build_scene
 from .servo import SERVO_PRESETS, ServoSpec
 
-__all__ = ["BUILTIN_ROBOTS", "LEG_AXES", "PREFIX", "RobotModel", "RobotSpec", "SERVO_PRESETS", "SceneLayout",
-           "ServoSpec", "SimOptions", "build_scene", "kidsize_spec", "kidsize_xml", "load_robot"]
+__all__ = ["BUILTIN_ROBOTS", "LEG_AXES", "RobotModel", "RobotSpec", "SERVO_PRESETS",
+           "ServoSpec", "SimOptions", "kidsize_spec", "kidsize_xml", "load_robot"]
 
 BUILTIN_ROBOTS: dict[str, Callable[[], RobotModel]] = {"kidsize": kidsize_model}
 

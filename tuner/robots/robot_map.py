@@ -215,7 +215,7 @@ def load_map(path: Path) -> RobotModel:
     pose, pose_source = _pose(model, final, servos, doc.get("pose"), source)
     sources["pose"] = pose_source
     notes += _keyframe_notes(model)
-    from .scene import solver_differences
+    from .solver import solver_differences
     differ = solver_differences(model.opt)
     if differ:
         notes.append("the file's solver options are replaced by MuJoCo's defaults, with which the surfaces "

@@ -62,7 +62,7 @@ from ..errors import UserError
 from ..sim.metrics import summarize
 from ..robots import load_robot
 from ..sim.rollout import Simulator
-from .process_pool import mp_context
+from ..process_pool import mp_context
 from ..sim.randomisation import TUNE, draw
 from .storage import Heartbeat, StudyStore, process_identity
 from .study import OBJECTIVES, STAB_PREFIX, StudySpec

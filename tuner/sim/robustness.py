@@ -25,7 +25,7 @@ import gaits
 from gaits import GaitFile, StabiliserParams
 
 from .metrics import summarize
-from ..search.process_pool import map_in_order
+from ..process_pool import map_in_order
 from .randomisation import DEFAULT_PUSHES, EVALUATE, Randomisation, draw
 from ..robots import load_robot
 from .rollout import Simulator

@@ -39,8 +39,8 @@ from gaits.control import Controller, HoldPose, PlanRecord, Stabilised, TablePla
 from .centre_of_pressure import centre_of_pressure
 from .randomisation import Perturbation
 from .sensors import SensorReader, tilt_from_quat
-from ..robots import PREFIX, RobotModel, SimOptions, build_scene
-from ..robots.scene import CORNERS, IMU_SITE_POS
+from ..robots import RobotModel, SimOptions
+from .scene import CORNERS, IMU_SITE_POS, PREFIX, build_scene
 from .surfaces import Surface
 
 __all__ = ["FallCriteria", "Trace", "Simulator", "dead_band"]

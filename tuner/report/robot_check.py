@@ -17,8 +17,8 @@ import numpy as np
 from gaits import GaitTrajectory, JOINT_NAMES
 from gaits.trajectory import assemble
 
-from .mjcf_geometry import CROUCH
-from .robot_model import GROUPS, RobotModel, joint_group
+from ..robots.mjcf_geometry import CROUCH
+from ..robots.robot_model import GROUPS, RobotModel, joint_group
 
 __all__ = ["robot_report", "stand_test", "stand_trajectory", "format_report"]
 

@@ -30,8 +30,9 @@ import numpy as np
 
 from gaits import JOINT_NAMES
 
-from ..sim.surfaces import Surface
-from .robot_model import RobotModel
+from ..robots.robot_model import RobotModel
+from ..robots.solver import SOLVER_OPTIONS
+from .surfaces import Surface
 
 __all__ = ["PREFIX", "SceneLayout", "build_scene", "CORNERS", "IMU_SITE_POS"]
 
@@ -70,24 +71,6 @@ def _our_default(spec: mujoco.MjSpec) -> mujoco.MjsDefault:
             if not callable(value):
                 setattr(dst, attr, value)
     return ours
-
-
-#: Solver options the surfaces were calibrated with (MuJoCo's defaults); a file's own are replaced.
-SOLVER_OPTIONS = ("iterations", "ls_iterations", "tolerance", "ls_tolerance", "noslip_iterations",
-                  "noslip_tolerance", "cone", "impratio", "solver", "jacobian", "gravity", "wind", "density",
-                  "viscosity", "disableflags", "enableflags")
-
-
-def solver_differences(option: Any) -> list[str]:
-    """The solver options of a file (its compiled ``MjModel.opt`` or its ``MjSpec.option``: the
-    fields have the same names) that differ from MuJoCo's defaults (ours), as 'name value'."""
-    fresh = mujoco.MjSpec().option
-    out = []
-    for name in SOLVER_OPTIONS:
-        theirs, ours = getattr(option, name), getattr(fresh, name)
-        if not np.array_equal(np.asarray(theirs), np.asarray(ours)):
-            out.append(f"{name} {np.asarray(theirs).tolist()}")
-    return out
 
 
 def _reset_solver(spec: mujoco.MjSpec) -> None:
