@@ -28,12 +28,10 @@ import optuna
 import gaits
 from gaits import StabiliserParams
 from tuner.params_io import resolve_params
-from tuner.robots import load_robot
 from tuner.process_pool import map_in_order
 from tuner.sim.randomisation import TUNE, Randomisation, draw
 from tuner.sim.robustness import evaluate
-from tuner.sim.rollout import Simulator
-from tuner.sim.surfaces import load_surface
+from tuner.sim.cache import simulator
 
 SET = "kidsize-robust-fb-grass50"
 PEDESTALS = ("grass50", "grass30", "grass10", "carpet4")
@@ -42,18 +40,17 @@ PUSHES = (0.5, 0.75, 1.0, 1.25, 1.5, 2.0, 2.5, 3.0)
 GAINS = (("k_ankle_pitch", 2.0), ("d_ankle_pitch", 0.3), ("k_hip_pitch", 2.0), ("d_hip_pitch", 0.3),
          ("k_ankle_roll", 2.0), ("d_ankle_roll", 0.3), ("k_hip_roll", 2.0), ("d_hip_roll", 0.3))
 
-_SIMS: dict[str, tuple[Simulator, gaits.GaitTrajectory]] = {}
+_TABLES: dict[str, gaits.GaitTrajectory] = {}
 
 
 def _walk(task: tuple) -> bool:
     """One pushed, randomised walk on tuning seeds: True if it stayed up."""
     surface, index, push, stabiliser = task
-    if surface not in _SIMS:
-        sim = Simulator(load_robot("kidsize"), load_surface(surface))
-        _SIMS[surface] = (sim, gaits.generate(resolve_params(SET, None).params, sim.robot.leg, sim.control_period))
-    sim, traj = _SIMS[surface]
+    sim = simulator("kidsize", surface)
+    if surface not in _TABLES:
+        _TABLES[surface] = gaits.generate(resolve_params(SET, None).params, sim.robot.leg, sim.control_period)
     p = draw(Randomisation().with_push(push), (0, index), *sim.n_random(), namespace=TUNE)
-    return not sim.rollout(traj, perturb=p, stabiliser=stabiliser).fell
+    return not sim.rollout(_TABLES[surface], perturb=p, stabiliser=stabiliser).fell
 
 
 def tune_gains(trials: int, push: float, walks: int, workers: int) -> tuple[StabiliserParams, float]:
@@ -94,7 +91,8 @@ def main() -> None:
     largest: dict[str, list[float]] = {}
     for surface in PEDESTALS:
         for label, st in sets.items():
-            rep = evaluate("kidsize", surface, gf, label, rollouts=0, seed=args.seed, stabiliser=st,
+            drive = gaits.Drive(gf.params, st, source=label)
+            rep = evaluate("kidsize", surface, drive, rollouts=0, seed=args.seed,
                            pushes=PUSHES, push_rollouts=args.push_rollouts, workers=args.workers)
             lp = rep.largest_push
             largest.setdefault(label, []).append(0.0 if lp is None else lp)

@@ -23,6 +23,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import gaits
 from tuner.params_io import resolve_params
 from tuner.sim.randomisation import DEFAULT_PUSHES
 from tuner.sim.robustness import evaluate
@@ -51,7 +52,7 @@ def trial_cost(study: str, params_spec: str, repeats: int = 3) -> float:
     best = float("inf")
     for _ in range(repeats):
         t0 = time.perf_counter()
-        ev.evaluate(gf.params, None, gf.stabiliser if spec.stabiliser is not None else None)
+        ev.evaluate(gaits.Drive(gf.params, gf.stabiliser if spec.stabiliser is not None else None))
         best = min(best, time.perf_counter() - t0)
     return best
 
@@ -75,13 +76,12 @@ def main() -> None:
               f"pushes {', '.join(f'{p:g}' for p in DEFAULT_PUSHES)} N s x {args.push_rollouts}")
         print(f"{'set':34s} " + " ".join(f"{p:>20s}" for p in PEDESTALS) + "   wall")
         for label, (spec, stabilised) in sets.items():
-            gf = resolve_params(spec, None)
+            drive = gaits.Drive.of(resolve_params(spec, None), source=spec, stabiliser=None if stabilised else False)
             cells = []
             t0 = time.perf_counter()
             for surface in PEDESTALS:
-                rep = evaluate("kidsize", surface, gf, spec, rollouts=args.rollouts, seed=args.seed,
-                               stabiliser=gf.stabiliser if stabilised else None, push_rollouts=args.push_rollouts,
-                               workers=args.workers)
+                rep = evaluate("kidsize", surface, drive, rollouts=args.rollouts, seed=args.seed,
+                               push_rollouts=args.push_rollouts, workers=args.workers)
                 lp = rep.largest_push
                 cells.append(f"{rep.survival:6.1%} push {'-' if lp is None else format(lp, 'g'):>4s}")
             print(f"{label:34s} " + " ".join(f"{c:>20s}" for c in cells) + f"   {time.perf_counter() - t0:.0f} s")

@@ -27,6 +27,7 @@ from pathlib import Path
 
 import optuna
 
+import gaits
 from gaits.params import ParamError
 
 from tuner.search.optimise import (Evaluator, StudyStore, enqueue_starts, objective_for, run_study,
@@ -71,7 +72,7 @@ def _walk(params: dict) -> None:
         params = _SPEC.params_for({names.get(k, k): v for k, v in params.items()})
     except ParamError:
         return                          # the study scores these without walking, too
-    _EVALUATOR.evaluate(params)
+    _EVALUATOR.evaluate(gaits.Drive(params))
 
 
 def main() -> None:

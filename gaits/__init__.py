@@ -9,7 +9,9 @@ from __future__ import annotations
 import numpy as np
 
 from .baselines import list_baselines, load_baseline
+from .command_stream import CommandStream
 from .cosine_law import CosineLawParams
+from .drive import Drive
 from .eros import ErosParams
 from .families import GaitFamily, all_families, command_walk, family, family_of
 from .footstep_planner import FootstepPlan, PlanError, StepLimits, plan_footsteps
@@ -24,6 +26,8 @@ from .walk_command import DIRECTIONS, CommandRamp, SpeedStaircase, WalkCommand, 
 
 __all__ = [
     "ArmGeometry",
+    "CommandStream",
+    "Drive",
     "GaitFamily",
     "all_families",
     "command_walk",

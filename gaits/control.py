@@ -179,7 +179,7 @@ class TablePlayer:
             a = np.asarray(a[:k])
             return np.concatenate([a, np.repeat(a[-1:], pad, axis=0)]) if pad else a
         meta: dict[str, Any] = {}
-        for key in ("steady", "commands", "command"):
+        for key in ("steady", "commands", "command", "step_starts", "stream"):
             if key in tr.meta:
                 meta[key] = tr.meta[key]
         return PlanRecord(family=tr.family, support=rows(tr.support), p_world_zmp_ref=rows(tr.p_world_zmp_ref),

@@ -33,7 +33,7 @@ def test_trajectory_writes_table_plot_and_params(gait_tuner_cmd, run_env, tmp_pa
     assert r2.returncode == 0, r2.stderr
     again = (tmp_path / "again" / "joints.csv").read_text().split("\n", 1)
     assert again[1] == (out / "joints.csv").read_text().split("\n", 1)[1]
-    assert again[0].endswith(f"gait {out / 'params.yaml'}")
+    assert again[0].endswith(f"gait {out / 'params.yaml'}: open-loop table, its own walk")
 
 
 def test_model_override_and_baseline_name(gait_tuner_cmd, run_env, tmp_path):

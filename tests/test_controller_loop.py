@@ -10,7 +10,7 @@ import pytest
 import gaits
 from gaits.control import READINGS, HoldPose, Measurement, StartPose, TablePlayer
 from tuner.robots import load_robot
-from tuner.sim.randomisation import NONE, Randomisation, draw
+from tuner.sim.randomisation import NONE, draw
 from tuner.sim.rollout import Simulator
 from tuner.sim.surfaces import SURFACES
 

@@ -64,7 +64,7 @@ def test_trajectory_command_writes_a_turning_table(gait_tuner_cmd, run_env, tmp_
                               "--out", str(tmp_path), "--no-plot", "--joint-names", "ours"], run_env)
     assert r.returncode == 0, r.stderr
     lines = (tmp_path / "joints.csv").read_text().splitlines()
-    assert "at command 0.02,0,0.2" in lines[0]
+    assert "command 0.02,0,0.2 (vx m/s, vy m/s, wz rad/s, ramped)" in lines[0]
     header = lines[1].split(",")
     data = np.loadtxt(lines[2:], delimiter=",")
     yaw = data[:, header.index("pelvis_yaw[rad]")]

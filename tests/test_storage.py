@@ -6,7 +6,6 @@ the resume), stale trials left (RUNNING at the end) and overshoot (finished tria
 budget), all 0.
 """
 
-import datetime
 import json
 import os
 import resource
@@ -88,26 +87,22 @@ def wait_for(pred, timeout=120.0, step=0.1, procs=()):
 
 
 def running_worker(name, storage, runs):
-    """(trial number, worker pid) of a trial being walked, once some trial has finished."""
+    """(trial number, worker pid) of a trial being walked, or None. No time window: the caller
+    stops the worker and checks that its trial is still running before it kills it."""
     try:
         study = load(name, storage, runs)
     except Exception:
         return None
-    trials = study.get_trials(deepcopy=False)
-    if not any(t.state in DONE for t in trials):
-        return None
-    now = datetime.datetime.now()
-    for t in trials:
-        # a trial that has just started, so that the kill lands inside it, not after it
-        if (t.state == optuna.trial.TrialState.RUNNING and "worker" in t.user_attrs
-                and t.datetime_start is not None and (now - t.datetime_start).total_seconds() < 0.15):
+    for t in study.get_trials(deepcopy=False):
+        if t.state == optuna.trial.TrialState.RUNNING and "worker" in t.user_attrs:
             return t.number, int(t.user_attrs["worker"]["pid"])
     return None
 
 
 def kill_mid_trial(name, storage, runs, procs) -> tuple[int, int]:
-    """SIGKILL a worker while it walks a trial: stop it, check its trial is still running, kill.
-    Returns (trial number, pid)."""
+    """SIGKILL a worker while it walks a trial: stop it (SIGSTOP), check that its trial is still
+    running, kill; if the trial had just ended, let it go on and aim again. Synchronised on the
+    stopped process, not on a moment in wall time. Returns (trial number, pid)."""
     while True:
         number, pid = wait_for(lambda: running_worker(name, storage, runs), procs=procs)
         os.kill(pid, signal.SIGSTOP)

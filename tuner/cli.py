@@ -17,7 +17,7 @@ import gaits
 from gaits import ParamError, UnreachableTargetError, families, family_class, list_baselines, load_baseline
 
 from .errors import EXIT_INTERNAL, EXIT_USAGE, UserError
-from .params_io import DEFAULT_BASELINE, resolve_params
+from .params_io import resolve_drive, resolve_params
 from .sim.randomisation import DEFAULT_PUSHES
 
 __all__ = ["cli", "main"]
@@ -32,6 +32,43 @@ def cli() -> None:
     deceleration), tlipfm (natural ZMP on the three-mass LIPM plus flywheel;
     lipm and dlipm as its comparisons), cosine (5-DoF cosine-law walking diagram).
     """
+
+
+# --- options shared by several verbs, declared once --------------------------------------------
+
+FAMILIES = ("eros", "tlipfm", "cosine")
+
+
+def robot_option(default: str | None = "kidsize", help: str = "Built-in robot name or a robot map YAML."):
+    return click.option("--robot", "robot_name", default=default, show_default=default is not None,
+                        metavar="NAME|PATH", help=help)
+
+
+def surface_option(default: str = "grass50", help: str = "rigid, carpet4, grass10, grass30, grass50, or a surface YAML."):
+    return click.option("--surface", "surface_name", default=default, show_default=True, metavar="NAME|PATH",
+                        help=help)
+
+
+def workers_option(help: str = "Processes on this machine; the results do not depend on it."):
+    return click.option("--workers", default=2, show_default=True, type=click.IntRange(1, 64), help=help)
+
+
+GAIT_OPTION = click.option("--gait", "family", type=click.Choice(FAMILIES),
+                           help="Gait family (taken from the parameter file if omitted).")
+PARAMS_OPTION = click.option("--params", "params_spec", metavar="PATH|NAME",
+                             help="Parameter YAML file, shipped baseline or tuned set (`gait-tuner sets`). "
+                                  "Default: the family's paper baseline.")
+JSON_OPTION = click.option("--json", "as_json", is_flag=True, help="Print the result as strict JSON.")
+RUNS_OPTION = click.option("--runs", "runs_dir", default="runs", show_default=True,
+                           type=click.Path(file_okay=False, path_type=Path), help="Folder of the journal files.")
+STABILISER_OPTION = click.option(
+    "--stabiliser/--no-stabiliser", default=None,
+    help="Use the parameter file's IMU stabiliser (default: as the file says) or switch it off.")
+COMMANDS_OPTION = click.option(
+    "--commands", "commands_file", type=click.Path(dir_okay=True, path_type=Path), metavar="STREAM.csv",
+    help="Walk a command stream: CSV with the header t,vx,vy,wz (s, m/s, m/s, rad/s), each row holding "
+         "until the next; the walk lasts until the last row plus --duration (default 2 s). A set without "
+         "an engine walks it planned per step before the walk.")
 
 
 COMMAND_OPTION = click.option(
@@ -64,13 +101,9 @@ def write_joint_table(traj: "gaits.GaitTrajectory", robot, path: Path, joint_nam
 
 
 @cli.command()
-@click.option("--gait", "family", type=click.Choice(["eros", "tlipfm", "cosine"]),
-              help="Gait family (taken from the parameter file if omitted).")
-@click.option("--params", "params_spec", metavar="PATH|BASELINE",
-              help="Parameter YAML file or shipped baseline name (see `gait-tuner baselines`). "
-                   "Default: the family's paper baseline.")
-@click.option("--robot", "robot_name", default="kidsize", show_default=True, metavar="NAME|PATH",
-              help="Built-in robot name or a robot map YAML: its legs set the IK.")
+@GAIT_OPTION
+@PARAMS_OPTION
+@robot_option(help="Built-in robot name or a robot map YAML: its legs set the IK.")
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False, path_type=Path),
               help="Directory for joints.csv, references.png and params.yaml.")
 @click.option("--dt", default=0.01, show_default=True, type=float,
@@ -78,38 +111,36 @@ def write_joint_table(traj: "gaits.GaitTrajectory", robot, path: Path, joint_nam
 @click.option("--model", type=click.Choice(["lipm", "dlipm", "tlipfm"]),
               help="tlipfm only: override the parameter file's CoM model.")
 @COMMAND_OPTION
+@COMMANDS_OPTION
+@click.option("--duration", type=float, help="With --commands: seconds walked after the stream's last row [s] (default 2).")
 @JOINT_NAMES_OPTION
 @click.option("--no-plot", is_flag=True, help="Skip the PNG.")
 def trajectory(family: str | None, params_spec: str | None, robot_name: str, out_dir: Path, dt: float,
-               model: str | None, command: str | None, joint_names: str, no_plot: bool) -> None:
+               model: str | None, command: str | None, commands_file: Path | None, duration: float | None,
+               joint_names: str, no_plot: bool) -> None:
     """Generate a gait's joint table q_ref(t) and its Cartesian references for a robot.
 
     Writes OUT/joints.csv (a comment line naming the robot, then time, the joint targets
     [rad], CoM, ZMP reference, pelvis and feet [m], support phase), OUT/params.yaml (the
-    exact parameters used) and OUT/references.png.
+    exact parameters used) and OUT/references.png. A table is open loop: a stabiliser in the
+    parameter file is kept in params.yaml but cannot be in the table.
     """
     if not str(out_dir).strip() or str(out_dir) == ".":
         raise UserError("--out: give a folder for the joint table, e.g. --out runs/tk")
     from .robots import load_robot
 
-    gait_file = resolve_params(params_spec, family)
-    params = gait_file.params
+    drive = resolve_drive(params_spec, family, command=_parse_command(command), commands_file=commands_file,
+                          tail=_tail(duration, commands_file))
     if model is not None:
-        if params.FAMILY != "tlipfm":
+        if drive.family != "tlipfm":
             raise UserError("--model applies to the tlipfm family only")
-        params = params.replace(model=model)
+        drive = drive.with_params(drive.params.replace(model=model))
     robot = load_robot(robot_name)
-    cmd = _parse_command(command)
-    if cmd is None:
-        traj = gaits.generate(params, robot.leg, dt=dt)
-    else:
-        traj = gaits.command_walk(params, robot, cmd, dt)
+    traj = drive.table(robot, dt)
     out_dir.mkdir(parents=True, exist_ok=True)
-    label = params_spec or DEFAULT_BASELINE[params.FAMILY]
-    if cmd is not None:
-        label += f" at command {cmd} (vx m/s, vy m/s, wz rad/s, ramped)"
-    csv_path = write_joint_table(traj, robot, out_dir / "joints.csv", joint_names, f"gait {label}")
-    yaml_path = gaits.save_gait_file(out_dir / "params.yaml", params, gait_file.description)
+    csv_path = write_joint_table(traj, robot, out_dir / "joints.csv", joint_names, f"gait {drive.describe()}")
+    yaml_path = gaits.save_gait_file(out_dir / "params.yaml", drive.params,
+                                     resolve_params(params_spec, family).description, drive.stabiliser)
     click.echo(f"{traj.family} for robot {robot.name}: {len(traj.t)} samples every {dt:g} s, "
                f"{traj.duration:.2f} s, walked {traj.p_world_com[-1, 0] - traj.p_world_com[0, 0]:+.3f} m")
     click.echo(f"wrote {csv_path}")
@@ -117,7 +148,7 @@ def trajectory(family: str | None, params_spec: str | None, robot_name: str, out
     if not no_plot:
         from .report.plots import plot_references
         png = plot_references(traj, out_dir / "references.png",
-                              title=f"{traj.family} ({label}), robot {robot.name}")
+                              title=f"{traj.family} ({drive.source}), robot {robot.name}")
         click.echo(f"wrote {png}")
 
 
@@ -127,44 +158,54 @@ SAVE_SCENE_OPTION = click.option(
          "the blade drag is applied by our loop, not in the file).")
 
 
+def _tail(duration: float | None, commands_file) -> float | None:
+    """--duration of a command-stream walk: the seconds after its last row."""
+    if commands_file is None or duration is None:
+        return None
+    if not 0 <= duration <= 600:            # NaN fails this too
+        raise UserError(f"--duration must be in [0, 600] s after a command stream's last row, got {duration:g} s")
+    return duration
+
+
 def _walk_setup(robot_name: str, surface_name: str, family: str | None, params_spec: str | None,
-                duration: float | None, command: str | None, save_scene: Path | None = None):
-    """(gait file, robot, simulator, joint table, command) of a walk asked for on the command line;
-    with ``save_scene`` the assembled model is written there too (reported on stderr)."""
+                duration: float | None, command: str | None, commands_file: Path | None, stabiliser: bool | None,
+                save_scene: Path | None = None):
+    """(drive, robot, simulator, duration of the rollout or None) of a walk asked for on the command
+    line; with ``save_scene`` the assembled model is written there too (reported on stderr)."""
     from .robots import load_robot
     from .search.study import MAX_DURATION_S
     from .sim.rollout import Simulator
     from .sim.surfaces import load_surface
 
-    gait_file = resolve_params(params_spec, family)
+    drive = resolve_drive(params_spec, family, stabiliser=stabiliser, command=_parse_command(command),
+                          commands_file=commands_file, tail=_tail(duration, commands_file))
     robot = load_robot(robot_name)
     surface = load_surface(surface_name)
-    if duration is not None and not 0 < duration <= MAX_DURATION_S:     # NaN fails this too
+    if commands_file is None and duration is not None and not 0 < duration <= MAX_DURATION_S:  # NaN fails too
         raise UserError(f"--duration must be in (0, {MAX_DURATION_S:g}] s, got {duration:g} s")
     sim = Simulator(robot, surface)
-    cmd = _parse_command(command)
-    if cmd is None:
-        traj = gaits.generate(gait_file.params, robot.leg, sim.control_period)
-    else:
-        traj = gaits.command_walk(gait_file.params, robot, cmd, sim.control_period)
     if save_scene is not None:
         from .report.video import save_scene as write_scene
         click.echo(f"wrote {write_scene(sim, save_scene)}", err=True)
-    return gait_file, robot, sim, traj, cmd
+    return drive, robot, sim, (None if commands_file is not None else duration)
+
+
+def _walk(drive, robot, sim, duration: float | None, record_qpos: bool = False):
+    """The rollout of a drive on the simulator (the controller it names, for ``duration`` or its own length)."""
+    return sim.run(drive.controller(robot, sim.control_period), duration=duration, record_qpos=record_qpos)
 
 
 def _walk_options(f):
     for opt in reversed([
-        click.option("--params", "params_spec", metavar="PATH|BASELINE",
-                     help="Parameter YAML file, shipped baseline or tuned set. Default: the family's paper baseline."),
-        click.option("--gait", "family", type=click.Choice(["eros", "tlipfm", "cosine"]),
-                     help="Gait family (taken from the parameter file if omitted)."),
-        click.option("--robot", "robot_name", default="kidsize", show_default=True, metavar="NAME|PATH",
-                     help="Built-in robot name or a robot map YAML."),
-        click.option("--surface", "surface_name", default="grass50", show_default=True, metavar="NAME|PATH",
-                     help="rigid, carpet4, grass10, grass30, grass50, or a surface YAML."),
-        click.option("--duration", type=float, help="Stop after this many seconds [s] (default: the whole gait)."),
+        PARAMS_OPTION,
+        GAIT_OPTION,
+        robot_option(),
+        surface_option(),
+        click.option("--duration", type=float, help="Stop after this many seconds [s] (default: the whole gait; "
+                                                     "with --commands: seconds after the stream's last row, default 2)."),
         COMMAND_OPTION,
+        COMMANDS_OPTION,
+        STABILISER_OPTION,
     ]):
         f = opt(f)
     return f
@@ -206,8 +247,8 @@ def _parse_size(size: str) -> tuple[int, int]:
 @click.option("--no-overlay", is_flag=True, help="No text over the frames.")
 @SAVE_SCENE_OPTION
 def render(robot_name: str, surface_name: str, family: str | None, params_spec: str | None,
-           duration: float | None, command: str | None, out: Path, size: str, fps: int, no_overlay: bool,
-           save_scene: Path | None) -> None:
+           duration: float | None, command: str | None, commands_file: Path | None, stabiliser: bool | None,
+           out: Path, size: str, fps: int, no_overlay: bool, save_scene: Path | None) -> None:
     """Film a walk: an MP4 from MuJoCo's offscreen renderer, headless.
 
     The camera tracks the torso; grass is drawn as a translucent slab as tall as its blades;
@@ -222,11 +263,11 @@ def render(robot_name: str, surface_name: str, family: str | None, params_spec: 
         raise UserError(f"--out {out}: the video is H.264 MP4; name it *.mp4")
     w, h = _parse_size(size)
     options = VideoOptions(width=w, height=h, fps=fps, overlay=not no_overlay)
-    gait_file, robot, sim, traj, cmd = _walk_setup(robot_name, surface_name, family, params_spec,
-                                                   duration, command, save_scene)
-    trace = sim.rollout(traj, duration=duration, record_qpos=True)
-    label = params_spec or DEFAULT_BASELINE[gait_file.family]
-    title = f"{label} | {robot.name} | {sim.surface.name}" + (f" | command {command}" if command else "")
+    drive, robot, sim, duration = _walk_setup(robot_name, surface_name, family, params_spec, duration, command,
+                                              commands_file, stabiliser, save_scene)
+    trace = _walk(drive, robot, sim, duration, record_qpos=True)
+    title = (f"{drive.source} | {robot.name} | {sim.surface.name}" + (f" | command {command}" if command else "")
+             + (f" | {commands_file.name}" if commands_file else "") + (" | stabiliser" if drive.closed_loop else ""))
     n = len(frame_ticks(len(trace.t), sim.control_period, fps))
     with tqdm(total=n + int(round(options.hold_end * fps)), unit="frame", desc="render",
               **_bar_options()) as bar:
@@ -240,7 +281,8 @@ def render(robot_name: str, surface_name: str, family: str | None, params_spec: 
 @_walk_options
 @SAVE_SCENE_OPTION
 def view(robot_name: str, surface_name: str, family: str | None, params_spec: str | None,
-         duration: float | None, command: str | None, save_scene: Path | None) -> None:
+         duration: float | None, command: str | None, commands_file: Path | None, stabiliser: bool | None,
+         save_scene: Path | None) -> None:
     """Watch a walk in MuJoCo's interactive viewer (needs a display), replayed in real time.
 
     The walk is simulated first (as `simulate` does), then replayed on a loop until the
@@ -255,10 +297,10 @@ def view(robot_name: str, surface_name: str, family: str | None, params_spec: st
     if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
         raise UserError("view needs a display (no DISPLAY or WAYLAND_DISPLAY here); "
                         "use `gait-tuner render ... --out walk.mp4`, or --save-scene with `view`'s options")
-    gait_file, robot, sim, traj, cmd = _walk_setup(robot_name, surface_name, family, params_spec,
-                                                   duration, command, save_scene)
-    trace = sim.rollout(traj, duration=duration, record_qpos=True)
-    click.echo(f"the walk: {trace.reason}; replaying {trace.t[-1]:.1f} s (close the window to stop)")
+    drive, robot, sim, duration = _walk_setup(robot_name, surface_name, family, params_spec, duration, command,
+                                              commands_file, stabiliser, save_scene)
+    trace = _walk(drive, robot, sim, duration, record_qpos=True)
+    click.echo(f"{drive.describe()}; the walk: {trace.reason}; replaying {trace.t[-1]:.1f} s (close the window to stop)")
     import mujoco.viewer
     d = mujoco.MjData(sim.model)
     with mujoco.viewer.launch_passive(sim.model, d) as viewer:
@@ -273,58 +315,65 @@ def view(robot_name: str, surface_name: str, family: str | None, params_spec: st
 
 
 @cli.command()
-@click.option("--robot", "robot_name", default="kidsize", show_default=True, metavar="NAME|PATH",
-              help="Built-in robot name or a robot map YAML (bring your own MJCF).")
-@click.option("--surface", "surface_name", default="rigid", show_default=True, metavar="NAME|PATH",
-              help="rigid, carpet4, grass10, grass30, grass50, or a surface YAML.")
-@click.option("--gait", "family", type=click.Choice(["eros", "tlipfm", "cosine"]),
-              help="Gait family (taken from the parameter file if omitted).")
-@click.option("--params", "params_spec", metavar="PATH|BASELINE",
-              help="Parameter YAML file or shipped baseline name. Default: the family's paper baseline.")
-@click.option("--duration", type=float, help="Stop after this many seconds [s] (default: the whole gait).")
-@COMMAND_OPTION
-@click.option("--json", "as_json", is_flag=True, help="Print the metrics as JSON.")
+@_walk_options
+@JSON_OPTION
 @click.option("--plot", "plot_dir", type=click.Path(file_okay=False, path_type=Path),
               help="Write pitch.png and zmp.png into this directory.")
 @SAVE_SCENE_OPTION
 def simulate(robot_name: str, surface_name: str, family: str | None, params_spec: str | None,
-             duration: float | None, command: str | None, as_json: bool, plot_dir: Path | None,
-             save_scene: Path | None) -> None:
+             duration: float | None, command: str | None, commands_file: Path | None, stabiliser: bool | None,
+             as_json: bool, plot_dir: Path | None, save_scene: Path | None) -> None:
     """Walk a gait on a robot and a surface in MuJoCo and print its metrics.
 
-    With --command the gait walks that velocity, ramped from rest and back
-    (gaits.CommandRamp: 4 steps up, 12 held, 4 down), and vx_mps, vy_mps, wz_radps
-    are measured over the held steps after two of them.
+    A parameter file's IMU stabiliser is used unless --no-stabiliser says otherwise. With
+    --command the gait walks that velocity, ramped from rest and back (gaits.CommandRamp: 4
+    steps up, 12 held, 4 down), and vx_mps, vy_mps, wz_radps are measured over the held steps
+    after two of them. With --commands it walks a command stream and reports how well it
+    tracked it (RMS velocity errors per step, from each segment's second step on).
     """
     import json
 
-    from .sim.metrics import DEFINITIONS, summarize
+    from .report.tables import format_metrics
+    from .sim.metrics import DEFINITIONS, summarize, tracking
 
-    gait_file, robot, sim, traj, cmd = _walk_setup(robot_name, surface_name, family, params_spec,
-                                                   duration, command, save_scene)
+    drive, robot, sim, duration = _walk_setup(robot_name, surface_name, family, params_spec, duration, command,
+                                              commands_file, stabiliser, save_scene)
     surface = sim.surface
-    trace = sim.rollout(traj, duration=duration)
+    trace = _walk(drive, robot, sim, duration)
     metrics = summarize(trace)
-    label = params_spec or DEFAULT_BASELINE[gait_file.family]
-    commanded = None if cmd is None else {"vx_mps": cmd.vx, "vy_mps": cmd.vy, "wz_radps": cmd.wz}
+    label = drive.source
+    commanded = None if drive.command is None else {"vx_mps": drive.command.vx, "vy_mps": drive.command.vy,
+                                                    "wz_radps": drive.command.wz}
+    followed = None
+    if drive.stream is not None:
+        starts = trace.meta.get("step_starts")
+        followed = tracking(trace, drive.stream, np.asarray(starts if starts is not None else []))
     if as_json:
-        click.echo(json.dumps({"robot": robot.name, "surface": surface.name, "gait": gait_file.family,
-                               "params": label, "command": commanded, "metrics": metrics.to_dict(),
-                               "definitions": DEFINITIONS}, indent=2, allow_nan=False))
+        out = metrics.to_dict()
+        if followed is not None:
+            out["tracking"] = followed
+        click.echo(json.dumps({"robot": robot.name, "surface": surface.name, "gait": drive.family,
+                               "params": label, "drive": drive.describe(), "stabiliser": drive.closed_loop,
+                               "command": commanded,
+                               "commands": None if commands_file is None else str(commands_file),
+                               "metrics": out, "definitions": DEFINITIONS}, indent=2, allow_nan=False))
     else:
-        click.echo(f"{gait_file.family} ({label}) on {robot.name} / {surface.name}: {metrics.reason}")
-        for key, text in DEFINITIONS.items():
-            value = getattr(metrics, key)
-            shown = "-" if value is None else (f"{value:.3f}" if isinstance(value, float) else str(value))
-            click.echo(f"  {key:16s} {shown:>10s}   {text}")
-        if cmd is not None:
+        click.echo(f"{drive.describe()} on {robot.name} / {surface.name}: {metrics.reason}")
+        click.echo(format_metrics(metrics, DEFINITIONS))
+        if drive.command is not None:
+            cmd = drive.command
             got = [metrics.vx_mps, metrics.vy_mps, metrics.wz_radps]
             click.echo("  commanded " + ", ".join(
                 f"{k} {c:g} -> {g:.3f}" + (f" ({g / c:.0%})" if c else "")
                 for k, c, g in zip(("vx", "vy", "wz"), (cmd.vx, cmd.vy, cmd.wz), got)))
+        if followed is not None:
+            click.echo("  tracking over " + f"{followed['steps']} steps: RMS error " + ", ".join(
+                f"{k} {'-' if followed[key] is None else format(followed[key], '.3f')} {unit}"
+                for k, key, unit in (("vx", "vx_rmse_mps", "m/s"), ("vy", "vy_rmse_mps", "m/s"),
+                                     ("wz", "wz_rmse_radps", "rad/s"))))
     if plot_dir is not None:
         from .report.plots import plot_pitch, plot_zmp
-        title = f"{gait_file.family} ({label}), robot {robot.name} on {surface.name}"
+        title = f"{drive.family} ({label}), robot {robot.name} on {surface.name}"
         p1 = plot_pitch({label: trace}, plot_dir / "pitch.png", title)
         p2 = plot_zmp(trace, plot_dir / "zmp.png", robot.foot_size, title)
         if not as_json:
@@ -333,9 +382,8 @@ def simulate(robot_name: str, surface_name: str, family: str | None, params_spec
 
 @cli.command()
 @click.argument("paper", type=click.Choice(["eros", "tlipfm"]))
-@click.option("--robot", "robot_name", default="kidsize", show_default=True, metavar="NAME|PATH")
-@click.option("--surface", "surface_name", default="rigid", show_default=True,
-              help="tlipfm only: the surface of the Table 3 walk.")
+@robot_option()
+@surface_option("rigid", help="tlipfm only: the surface of the Table 3 walk.")
 @click.option("--lift-scale", default=1.0, show_default=True, type=click.FloatRange(0.05, 1.0),
               help="eros only: multiply the paper's foot lift (Z = 90-100 mm) by this (1: the paper's own).")
 @click.option("--double-support", type=click.FloatRange(0.0, 0.6), metavar="SHARE",
@@ -343,12 +391,11 @@ def simulate(robot_name: str, surface_name: str, family: str | None, params_spec
                    "0 is the paper's literal cycle, which falls sideways at the full lift.")
 @click.option("--steps", "long_steps", default=40, show_default=True, type=click.IntRange(2, 500),
               help="eros only: steps of the distance-to-fall walks on pedestal 1.")
-@click.option("--workers", default=2, show_default=True, type=click.IntRange(1, 64),
-              help="eros only: processes walking the matrix cells.")
+@workers_option("eros only: processes walking the matrix cells.")
 @click.option("--tuned", "tuned_spec", metavar="PARAMS",
               help="eros only: also walk Table 8's cells with this EROS set's heel gain, C_DC, n and "
                    "double-support share (e.g. the export of the eros-paper study).")
-@click.option("--json", "as_json", is_flag=True, help="eros only: print the numbers as strict JSON.")
+@JSON_OPTION
 @click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path),
               help="Also write the report as Markdown (report.md) here.")
 def experiment(paper: str, robot_name: str, surface_name: str, lift_scale: float, double_support: float | None,
@@ -409,7 +456,7 @@ def experiment(paper: str, robot_name: str, surface_name: str, lift_scale: float
 
 
 @cli.command()
-@click.option("--workers", default=2, show_default=True, type=click.IntRange(1, 64))
+@workers_option()
 @click.option("--lift-scale", default=1.0, show_default=True, type=click.FloatRange(0.05, 1.0))
 def calibrate(workers: int, lift_scale: float) -> None:
     """Re-derive the pedestals' contact numbers from the EROS Tables 7-8 (slow: tens of minutes).
@@ -530,12 +577,10 @@ def _run_and_report(spec, store, study_file: str, storage: str | None, total: in
 @click.option("--trials", type=click.IntRange(1, 100_000), help="The study's budget: total finished trials "
               "it should hold, shared by every worker (default: the stored budget, else the file's). "
               "Re-running resumes: finished trials are kept.")
-@click.option("--workers", default=2, show_default=True, type=click.IntRange(1, 64),
-              help="Processes running trials of this study on this machine.")
+@workers_option("Processes running trials of this study on this machine.")
 @_storage_option
 @click.option("--seed", type=int, help="Sampler seed (default: the file's sampler_seed).")
-@click.option("--runs", "runs_dir", default="runs", show_default=True,
-              type=click.Path(path_type=Path), help="Folder of the journal files.")
+@RUNS_OPTION
 def tune(study_file: str, trials: int | None, workers: int, storage: str | None, seed: int | None,
          runs_dir: Path) -> None:
     """Run (or resume) a tuning study: Optuna search seeded by CasADi, against MuJoCo walks.
@@ -557,12 +602,10 @@ def tune(study_file: str, trials: int | None, workers: int, storage: str | None,
 @cli.command()
 @click.argument("study_file", metavar="STUDY.yaml")
 @_storage_option
-@click.option("--workers", default=2, show_default=True, type=click.IntRange(1, 64),
-              help="Processes running trials on this machine.")
+@workers_option("Processes running trials on this machine.")
 @click.option("--seed", type=int, help="Sampler seed of this machine's processes (default: the file's "
               "sampler_seed plus a number drawn from the host name, so machines sample differently).")
-@click.option("--runs", "runs_dir", default="runs", show_default=True,
-              type=click.Path(path_type=Path), help="Folder of the journal files (journal storage only).")
+@RUNS_OPTION
 def worker(study_file: str, storage: str | None, workers: int, seed: int | None, runs_dir: Path) -> None:
     """Join a study from this machine and run its trials until the study's budget is reached.
 
@@ -600,15 +643,14 @@ def _tuned_study(study_file: str, storage: str | None, runs_dir: Path):
 
 @cli.command()
 @click.argument("study_file", metavar="STUDY")
-@click.option("--storage", help="Optuna storage URL (default: the journal under --runs).")
-@click.option("--runs", "runs_dir", default="runs", show_default=True,
-              type=click.Path(file_okay=False, path_type=Path))
+@_storage_option
+@RUNS_OPTION
 @click.option("--pareto", is_flag=True, help="Only Optuna's best trials (the Pareto front of feasible "
               "trials for two objectives, the best feasible one for one).")
 @click.option("--sort", "sort_key", type=click.Choice(["number", "score", "speed"]), default="score",
               show_default=True, help="Order of the rows (score ascending, speed descending).")
 @click.option("--limit", type=click.IntRange(1, 100_000), default=20, show_default=True)
-@click.option("--json", "as_json", is_flag=True, help="Print the rows as strict JSON.")
+@JSON_OPTION
 def trials(study_file: str, storage: str | None, runs_dir: Path, pareto: bool, sort_key: str, limit: int,
            as_json: bool) -> None:
     """List a study's trials: state, objectives, feasibility, survival, searched parameters.
@@ -665,9 +707,8 @@ def trials(study_file: str, storage: str | None, runs_dir: Path, pareto: bool, s
 
 @cli.command()
 @click.argument("study_file", metavar="STUDY")
-@click.option("--storage", help="Optuna storage URL (default: the journal under --runs).")
-@click.option("--runs", "runs_dir", default="runs", show_default=True,
-              type=click.Path(file_okay=False, path_type=Path))
+@_storage_option
+@RUNS_OPTION
 @click.option("--trial", "number", type=int, help="Export this trial instead of the best one.")
 @click.option("--pareto-pick", type=click.Choice(["pitch", "speed", "knee"]),
               help="Two-objective studies: the Pareto point with the lowest pitch, the highest speed, or "
@@ -675,9 +716,13 @@ def trials(study_file: str, storage: str | None, runs_dir: Path, pareto: bool, s
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path),
               help="Parameter file to write (default: RUNS/<study>/best.yaml); the joint table goes "
                    "beside it (<out>.joints.csv).")
+@COMMAND_OPTION
+@COMMANDS_OPTION
+@click.option("--duration", type=float, help="With --commands: seconds walked after the stream's last row [s] (default 2).")
 @JOINT_NAMES_OPTION
 def export(study_file: str, storage: str | None, runs_dir: Path, number: int | None, pareto_pick: str | None,
-           out: Path | None, joint_names: str) -> None:
+           out: Path | None, command: str | None, commands_file: Path | None, duration: float | None,
+           joint_names: str) -> None:
     """Write a study's best (or a chosen) trial as a parameter YAML plus its joint table.
 
     STUDY is the study file (or shipped study name). The YAML is accepted as it
@@ -705,28 +750,31 @@ def export(study_file: str, storage: str | None, runs_dir: Path, number: int | N
     from .robots import load_robot
     robot = load_robot(spec.robot)
     gaits.save_gait_file(out, params, desc, trial_stabiliser(t))
-    traj = gaits.generate(params, robot.leg, robot.sim.control_period)
+    from .streams import load_stream
+    cmd = _parse_command(command)
+    if cmd is not None and commands_file is not None:
+        raise UserError("give --command or --commands, not both")
+    stream = None if commands_file is None else load_stream(commands_file, _tail(duration, commands_file))
+    drive = gaits.Drive(params, trial_stabiliser(t), cmd, stream, source=f"study {spec.name} trial {t.number}")
+    traj = drive.table(robot, robot.sim.control_period)
     table = write_joint_table(traj, robot, out.with_suffix(".joints.csv"), joint_names,
-                              f"study {spec.name} trial {t.number}; surfaces {', '.join(spec.surfaces)}")
+                              f"{drive.describe()}; surfaces {', '.join(spec.surfaces)}")
     click.echo(f"trial {t.number} (score {t.values[0]:.4f}) -> {out} and {table}")
 
 
 @cli.command()
 @click.argument("params_specs", nargs=-1, required=True, metavar="PARAMS...")
-@click.option("--robot", "robot_name", metavar="NAME|PATH",
-              help="Built-in robot name or robot map YAML. Default: the --study's robot, else kidsize.")
+@robot_option(None, "Built-in robot name or robot map YAML. Default: the --study's robot, else kidsize.")
 @click.option("--surfaces", "surface_names", default="grass50,grass30,grass10,carpet4", show_default=True,
               help="Comma-separated surfaces (names or files).")
 @click.option("--baselines/--no-baselines", default=True, show_default=True,
               help="Add the paper's baselines of the same family (EROS: x24 without/with).")
 @click.option("--study", "study_file", help="Also plot this study's optimisation history, Pareto front "
               "and parameter importances.")
-@click.option("--runs", "runs_dir", default="runs", show_default=True,
-              type=click.Path(file_okay=False, path_type=Path))
+@RUNS_OPTION
 @click.option("--out", "out_dir", default="runs/compare", show_default=True,
               type=click.Path(file_okay=False, path_type=Path))
-@click.option("--workers", type=click.IntRange(1, 64), default=2, show_default=True,
-              help="Processes walking the (set, surface) pairs; the results do not depend on it.")
+@workers_option("Processes walking the (set, surface) pairs; the results do not depend on it.")
 @click.option("--random-rollouts", type=click.IntRange(0, 1000), default=10, show_default=True,
               help="Randomised walks per (set, surface) for the survival column (0: none).")
 @click.option("--video", is_flag=True,
@@ -769,9 +817,9 @@ def compare(params_specs: tuple[str, ...], robot_name: str | None, surface_names
 
 @cli.command()
 @click.option("--params", "params_spec", required=True, metavar="PATH|NAME",
-              help="Parameter YAML file or shipped set (baselines, tuned results).")
-@click.option("--robot", "robot_name", default="kidsize", show_default=True, metavar="NAME|PATH")
-@click.option("--surface", "surface_name", default="grass50", show_default=True, metavar="NAME|PATH")
+              help="Parameter YAML file or shipped set (`gait-tuner sets`).")
+@robot_option()
+@surface_option()
 @click.option("--rollouts", default=100, show_default=True, type=click.IntRange(1, 100_000),
               help="Randomised rollouts without pushes.")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(0, 2**31 - 1),
@@ -782,22 +830,25 @@ def compare(params_specs: tuple[str, ...], robot_name: str | None, surface_names
               help="Comma-separated push impulses [N s] for the push sweep ('' for none).")
 @click.option("--push-rollouts", default=20, show_default=True, type=click.IntRange(1, 10_000),
               help="Rollouts per push size.")
-@click.option("--stabiliser/--no-stabiliser", default=None,
-              help="Use the parameter file's IMU stabiliser (default: as the file says) or switch it off.")
-@click.option("--workers", default=2, show_default=True, type=click.IntRange(1, 64),
-              help="Processes; the results do not depend on it.")
-@click.option("--json", "as_json", is_flag=True, help="Print the report as strict JSON.")
+@COMMAND_OPTION
+@COMMANDS_OPTION
+@click.option("--duration", type=float, help="With --commands: seconds walked after the stream's last row [s] (default 2).")
+@STABILISER_OPTION
+@workers_option()
+@JSON_OPTION
 @click.option("--plot", "plot_dir", type=click.Path(file_okay=False, path_type=Path),
               help="Write robustness.png into this directory.")
 def robustness(params_spec: str, robot_name: str, surface_name: str, rollouts: int, seed: int,
-               randomisation_spec: str | None, pushes: str, push_rollouts: int, stabiliser: bool | None,
+               randomisation_spec: str | None, pushes: str, push_rollouts: int, command: str | None,
+               commands_file: Path | None, duration: float | None, stabiliser: bool | None,
                workers: int, as_json: bool, plot_dir: Path | None) -> None:
     """Does a gait survive what differs between our model and your robot and field?
 
-    Walks it ROLLOUTS times with masses, servos, backlash, latencies, IMU noise, friction, turf
+    Walks it ROLLOUTS times with masses, servos, backlash, latencies, sensor noise, friction, turf
     and ground tilt drawn afresh each time (tuner/sim/randomisation.py gives the defaults and why),
     then PUSH-ROLLOUTS times per push size. Prints survival, time to fall, pitch and speed
-    spread and the largest push survived in 90% of rollouts.
+    spread and the largest push survived in 90% of rollouts. With --command or --commands every
+    rollout walks that command or stream.
     """
     import json
 
@@ -807,7 +858,8 @@ def robustness(params_spec: str, robot_name: str, surface_name: str, rollouts: i
     from .sim.robustness import evaluate
     from .yaml_input import read_yaml_file
 
-    gait_file = resolve_params(params_spec, None)
+    drive = resolve_drive(params_spec, None, stabiliser=stabiliser, command=_parse_command(command),
+                          commands_file=commands_file, tail=_tail(duration, commands_file))
     doc = randomisation_spec if randomisation_spec in (None, "none") else \
         read_yaml_file(Path(randomisation_spec), "randomisation")
     if randomisation_spec not in (None, "none") and doc is None:
@@ -820,14 +872,12 @@ def robustness(params_spec: str, robot_name: str, surface_name: str, rollouts: i
         raise UserError(f"--pushes {pushes!r}: expected comma-separated impulses in N s, e.g. 0.5,1,2") from None
     if any(not (0 < v <= 50) for v in sizes):
         raise UserError(f"--pushes {pushes!r}: each impulse must be in (0, 50] N s")
-    stab = gait_file.stabiliser if stabiliser is not False else None
-    if stabiliser and stab is None:
-        raise UserError(f"--stabiliser: {params_spec} holds no stabiliser section")
+    from .robots import load_robot
+    drive.table(load_robot(robot_name), 0.01)          # a command the set cannot walk: one line, before any work
     total = rollouts + len(sizes) * push_rollouts
     with tqdm(total=total, desc="robustness", unit="rollout", **_bar_options()) as bar:
-        report = evaluate(robot_name, surface_name, gait_file, params_spec, rollouts=rollouts, seed=seed,
-                          randomisation=rnd, stabiliser=stab, pushes=sizes, push_rollouts=push_rollouts,
-                          workers=workers, progress=bar.update)
+        report = evaluate(robot_name, surface_name, drive, rollouts=rollouts, seed=seed, randomisation=rnd,
+                          pushes=sizes, push_rollouts=push_rollouts, workers=workers, progress=bar.update)
     if as_json:
         click.echo(json.dumps(report.to_dict(), indent=2, allow_nan=False))
     else:
@@ -846,7 +896,7 @@ def robot() -> None:
 
 @robot.command(name="check")
 @click.argument("robot_spec", metavar="MAP|NAME")
-@click.option("--json", "as_json", is_flag=True, help="Print the report as strict JSON.")
+@JSON_OPTION
 @click.option("--no-stand", is_flag=True, help="Skip the 2 s stand test on the rigid floor.")
 @click.option("--duration", default=2.0, show_default=True, type=click.FloatRange(0.1, 30.0),
               help="Length of the stand test [s].")

@@ -6,11 +6,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from gaits import GaitFile, all_families, list_baselines, load_baseline, load_gait_file
+from gaits import Drive, GaitFile, ParamError, all_families, list_baselines, load_baseline, load_gait_file
 
 from .errors import UserError
 
-__all__ = ["DEFAULT_BASELINE", "RESULTS_DIR", "list_results", "resolve_params"]
+__all__ = ["DEFAULT_BASELINE", "RESULTS_DIR", "list_results", "resolve_params", "resolve_drive"]
 
 #: Tuned parameter sets shipped with the studies that produced them.
 RESULTS_DIR = Path(__file__).resolve().parents[1] / "studies" / "results"
@@ -43,3 +43,21 @@ def resolve_params(spec: str | None, family: str | None) -> GaitFile:
         raise UserError(f"--params {spec!r} holds {gait_file.family!r} parameters, "
                         f"but --gait is {family!r}")
     return gait_file
+
+
+def resolve_drive(spec: str | None, family: str | None, *, stabiliser: bool | None = None,
+                  command=None, commands_file: str | Path | None = None, tail: float | None = None) -> Drive:
+    """What drives the joints of a walk asked for on the command line, resolved once: the set
+    (:func:`resolve_params`), its stabiliser (``stabiliser``: None as the file says, False off,
+    True required), and a command (a ``gaits.WalkCommand``) or a command stream file
+    (``tail`` [s] walked after its last row, default 2)."""
+    from .streams import load_stream
+    gait_file = resolve_params(spec, family)
+    label = spec or DEFAULT_BASELINE[gait_file.family]
+    if command is not None and commands_file is not None:
+        raise UserError("give --command or --commands, not both")
+    stream = None if commands_file is None else load_stream(commands_file, tail)
+    try:
+        return Drive.of(gait_file, source=label, stabiliser=stabiliser, command=command, stream=stream)
+    except ParamError as exc:
+        raise UserError(f"--stabiliser: {exc}") from None

@@ -30,7 +30,7 @@ from ..params_io import resolve_params  # noqa: E402
 from ..process_pool import map_in_order  # noqa: E402
 from ..sim.randomisation import EVALUATE, Randomisation, draw  # noqa: E402
 from ..robots import load_robot  # noqa: E402
-from ..sim.rollout import Simulator  # noqa: E402
+from ..sim.cache import simulator  # noqa: E402
 from ..sim.surfaces import load_surface  # noqa: E402
 
 __all__ = ["with_step", "n_rows", "run_compare", "BASELINES_FOR"]
@@ -55,46 +55,31 @@ def with_step(params: gaits.GaitParams, step: float) -> gaits.GaitParams:
     return gaits.family_of(params).with_step(params, step)
 
 
-def _sets(specs: list[str], baselines: bool) -> list[tuple[str, gaits.GaitParams, object]]:
-    """(label, parameters, IMU stabiliser or None) of every compared set."""
+def _sets(specs: list[str], baselines: bool) -> list[gaits.Drive]:
+    """The drive of every compared set (its stabiliser as its file says), then the papers' baselines."""
     out = []
     families = []
     for s in specs:
-        gf = resolve_params(s, None)
-        out.append((s, gf.params, gf.stabiliser))
-        families.append(gf.family)
+        out.append(gaits.Drive.of(resolve_params(s, None), source=s))
+        families.append(out[-1].family)
     if baselines:
         for fam in dict.fromkeys(families):
             for name in BASELINES_FOR[fam]:
                 if name in specs:
                     continue                      # already compared under its own name
-                out.append((f"paper:{name}", gaits.load_baseline(name).params, None))
+                out.append(gaits.Drive.of(gaits.load_baseline(name), source=f"paper:{name}"))
     return out
-
-
-_CACHE: dict = {}
-
-
-def _robot(robot_name: str):
-    """The robot, loaded once per process (forked workers inherit it)."""
-    if _CACHE.get("robot_name") != robot_name:
-        _CACHE.clear()
-        _CACHE.update(robot_name=robot_name, robot=load_robot(robot_name), sims={})
-    return _CACHE["robot"]
 
 
 def _row(task: tuple) -> dict:
     """One (set, surface): its own walk and the 10 EROS grid walks (runs in a worker process)."""
-    robot_name, surface, label, params, stabiliser, n_random = task
-    robot = _robot(robot_name)
-    sims = _CACHE["sims"]
-    if surface not in sims:
-        sims[surface] = Simulator(robot, surface)            # built once per process, reused
-    sim = sims[surface]
-    traj = gaits.generate(params, robot.leg, sim.control_period)
-    own = summarize(sim.rollout(traj, stabiliser=stabiliser))
+    robot_name, surface, drive, n_random = task
+    sim = simulator(robot_name, surface)
+    robot = sim.robot
+    traj = drive.table(robot, sim.control_period)
+    own = summarize(sim.run(drive.controller(robot, sim.control_period, table=traj)))
     # robustness: the own walk under the default randomisation, evaluation seeds (0, i)
-    survived = [not summarize(sim.rollout(traj, stabiliser=stabiliser, perturb=draw(
+    survived = [not summarize(sim.run(drive.controller(robot, sim.control_period, table=traj), perturb=draw(
         Randomisation(), (0, i), *sim.n_random(), namespace=EVALUATE))).fell for i in range(n_random)]
     survival = 100.0 * float(np.mean(survived)) if survived else float("nan")
     plan = float(traj.p_world_pelvis[-1, 0] - traj.p_world_pelvis[0, 0])
@@ -102,16 +87,16 @@ def _row(task: tuple) -> dict:
     cells = []
     for direction, steps in EROS_STEPS_MM.items():
         for mm in steps:
-            p = with_step(params, (1 if direction == "forward" else -1) * mm / 1000)
+            cell = drive.with_params(with_step(drive.params, (1 if direction == "forward" else -1) * mm / 1000))
             try:
-                m = summarize(sim.rollout(gaits.generate(p, robot.leg, sim.control_period), stabiliser=stabiliser))
+                m = summarize(sim.run(cell.controller(robot, sim.control_period)))
                 cells.append(not m.fell)
             except (gaits.ParamError, gaits.UnreachableTargetError):
                 cells.append(False)
-    return {"set": label, "surface": surface.name, "cells": cells,
+    return {"set": drive.source, "surface": surface.name, "cells": cells,
             "stability": 100.0 * sum(cells) / len(cells), "own": own, "covered": covered,
             "survival": survival, "n_random": n_random,
-            "speeds": speed_per_direction(sim, params, stabiliser)}
+            "speeds": speed_per_direction(sim, drive.params, drive.stabiliser)}
 
 
 def render_sets(specs: list[str], robot_name: str, surface_names: list[str], baselines: bool, out_dir: Path,
@@ -122,19 +107,15 @@ def render_sets(specs: list[str], robot_name: str, surface_names: list[str], bas
     import re
 
     from .video import VideoOptions, render_trace
-    robot = _robot(robot_name)
-    sims = _CACHE["sims"]                                  # the simulators the rows walked, if built here
     written = []
-    for label, params, stab in _sets(specs, baselines):
+    for drive in _sets(specs, baselines):
         for surface in (load_surface(s) for s in surface_names):
-            if surface not in sims:
-                sims[surface] = Simulator(robot, surface)
-            sim = sims[surface]
-            trace = sim.rollout(gaits.generate(params, robot.leg, sim.control_period), stabiliser=stab,
-                                record_qpos=True)
+            sim = simulator(robot_name, surface)
+            trace = sim.run(drive.controller(sim.robot, sim.control_period), record_qpos=True)
+            label = drive.source
             stem = re.sub(r"[^A-Za-z0-9_.-]+", "_", Path(label).stem if label.endswith(".yaml") else label)
             out = out_dir / "videos" / f"{stem}--{surface.name}.mp4"
-            render_trace(sim, trace, out, VideoOptions(), title=f"{label} | {robot.name} | {surface.name}")
+            render_trace(sim, trace, out, VideoOptions(), title=f"{label} | {sim.robot.name} | {surface.name}")
             written.append(out)
             if progress is not None:
                 progress(1)
@@ -155,10 +136,10 @@ def run_compare(specs: list[str], robot_name: str, surface_names: list[str], bas
                 progress: Callable[[int], None] | None = None, random_rollouts: int = 10) -> str:
     """Walk every set on every surface (``workers`` processes; the rows do not depend on it)
     and write the table and plots; ``progress(1)`` after each (set, surface)."""
-    robot = _robot(robot_name)                                # a bad robot fails here, once
+    robot = load_robot(robot_name)                            # a bad robot fails here, once
     surfaces = [load_surface(s) for s in surface_names]
     sets = _sets(specs, baselines)
-    tasks = [(robot_name, surface, label, params, stab, random_rollouts) for label, params, stab in sets
+    tasks = [(robot_name, surface, drive, random_rollouts) for drive in sets
              for surface in surfaces]
     rows = map_in_order(_row, tasks, workers, progress)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -176,7 +157,7 @@ def run_compare(specs: list[str], robot_name: str, surface_names: list[str], bas
                      f"| {'-' if r['n_random'] == 0 else format(r['survival'], '.0f')} "
                      f"| {_speeds_text(r['speeds'])} |")
     summary = ["", "| set | mean stability % |", "|---|---|"]
-    for label, _, _ in sets:
+    for label in (d.source for d in sets):
         vals = [r["stability"] for r in rows if r["set"] == label]
         summary.append(f"| {label} | {np.mean(vals):.0f} |")
     from .provenance import commit_of
@@ -216,7 +197,7 @@ def _plots(rows, sets, surfaces, out_dir: Path, title: str) -> None:
     fig, axes = plt.subplots(1, len(PANELS), figsize=(19, 5))
     width = 0.8 / max(len(sets), 1)
     x = np.arange(len(surfaces))
-    for i, (label, _, _) in enumerate(sets):
+    for i, label in enumerate(d.source for d in sets):
         mine = [next(r for r in rows if r["set"] == label and r["surface"] == s.name) for s in surfaces]
         values = {"stability": [r["stability"] for r in mine], "pitch": [r["own"].pitch_rms_deg for r in mine],
                   "speed": [0.0 if r["own"].fell else r["own"].speed_mps for r in mine],

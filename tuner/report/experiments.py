@@ -22,6 +22,7 @@ from gaits import ErosParams, load_baseline
 
 from ..sim.metrics import Metrics, summarize
 from ..robots import RobotModel
+from ..sim.cache import simulator
 from ..sim.rollout import Simulator
 from ..sim.surfaces import Surface
 
@@ -123,7 +124,7 @@ def eros_matrix(robot: RobotModel, surfaces: dict[int, Surface], optimised: bool
     in this process (:func:`eros_matrices` spreads both tables over processes)."""
     cells = []
     for ped, surface in surfaces.items():
-        sim = Simulator(robot, surface)
+        sim = simulator(robot, surface)
         for direction, steps in EROS_STEPS_MM.items():
             for step in steps:
                 cells.append(_walk_cell(sim, ped, optimised, direction, step, lift_scale, double_support, base))
@@ -132,17 +133,11 @@ def eros_matrix(robot: RobotModel, surfaces: dict[int, Surface], optimised: bool
     return cells
 
 
-_SIMS: dict = {}
-
-
 def _cell(task: tuple) -> EROSCell:
-    """One walk of the matrix (runs in a worker process; the simulator is kept per surface)."""
+    """One walk of the matrix (runs in a worker process; the simulators are kept per process)."""
     robot_name, ped, surface, optimised, direction, step, lift_scale, double_support, base = task
-    key = (robot_name, surface)
-    if key not in _SIMS:
-        from ..robots import load_robot
-        _SIMS[key] = Simulator(load_robot(robot_name), surface)
-    return _walk_cell(_SIMS[key], ped, optimised, direction, step, lift_scale, double_support, base)
+    return _walk_cell(simulator(robot_name, surface), ped, optimised, direction, step, lift_scale,
+                      double_support, base)
 
 
 #: What a tuned EROS gait brings to the matrix: the paper's own knobs and our double-support share.
@@ -184,7 +179,7 @@ def stability_percent(cells: list[EROSCell]) -> dict[int, float]:
 def distance_to_fall(robot: RobotModel, surface: Surface, n_steps: int = 40, lift_scale: float = 1.0,
                      double_support: float | None = None, base: ErosParams | None = None) -> dict[int, Metrics]:
     """Long walks without optimisation at 8 / 16 / 24 mm (the text's distance-to-fall test)."""
-    sim = Simulator(robot, surface)
+    sim = simulator(robot, surface)
     out = {}
     for step in PAPER_DISTANCE_TO_FALL:
         p = eros_params(step, False, "forward", base, double_support).replace(n_steps=n_steps)
@@ -292,7 +287,7 @@ def format_distance(distance: dict[int, Metrics], surface: str) -> str:
 
 def tlipfm_table3(robot: RobotModel, surface: Surface) -> dict[str, Metrics]:
     """LIPM, DLIPM and TLIPFM walks of Table 2 on one surface: their metrics by model."""
-    sim = Simulator(robot, surface)
+    sim = simulator(robot, surface)
     out = {}
     for model in ("lipm", "dlipm", "tlipfm"):
         p = load_baseline("tkux-table2").params.replace(model=model)

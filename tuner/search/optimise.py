@@ -60,13 +60,11 @@ from gaits import ParamError, UnreachableTargetError
 
 from ..errors import UserError
 from ..sim.metrics import summarize
-from ..robots import load_robot
-from ..sim.rollout import Simulator
+from ..sim import cache as sim_cache
 from ..process_pool import mp_context
 from ..sim.randomisation import TUNE, draw
 from .storage import Heartbeat, StudyStore, process_identity
 from .study import OBJECTIVES, STAB_PREFIX, StudySpec
-from ..sim.surfaces import load_surface
 
 __all__ = ["FALL_PENALTY_DEG", "Evaluator", "open_storage", "open_study", "enqueue_starts", "run_study",
            "best_trial", "trial_params", "trial_stabiliser", "trial_result", "rollout_score", "trial_fell", "trial_feasible",
@@ -120,17 +118,18 @@ class Evaluator:
     spec: StudySpec
 
     def __post_init__(self) -> None:
-        self.robot = load_robot(self.spec.robot)
-        self.sims = [Simulator(self.robot, load_surface(s)) for s in self.spec.surfaces]
+        self.robot = sim_cache.robot(self.spec.robot)
+        self.sims = [sim_cache.simulator(self.robot, s) for s in self.spec.surfaces]
 
-    def evaluate(self, params: gaits.GaitParams, report: Callable[[float, int], bool] | None = None,
-                 stabiliser: Any = None) -> dict[str, Any]:
-        """Per-surface metrics and the aggregate score of one parameter set."""
+    def evaluate(self, drive: gaits.Drive, report: Callable[[float, int], bool] | None = None) -> dict[str, Any]:
+        """Per-surface metrics and the aggregate score of what ``drive`` walks (a trial's set and
+        stabiliser)."""
         spec = self.spec
         if spec.speed is not None:
-            return self._evaluate_speed(params, stabiliser)
+            return self._evaluate_speed(drive.params, drive.stabiliser)
+        dt = self.sims[0].control_period
         try:
-            traj = gaits.generate(params, self.robot.leg, self.sims[0].control_period)
+            traj = drive.table(self.robot, dt)
         except (ParamError, UnreachableTargetError) as exc:
             return {"score": FALL_PENALTY_DEG * 2, "speed": 0.0, "fall_constraint": 1.0,
                     "invalid": str(exc), "per_surface": {}}
@@ -138,11 +137,11 @@ class Evaluator:
             if np.any(traj.support != 0) else traj.duration
         plan_dist = float(traj.p_world_pelvis[-1, 0] - traj.p_world_pelvis[0, 0])
         if spec.robust is not None:
-            return self._evaluate_robust(traj, planned, plan_dist, stabiliser)
+            return self._evaluate_robust(drive, traj, planned, plan_dist)
         scores, speeds, walked, per = [], [], [], {}
         shortfall = 0.0
         for i, (name, sim) in enumerate(zip(spec.surfaces, self.sims)):
-            m = summarize(sim.rollout(traj, duration=spec.duration, stabiliser=stabiliser))
+            m = summarize(sim.run(drive.controller(self.robot, dt, table=traj), duration=spec.duration))
             score, frac, covered = rollout_score(m, planned, plan_dist)
             if covered is not None:
                 shortfall = max(shortfall, MIN_PROGRESS - covered)
@@ -157,8 +156,8 @@ class Evaluator:
         return {"score": self._aggregate(scores), "speed": float(np.mean(speeds)),
                 "fall_constraint": constraint, "fell": fell_any, "per_surface": per}
 
-    def _evaluate_robust(self, traj: gaits.GaitTrajectory, planned: float, plan_dist: float,
-                         stabiliser: Any) -> dict[str, Any]:
+    def _evaluate_robust(self, drive: gaits.Drive, traj: gaits.GaitTrajectory, planned: float,
+                         plan_dist: float) -> dict[str, Any]:
         """K randomised rollouts per surface (tuning seeds 0..K-1, common to all trials), scored by
         the study's risk measure; survival below ``min_survival`` is infeasible, and a trial whose
         falls already exceed what that allows stops early (``hopeless``)."""
@@ -172,7 +171,8 @@ class Evaluator:
             rows = []
             for i in range(rb.rollouts):
                 p = draw(rb.randomisation, i, *sim.n_random(), namespace=TUNE)
-                m = summarize(sim.rollout(traj, duration=self.spec.duration, perturb=p, stabiliser=stabiliser))
+                m = summarize(sim.run(drive.controller(self.robot, sim.control_period, table=traj),
+                                      duration=self.spec.duration, perturb=p))
                 score, _, covered = rollout_score(m, planned, plan_dist)
                 scores.append(score)
                 if m.fell:
@@ -293,7 +293,8 @@ def objective_for(spec: StudySpec, evaluator: Evaluator) -> Callable[[optuna.Tri
             trial.report(value, step)
             return trial.should_prune()
 
-        res = evaluator.evaluate(params, None if spec.speed is not None else report, stabiliser)
+        res = evaluator.evaluate(gaits.Drive(params, stabiliser, source=f"trial {trial.number}"),
+                                 None if spec.speed is not None else report)
         # two journal writes per trial (params, result): workers contend for the file lock
         record_constraint(trial, res["fall_constraint"])
         trial.set_user_attr("params", params.to_mapping() if stabiliser is None else

@@ -34,7 +34,6 @@ infeasible plan with the constraint that binds.
 from __future__ import annotations
 
 import dataclasses
-import math
 import time
 from dataclasses import dataclass, field
 
@@ -42,7 +41,7 @@ import casadi as ca
 import numpy as np
 
 import gaits
-from gaits import CosineLawParams, ErosParams, TlipfmParams
+from gaits import TlipfmParams
 from gaits import tlipfm as tl
 
 __all__ = ["SWING_CLEARANCE_MARGIN", "SeedProblem", "SeedResult", "SeedInfeasible", "THETA_NAMES", "lipm_interval_function",

@@ -41,7 +41,7 @@ from .centre_of_pressure import centre_of_pressure
 from .rollout import Trace
 
 __all__ = ["Metrics", "DEFINITIONS", "heading_velocity", "pitch_rms", "pitch_pm", "centre_of_pressure", "zmp_error",
-           "summarize"]
+           "summarize", "tracking"]
 
 DEFINITIONS = {
     "pitch_rms_deg": "RMS of torso pitch about its mean over the walk [deg]",
@@ -163,3 +163,35 @@ def summarize(trace: Trace) -> Metrics:
                    zmp_error_x_cm=ex * 100, zmp_error_y_cm=ey * 100, walk_time_s=walk,
                    reason=trace.reason, vx_mps=float(vel[0]), vy_mps=float(vel[1]),
                    wz_radps=float(vel[2]))
+
+
+def tracking(trace: Trace, stream, step_starts: np.ndarray) -> dict:
+    """How well a walk followed a command stream (``gaits.CommandStream``).
+
+    The walk is cut at the step starts ``step_starts`` [s] (the controller's own steps, so the
+    torso's sway, which crosses the midline once a step, cancels within each window); in every
+    step that lies inside one segment of the stream, after that segment's first step, the torso's
+    velocity in its heading frame (:func:`heading_velocity`) is compared with the segment's
+    command. Returns the RMS errors ``vx_rmse_mps``, ``vy_rmse_mps``, ``wz_rmse_radps`` over those
+    steps (null when no step qualifies, e.g. after an early fall), how many steps were measured,
+    and per segment its command, measured mean velocity and number of steps.
+    """
+    starts = np.asarray(step_starts, dtype=float)
+    t_end = float(trace.t[-1])
+    errors, segments = [], []
+    for a, b, cmd in stream.segments():
+        inside = starts[(starts >= a - 1e-9) & (starts <= b + 1e-9)]
+        got = []
+        for w0, w1 in zip(inside[1:-1], inside[2:]):       # the segment's first step is left out
+            if w1 > t_end + 1e-9 or (trace.fell and trace.t_fall is not None and w1 > trace.t_fall):
+                break
+            v = heading_velocity(trace.t, trace.p_torso, trace.yaw, float(w0), float(w1))
+            if np.all(np.isfinite(v)):
+                got.append(v)
+                errors.append(v - cmd)
+        segments.append({"t0_s": a, "t1_s": b, "command": [float(x) for x in cmd], "steps": len(got),
+                         "measured": None if not got else [float(x) for x in np.mean(got, axis=0)]})
+    e = np.array(errors).reshape(-1, 3)
+    rmse = [None if not len(e) else float(np.sqrt(np.mean(e[:, i] ** 2))) for i in range(3)]
+    return {"vx_rmse_mps": rmse[0], "vy_rmse_mps": rmse[1], "wz_rmse_radps": rmse[2], "steps": int(len(e)),
+            "segments": segments}

@@ -22,8 +22,7 @@ from typing import Any, Callable
 import numpy as np
 
 import gaits
-from gaits import GaitFile, StabiliserParams
-
+from .cache import simulator
 from .metrics import summarize
 from ..process_pool import map_in_order
 from .randomisation import DEFAULT_PUSHES, EVALUATE, Randomisation, draw
@@ -44,29 +43,23 @@ DEFINITIONS = {
                        f"every smaller one [N s] (null: not even the smallest)",
 }
 
-_CACHE: dict[str, Any] = {}
+_TABLES: dict = {}
 
 
-def _sim(robot: str, surface: str) -> Simulator:
-    key = (robot, surface)
-    if _CACHE.get("key") != key:
-        _CACHE.update(key=key, sim=Simulator(load_robot(robot), load_surface(surface)))
-    return _CACHE["sim"]
-
-
-def _traj(sim: Simulator, params: gaits.GaitParams) -> gaits.GaitTrajectory:
-    """The joint table of ``params`` for the cached simulator, generated once per process."""
-    if _CACHE.get("params") != (params, sim):
-        _CACHE.update(params=(params, sim), traj=gaits.generate(params, sim.robot.leg, sim.control_period))
-    return _CACHE["traj"]
+def _controller(sim: Simulator, drive: gaits.Drive):
+    """A fresh controller of ``drive`` for the simulator; the joint table is planned once per process."""
+    key = (drive.key(), id(sim))
+    if key not in _TABLES:
+        _TABLES.clear()
+        _TABLES[key] = drive.table(sim.robot, sim.control_period)
+    return drive.controller(sim.robot, sim.control_period, table=_TABLES[key])
 
 
 def _one(task: tuple) -> dict[str, Any]:
-    robot, surface, params, stabiliser, randomisation, seed, push = task
-    sim = _sim(robot, surface)
-    traj = _traj(sim, params)
+    robot, surface, drive, randomisation, seed, push = task
+    sim = simulator(robot, surface)
     p = draw(randomisation.with_push(push), seed, *sim.n_random(), namespace=EVALUATE)
-    m = summarize(sim.rollout(traj, perturb=p, stabiliser=stabiliser))
+    m = summarize(sim.run(_controller(sim, drive), perturb=p))
     return {"push": push, "seed": list(seed), "fell": m.fell, "t_fall_s": m.t_fall_s,
             "pitch_rms_deg": m.pitch_rms_deg, "speed_mps": m.speed_mps, "distance_m": m.distance_m}
 
@@ -79,6 +72,7 @@ class RobustnessReport:
     stabiliser: bool
     rollouts: list[dict[str, Any]]
     pushes: dict[float, list[dict[str, Any]]]
+    drive: str = ""                   # how the set was driven and what it walked
 
     @property
     def survival(self) -> float:
@@ -103,7 +97,7 @@ class RobustnessReport:
 
     def to_dict(self) -> dict[str, Any]:
         falls = [r["t_fall_s"] for r in self.rollouts if r["fell"]]
-        return {"robot": self.robot, "surface": self.surface, "params": self.params,
+        return {"robot": self.robot, "surface": self.surface, "params": self.params, "drive": self.drive,
                 "stabiliser": self.stabiliser, "rollouts": len(self.rollouts), "survival": self.survival,
                 "falls": len(falls),
                 "t_fall_s": [float(v) for v in np.percentile(falls, [25, 50, 75])] if falls else None,
@@ -117,7 +111,8 @@ class RobustnessReport:
         def pct(v, fmt):
             return "-" if v is None else " / ".join(format(x, fmt) for x in v)
         lines = [f"robustness of {self.params} on robot {self.robot} / {self.surface} "
-                 f"(stabiliser {'on' if self.stabiliser else 'off'})",
+                 f"(stabiliser {'on' if self.stabiliser else 'off'})" + (f"\n  walked          {self.drive}"
+                                                                          if self.drive else ""),
                  f"  survival        {d['survival']:.1%} of {d['rollouts']} randomised rollouts ({d['falls']} fell)",
                  f"  time to fall    {pct(d['t_fall_s'], '.2f')} s (quartiles of those that fell)",
                  f"  pitch RMS       {pct(d['pitch_rms_deg'], '.2f')} deg (10/50/90th pct, stayed up)",
@@ -131,14 +126,14 @@ class RobustnessReport:
         return "\n".join(lines)
 
 
-def evaluate(robot: str, surface: str, gait_file: GaitFile, label: str, *, rollouts: int, seed: int,
-             randomisation: Randomisation = Randomisation(), stabiliser: StabiliserParams | None = None,
-             pushes: tuple[float, ...] = DEFAULT_PUSHES, push_rollouts: int = 20, workers: int = 2,
+def evaluate(robot: str, surface: str, drive: gaits.Drive, *, rollouts: int, seed: int,
+             randomisation: Randomisation = Randomisation(), pushes: tuple[float, ...] = DEFAULT_PUSHES,
+             push_rollouts: int = 20, workers: int = 2,
              progress: Callable[[int], None] | None = None) -> RobustnessReport:
-    """Walk a parameter set under randomisation; see the module docstring."""
+    """Walk what ``drive`` asks under randomisation; see the module docstring."""
     load_robot(robot)                       # a bad robot fails here, once, in the parent
     load_surface(surface)
-    base = (robot, surface, gait_file.params, stabiliser, randomisation)
+    base = (robot, surface, drive, randomisation)
     tasks = [base + ((seed, i), 0.0) for i in range(rollouts)]
     for size in pushes:
         tasks += [base + ((seed, 1_000_000 + i), float(size)) for i in range(push_rollouts)]
@@ -147,5 +142,5 @@ def evaluate(robot: str, surface: str, gait_file: GaitFile, label: str, *, rollo
     by_push: dict[float, list] = {}
     for r in rows[rollouts:]:
         by_push.setdefault(r["push"], []).append(r)
-    return RobustnessReport(load_robot(robot).name, surface, label, bool(stabiliser and stabiliser.enabled),
-                            plain, by_push)
+    return RobustnessReport(load_robot(robot).name, surface, drive.source, drive.closed_loop, plain, by_push,
+                            drive.describe())

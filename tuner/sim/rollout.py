@@ -459,5 +459,5 @@ class Simulator:
                      cycle_time=plan.cycle_time,
                      meta={"robot": self.robot.name, "surface": self.surface.name,
                            "family": plan.family, "zmp_source": plan.zmp_source,
-                           **({"steady": plan.meta["steady"]} if "steady" in plan.meta else {})},
+                           **{k: plan.meta[k] for k in ("steady", "step_starts", "stream") if k in plan.meta}},
                      yaw=_quat_yaw(sens[:, self._s_quat]))

@@ -23,7 +23,6 @@ then the drag dampers. Sensor order: see :class:`SceneLayout`.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import mujoco
 import numpy as np

@@ -1,0 +1,88 @@
+"""A stream of walk commands over time, as a robot's behaviour sends them (ours).
+
+Rows (t [s], vx [m/s], vy [m/s], wz [rad/s]): each row's command holds from its t until the next
+row's t; the walk lasts until the last row's t plus ``tail`` (2 s unless a file says otherwise).
+The first row must be at t = 0. A stream file is CSV with the header ``t,vx,vy,wz``
+(``tuner/streams.py`` reads it).
+
+An online controller reads the stream tick by tick (:meth:`CommandStream.at`) and knows nothing
+of the rows to come. A joint table can only be planned per step, before the walk:
+:meth:`CommandStream.per_step` gives each step the command of its start time, which is what an
+open-loop set walks for a stream (and why its CoM already knows the next steps' commands).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .params import ParamError
+from .walk_command import WalkCommand
+
+__all__ = ["CommandStream"]
+
+MAX_ROWS = 100_000
+
+
+@dataclass(frozen=True)
+class CommandStream:
+    """Piecewise-constant walk commands: ``t`` (n,) [s] increasing from 0, ``commands`` (n, 3)."""
+
+    t: np.ndarray
+    commands: np.ndarray
+    tail: float = 2.0           # [s] walked after the last row's t
+
+    def __post_init__(self) -> None:
+        t = np.asarray(self.t, dtype=float)
+        c = np.asarray(self.commands, dtype=float)
+        if t.ndim != 1 or len(t) < 1 or len(t) > MAX_ROWS:
+            raise ParamError(f"a command stream needs 1 to {MAX_ROWS} rows, got {t.shape}")
+        if c.shape != (len(t), 3):
+            raise ParamError(f"a command stream's commands must have shape ({len(t)}, 3), got {c.shape}")
+        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(c))):
+            bad = int(np.flatnonzero(~(np.isfinite(t) & np.all(np.isfinite(c), axis=1)))[0])
+            raise ParamError(f"command stream row {bad + 1}: values must be finite numbers")
+        if t[0] != 0.0:
+            raise ParamError(f"command stream row 1: t = {t[0]:g} s; the first row must be at t = 0")
+        steps = np.diff(t)
+        if np.any(steps <= 0):
+            bad = int(np.flatnonzero(steps <= 0)[0]) + 2
+            raise ParamError(f"command stream row {bad}: t = {t[bad - 1]:g} s does not come after "
+                             f"the previous row's {t[bad - 2]:g} s")
+        for i, row in enumerate(c):
+            try:
+                WalkCommand(*row)
+            except ParamError as exc:
+                raise ParamError(f"command stream row {i + 1}: {exc}") from None
+        if isinstance(self.tail, bool) or not (0.0 <= float(self.tail) <= 600.0) or math.isnan(self.tail):
+            raise ParamError(f"command stream tail = {self.tail!r} s is out of range [0, 600] s")
+        object.__setattr__(self, "t", t)
+        object.__setattr__(self, "commands", c)
+        object.__setattr__(self, "tail", float(self.tail))
+
+    @classmethod
+    def constant(cls, command, duration: float) -> "CommandStream":
+        """One command held for ``duration`` [s], then a stop held for 2 s."""
+        cmd = np.asarray(command.as_array() if isinstance(command, WalkCommand) else command, dtype=float)
+        return cls(np.array([0.0, float(duration)]), np.vstack([cmd, np.zeros(3)]))
+
+    @property
+    def duration(self) -> float:
+        """[s] the whole walk: the last row's t plus the tail."""
+        return float(self.t[-1] + self.tail)
+
+    def at(self, time: float) -> np.ndarray:
+        """The command (vx, vy, wz) that holds at ``time`` [s], shape (3,)."""
+        i = int(np.searchsorted(self.t, time + 1e-9, side="right")) - 1
+        return self.commands[max(i, 0)]
+
+    def segments(self) -> list[tuple[float, float, np.ndarray]]:
+        """(start [s], end [s], command) of every row; the last ends with the walk."""
+        ends = np.append(self.t[1:], self.duration)
+        return [(float(a), float(b), self.commands[i]) for i, (a, b) in enumerate(zip(self.t, ends))]
+
+    def per_step(self, step_starts: np.ndarray) -> np.ndarray:
+        """The command of each step's start time (n, 3), for a walk planned before it starts."""
+        return np.array([self.at(float(s)) for s in step_starts])

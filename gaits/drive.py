@@ -1,0 +1,119 @@
+"""What drives the joints of a walk: one value, resolved once, that every verb walks the same way.
+
+A :class:`Drive` holds a parameter set, its IMU stabiliser (from the gait file, unless switched
+off), and what the walk is asked to do: the family's own walk, a ramped walk at one command, or
+a command stream. :meth:`Drive.controller` builds the controller the loop runs;
+:meth:`Drive.table` the joint table, for the verbs that write one. So ``simulate``, ``render``,
+``view``, ``robustness``, ``compare`` and the studies cannot drop a part of a gait file.
+
+A table walks a command stream *planned per step* (:meth:`CommandStream.per_step`): the open loop
+of the papers, labelled so in :meth:`Drive.describe`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from .command_stream import CommandStream
+from .control import Controller, Stabilised, TablePlayer
+from .families import RobotGeometry, command_walk, family_of
+from .gait_file import GaitFile
+from .imu_stabiliser import StabiliserParams
+from .params import GaitParams, ParamError
+from .trajectory import GaitTrajectory
+from .walk_command import WalkCommand
+
+__all__ = ["Drive"]
+
+#: steps a table may plan for a stream (a 10-minute stream at 0.3 s steps is 2000)
+MAX_STREAM_STEPS = 5000
+
+
+@dataclass(frozen=True)
+class Drive:
+    """A walk's parameter set, its stabiliser, and its command or command stream (module docstring)."""
+
+    params: GaitParams
+    stabiliser: StabiliserParams | None = None
+    command: WalkCommand | None = None
+    stream: CommandStream | None = None
+    source: str = ""                       # where the set came from, for reports
+
+    def __post_init__(self) -> None:
+        if self.command is not None and self.stream is not None:
+            raise ParamError("give a command or a command stream, not both")
+
+    @classmethod
+    def of(cls, gait_file: GaitFile, *, source: str = "", stabiliser: bool | None = None,
+           command: WalkCommand | None = None, stream: CommandStream | None = None) -> "Drive":
+        """The drive of a gait file: its stabiliser as the file says (``stabiliser=False`` switches it
+        off; ``True`` requires one: a ParamError when the file has none)."""
+        stab = gait_file.stabiliser
+        if stabiliser is True and stab is None:
+            raise ParamError(f"{source or 'the parameter set'} holds no stabiliser section")
+        if stabiliser is False:
+            stab = None
+        return cls(gait_file.params, stab, command, stream, source)
+
+    @property
+    def family(self) -> str:
+        return self.params.FAMILY
+
+    @property
+    def closed_loop(self) -> bool:
+        """Whether the walk reads the robot's sensors (the stabiliser)."""
+        return self.stabiliser is not None and self.stabiliser.enabled
+
+    def without_stabiliser(self) -> "Drive":
+        return dataclasses.replace(self, stabiliser=None)
+
+    def with_params(self, params: GaitParams) -> "Drive":
+        return dataclasses.replace(self, params=params)
+
+    def stream_commands(self) -> np.ndarray:
+        """The per-step commands a table walks for the stream, ending with a stop step (n, 3)."""
+        fam = family_of(self.params)
+        starts = fam.step_starts(self.params, MAX_STREAM_STEPS)
+        n = int(np.sum(starts[:-1] < self.stream.duration))
+        if n >= MAX_STREAM_STEPS:
+            raise ParamError(f"the command stream lasts {self.stream.duration:g} s: more than "
+                             f"{MAX_STREAM_STEPS} steps of this set")
+        return np.vstack([self.stream.per_step(starts[:n]), np.zeros((1, 3))])
+
+    def table(self, robot: RobotGeometry, dt: float) -> GaitTrajectory:
+        """The joint table of this walk for a robot (``robot.leg``, ``robot.foot_size``)."""
+        fam = family_of(self.params)
+        if self.command is not None:
+            return command_walk(self.params, robot, self.command, dt)
+        if self.stream is not None:
+            commands = self.stream_commands()
+            traj = fam.walk(self.params, robot, dt, commands)
+            traj.meta["stream"] = "planned per step"
+            traj.meta["step_starts"] = fam.step_starts(self.params, len(commands)).tolist()
+            return traj
+        return fam.generate(self.params, robot.leg, dt)
+
+    def key(self) -> tuple:
+        """A hashable value that is equal for drives that walk the same (a cache key)."""
+        stream = None if self.stream is None else (self.stream.t.tobytes(), self.stream.commands.tobytes(),
+                                                   self.stream.tail)
+        return (self.params, self.stabiliser, self.command, stream)
+
+    def controller(self, robot: RobotGeometry, dt: float, table: GaitTrajectory | None = None) -> Controller:
+        """The controller the loop runs: the table (``table``, or planned now), with the stabiliser
+        around it when enabled."""
+        ctl: Controller = TablePlayer(self.table(robot, dt) if table is None else table)
+        if self.closed_loop:
+            ctl = Stabilised(ctl, self.stabiliser)
+        return ctl
+
+    def describe(self) -> str:
+        """One line: the set, how it is driven, and what it is asked to walk."""
+        how = "open-loop table" + (" with the IMU stabiliser" if self.closed_loop else "")
+        what = ("its own walk" if self.command is None and self.stream is None else
+                f"command {self.command} (vx m/s, vy m/s, wz rad/s, ramped)" if self.command is not None else
+                f"a command stream of {len(self.stream.t)} rows, planned per step before the walk")
+        return f"{self.source or self.family}: {how}, {what}"

@@ -1,0 +1,62 @@
+"""Reading a command stream file: CSV with the header ``t,vx,vy,wz`` (``gaits.CommandStream``).
+
+``t`` in seconds from the start, ``vx``, ``vy`` in m/s, ``wz`` in rad/s; each row's command holds
+until the next row's t, and the walk lasts until the last row's t plus ``tail`` (the caller's
+``--duration``, or 2 s). Lines starting with ``#`` are comments. Every way a file can be wrong is
+one :class:`UserError` naming the file and the row.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from pathlib import Path
+
+from gaits import CommandStream, ParamError
+
+from .errors import UserError
+
+__all__ = ["load_stream", "MAX_STREAM_BYTES"]
+
+MAX_STREAM_BYTES = 10_000_000   # a 10-minute stream at 100 Hz is ~2 MB
+HEADER = ["t", "vx", "vy", "wz"]
+
+
+def load_stream(path: str | Path, tail: float | None = None) -> CommandStream:
+    path = Path(path)
+    if path.is_dir():
+        raise UserError(f"{path}: is a directory, expected a command stream CSV (t,vx,vy,wz)")
+    if not path.exists():
+        raise UserError(f"{path}: no such command stream file")
+    if not path.is_file():
+        raise UserError(f"{path}: not a regular file (a command stream is a CSV file)")
+    size = path.stat().st_size
+    if size > MAX_STREAM_BYTES:
+        raise UserError(f"{path}: {size:,} bytes, more than a command stream's limit of {MAX_STREAM_BYTES:,}")
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise UserError(f"{path}: is not UTF-8 text (byte {exc.start})") from None
+    rows = [(i + 1, r) for i, r in enumerate(csv.reader(io.StringIO(text)))
+            if r and not r[0].lstrip().startswith("#") and any(c.strip() for c in r)]
+    if not rows:
+        raise UserError(f"{path}: empty; a command stream is CSV with the header t,vx,vy,wz")
+    line, head = rows[0]
+    if [c.strip() for c in head] != HEADER:
+        raise UserError(f"{path}: line {line}: the header must be t,vx,vy,wz, got {','.join(head)!r}")
+    t, cmds = [], []
+    for line, r in rows[1:]:
+        if len(r) != 4:
+            raise UserError(f"{path}: line {line}: expected 4 values t,vx,vy,wz, got {len(r)}")
+        try:
+            vals = [float(c) for c in r]
+        except ValueError:
+            raise UserError(f"{path}: line {line}: {','.join(r)!r} is not four numbers") from None
+        t.append(vals[0])
+        cmds.append(vals[1:])
+    if not t:
+        raise UserError(f"{path}: the header has no rows below it")
+    try:
+        return CommandStream(t, cmds, tail=2.0 if tail is None else tail)
+    except ParamError as exc:
+        raise UserError(f"{path}: {exc}") from None
