@@ -273,8 +273,22 @@ def render(robot_name: str, surface_name: str, family: str | None, params_spec: 
               **_bar_options()) as bar:
         info = render_trace(sim, trace, out, options, title=title, progress=bar.update)
     click.echo(f"wrote {info['path']}: {info['frames']} frames, {info['width']}x{info['height']}, "
-               f"{info['fps']} fps ({info['seconds']:.1f} s); the walk: {trace.reason}"
+               f"{info['fps']} fps ({info['seconds']:.1f} s); {drive.describe()}; the walk: {trace.reason}"
                + (f" at {trace.t_fall:.2f} s" if trace.fell and trace.t_fall is not None else ""))
+
+
+def _open_display() -> None:
+    """A one-line error when no window can be opened (MuJoCo's viewer would end the process from C)."""
+    import warnings
+
+    import glfw
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ok = glfw.init()
+    if not ok:
+        shown = os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
+        raise UserError(f"view: cannot open a window on display {shown!r}; "
+                        f"use `gait-tuner render ... --out walk.mp4` instead")
 
 
 @cli.command()
@@ -301,6 +315,7 @@ def view(robot_name: str, surface_name: str, family: str | None, params_spec: st
                                               commands_file, stabiliser, save_scene)
     trace = _walk(drive, robot, sim, duration, record_qpos=True)
     click.echo(f"{drive.describe()}; the walk: {trace.reason}; replaying {trace.t[-1]:.1f} s (close the window to stop)")
+    _open_display()
     import mujoco.viewer
     d = mujoco.MjData(sim.model)
     with mujoco.viewer.launch_passive(sim.model, d) as viewer:
