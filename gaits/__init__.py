@@ -11,7 +11,7 @@ import numpy as np
 from .baselines import list_baselines, load_baseline
 from .command_stream import CommandStream
 from .cosine_law import CosineLawParams
-from .drive import Drive
+from .drive import Drive, UserController
 from .eros import ErosParams
 from .families import GaitFamily, all_families, command_walk, family, family_of
 from .footstep_planner import FootstepPlan, PlanError, StepLimits, plan_footsteps
@@ -28,6 +28,7 @@ __all__ = [
     "ArmGeometry",
     "CommandStream",
     "Drive",
+    "UserController",
     "GaitFamily",
     "all_families",
     "command_walk",

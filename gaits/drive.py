@@ -8,12 +8,17 @@ a command stream. :meth:`Drive.controller` builds the controller the loop runs;
 
 A table walks a command stream *planned per step* (:meth:`CommandStream.per_step`): the open loop
 of the papers, labelled so in :meth:`Drive.describe`.
+
+A controller of the user's own (:class:`UserController`: a class implementing
+``gaits.control.Controller``, built as ``cls(params, robot, dt)``, and the values of its
+parameters) is a drive too, without a gait set: it walks online and has no joint table.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -26,25 +31,62 @@ from .params import GaitParams, ParamError
 from .trajectory import GaitTrajectory
 from .walk_command import WalkCommand
 
-__all__ = ["Drive"]
+__all__ = ["Drive", "UserController"]
 
 #: steps a table may plan for a stream (a 10-minute stream at 0.3 s steps is 2000)
 MAX_STREAM_STEPS = 5000
+#: [s] how long an online controller walks when nothing else says (no stream, no duration given)
+ONLINE_DURATION_S = 10.0
+
+
+@dataclass(frozen=True)
+class UserController:
+    """A controller class of the user's own and the values of its parameters.
+
+    ``cls(params: dict, robot, dt)`` must return an object with the ``gaits.control.Controller``
+    methods; ``ranges`` (name -> (low, high)) are the search ranges its file declares;
+    ``source`` says where the class came from (``path.py:Class`` or ``module:Class``).
+    """
+
+    cls: Any
+    params: Mapping[str, float]
+    source: str
+    ranges: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+
+    def with_params(self, values: Mapping[str, float]) -> "UserController":
+        unknown = set(values) - set(self.params)
+        if unknown:
+            raise ParamError(f"controller {self.source}: unknown parameter(s) {', '.join(sorted(unknown))} "
+                             f"(its parameters: {', '.join(self.params)})")
+        return dataclasses.replace(self, params={**self.params, **values})
+
+    def build(self, robot: RobotGeometry, dt: float) -> Controller:
+        ctl = self.cls(dict(self.params), robot, dt)
+        missing = [m for m in ("start_pose", "reset", "step", "plan") if not callable(getattr(ctl, m, None))]
+        if missing or not hasattr(ctl, "dt"):
+            raise ParamError(f"controller {self.source}: the object it builds lacks "
+                             f"{', '.join(missing + ([] if hasattr(ctl, 'dt') else ['dt']))} "
+                             f"(see gaits/control.py, Controller)")
+        return ctl
 
 
 @dataclass(frozen=True)
 class Drive:
-    """A walk's parameter set, its stabiliser, and its command or command stream (module docstring)."""
+    """A walk's parameter set, its stabiliser, and its command or command stream (module docstring);
+    or a controller of the user's own (``user``, then ``params`` may be None)."""
 
-    params: GaitParams
+    params: GaitParams | None
     stabiliser: StabiliserParams | None = None
     command: WalkCommand | None = None
     stream: CommandStream | None = None
     source: str = ""                       # where the set came from, for reports
+    user: UserController | None = None
 
     def __post_init__(self) -> None:
         if self.command is not None and self.stream is not None:
             raise ParamError("give a command or a command stream, not both")
+        if self.params is None and self.user is None:
+            raise ParamError("a drive needs a gait parameter set or a controller of your own")
 
     @classmethod
     def of(cls, gait_file: GaitFile, *, source: str = "", stabiliser: bool | None = None,
@@ -60,7 +102,21 @@ class Drive:
 
     @property
     def family(self) -> str:
-        return self.params.FAMILY
+        return "user" if self.user is not None else self.params.FAMILY
+
+    @property
+    def online(self) -> bool:
+        """Whether the controller reads the walk command tick by tick (not from a table planned ahead)."""
+        return self.user is not None
+
+    def run_options(self) -> dict:
+        """What the loop needs besides the controller: the command stream an online controller reads
+        (``commands``) and the walk's length (``duration``: the stream's, else :data:`ONLINE_DURATION_S`)."""
+        if not self.online:
+            return {}
+        if self.stream is None:
+            return {"duration": ONLINE_DURATION_S}
+        return {"commands": self.stream, "duration": self.stream.duration}
 
     @property
     def closed_loop(self) -> bool:
@@ -85,6 +141,8 @@ class Drive:
 
     def table(self, robot: RobotGeometry, dt: float) -> GaitTrajectory:
         """The joint table of this walk for a robot (``robot.leg``, ``robot.foot_size``)."""
+        if self.user is not None:
+            raise ParamError(f"controller {self.user.source} walks online: it has no joint table")
         fam = family_of(self.params)
         if self.command is not None:
             return command_walk(self.params, robot, self.command, dt)
@@ -100,11 +158,15 @@ class Drive:
         """A hashable value that is equal for drives that walk the same (a cache key)."""
         stream = None if self.stream is None else (self.stream.t.tobytes(), self.stream.commands.tobytes(),
                                                    self.stream.tail)
-        return (self.params, self.stabiliser, self.command, stream)
+        user = None if self.user is None else (self.user.source, tuple(sorted(self.user.params.items())))
+        return (self.params, self.stabiliser, self.command, stream, user)
 
     def controller(self, robot: RobotGeometry, dt: float, table: GaitTrajectory | None = None) -> Controller:
         """The controller the loop runs: the table (``table``, or planned now), with the stabiliser
         around it when enabled."""
+        if self.user is not None:
+            ctl = self.user.build(robot, dt)
+            return Stabilised(ctl, self.stabiliser) if self.closed_loop else ctl
         ctl: Controller = TablePlayer(self.table(robot, dt) if table is None else table)
         if self.closed_loop:
             ctl = Stabilised(ctl, self.stabiliser)
@@ -112,8 +174,10 @@ class Drive:
 
     def describe(self) -> str:
         """One line: the set, how it is driven, and what it is asked to walk."""
-        how = "open-loop table" + (" with the IMU stabiliser" if self.closed_loop else "")
+        how = (f"controller {self.user.source}" if self.user is not None else "open-loop table") \
+            + (" with the IMU stabiliser" if self.closed_loop else "")
         what = ("its own walk" if self.command is None and self.stream is None else
                 f"command {self.command} (vx m/s, vy m/s, wz rad/s, ramped)" if self.command is not None else
-                f"a command stream of {len(self.stream.t)} rows, planned per step before the walk")
+                f"a command stream of {len(self.stream.t)} rows, "
+                + ("read tick by tick" if self.online else "planned per step before the walk"))
         return f"{self.source or self.family}: {how}, {what}"

@@ -71,6 +71,10 @@ COMMANDS_OPTION = click.option(
          "an engine walks it planned per step before the walk.")
 
 
+CONTROLLER_OPTION = click.option(
+    "--controller", "controller_file", type=click.Path(path_type=Path), metavar="CONTROLLER.yaml",
+    help="Walk a controller of your own instead of a gait set: a YAML naming its class and parameters "
+         "(tuner/controllers.py). Its code runs.")
 COMMAND_OPTION = click.option(
     "--command", metavar="VX,VY,WZ",
     help="Walk this velocity (m/s forward, m/s left, rad/s counter-clockwise), ramped from rest "
@@ -169,7 +173,7 @@ def _tail(duration: float | None, commands_file) -> float | None:
 
 def _walk_setup(robot_name: str, surface_name: str, family: str | None, params_spec: str | None,
                 duration: float | None, command: str | None, commands_file: Path | None, stabiliser: bool | None,
-                save_scene: Path | None = None):
+                save_scene: Path | None = None, controller_file: Path | None = None):
     """(drive, robot, simulator, duration of the rollout or None) of a walk asked for on the command
     line; with ``save_scene`` the assembled model is written there too (reported on stderr)."""
     from .robots import load_robot
@@ -178,7 +182,8 @@ def _walk_setup(robot_name: str, surface_name: str, family: str | None, params_s
     from .sim.surfaces import load_surface
 
     drive = resolve_drive(params_spec, family, stabiliser=stabiliser, command=_parse_command(command),
-                          commands_file=commands_file, tail=_tail(duration, commands_file))
+                          commands_file=commands_file, tail=_tail(duration, commands_file),
+                          controller=controller_file)
     robot = load_robot(robot_name)
     surface = load_surface(surface_name)
     if commands_file is None and duration is not None and not 0 < duration <= MAX_DURATION_S:  # NaN fails too
@@ -192,7 +197,10 @@ def _walk_setup(robot_name: str, surface_name: str, family: str | None, params_s
 
 def _walk(drive, robot, sim, duration: float | None, record_qpos: bool = False):
     """The rollout of a drive on the simulator (the controller it names, for ``duration`` or its own length)."""
-    return sim.run(drive.controller(robot, sim.control_period), duration=duration, record_qpos=record_qpos)
+    options = drive.run_options()
+    if duration is not None:
+        options["duration"] = duration
+    return sim.run(drive.controller(robot, sim.control_period), record_qpos=record_qpos, **options)
 
 
 def _walk_options(f):
@@ -206,6 +214,7 @@ def _walk_options(f):
         COMMAND_OPTION,
         COMMANDS_OPTION,
         STABILISER_OPTION,
+        CONTROLLER_OPTION,
     ]):
         f = opt(f)
     return f
@@ -248,7 +257,8 @@ def _parse_size(size: str) -> tuple[int, int]:
 @SAVE_SCENE_OPTION
 def render(robot_name: str, surface_name: str, family: str | None, params_spec: str | None,
            duration: float | None, command: str | None, commands_file: Path | None, stabiliser: bool | None,
-           out: Path, size: str, fps: int, no_overlay: bool, save_scene: Path | None) -> None:
+           controller_file: Path | None, out: Path, size: str, fps: int, no_overlay: bool,
+           save_scene: Path | None) -> None:
     """Film a walk: an MP4 from MuJoCo's offscreen renderer, headless.
 
     The camera tracks the torso; grass is drawn as a translucent slab as tall as its blades;
@@ -264,7 +274,7 @@ def render(robot_name: str, surface_name: str, family: str | None, params_spec: 
     w, h = _parse_size(size)
     options = VideoOptions(width=w, height=h, fps=fps, overlay=not no_overlay)
     drive, robot, sim, duration = _walk_setup(robot_name, surface_name, family, params_spec, duration, command,
-                                              commands_file, stabiliser, save_scene)
+                                              commands_file, stabiliser, save_scene, controller_file)
     trace = _walk(drive, robot, sim, duration, record_qpos=True)
     title = (f"{drive.source} | {robot.name} | {sim.surface.name}" + (f" | command {command}" if command else "")
              + (f" | {commands_file.name}" if commands_file else "") + (" | stabiliser" if drive.closed_loop else ""))
@@ -296,7 +306,7 @@ def _open_display() -> None:
 @SAVE_SCENE_OPTION
 def view(robot_name: str, surface_name: str, family: str | None, params_spec: str | None,
          duration: float | None, command: str | None, commands_file: Path | None, stabiliser: bool | None,
-         save_scene: Path | None) -> None:
+         controller_file: Path | None, save_scene: Path | None) -> None:
     """Watch a walk in MuJoCo's interactive viewer (needs a display), replayed in real time.
 
     The walk is simulated first (as `simulate` does), then replayed on a loop until the
@@ -312,7 +322,7 @@ def view(robot_name: str, surface_name: str, family: str | None, params_spec: st
         raise UserError("view needs a display (no DISPLAY or WAYLAND_DISPLAY here); "
                         "use `gait-tuner render ... --out walk.mp4`, or --save-scene with `view`'s options")
     drive, robot, sim, duration = _walk_setup(robot_name, surface_name, family, params_spec, duration, command,
-                                              commands_file, stabiliser, save_scene)
+                                              commands_file, stabiliser, save_scene, controller_file)
     trace = _walk(drive, robot, sim, duration, record_qpos=True)
     click.echo(f"{drive.describe()}; the walk: {trace.reason}; replaying {trace.t[-1]:.1f} s (close the window to stop)")
     _open_display()
@@ -337,7 +347,7 @@ def view(robot_name: str, surface_name: str, family: str | None, params_spec: st
 @SAVE_SCENE_OPTION
 def simulate(robot_name: str, surface_name: str, family: str | None, params_spec: str | None,
              duration: float | None, command: str | None, commands_file: Path | None, stabiliser: bool | None,
-             as_json: bool, plot_dir: Path | None, save_scene: Path | None) -> None:
+             controller_file: Path | None, as_json: bool, plot_dir: Path | None, save_scene: Path | None) -> None:
     """Walk a gait on a robot and a surface in MuJoCo and print its metrics.
 
     A parameter file's IMU stabiliser is used unless --no-stabiliser says otherwise. With
@@ -352,7 +362,7 @@ def simulate(robot_name: str, surface_name: str, family: str | None, params_spec
     from .sim.metrics import DEFINITIONS, summarize, tracking
 
     drive, robot, sim, duration = _walk_setup(robot_name, surface_name, family, params_spec, duration, command,
-                                              commands_file, stabiliser, save_scene)
+                                              commands_file, stabiliser, save_scene, controller_file)
     surface = sim.surface
     trace = _walk(drive, robot, sim, duration)
     metrics = summarize(trace)
@@ -547,6 +557,8 @@ def _run_and_report(spec, store, study_file: str, storage: str | None, total: in
     click.echo(f"study {spec.name}: {spec.gait} on {spec.robot} / {', '.join(spec.surfaces)} "
                f"({spec.aggregate if len(spec.surfaces) > 1 else 'single surface'}), "
                f"budget {budget} trials ({done} finished), {workers} worker(s) here, storage {store.where}")
+    if spec.controller is not None:
+        click.echo(f"study {spec.name} runs the code of a controller of your own: {spec.controller.source}")
     if done >= budget:
         click.echo(f"study {spec.name} is finished: {done} of {budget} trials "
                    f"(raise the budget with `gait-tuner tune {study_file} --trials N`)")
@@ -753,6 +765,8 @@ def export(study_file: str, storage: str | None, runs_dir: Path, number: int | N
     out.parent.mkdir(parents=True, exist_ok=True)
     try:
         t = pick(study, pareto_pick) if pareto_pick else best_trial(study, number)
+        if spec.controller is not None:
+            return _export_controller(spec, t, out)
         params = trial_params(spec.gait, t)
     except KeyError as exc:
         raise UserError(str(exc.args[0])) from None
@@ -775,6 +789,21 @@ def export(study_file: str, storage: str | None, runs_dir: Path, number: int | N
     table = write_joint_table(traj, robot, out.with_suffix(".joints.csv"), joint_names,
                               f"{drive.describe()}; surfaces {', '.join(spec.surfaces)}")
     click.echo(f"trial {t.number} (score {t.values[0]:.4f}) -> {out} and {table}")
+
+
+def _export_controller(spec, t, out: Path) -> None:
+    """A controller study's trial as a controller file (its class, the tuned values, the ranges)."""
+    from .controllers import save_controller
+    from .search.optimise import trial_fell
+    values = (t.user_attrs.get("params") or {}).get("controller")
+    if values is None:
+        raise UserError(f"trial {t.number} recorded no controller parameters")
+    user = spec.controller.with_params(values)
+    desc = (f"study {spec.name} trial {t.number}{_commit_of(spec.source)}: score {t.values[0]:.6g}"
+            + (" (fell)" if trial_fell(t) else "") + f"; surfaces {', '.join(spec.surfaces)}; robot {spec.robot}")
+    save_controller(out, user, desc)
+    click.echo(f"trial {t.number} (score {t.values[0]:.4f}) -> {out} (a controller file: "
+               f"gait-tuner simulate --controller {out})")
 
 
 @cli.command()
@@ -831,8 +860,8 @@ def compare(params_specs: tuple[str, ...], robot_name: str | None, surface_names
 
 
 @cli.command()
-@click.option("--params", "params_spec", required=True, metavar="PATH|NAME",
-              help="Parameter YAML file or shipped set (`gait-tuner sets`).")
+@click.option("--params", "params_spec", metavar="PATH|NAME",
+              help="Parameter YAML file or shipped set (`gait-tuner sets`); or --controller.")
 @robot_option()
 @surface_option()
 @click.option("--rollouts", default=100, show_default=True, type=click.IntRange(1, 100_000),
@@ -849,14 +878,15 @@ def compare(params_specs: tuple[str, ...], robot_name: str | None, surface_names
 @COMMANDS_OPTION
 @click.option("--duration", type=float, help="With --commands: seconds walked after the stream's last row [s] (default 2).")
 @STABILISER_OPTION
+@CONTROLLER_OPTION
 @workers_option()
 @JSON_OPTION
 @click.option("--plot", "plot_dir", type=click.Path(file_okay=False, path_type=Path),
               help="Write robustness.png into this directory.")
-def robustness(params_spec: str, robot_name: str, surface_name: str, rollouts: int, seed: int,
+def robustness(params_spec: str | None, robot_name: str, surface_name: str, rollouts: int, seed: int,
                randomisation_spec: str | None, pushes: str, push_rollouts: int, command: str | None,
                commands_file: Path | None, duration: float | None, stabiliser: bool | None,
-               workers: int, as_json: bool, plot_dir: Path | None) -> None:
+               controller_file: Path | None, workers: int, as_json: bool, plot_dir: Path | None) -> None:
     """Does a gait survive what differs between our model and your robot and field?
 
     Walks it ROLLOUTS times with masses, servos, backlash, latencies, sensor noise, friction, turf
@@ -873,8 +903,11 @@ def robustness(params_spec: str, robot_name: str, surface_name: str, rollouts: i
     from .sim.robustness import evaluate
     from .yaml_input import read_yaml_file
 
+    if params_spec is None and controller_file is None:
+        raise UserError("give --params (a gait set) or --controller (your own)")
     drive = resolve_drive(params_spec, None, stabiliser=stabiliser, command=_parse_command(command),
-                          commands_file=commands_file, tail=_tail(duration, commands_file))
+                          commands_file=commands_file, tail=_tail(duration, commands_file),
+                          controller=controller_file)
     doc = randomisation_spec if randomisation_spec in (None, "none") else \
         read_yaml_file(Path(randomisation_spec), "randomisation")
     if randomisation_spec not in (None, "none") and doc is None:
@@ -888,7 +921,10 @@ def robustness(params_spec: str, robot_name: str, surface_name: str, rollouts: i
     if any(not (0 < v <= 50) for v in sizes):
         raise UserError(f"--pushes {pushes!r}: each impulse must be in (0, 50] N s")
     from .robots import load_robot
-    drive.table(load_robot(robot_name), 0.01)          # a command the set cannot walk: one line, before any work
+    if drive.user is None:
+        drive.table(load_robot(robot_name), 0.01)      # a command the set cannot walk: one line, before any work
+    else:
+        drive.controller(load_robot(robot_name), 0.01)
     total = rollouts + len(sizes) * push_rollouts
     with tqdm(total=total, desc="robustness", unit="rollout", **_bar_options()) as bar:
         report = evaluate(robot_name, surface_name, drive, rollouts=rollouts, seed=seed, randomisation=rnd,

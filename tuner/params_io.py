@@ -46,17 +46,27 @@ def resolve_params(spec: str | None, family: str | None) -> GaitFile:
 
 
 def resolve_drive(spec: str | None, family: str | None, *, stabiliser: bool | None = None,
-                  command=None, commands_file: str | Path | None = None, tail: float | None = None) -> Drive:
+                  command=None, commands_file: str | Path | None = None, tail: float | None = None,
+                  controller: str | Path | None = None) -> Drive:
     """What drives the joints of a walk asked for on the command line, resolved once: the set
-    (:func:`resolve_params`), its stabiliser (``stabiliser``: None as the file says, False off,
-    True required), and a command (a ``gaits.WalkCommand``) or a command stream file
-    (``tail`` [s] walked after its last row, default 2)."""
+    (:func:`resolve_params`) or a controller of the user's own (``controller``: its YAML, see
+    ``tuner/controllers.py``; its code is imported), its stabiliser (``stabiliser``: None as the
+    file says, False off, True required), and a command (a ``gaits.WalkCommand``) or a command
+    stream file (``tail`` [s] walked after its last row, default 2)."""
     from .streams import load_stream
-    gait_file = resolve_params(spec, family)
-    label = spec or DEFAULT_BASELINE[gait_file.family]
     if command is not None and commands_file is not None:
         raise UserError("give --command or --commands, not both")
     stream = None if commands_file is None else load_stream(commands_file, tail)
+    if controller is not None:
+        from .controllers import load_controller
+        if spec is not None or family is not None:
+            raise UserError("give --params (a gait set) or --controller (your own), not both")
+        if stabiliser:
+            raise UserError("--stabiliser: a controller of your own brings its own feedback")
+        user = load_controller(controller)
+        return Drive(None, command=command, stream=stream, source=str(controller), user=user)
+    gait_file = resolve_params(spec, family)
+    label = spec or DEFAULT_BASELINE[gait_file.family]
     try:
         return Drive.of(gait_file, source=label, stabiliser=stabiliser, command=command, stream=stream)
     except ParamError as exc:

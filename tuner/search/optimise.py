@@ -64,7 +64,7 @@ from ..sim import cache as sim_cache
 from ..process_pool import mp_context
 from ..sim.randomisation import TUNE, draw
 from .storage import Heartbeat, StudyStore, process_identity
-from .study import OBJECTIVES, STAB_PREFIX, StudySpec
+from .study import CTRL_PREFIX, OBJECTIVES, STAB_PREFIX, StudySpec
 
 __all__ = ["FALL_PENALTY_DEG", "Evaluator", "open_storage", "open_study", "enqueue_starts", "run_study",
            "best_trial", "trial_params", "trial_stabiliser", "trial_result", "rollout_score", "trial_fell", "trial_feasible",
@@ -129,19 +129,24 @@ class Evaluator:
             return self._evaluate_speed(drive.params, drive.stabiliser)
         dt = self.sims[0].control_period
         try:
-            traj = drive.table(self.robot, dt)
+            if drive.user is not None:          # online: no table; its walk lasts the study's duration
+                traj, planned, plan_dist = None, float(spec.duration), 0.0
+                drive.controller(self.robot, dt)       # a controller that cannot be built: invalid, at once
+            else:
+                traj = drive.table(self.robot, dt)
+                planned = traj.duration - float(traj.t[np.flatnonzero(traj.support != 0)[0]]) \
+                    if np.any(traj.support != 0) else traj.duration
+                plan_dist = float(traj.p_world_pelvis[-1, 0] - traj.p_world_pelvis[0, 0])
         except (ParamError, UnreachableTargetError) as exc:
             return {"score": FALL_PENALTY_DEG * 2, "speed": 0.0, "fall_constraint": 1.0,
                     "invalid": str(exc), "per_surface": {}}
-        planned = traj.duration - float(traj.t[np.flatnonzero(traj.support != 0)[0]]) \
-            if np.any(traj.support != 0) else traj.duration
-        plan_dist = float(traj.p_world_pelvis[-1, 0] - traj.p_world_pelvis[0, 0])
         if spec.robust is not None:
             return self._evaluate_robust(drive, traj, planned, plan_dist)
         scores, speeds, walked, per = [], [], [], {}
         shortfall = 0.0
         for i, (name, sim) in enumerate(zip(spec.surfaces, self.sims)):
-            m = summarize(sim.run(drive.controller(self.robot, dt, table=traj), duration=spec.duration))
+            m = summarize(sim.run(drive.controller(self.robot, dt, table=traj),
+                                  **{**drive.run_options(), "duration": spec.duration}))
             score, frac, covered = rollout_score(m, planned, plan_dist)
             if covered is not None:
                 shortfall = max(shortfall, MIN_PROGRESS - covered)
@@ -156,7 +161,7 @@ class Evaluator:
         return {"score": self._aggregate(scores), "speed": float(np.mean(speeds)),
                 "fall_constraint": constraint, "fell": fell_any, "per_surface": per}
 
-    def _evaluate_robust(self, drive: gaits.Drive, traj: gaits.GaitTrajectory, planned: float,
+    def _evaluate_robust(self, drive: gaits.Drive, traj: gaits.GaitTrajectory | None, planned: float,
                          plan_dist: float) -> dict[str, Any]:
         """K randomised rollouts per surface (tuning seeds 0..K-1, common to all trials), scored by
         the study's risk measure; survival below ``min_survival`` is infeasible, and a trial whose
@@ -172,7 +177,7 @@ class Evaluator:
             for i in range(rb.rollouts):
                 p = draw(rb.randomisation, i, *sim.n_random(), namespace=TUNE)
                 m = summarize(sim.run(drive.controller(self.robot, sim.control_period, table=traj),
-                                      duration=self.spec.duration, perturb=p))
+                                      perturb=p, **{**drive.run_options(), "duration": self.spec.duration}))
                 score, _, covered = rollout_score(m, planned, plan_dist)
                 scores.append(score)
                 if m.fell:
@@ -278,8 +283,7 @@ def objective_for(spec: StudySpec, evaluator: Evaluator) -> Callable[[optuna.Tri
     def objective(trial: optuna.Trial):
         sampled = _suggest(trial, spec)
         try:
-            params = spec.params_for(sampled)
-            stabiliser = spec.stabiliser_for(sampled)
+            drive = spec.drive_for(sampled, source=f"trial {trial.number}")
         except ParamError as exc:
             record_constraint(trial, 1.0)
             trial.set_user_attr("result", {"fell": True, "fall_constraint": 1.0, "invalid": str(exc)})
@@ -293,12 +297,12 @@ def objective_for(spec: StudySpec, evaluator: Evaluator) -> Callable[[optuna.Tri
             trial.report(value, step)
             return trial.should_prune()
 
-        res = evaluator.evaluate(gaits.Drive(params, stabiliser, source=f"trial {trial.number}"),
-                                 None if spec.speed is not None else report)
+        res = evaluator.evaluate(drive, None if spec.speed is not None else report)
         # two journal writes per trial (params, result): workers contend for the file lock
         record_constraint(trial, res["fall_constraint"])
-        trial.set_user_attr("params", params.to_mapping() if stabiliser is None else
-                            {**params.to_mapping(), "stabiliser": stabiliser.to_mapping()})
+        walked = {"controller": dict(drive.user.params)} if drive.user is not None else drive.params.to_mapping()
+        trial.set_user_attr("params", walked if drive.stabiliser is None else
+                            {**walked, "stabiliser": drive.stabiliser.to_mapping()})
         trial.set_user_attr("result", {"fell": res.get("fell", True),
                                        "fall_constraint": res["fall_constraint"],
                                        "per_surface": res["per_surface"], "invalid": res.get("invalid"),
@@ -320,6 +324,8 @@ def _clip_to_space(spec: StudySpec, params: gaits.GaitParams) -> dict[str, Any]:
     for r in spec.space:
         if r.name.startswith(STAB_PREFIX):
             v = getattr(spec.stabiliser, r.name[len(STAB_PREFIX):])
+        elif r.name.startswith(CTRL_PREFIX):
+            v = spec.controller.params[r.name[len(CTRL_PREFIX):]]
         else:
             v = getattr(params, r.name)
         v = min(max(v, r.low), r.high)
@@ -349,7 +355,10 @@ def enqueue_starts(study: optuna.Study, spec: StudySpec) -> list[str]:
             done.append("casadi seed")
         except (SeedInfeasible, ParamError) as exc:
             done.append(f"casadi seed skipped: {exc}")
-    if "baselines" in spec.enqueue:
+    if "baselines" in spec.enqueue and spec.controller is not None:
+        study.enqueue_trial(_clip_to_space(spec, None), user_attrs={"start": "the controller file's values"})
+        done.append("the controller file's values")
+    elif "baselines" in spec.enqueue:
         for i, b in enumerate((spec.base,) + spec.baselines):
             study.enqueue_trial(_clip_to_space(spec, b), user_attrs={"start": f"baseline {i}"})
             done.append(f"baseline {i}")

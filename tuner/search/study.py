@@ -26,6 +26,10 @@ A study tunes one gait family on one robot against one or several surfaces::
       randomisation: {}            #   overrides of tuner/sim/randomisation.py's defaults, or none
     stabiliser: {enabled: true}    # optional: the IMU stabiliser's fixed values; its gains may be
                                    #   searched as space keys stabiliser.k_ankle_pitch etc.
+    controller: my_controller.yaml # optional, instead of gait/base: a controller of your own
+                                   #   (tuner/controllers.py); its parameters are searched as
+                                   #   controller.NAME (default: every range its file declares);
+                                   #   the study runs its code
     speed:                         # optional: a speed study, scored by tuner/sim/walk_speed.py
       directions:                  #   forward, backward, left, right, turn_left, turn_right
         forward: {top: 0.45, weight: 1.0}     # top stair [m/s or rad/s], weight in the score
@@ -53,7 +57,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 
-from gaits import DIRECTIONS, GaitParams, families, family, family_class, walks_direction
+from gaits import DIRECTIONS, Drive, GaitParams, ParamError, UserController, families, family, family_class, walks_direction
 
 from ..errors import UserError
 from ..params_io import resolve_params
@@ -70,9 +74,12 @@ OBJECTIVES = {"pitch_rms": "minimize", "speed": "maximize", "speed_score": "maxi
               **{d: "maximize" for d in ("forward", "backward", "left", "right", "turn_left", "turn_right")}}
 _KEYS = ("name", "description", "robot", "surfaces", "aggregate", "gait", "base", "fixed", "space",
          "objectives", "trials", "duration", "enqueue", "baselines", "sampler_seed", "robust", "stabiliser",
-         "speed")
+         "speed", "controller")
 RISKS = ("cvar25", "worst", "mean")
 STAB_PREFIX = "stabiliser."
+CTRL_PREFIX = "controller."
+#: [s] a study's walk of a controller of the user's own when the study gives no duration
+USER_DURATION_S = 10.0
 
 
 @dataclass(frozen=True)
@@ -138,6 +145,7 @@ class StudySpec:
     robust: RobustSpec | None = None
     stabiliser: Any = None            # gaits.StabiliserParams: the fixed values, or None (open loop)
     speed: SpeedSpec | None = None    # a speed study's scoring, or None
+    controller: UserController | None = None   # a controller of the user's own (then gait "user")
 
     @property
     def directions(self) -> list[str]:
@@ -150,10 +158,19 @@ class StudySpec:
         gains = {k[len(STAB_PREFIX):]: v for k, v in sampled.items() if k.startswith(STAB_PREFIX)}
         return dataclasses.replace(self.stabiliser, **gains)
 
+    def drive_for(self, sampled: Mapping[str, Any], source: str = "") -> Drive:
+        """What a trial walks: the sampled set (or the user's controller with the sampled values)
+        and the study's stabiliser with the sampled gains. ParamError for an invalid set."""
+        stabiliser = self.stabiliser_for(sampled)
+        if self.controller is not None:
+            values = {k[len(CTRL_PREFIX):]: float(v) for k, v in sampled.items() if k.startswith(CTRL_PREFIX)}
+            return Drive(None, stabiliser, source=source, user=self.controller.with_params(values))
+        return Drive(self.params_for(sampled), stabiliser, source=source)
+
     def params_for(self, sampled: Mapping[str, Any]) -> GaitParams:
         """The base with the sampled values and the fields that follow from them (the family's
         ``derived`` rule, e.g. TLIPFM's d2 = step_length - d1)."""
-        values = {k: v for k, v in sampled.items() if not k.startswith(STAB_PREFIX)}
+        values = {k: v for k, v in sampled.items() if not k.startswith((STAB_PREFIX, CTRL_PREFIX))}
         values.update(family(self.gait).derived(values, self.base))
         return self.base.replace(**values)
 
@@ -198,6 +215,8 @@ def load_study(path_or_name: str) -> StudySpec:
     for key in doc:
         if key not in _KEYS:
             _fail(source, f"unknown key {key!r} (allowed: {', '.join(_KEYS)})")
+    if doc.get("controller") is not None:
+        return _user_study(doc, path, source)
     for key in ("gait", "space"):
         if key not in doc:
             _fail(source, f"missing {key!r}")
@@ -248,6 +267,30 @@ def load_study(path_or_name: str) -> StudySpec:
                           f"[{meta['lo']}, {meta['hi']}] {meta['unit']}")
         space.append(ParamRange(name, float(low), float(high), log,
                                 isinstance(numeric[name].default, int), meta["unit"]))
+    c = _common(doc, path, source, gait)
+    surfaces, aggregate, speed, objectives, trials, duration, enqueue, seed, name, description = c
+    extra_sets = []
+    if not isinstance(doc.get("baselines") or [], list):
+        _fail(source, f"baselines must be a list of parameter sets, got {doc.get('baselines')!r}")
+    for b in doc.get("baselines") or []:
+        try:
+            gf = resolve_params(str(b), gait)
+        except Exception as exc:
+            _fail(source, f"baselines: {exc}")
+        extra_sets.append(gf.params)
+    robot = _study_robot(doc.get("robot", "kidsize"), path, source)
+    robust = _study_robust(doc.get("robust"), source)
+    return StudySpec(name=name, gait=str(gait), base=base,
+                     space=tuple(space), surfaces=tuple(str(s) for s in surfaces), robot=str(robot),
+                     aggregate=aggregate, objectives=tuple(objectives), trials=trials,
+                     duration=None if duration is None else float(duration), enqueue=tuple(enqueue),
+                     baselines=tuple(extra_sets), sampler_seed=seed,
+                     description=description, source=source, robust=robust,
+                     stabiliser=stabiliser, speed=speed)
+
+
+def _common(doc: Mapping[str, Any], path: Path, source: str, gait: str) -> tuple:
+    """The keys every study reads the same way (surfaces .. description)."""
     surfaces = doc.get("surfaces", ["grass50"])
     if isinstance(surfaces, str):
         surfaces = [surfaces]
@@ -291,15 +334,6 @@ def load_study(path_or_name: str) -> StudySpec:
     enqueue = doc.get("enqueue", ["casadi", "baselines"])
     if not isinstance(enqueue, list) or any(e not in ("casadi", "baselines") for e in enqueue):
         _fail(source, f"enqueue must list casadi and/or baselines, got {enqueue!r}")
-    extra_sets = []
-    if not isinstance(doc.get("baselines") or [], list):
-        _fail(source, f"baselines must be a list of parameter sets, got {doc.get('baselines')!r}")
-    for b in doc.get("baselines") or []:
-        try:
-            gf = resolve_params(str(b), gait)
-        except Exception as exc:
-            _fail(source, f"baselines: {exc}")
-        extra_sets.append(gf.params)
     seed = doc.get("sampler_seed", 0)
     if not isinstance(seed, int) or isinstance(seed, bool):
         _fail(source, f"sampler_seed must be an integer, got {seed!r}")
@@ -310,21 +344,65 @@ def load_study(path_or_name: str) -> StudySpec:
     description = doc.get("description") or ""
     if not isinstance(description, str):
         _fail(source, f"description must be text, got {type(description).__name__}")
+    return surfaces, aggregate, speed, objectives, trials, duration, enqueue, seed, name, description
+
+
+def _user_study(doc: Mapping[str, Any], path: Path, source: str) -> "StudySpec":
+    """A study of a controller of the user's own (its file imported here, once)."""
+    from ..controllers import load_controller
+    for key in ("gait", "base", "fixed", "baselines"):
+        if key in doc:
+            _fail(source, f"{key!r} does not go with 'controller': the controller's file holds its parameters")
+    if doc.get("speed") is not None:
+        _fail(source, "speed studies walk a gait's staircases: not built for a controller of your own")
+    ref = doc["controller"]
+    if not isinstance(ref, str):
+        _fail(source, f"controller = {ref!r}: expected the path of a controller YAML")
+    cpath = Path(ref) if Path(ref).is_absolute() else path.parent / ref
+    try:
+        user = load_controller(cpath)
+    except UserError as exc:
+        _fail(source, f"controller: {exc}")
+    stabiliser = _study_stabiliser(doc.get("stabiliser"), source)
+    space_doc = doc.get("space")
+    if space_doc is None:
+        space_doc = {CTRL_PREFIX + k: {"low": lo, "high": hi} for k, (lo, hi) in user.ranges.items()}
+    if not isinstance(space_doc, Mapping) or not space_doc:
+        _fail(source, "space must map at least one controller.NAME to {low, high} (or the controller's "
+                      "file must declare ranges)")
+    space = []
+    for name, rng in space_doc.items():
+        if isinstance(name, str) and name.startswith(STAB_PREFIX):
+            space.append(_stabiliser_range(name, rng, stabiliser, source))
+            continue
+        field_name = name[len(CTRL_PREFIX):] if isinstance(name, str) and name.startswith(CTRL_PREFIX) else None
+        if field_name not in user.params:
+            _fail(source, f"space: {name!r} is not controller.NAME of one of the controller's parameters "
+                          f"({', '.join(user.params) or 'none'})")
+        low, high, log = _range_bounds(name, rng, source)
+        if field_name in user.ranges:
+            lo, hi = user.ranges[field_name]
+            if low < lo or high > hi:
+                _fail(source, f"space: {name} range [{low}, {high}] leaves the controller's range [{lo}, {hi}]")
+        space.append(ParamRange(name, float(low), float(high), log, False, "-"))
+    enqueue_doc = doc.get("enqueue", ["baselines"])
+    if not isinstance(enqueue_doc, list) or any(e != "baselines" for e in enqueue_doc):
+        _fail(source, f"enqueue: a controller study can enqueue [baselines] (its file's values) only, got {enqueue_doc!r}")
+    doc = {**doc, "enqueue": enqueue_doc,
+           "duration": USER_DURATION_S if doc.get("duration") is None else doc["duration"]}
+    c = _common(doc, path, source, "user")
+    surfaces, aggregate, _, objectives, trials, duration, enqueue, seed, name, description = c
     robot = _study_robot(doc.get("robot", "kidsize"), path, source)
-    robust = _study_robust(doc.get("robust"), source)
-    return StudySpec(name=name, gait=str(gait), base=base,
-                     space=tuple(space), surfaces=tuple(str(s) for s in surfaces), robot=str(robot),
-                     aggregate=aggregate, objectives=tuple(objectives), trials=trials,
-                     duration=None if duration is None else float(duration), enqueue=tuple(enqueue),
-                     baselines=tuple(extra_sets), sampler_seed=seed,
-                     description=description, source=source, robust=robust,
-                     stabiliser=stabiliser, speed=speed)
+    return StudySpec(name=name, gait="user", base=None, space=tuple(space), surfaces=tuple(surfaces),
+                     robot=str(robot), aggregate=aggregate, objectives=tuple(objectives), trials=trials,
+                     duration=duration, enqueue=tuple(enqueue), sampler_seed=seed, description=description,
+                     source=source, robust=_study_robust(doc.get("robust"), source), stabiliser=stabiliser,
+                     controller=user)
 
 
 def _study_stabiliser(doc: Any, source: str) -> Any:
     if doc is None:
         return None
-    from gaits import ParamError
     from gaits.imu_stabiliser import stabiliser_from_mapping
     try:
         return stabiliser_from_mapping(doc, "stabiliser")

@@ -47,7 +47,9 @@ _TABLES: dict = {}
 
 
 def _controller(sim: Simulator, drive: gaits.Drive):
-    """A fresh controller of ``drive`` for the simulator; the joint table is planned once per process."""
+    """A fresh controller of ``drive`` for the simulator; a joint table is planned once per process."""
+    if drive.online:
+        return drive.controller(sim.robot, sim.control_period)
     key = (drive.key(), id(sim))
     if key not in _TABLES:
         _TABLES.clear()
@@ -59,7 +61,7 @@ def _one(task: tuple) -> dict[str, Any]:
     robot, surface, drive, randomisation, seed, push = task
     sim = simulator(robot, surface)
     p = draw(randomisation.with_push(push), seed, *sim.n_random(), namespace=EVALUATE)
-    m = summarize(sim.run(_controller(sim, drive), perturb=p))
+    m = summarize(sim.run(_controller(sim, drive), perturb=p, **drive.run_options()))
     return {"push": push, "seed": list(seed), "fell": m.fell, "t_fall_s": m.t_fall_s,
             "pitch_rms_deg": m.pitch_rms_deg, "speed_mps": m.speed_mps, "distance_m": m.distance_m}
 

@@ -1,0 +1,95 @@
+"""Bring your own controller: a team's class named in a YAML walks, is stress-tested and is tuned
+by a study through the CLI, like the built-in gaits; every mistake in its file is one line."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+from pathlib import Path
+
+import pytest
+import yaml
+
+from tuner.controllers import load_controller
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLE = ROOT / "examples" / "controllers"
+
+
+def run(cmd, args, env, **kw):
+    return subprocess.run(cmd + [str(a) for a in args], capture_output=True, text=True, env=env, timeout=600, **kw)
+
+
+def test_the_example_controller_walks_and_reports_its_plan(gait_tuner_cmd, run_env):
+    r = run(gait_tuner_cmd, ["simulate", "--controller", EXAMPLE / "march.yaml", "--surface", "rigid",
+                             "--duration", "3", "--json"], run_env)
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert "controller " in out["drive"] and "march.py:MarchInPlace" in out["drive"]
+    assert out["metrics"]["walk_time_s"] == pytest.approx(2.5, abs=0.02)     # from its own walk_start
+
+
+def test_a_tiny_study_tunes_it_end_to_end(gait_tuner_cmd, run_env, tmp_path):
+    runs = tmp_path / "runs"
+    study = EXAMPLE / "march-study.yaml"
+    r = run(gait_tuner_cmd, ["tune", study, "--trials", "4", "--workers", "2", "--runs", runs], run_env)
+    assert r.returncode == 0, r.stderr
+    assert "runs the code of a controller of your own" in r.stdout and "march.py:MarchInPlace" in r.stdout
+    out = tmp_path / "best.yaml"
+    r = run(gait_tuner_cmd, ["export", study, "--runs", runs, "--out", out], run_env)
+    assert r.returncode == 0, r.stderr
+    doc = yaml.safe_load(out.read_text())
+    assert doc["class"].endswith("march.py:MarchInPlace") and "trial" in doc["description"]
+    tuned = load_controller(out)
+    shipped = load_controller(EXAMPLE / "march.yaml")
+    assert set(tuned.params) == set(shipped.params) and tuned.ranges == shipped.ranges
+    for name, (lo, hi) in shipped.ranges.items():
+        assert lo <= tuned.params[name] <= hi
+    trials = json.loads(run(gait_tuner_cmd, ["trials", study, "--runs", runs, "--json"], run_env).stdout)
+    assert trials["trials"] == 4 and {"controller.period", "controller.sway"} <= set(trials["shown"][0]["params"])
+    r = run(gait_tuner_cmd, ["simulate", "--controller", out, "--surface", "rigid", "--duration", "2"], run_env)
+    assert r.returncode == 0, r.stderr
+    r = run(gait_tuner_cmd, ["robustness", "--controller", out, "--surface", "rigid", "--rollouts", "2",
+                             "--pushes", "", "--duration", "2"], run_env)
+    assert r.returncode == 0 and "survival" in r.stdout, r.stderr
+
+
+def _controller_file(folder: Path, cls: str, code: str | None = None, **extra) -> Path:
+    if code is not None:
+        (folder / "mine.py").write_text(code)
+    doc = {"class": cls, "params": {"a": 1.0}, **extra}
+    path = folder / "mine.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    return path
+
+
+@pytest.mark.parametrize("cls, code, extra, message", [
+    ("mine.py", None, {}, "expected path/to/file.py:ClassName"),
+    ("nothere.py:C", None, {}, "no such file"),
+    ("mine.py:C", "raise RuntimeError('no servo bus')\n", {}, "importing mine.py failed: RuntimeError: no servo bus"),
+    ("mine.py:C", "X = 1\n", {}, "has no class 'C'"),
+    ("no_such_module_xyz:C", None, {}, "importing no_such_module_xyz failed: ModuleNotFoundError"),
+    ("mine.py:C", "class C: pass\n", {"ranges": {"a": {"low": 2.0, "high": 3.0}}}, "params.a = 1 lies outside"),
+    ("mine.py:C", "class C: pass\n", {"ranges": {"b": {"low": 0.0, "high": 3.0}}}, "ranges.b: not one of the params"),
+    ("mine.py:C", "class C: pass\n", {"colour": "red"}, "unknown key 'colour'"),
+    ("mine.py:C", "class C:\n    def __init__(self, p, r, dt):\n        self.dt = dt\n", {},
+     "lacks start_pose, reset, step, plan"),
+])
+def test_a_bad_controller_file_is_one_line(gait_tuner_cmd, run_env, tmp_path, cls, code, extra, message):
+    path = _controller_file(tmp_path, cls, code, **extra)
+    r = run(gait_tuner_cmd, ["simulate", "--controller", path, "--surface", "rigid", "--duration", "1"], run_env)
+    assert r.returncode == 2, r.stderr
+    assert message in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+
+
+def test_a_study_names_its_controller_or_a_gait_not_both(gait_tuner_cmd, run_env, tmp_path):
+    study = tmp_path / "s.yaml"
+    study.write_text(f"controller: {EXAMPLE / 'march.yaml'}\ngait: tlipfm\nsurfaces: [rigid]\n")
+    r = run(gait_tuner_cmd, ["tune", study, "--runs", tmp_path / "runs"], run_env)
+    assert r.returncode == 2 and "'gait' does not go with 'controller'" in r.stderr
+    study.write_text(f"controller: {EXAMPLE / 'march.yaml'}\nsurfaces: [rigid]\n"
+                     "space: {controller.height: {low: 0.1, high: 0.3}, controller.nope: {low: 0, high: 1}}\n")
+    r = run(gait_tuner_cmd, ["tune", study, "--runs", tmp_path / "runs"], run_env)
+    assert r.returncode == 2 and "'controller.nope' is not controller.NAME" in r.stderr
+    r = run(gait_tuner_cmd, ["simulate", "--controller", EXAMPLE / "march.yaml", "--params", "tkux-table2"], run_env)
+    assert r.returncode == 2 and "not both" in r.stderr

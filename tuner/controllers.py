@@ -1,0 +1,133 @@
+"""Bring your own controller: a controller class of a team's own, named in a YAML file.
+
+A controller file says which class to run and with which parameters::
+
+    class: march.py:MarchInPlace    # a .py file (relative to this YAML) and a class in it,
+                                    # or module:Class on the Python path
+    description: free text
+    params:                         # the values the class is built with: cls(params, robot, dt)
+      period: 0.5
+      lift: 0.03
+    ranges:                         # optional: the search range of each tunable parameter
+      period: {low: 0.35, high: 0.9}
+
+The class implements ``gaits.control.Controller`` (``dt``, ``duration``, ``start_pose``, ``reset``,
+``step``, ``plan``); ``examples/controllers/`` has one. **Naming a controller file runs its code**,
+in every process of a study (``tune`` and ``worker`` say which file they import). Every mistake
+in the file, and any exception its import raises, is one line naming the file.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import math
+import sys
+from pathlib import Path
+from typing import Any, Mapping
+
+from gaits import UserController
+
+from .errors import UserError
+from .yaml_input import read_yaml_file
+
+__all__ = ["load_controller", "import_class", "save_controller"]
+
+_KEYS = ("class", "description", "params", "ranges")
+
+
+def import_class(spec: str, relative_to: Path, source: str) -> tuple[Any, str]:
+    """(class, where it came from) of ``path.py:Class`` (relative to ``relative_to``) or ``module:Class``."""
+    if not isinstance(spec, str) or spec.count(":") != 1 or not all(spec.split(":")):
+        raise UserError(f"{source}: class = {spec!r}: expected path/to/file.py:ClassName or module:ClassName")
+    where, name = spec.split(":")
+    try:
+        if where.endswith(".py"):
+            path = Path(where)
+            path = (path if path.is_absolute() else relative_to / path).resolve()
+            if not path.is_file():
+                raise UserError(f"{source}: class {spec!r}: no such file {path}")
+            mod_name = f"gait_tuner_user_{abs(hash(str(path)))}"
+            module = sys.modules.get(mod_name)
+            if module is None:
+                loader_spec = importlib.util.spec_from_file_location(mod_name, path)
+                module = importlib.util.module_from_spec(loader_spec)
+                sys.modules[mod_name] = module
+                try:
+                    loader_spec.loader.exec_module(module)
+                except BaseException:
+                    del sys.modules[mod_name]
+                    raise
+            origin = str(path)
+        else:
+            module = importlib.import_module(where)
+            origin = getattr(module, "__file__", where) or where
+    except UserError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - the user's code may raise anything on import
+        raise UserError(f"{source}: importing {where} failed: {type(exc).__name__}: "
+                        f"{' '.join(str(exc).split())}") from None
+    cls = getattr(module, name, None)
+    if cls is None or not callable(cls):
+        raise UserError(f"{source}: {where} has no class {name!r}")
+    return cls, f"{origin}:{name}"
+
+
+def _number(value: Any, what: str, source: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise UserError(f"{source}: {what} = {value!r}: expected a finite number")
+    return float(value)
+
+
+def load_controller(path: str | Path) -> UserController:
+    """The controller a YAML file names, its class imported (see the module docstring)."""
+    path = Path(path)
+    source = str(path)
+    if not path.is_file():
+        raise UserError(f"{source}: no such controller file" if not path.exists()
+                        else f"{source}: not a regular file (a controller is a YAML file)")
+    doc = read_yaml_file(path, "controller")
+    if not isinstance(doc, Mapping):
+        raise UserError(f"{source}: expected a mapping with keys {', '.join(_KEYS)}")
+    for k in doc:
+        if k not in _KEYS:
+            raise UserError(f"{source}: unknown key {k!r} (allowed: {', '.join(_KEYS)})")
+    if "class" not in doc:
+        raise UserError(f"{source}: missing 'class' (path/to/file.py:ClassName or module:ClassName)")
+    params_doc = doc.get("params") or {}
+    if not isinstance(params_doc, Mapping):
+        raise UserError(f"{source}: params must be a mapping of name: number")
+    params = {str(k): _number(v, f"params.{k}", source) for k, v in params_doc.items()}
+    ranges_doc = doc.get("ranges") or {}
+    if not isinstance(ranges_doc, Mapping):
+        raise UserError(f"{source}: ranges must map parameter names to {{low, high}}")
+    ranges = {}
+    for k, r in ranges_doc.items():
+        if k not in params:
+            raise UserError(f"{source}: ranges.{k}: not one of the params ({', '.join(params) or 'none'})")
+        if not isinstance(r, Mapping) or set(r) != {"low", "high"}:
+            raise UserError(f"{source}: ranges.{k} must be {{low: ..., high: ...}}")
+        low, high = _number(r["low"], f"ranges.{k}.low", source), _number(r["high"], f"ranges.{k}.high", source)
+        if not low < high:
+            raise UserError(f"{source}: ranges.{k}: low = {low:g} must be below high = {high:g}")
+        if not low <= params[k] <= high:
+            raise UserError(f"{source}: params.{k} = {params[k]:g} lies outside its range [{low:g}, {high:g}]")
+        ranges[str(k)] = (low, high)
+    cls, origin = import_class(doc["class"], path.parent, source)
+    return UserController(cls, params, origin, ranges)
+
+
+def save_controller(path: str | Path, user: UserController, description: str = "") -> Path:
+    """Write a controller file that :func:`load_controller` reads back: the class (absolute path),
+    the parameter values and the ranges."""
+    import yaml
+    path = Path(path)
+    doc = {"class": user.source, "description": description,
+           "params": {k: float(v) for k, v in user.params.items()},
+           "ranges": {k: {"low": float(lo), "high": float(hi)} for k, (lo, hi) in user.ranges.items()}}
+    if not description:
+        del doc["description"]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("# a controller of your own (tuner/controllers.py); naming this file runs its class's code\n"
+                    + yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
+    return path
