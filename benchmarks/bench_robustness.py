@@ -27,7 +27,7 @@ import gaits
 from tuner.params_io import resolve_params
 from tuner.sim.randomisation import DEFAULT_PUSHES
 from tuner.sim.robustness import evaluate
-from tuner.search.optimise import Evaluator
+from tuner.search.objective import Evaluator
 from tuner.search.study import load_study
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -30,8 +30,10 @@ import optuna
 import gaits
 from gaits.params import ParamError
 
-from tuner.search.optimise import (Evaluator, StudyStore, enqueue_starts, objective_for, run_study,
-                          trial_feasible, trial_fell)
+from tuner.search.objective import Evaluator, objective_for
+from tuner.search.storage import StudyStore
+from tuner.search.trials import trial_feasible, trial_fell
+from tuner.search.workers import enqueue_starts, run_study
 from tuner.search.seed import SeedProblem
 from tuner.search.study import load_study
 

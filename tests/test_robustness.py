@@ -123,7 +123,7 @@ def test_shipped_robust_results_survive_randomisation(gait_tuner_cmd, run_env, n
 
 def test_trials_lists_a_study_and_exactly_optunas_best(gait_tuner_cmd, run_env, tmp_path):
     import optuna
-    from tuner.search.optimise import open_storage
+    from tuner.search.workers import open_storage
     study_file = tmp_path / "listed.yaml"
     study_file.write_text(STUDY.replace("trials: 3", "trials: 4"))
     r = run(gait_tuner_cmd, ["tune", str(study_file), "--runs", str(tmp_path / "runs")], run_env)

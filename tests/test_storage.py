@@ -19,7 +19,8 @@ import optuna
 import pytest
 
 from tuner.errors import UserError
-from tuner.search.storage import FlockLock, StudyStore, normalise_url, repair_journal
+from tuner.search.journal import FlockLock, repair_journal
+from tuner.search.storage import StudyStore, normalise_url
 
 # trials of ~0.3-1 s each (two surfaces, 8 s walks): long enough to be killed mid-trial
 STUDY = """name: {name}
@@ -172,7 +173,7 @@ def test_lock_held_by_a_killed_process_is_no_obstacle(gait_tuner_cmd, run_env, t
     runs.mkdir()
     journal = runs / "lk.journal"
     holder = subprocess.Popen([sys.executable, "-c", (
-        "import sys, time; from tuner.search.storage import FlockLock; "
+        "import sys, time; from tuner.search.journal import FlockLock; "
         f"a = FlockLock({str(journal)!r}); a.acquire(); "
         f"b = FlockLock({str(journal)!r}, suffix='.budget.lock'); b.acquire(); "
         "print('held', flush=True); time.sleep(600)")], stdout=subprocess.PIPE, text=True)
@@ -380,7 +381,7 @@ def test_one_worker_and_a_seed_give_the_same_study_and_pareto_lists_optunas_best
 
 
 def test_pareto_pick_chooses_on_the_front(gait_tuner_cmd, run_env, tmp_path):
-    from tuner.search.optimise import pareto_pick
+    from tuner.search.trials import pareto_pick
     study = tmp_path / "pp.yaml"
     study.write_text(STUDY.format(name="pp", trials=10, surfaces=SHORT).replace("objectives: [pitch_rms]",
                                                                  "objectives: [pitch_rms, speed]"))

@@ -528,7 +528,7 @@ def _study_progress(spec, total: int):
     """A tqdm bar over the study's finished trials, and the callback that refreshes it."""
     from tqdm import tqdm
 
-    from .search.optimise import DONE_STATES, best_trial, trial_fell
+    from .search.trials import DONE_STATES, best_trial, trial_fell
     # a terminal gets a live bar; a log file (CI, nohup) a line every 15 s rather than every poll
     bar = tqdm(total=total, unit="trial", dynamic_ncols=True, **_bar_options())
 
@@ -549,8 +549,8 @@ def _run_and_report(spec, store, study_file: str, storage: str | None, total: in
                     seed: int, verb: str) -> None:
     import optuna
 
-    from .search.optimise import (DONE_STATES, best_trial, prepare_study, run_workers, trial_feasible,
-                                  trial_fell)
+    from .search.trials import DONE_STATES, best_trial, trial_feasible, trial_fell
+    from .search.workers import prepare_study, run_workers
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     study, budget = prepare_study(spec, store, total, seed)
     done = len(study.get_trials(deepcopy=False, states=DONE_STATES))
@@ -661,7 +661,7 @@ def _commit_of(path: str) -> str:
 
 def _tuned_study(study_file: str, storage: str | None, runs_dir: Path):
     """(spec, optuna study) of a study that has been tuned; a one-line error if it has not."""
-    from .search.optimise import load_tuned_study
+    from .search.workers import load_tuned_study
     from .search.study import load_study
 
     spec = load_study(study_file)
@@ -682,7 +682,7 @@ def trials(study_file: str, storage: str | None, runs_dir: Path, pareto: bool, s
            as_json: bool) -> None:
     """List a study's trials: state, objectives, feasibility, survival, searched parameters.
 
-    score: the pitch score [deg] minimised (see tuner/search/optimise.py); speed [m/s] when the study
+    score: the pitch score [deg] minimised (see tuner/search/objective.py); speed [m/s] when the study
     has it; feasible: stayed up (robust: survival >= the study's minimum) and walked at
     least half its plan; survival: robust studies' share of randomised walks that stayed up.
     """
@@ -690,7 +690,7 @@ def trials(study_file: str, storage: str | None, runs_dir: Path, pareto: bool, s
 
     from optuna.trial import TrialState
 
-    from .search.optimise import trial_feasible, trial_result
+    from .search.trials import trial_feasible, trial_result
 
     spec, study = _tuned_study(study_file, storage, runs_dir)
     rows_src = study.best_trials if pareto else study.get_trials(deepcopy=False)
@@ -755,7 +755,7 @@ def export(study_file: str, storage: str | None, runs_dir: Path, number: int | N
     STUDY is the study file (or shipped study name). The YAML is accepted as it
     is by `simulate` and `trajectory`.
     """
-    from .search.optimise import best_trial, pareto_pick as pick, trial_fell, trial_params, trial_stabiliser
+    from .search.trials import best_trial, pareto_pick as pick, trial_fell, trial_params, trial_stabiliser
 
     if number is not None and pareto_pick is not None:
         raise UserError("give --trial or --pareto-pick, not both")
@@ -794,7 +794,7 @@ def export(study_file: str, storage: str | None, runs_dir: Path, number: int | N
 def _export_controller(spec, t, out: Path) -> None:
     """A controller study's trial as a controller file (its class, the tuned values, the ranges)."""
     from .controllers import save_controller
-    from .search.optimise import trial_fell
+    from .search.trials import trial_fell
     values = (t.user_attrs.get("params") or {}).get("controller")
     if values is None:
         raise UserError(f"trial {t.number} recorded no controller parameters")

@@ -268,7 +268,7 @@ def _study_plots(study_file: str, runs_dir: Path, out_dir: Path) -> None:
     import optuna
     from optuna.visualization import matplotlib as ovm
 
-    from ..search.optimise import load_tuned_study
+    from ..search.workers import load_tuned_study
     from ..search.study import load_study
 
     spec = load_study(study_file)
@@ -276,7 +276,7 @@ def _study_plots(study_file: str, runs_dir: Path, out_dir: Path) -> None:
         study = load_tuned_study(spec, None, runs_dir)
     except UserError as exc:
         raise UserError(f"--study {study_file}: {exc}") from None
-    from ..search.optimise import trial_feasible
+    from ..search.trials import trial_feasible
     from .provenance import commit_of
     maximise = study.directions[0] == optuna.study.StudyDirection.MAXIMIZE
     target = "speed score (maximised)" if maximise else "pitch score [deg] (minimised)"

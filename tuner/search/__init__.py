@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from .optimise import best_trial, open_storage, open_study, run_study
+from .trials import best_trial
+from .workers import open_storage, open_study, run_study
 from .seed import SeedProblem, seed_for
 from .study import StudySpec, list_studies, load_study
 

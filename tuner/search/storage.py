@@ -3,14 +3,8 @@
 Two kinds of storage:
 
 * the default **journal file** ``runs/<study>.journal`` (no server; one machine, or a shared
-  disk). Optuna's own file lock is a symlink whose staleness is judged by the link target's
-  mtime; with a relative ``--runs`` the target does not resolve and a lock left by a killed
-  process made every later run spin forever. Ours (:class:`FlockLock`) is a kernel
-  ``flock`` on ``<journal>.flock``: the kernel drops it when its holder dies, so there is no
-  stale lock to recover. A write that fails (full disk, size limit) is rolled back to the last
-  whole line before the error is raised (:class:`SafeJournalBackend`), and a torn last line
-  left by a kill mid-write is cut off on open, with a warning and the bytes kept beside the
-  journal (:func:`repair_journal`); a journal is never appended onto a torn line.
+  disk), with a kernel lock, writes rolled back on a full disk and torn lines cut
+  (``journal.py``);
 * a **database URL**: ``sqlite:///file.db`` or ``postgresql://user@host/db`` (the PostgreSQL
   driver is the optional extra ``gait-tuner[postgres]``, psycopg 3; a plain ``postgresql://``
   is mapped to whichever of psycopg / psycopg2 is installed). Schema creation is serialised
@@ -22,25 +16,16 @@ reaps dead trials, counts the study's trials and asks for a new one, so that any
 processes on any number of machines run exactly the study's budget (``pg_advisory_lock`` on
 PostgreSQL, ``flock`` on the journal and SQLite).
 
-Liveness. Every trial records its worker (host, pid, process start time). A RUNNING trial
-is dead when its worker is on this host and that process is gone, or when its heartbeat is
-older than ``grace_s``: on a database Optuna's heartbeat table (``record_heartbeat``), on the
-journal a file per worker under ``runs/<study>.heartbeats/`` touched every ``interval_s``.
-A dead trial is failed and enqueued again once with the same parameters and user
-attributes (so a CasADi seed that died is still evaluated); a retry that dies is not retried.
+Liveness (``liveness.py``): a trial whose worker is gone is failed and enqueued again once with
+the same parameters (:meth:`StudyStore.reap`); a retry that dies is not retried.
 """
 
 from __future__ import annotations
 
 import contextlib
-import errno
-import fcntl
 import hashlib
 import json
 import os
-import socket
-import sys
-import threading
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -49,145 +34,24 @@ from typing import Any, Iterator
 
 import optuna
 from optuna.storages import JournalStorage
-from optuna.storages.journal import JournalFileBackend
-from optuna.storages.journal._file import BaseJournalFileLock  # the lock interface JournalFileBackend takes
 from optuna.trial import TrialState
 
 from ..errors import UserError
+from .journal import DISK_FULL, FlockLock, SafeJournalBackend, StorageFull, repair_journal
+from .liveness import HEARTBEAT_GRACE_S, HEARTBEAT_INTERVAL_S, alive_here, worker_file
 
-__all__ = ["FlockLock", "SafeJournalBackend", "StorageFull", "StudyStore", "repair_journal",
-           "normalise_url", "process_identity", "HEARTBEAT_INTERVAL_S", "HEARTBEAT_GRACE_S"]
-
-HEARTBEAT_INTERVAL_S = 10.0     # [s] how often a worker proves it is alive
-HEARTBEAT_GRACE_S = 60.0        # [s] a trial whose heartbeat is older is dead (other hosts)
-DISK_FULL = (errno.ENOSPC, errno.EFBIG, errno.EDQUOT)
+__all__ = ["StudyStore", "normalise_url"]
 
 
-class StorageFull(UserError):
-    """The disk (or a file-size limit) refused a write; the storage was left whole."""
 
 
-class FlockLock(BaseJournalFileLock):
-    """A kernel ``flock`` on ``<target>.flock``: released by the kernel if the holder dies."""
-
-    def __init__(self, target: str | Path, suffix: str = ".flock") -> None:
-        self.path = str(Path(target).resolve()) + suffix
-        self._fd: int | None = None
-
-    def acquire(self) -> bool:
-        fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX)
-        except BaseException:
-            os.close(fd)
-            raise
-        self._fd = fd
-        return True
-
-    def release(self) -> None:
-        fd, self._fd = self._fd, None
-        if fd is not None:
-            fcntl.flock(fd, fcntl.LOCK_UN)
-            os.close(fd)
-
-    def __enter__(self) -> "FlockLock":
-        self.acquire()
-        return self
-
-    def __exit__(self, *exc: Any) -> None:
-        self.release()
 
 
-def _cut_torn_tail(path: Path, warn: bool = True) -> int:
-    """Truncate ``path`` after its last newline; the cut bytes go to ``<path>.torn-<time>``.
-    Returns the number of bytes cut. The caller holds the journal lock."""
-    size = path.stat().st_size
-    if size == 0:
-        return 0
-    with open(path, "rb+") as f:
-        block = 1 << 16
-        pos = size
-        tail = b""
-        while pos > 0:
-            start = max(0, pos - block)
-            f.seek(start)
-            chunk = f.read(pos - start)
-            i = chunk.rfind(b"\n")
-            if i >= 0:
-                keep = start + i + 1
-                break
-            tail = chunk + tail
-            pos = start
-        else:
-            keep = 0
-        if keep == size:
-            return 0
-        f.seek(keep)
-        torn = f.read()
-        f.truncate(keep)
-        f.flush()
-        os.fsync(f.fileno())
-    keep_as = path.with_name(f"{path.name}.torn-{time.strftime('%Y%m%d-%H%M%S')}")
-    with contextlib.suppress(OSError):
-        keep_as.write_bytes(torn)
-    if warn:
-        print(f"gait-tuner: warning: {path}: cut a torn last line of {len(torn)} bytes "
-              f"(an interrupted write; kept in {keep_as.name})", file=sys.stderr)
-    return len(torn)
 
 
-def repair_journal(path: Path) -> int:
-    """Cut a torn last line (bytes after the last newline: Optuna writes each record and its
-    newline in one write, so a kill or a full disk mid-write leaves exactly that), under its lock.
-
-    Returns the bytes cut. A whole line that is not JSON is not guessed at: opening the journal
-    then fails with a :class:`UserError` naming the file, since dropping it could lose a trial.
-    """
-    if not path.exists() or path.stat().st_size == 0:
-        return 0
-    with FlockLock(path):
-        cut = _cut_torn_tail(path)
-        size = path.stat().st_size
-        with open(path, "rb") as f:
-            f.seek(max(0, size - (1 << 20)))
-            lines = f.read().split(b"\n")
-    last = lines[-2] if len(lines) >= 2 else b""
-    if size:
-        try:
-            json.loads(last)
-        except ValueError:      # Optuna's reader skips a bad last line silently: say so instead
-            raise UserError(f"journal {path} is corrupt: its last line is not a journal record "
-                            f"(not a file written by gait-tuner, or edited)") from None
-    return cut
 
 
-class SafeJournalBackend(JournalFileBackend):
-    """Optuna's journal file with our lock, a torn-tail check before each append, and a failed
-    append rolled back to the size it had, so a full disk leaves the file whole."""
 
-    def __init__(self, file_path: str | Path) -> None:
-        path = Path(file_path).resolve()
-        super().__init__(str(path), lock_obj=FlockLock(path))
-        self._path = path
-
-    def append_logs(self, logs: list[dict[str, Any]]) -> None:
-        data = ("\n".join(json.dumps(log, separators=(",", ":")) for log in logs) + "\n").encode()
-        with self._lock:
-            _cut_torn_tail(self._path)
-            size = self._path.stat().st_size
-            try:
-                with open(self._path, "ab") as f:
-                    f.write(data)
-                    f.flush()
-                    os.fsync(f.fileno())
-            except OSError as exc:
-                with contextlib.suppress(OSError):
-                    os.truncate(self._path, size)
-                if exc.errno in DISK_FULL:
-                    raise StorageFull(f"disk full writing {self._path} ({os.strerror(exc.errno)}); "
-                                      f"the journal was left whole: free space and run the same "
-                                      f"command to resume") from None
-                raise
 
 
 def normalise_url(url: str) -> str:
@@ -237,43 +101,12 @@ def normalise_url(url: str) -> str:
                     f"or postgresql://USER@HOST[:PORT]/DB (or no --storage for the journal file)")
 
 
-def process_identity(pid: int | None = None) -> dict[str, Any]:
-    """host, pid and the process's start time (``/proc``; guards against pid reuse)."""
-    pid = os.getpid() if pid is None else pid
-    return {"host": socket.gethostname(), "pid": pid, "start": _start_time(pid)}
 
 
-def _proc_stat(pid: int) -> list[str] | None:
-    """Fields of /proc/PID/stat after the command name (state first), or None."""
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    except (OSError, IndexError):
-        return None
 
 
-def _start_time(pid: int) -> int | None:
-    fields = _proc_stat(pid)
-    return None if fields is None else int(fields[19])
 
 
-def _alive_here(ident: dict[str, Any]) -> bool | None:
-    """True/False for a worker on this host, None when it runs elsewhere (cannot tell)."""
-    if ident.get("host") != socket.gethostname():
-        return None
-    pid = int(ident.get("pid", -1))
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        pass
-    fields = _proc_stat(pid)
-    if fields is None:
-        return True                 # no /proc: the signal said it exists
-    if fields[0] in ("Z", "X"):     # a zombie (killed, not yet reaped) is dead
-        return False
-    start = ident.get("start")
-    return start is None or int(fields[19]) == start
 
 
 @dataclass
@@ -427,7 +260,7 @@ class StudyStore:
         folder = self.heartbeat_dir(study_name)
         if folder is not None:
             folder.mkdir(exist_ok=True)
-            (folder / _worker_file()).touch()
+            (folder / worker_file()).touch()
         elif trial_id is not None:
             storage = self.optuna_storage()
             if getattr(storage, "is_heartbeat_enabled", lambda: False)():
@@ -454,7 +287,7 @@ class StudyStore:
                 # died inside that section
                 dead.append(t)
                 continue
-            here = _alive_here(ident)
+            here = alive_here(ident)
             if here is False:
                 dead.append(t)
                 continue
@@ -463,7 +296,7 @@ class StudyStore:
             if t._trial_id in stale_db:
                 dead.append(t)
             elif self.journal is not None and ident:
-                beat = self.heartbeat_dir(study.study_name) / _worker_file(ident)
+                beat = self.heartbeat_dir(study.study_name) / worker_file(ident)
                 try:
                     age = now - beat.stat().st_mtime
                 except OSError:
@@ -492,33 +325,5 @@ class StudyStore:
         return notes
 
 
-def _worker_file(ident: dict[str, Any] | None = None) -> str:
-    ident = ident or process_identity()
-    return f"{ident.get('host')}-{ident.get('pid')}"
 
 
-class Heartbeat:
-    """A daemon thread beating for this process every ``interval_s`` while it works a trial."""
-
-    def __init__(self, store: StudyStore, study_name: str) -> None:
-        self.store, self.study_name = store, study_name
-        self.trial_id: int | None = None
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True, name="gait-tuner-heartbeat")
-
-    def start(self) -> "Heartbeat":
-        self.store.beat(self.study_name, None)
-        self._thread.start()
-        return self
-
-    def _run(self) -> None:
-        while not self._stop.wait(self.store.interval_s):
-            with contextlib.suppress(Exception):
-                self.store.beat(self.study_name, self.trial_id)
-
-    def stop(self) -> None:
-        self._stop.set()
-        folder = self.store.heartbeat_dir(self.study_name)
-        if folder is not None:
-            with contextlib.suppress(OSError):
-                (folder / _worker_file()).unlink()

@@ -1,0 +1,282 @@
+"""A trial's score: what a study walks for one sampled set, and how the walk is scored.
+
+Objective. For each surface of the study the trial's gait is walked once; its
+score is the torso pitch RMS [deg] over the walk, and a fall adds
+``FALL_PENALTY_DEG * (1 - walked fraction)`` so that a gait that falls early
+scores worse than any that stays up, and falling later is better than falling
+sooner (the sampler gets a gradient towards stability). Falls are *also* a
+constraint (``fall_constraint`` > 0 when the robot fell anywhere), so Optuna's
+TPE sampler treats fallen trials as infeasible and ``best`` is always a gait
+that stayed up, if any did. A robust study aggregates the per-surface scores by
+their worst (max) or mean, as its file says. A parameter set the generators
+reject (e.g. t1 >= t2, an unreachable foot) scores the full penalty.
+
+Walking in place is not walking: a gait that stays up but covers less of its
+planned forward distance adds ``PROGRESS_PENALTY_DEG * (1 - covered fraction)``
+and is infeasible below ``MIN_PROGRESS`` (feet sliding instead of stepping was
+the first thing an unconstrained search found on soft grass).
+
+Single-objective studies report the running aggregate after each surface, so
+the median pruner can stop a trial that is already hopeless on its first
+surfaces. Optional second objective: forward speed [m/s] (maximised; 0 on a
+fall), for a Pareto front.
+
+Robust studies (a ``robust:`` section) walk each trial K times per surface under domain
+randomisation (``tuner/sim/randomisation.py``; seeds 0..K-1 of the tuning stream, the same for
+every trial, so trials are compared on the same draws), score each walk as above and
+aggregate all of them by the study's risk measure (``cvar25``: the mean of the worst quarter;
+``worst``; ``mean``). Survival below ``min_survival`` is infeasible, and a trial whose falls
+already exceed what that allows stops at once and is recorded as pruned. A study with a
+``stabiliser:`` section walks every trial with the IMU stabiliser, its gains in the space as
+``stabiliser.NAME``; the trial records them and ``export`` writes them into the gait file.
+
+The objective (:func:`objective_for`) turns a sampled trial into a :class:`gaits.Drive` (the set,
+its stabiliser, or a controller of the user's own with the sampled values) and asks the
+:class:`Evaluator` to walk it on the study's robot and surfaces.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import numpy as np
+import optuna
+
+import gaits
+from gaits import ParamError, UnreachableTargetError
+
+from ..sim import cache as sim_cache
+from ..sim.metrics import summarize
+from ..sim.randomisation import TUNE, draw
+from .study import OBJECTIVES, StudySpec
+
+__all__ = ["FALL_PENALTY_DEG", "PROGRESS_PENALTY_DEG", "MIN_PROGRESS", "TrialResult", "Evaluator", "rollout_score",
+           "record_constraint", "objective_for"]
+
+FALL_PENALTY_DEG = 100.0
+PROGRESS_PENALTY_DEG = 50.0     # per unit of the planned distance not covered
+MIN_PROGRESS = 0.5              # a gait covering less than this fraction of its plan is infeasible
+
+
+@dataclass(frozen=True)
+class TrialResult:
+    """What the evaluation of one trial found (the objective stores :meth:`stored` with the trial)."""
+
+    score: float                      # the first objective: pitch score [deg], or the speed score
+    speed: float                      # [m/s] mean forward speed (speed studies: the forward stair held)
+    fall_constraint: float            # <= 0 feasible; > 0 how far from it (a fall, too little progress)
+    fell: bool                        # a walk of this trial fell
+    per_surface: dict                 # per surface: its metrics (robust: survival, rollouts, median pitch)
+    invalid: str | None = None        # why the set could not be walked at all (a rejected set)
+    survival: float | None = None     # robust studies: share of the randomised walks that stayed up
+    hopeless: bool | None = None      # robust studies: stopped early, survival already below its minimum
+    values: tuple | None = None       # speed studies: every objective's value
+    by_direction: dict | None = None  # speed studies: the highest stair held per direction
+    pitch_rms_deg: float | None = None   # speed studies: the pitch term [deg]
+
+    def stored(self) -> dict[str, Any]:
+        """The trial's ``result`` user attribute (JSON in the storage; ``trials.trial_result`` reads it)."""
+        return {"fell": self.fell, "fall_constraint": self.fall_constraint, "per_surface": self.per_surface,
+                "invalid": self.invalid, "survival": self.survival, "hopeless": self.hopeless}
+
+
+@dataclass
+class Evaluator:
+    """Walks trial parameters on the study's robot and surfaces (one Simulator per surface, reused)."""
+
+    spec: StudySpec
+
+    def __post_init__(self) -> None:
+        self.robot = sim_cache.robot(self.spec.robot)
+        self.sims = [sim_cache.simulator(self.robot, s) for s in self.spec.surfaces]
+
+    def evaluate(self, drive: gaits.Drive, report: Callable[[float, int], bool] | None = None) -> TrialResult:
+        """Per-surface metrics and the aggregate score of what ``drive`` walks (a trial's set and
+        stabiliser)."""
+        spec = self.spec
+        if spec.speed is not None:
+            return self._evaluate_speed(drive.params, drive.stabiliser)
+        dt = self.sims[0].control_period
+        try:
+            if drive.user is not None:          # online: no table; its walk lasts the study's duration
+                traj, planned, plan_dist = None, float(spec.duration), 0.0
+                drive.controller(self.robot, dt)       # a controller that cannot be built: invalid, at once
+            else:
+                traj = drive.table(self.robot, dt)
+                planned = traj.duration - float(traj.t[np.flatnonzero(traj.support != 0)[0]]) \
+                    if np.any(traj.support != 0) else traj.duration
+                plan_dist = float(traj.p_world_pelvis[-1, 0] - traj.p_world_pelvis[0, 0])
+        except (ParamError, UnreachableTargetError) as exc:
+            return TrialResult(score=FALL_PENALTY_DEG * 2, speed=0.0, fall_constraint=1.0, fell=True,
+                               per_surface={}, invalid=str(exc))
+        if spec.robust is not None:
+            return self._evaluate_robust(drive, traj, planned, plan_dist)
+        scores, speeds, walked, per = [], [], [], {}
+        shortfall = 0.0
+        for i, (name, sim) in enumerate(zip(spec.surfaces, self.sims)):
+            m = summarize(sim.run(drive.controller(self.robot, dt, table=traj),
+                                  **{**drive.run_options(), "duration": spec.duration}))
+            score, frac, covered = rollout_score(m, planned, plan_dist)
+            if covered is not None:
+                shortfall = max(shortfall, MIN_PROGRESS - covered)
+            scores.append(score)
+            speeds.append(0.0 if m.fell else m.speed_mps)
+            walked.append(frac if m.fell else 1.0 + 1e-9)
+            per[name] = m.to_dict()
+            if report is not None and report(self._aggregate(scores), i):
+                raise optuna.TrialPruned()
+        fell_any = any(v["fell"] for v in per.values())
+        constraint = (1.0 - min(walked) + 1e-3) if fell_any else (shortfall if shortfall > 0 else -1.0)
+        return TrialResult(score=self._aggregate(scores), speed=float(np.mean(speeds)),
+                           fall_constraint=constraint, fell=fell_any, per_surface=per)
+
+    def _evaluate_robust(self, drive: gaits.Drive, traj: gaits.GaitTrajectory | None, planned: float,
+                         plan_dist: float) -> TrialResult:
+        """K randomised rollouts per surface (tuning seeds 0..K-1, common to all trials), scored by
+        the study's risk measure; survival below ``min_survival`` is infeasible, and a trial whose
+        falls already exceed what that allows stops early (``hopeless``)."""
+        rb = self.spec.robust
+        total = rb.rollouts * len(self.sims)
+        allowed = math.floor((1.0 - rb.min_survival) * total + 1e-9)
+        scores, speeds, covered_all, per = [], [], [], {}
+        falls = 0
+        hopeless = False
+        for name, sim in zip(self.spec.surfaces, self.sims):
+            rows = []
+            for i in range(rb.rollouts):
+                p = draw(rb.randomisation, i, *sim.n_random(), namespace=TUNE)
+                m = summarize(sim.run(drive.controller(self.robot, sim.control_period, table=traj),
+                                      perturb=p, **{**drive.run_options(), "duration": self.spec.duration}))
+                score, _, covered = rollout_score(m, planned, plan_dist)
+                scores.append(score)
+                if m.fell:
+                    falls += 1
+                else:
+                    speeds.append(m.speed_mps)
+                    if covered is not None:
+                        covered_all.append(covered)
+                rows.append({"fell": m.fell, "pitch_rms_deg": m.pitch_rms_deg, "speed_mps": m.speed_mps,
+                             "t_fall_s": m.t_fall_s})
+                if falls > allowed:
+                    hopeless = True
+                    break
+            per[name] = {"survival": float(np.mean([not r["fell"] for r in rows])), "rollouts": len(rows),
+                         "fell": any(r["fell"] for r in rows),
+                         "pitch_rms_deg": float(np.median([r["pitch_rms_deg"] for r in rows]))}
+            if hopeless:
+                break
+        survival = 1.0 - falls / len(scores)            # of the walks run (all of them unless hopeless)
+        worst = sorted(scores, reverse=True)
+        risk = {"worst": worst[0], "mean": float(np.mean(scores)),
+                "cvar25": float(np.mean(worst[:max(1, len(worst) // 4)]))}[rb.risk]
+        progress = float(np.median(covered_all)) if covered_all else (0.0 if abs(plan_dist) > 1e-3 else 1.0)
+        if survival < rb.min_survival or hopeless:
+            constraint = rb.min_survival - (1.0 - falls / total) + 1e-3     # > 0: falls already exceed it
+        elif progress < MIN_PROGRESS:
+            constraint = MIN_PROGRESS - progress
+        else:
+            constraint = -1.0
+        return TrialResult(score=risk, speed=float(np.mean(speeds)) if speeds else 0.0, fall_constraint=constraint,
+                           fell=falls > 0, per_surface=per, survival=survival, hopeless=hopeless)
+
+    def _evaluate_speed(self, params: gaits.GaitParams, stabiliser: Any) -> TrialResult:
+        """A speed study's trial: every direction's staircase on every surface
+        (``tuner/sim/walk_speed.py``); per direction the worst (or mean) surface's highest stair
+        held, weighted, less the pitch term. Infeasible unless every direction holds at least
+        its first stair on every surface."""
+        from ..sim.walk_speed import speed_test
+        sp = self.spec.speed
+        per: dict[str, dict] = {}
+        reached: dict[str, list[float]] = {d: [] for d, _, _ in sp.directions}
+        pitches, misses, fell = [], 0, False
+        for name, sim in zip(self.spec.surfaces, self.sims):
+            per[name] = {}
+            for d, top, _ in sp.directions:
+                r = speed_test(sim, params, sp.staircase(d, top), sp.tolerance, stabiliser)
+                per[name][d] = {"reached": r.reached, "measured": r.measured, "fell": r.fell,
+                                "pitch_rms_deg": r.pitch_rms_deg, "reason": r.reason}
+                reached[d].append(r.reached)
+                if np.isfinite(r.pitch_rms_deg):
+                    pitches.append(r.pitch_rms_deg)
+                misses += r.reached <= 0.0
+                fell = fell or r.fell
+        agg = (min if self.spec.aggregate == "worst" else (lambda v: float(np.mean(v))))
+        by_dir = {d: float(agg(v)) for d, v in reached.items()}
+        pitch = float(max(pitches) if self.spec.aggregate == "worst" else np.mean(pitches)) if pitches else 90.0
+        score = sum(w * by_dir[d] for d, _, w in sp.directions) - sp.pitch_weight * pitch
+        total = len(self.sims) * len(sp.directions)
+        constraint = misses / total if misses else -1.0
+        values = ((score,) if sp.mode == "weighted"
+                  else tuple(by_dir[d] for d, _, _ in sp.directions) + (pitch,))
+        return TrialResult(score=score, speed=by_dir.get("forward", 0.0), fall_constraint=constraint, fell=fell,
+                           per_surface=per, values=values, by_direction=by_dir, pitch_rms_deg=pitch)
+
+    def _aggregate(self, scores: list[float]) -> float:
+        return float(max(scores) if self.spec.aggregate == "worst" else np.mean(scores))
+
+def rollout_score(m: Any, planned: float, plan_dist: float) -> tuple[float, float, float | None]:
+    """One rollout's score [deg] (see the module docstring), its walked fraction and, when it
+    stayed up and had somewhere to go, the covered fraction of its planned distance."""
+    frac = 1.0 if not m.fell else float(np.clip(m.walk_time_s / max(planned, 1e-9), 0, 1))
+    score = m.pitch_rms_deg + (FALL_PENALTY_DEG * (1.0 - frac) if m.fell else 0.0)
+    if m.fell and frac >= 1.0:
+        score += 1.0
+    covered = None
+    if not m.fell and abs(plan_dist) > 1e-3:
+        covered = float(np.clip(m.distance_m / plan_dist, 0.0, 1.0))
+        score += PROGRESS_PENALTY_DEG * (1.0 - covered)
+    return score, frac, covered
+
+def record_constraint(trial: optuna.Trial, value: float) -> None:
+    """Store the fall constraint (> 0: fell or walked too little) as the list-valued system
+    attribute ``constraints``: Optuna 5 reads it as constraint "0" (``FrozenTrial.constraints``,
+    feasibility in TPE and ``best_trials``), and optuna-dashboard (0.21) reads only this key,
+    not the per-name keys of ``Trial.set_constraint``, so fallen trials show as infeasible there."""
+    trial.storage.set_trial_system_attr(trial._trial_id, "constraints", [float(value)])
+
+def _suggest(trial: optuna.Trial, spec: StudySpec) -> dict[str, Any]:
+    out = {}
+    for r in spec.space:
+        if r.integer:
+            out[r.name] = trial.suggest_int(r.label, int(math.ceil(r.low)), int(math.floor(r.high)), log=r.log)
+        else:
+            out[r.name] = trial.suggest_float(r.label, r.low, r.high, log=r.log)
+    return out
+
+def objective_for(spec: StudySpec, evaluator: Evaluator) -> Callable[[optuna.Trial], Any]:
+    def objective(trial: optuna.Trial):
+        sampled = _suggest(trial, spec)
+        try:
+            drive = spec.drive_for(sampled, source=f"trial {trial.number}")
+        except ParamError as exc:
+            record_constraint(trial, 1.0)
+            trial.set_user_attr("result", {"fell": True, "fall_constraint": 1.0, "invalid": str(exc)})
+            worst = tuple(2 * FALL_PENALTY_DEG if OBJECTIVES[o] == "minimize" else (-10.0 if o == "speed_score" else 0.0)
+                          for o in spec.objectives)
+            return worst if len(worst) > 1 else worst[0]
+
+        def report(value: float, step: int) -> bool:
+            if len(spec.objectives) > 1:
+                return False
+            trial.report(value, step)
+            return trial.should_prune()
+
+        res = evaluator.evaluate(drive, None if spec.speed is not None else report)
+        # two journal writes per trial (params, result): workers contend for the file lock
+        record_constraint(trial, res.fall_constraint)
+        walked = {"controller": dict(drive.user.params)} if drive.user is not None else drive.params.to_mapping()
+        trial.set_user_attr("params", walked if drive.stabiliser is None else
+                            {**walked, "stabiliser": drive.stabiliser.to_mapping()})
+        trial.set_user_attr("result", res.stored())
+        if res.hopeless:
+            raise optuna.TrialPruned(f"survival already below {spec.robust.min_survival:.0%}")
+        if res.values is not None:
+            trial.set_user_attr("speed", {"by_direction": res.by_direction, "score": res.score,
+                                          "pitch_rms_deg": res.pitch_rms_deg})
+            return res.values if len(res.values) > 1 else res.values[0]
+        if len(spec.objectives) > 1:
+            return res.score, res.speed
+        return res.score
+    return objective

@@ -1,0 +1,316 @@
+"""The workers: processes that share one study's budget, here and on other machines.
+
+Storage (``storage.py``): a journal file under ``runs/`` by default (no server), or a
+SQLite / PostgreSQL URL. Re-running a study resumes it; any number of processes, here
+(``--workers``) or on other machines (``gait-tuner worker``), share one budget stored with the
+study, each asking for a trial under the store's budget lock (:func:`work`). A trial whose
+worker died is failed and retried once with the same parameters; a parameter set already
+walked is never walked again (its result is copied, ``duplicate_of``). Every trial records
+its full parameter set (SI), so it is reproducible: the simulation is deterministic.
+
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+import signal
+import sys
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+import optuna
+from optuna.trial import TrialState
+
+import gaits
+from gaits import ParamError
+
+from ..errors import UserError
+from ..process_pool import mp_context
+from .liveness import Heartbeat, process_identity
+from .objective import Evaluator, objective_for, record_constraint
+from .storage import StudyStore
+from .study import CTRL_PREFIX, STAB_PREFIX, StudySpec
+from .trials import DONE_STATES, n_done, trial_result
+
+__all__ = ["open_storage", "open_study", "load_tuned_study", "enqueue_starts", "trial_distributions",
+           "WorkerStop", "work", "prepare_study", "run_study", "run_workers"]
+
+
+def open_storage(spec: StudySpec, storage: str | None, runs_dir: Path) -> Any:
+    """The study's Optuna storage: the journal ``runs/<name>.journal`` unless a URL is given."""
+    return StudyStore.open(spec.name, storage, runs_dir).optuna_storage()
+
+def _sampler(spec: StudySpec, seed: int) -> optuna.samplers.BaseSampler:
+    # the fall constraint is stored on each trial (record_constraint); TPE reads it
+    return optuna.samplers.TPESampler(seed=seed, multivariate=True, n_startup_trials=8)
+
+def load_tuned_study(spec: StudySpec, storage: str | None, runs_dir: Path) -> optuna.Study:
+    """A study that has been tuned, from its storage; a one-line :class:`UserError` if it has not."""
+    journal = Path(runs_dir) / f"{spec.name}.journal"
+    if storage is None and not journal.exists():
+        raise UserError(f"no runs of study {spec.name!r} in {journal} (run `gait-tuner tune` first)")
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    try:
+        return optuna.load_study(study_name=spec.name, storage=open_storage(spec, storage, runs_dir))
+    except KeyError:
+        raise UserError(f"storage holds no study named {spec.name!r}") from None
+
+def open_study(spec: StudySpec, storage: Any, seed: int | None = None) -> optuna.Study:
+    pruner = (optuna.pruners.MedianPruner(n_startup_trials=6, n_warmup_steps=0)
+              if len(spec.objectives) == 1 and len(spec.surfaces) > 1 else optuna.pruners.NopPruner())
+    study = optuna.create_study(study_name=spec.name, storage=storage, load_if_exists=True,
+                                directions=spec.directions,
+                                sampler=_sampler(spec, spec.sampler_seed if seed is None else seed),
+                                pruner=pruner)
+    if "spec" not in study.user_attrs:
+        study.set_user_attr("spec", {"gait": spec.gait, "robot": spec.robot,
+                                     "surfaces": list(spec.surfaces), "objectives": list(spec.objectives)})
+    return study
+
+def _clip_to_space(spec: StudySpec, params: gaits.GaitParams) -> dict[str, Any]:
+    out = {}
+    for r in spec.space:
+        if r.name.startswith(STAB_PREFIX):
+            v = getattr(spec.stabiliser, r.name[len(STAB_PREFIX):])
+        elif r.name.startswith(CTRL_PREFIX):
+            v = spec.controller.params[r.name[len(CTRL_PREFIX):]]
+        else:
+            v = getattr(params, r.name)
+        v = min(max(v, r.low), r.high)
+        out[r.label] = int(round(v)) if r.integer else float(v)
+    return out
+
+def enqueue_starts(study: optuna.Study, spec: StudySpec) -> list[str]:
+    """Enqueue the CasADi seed and the baselines as the first trials (once per study)."""
+    if study.user_attrs.get("starts_enqueued"):
+        return []
+    done = []
+    if "casadi" in spec.enqueue:
+        from .seed import SeedInfeasible, seed_for
+        try:
+            from ..sim.surfaces import load_surface
+            layer = max(load_surface(name).layer_height for name in spec.surfaces)
+            base = spec.base
+            if spec.speed is not None and spec.gait == "tlipfm":
+                # plan the seed for half the forward top stair at a 0.3 s step (ours: the seed's
+                # step length is a parameter of the problem, not a decision variable)
+                top = dict((d, t) for d, t, _ in spec.speed.directions).get("forward", 0.2)
+                sl = round(min(0.5 * top * 0.3, 0.06), 4)
+                base = base.replace(step_length=sl, d1=sl / 2, d2=sl / 2)
+            seeded = seed_for(spec.gait, base, layer_height=layer)
+            study.enqueue_trial(_clip_to_space(spec, seeded), user_attrs={"start": "casadi seed"})
+            done.append("casadi seed")
+        except (SeedInfeasible, ParamError) as exc:
+            done.append(f"casadi seed skipped: {exc}")
+    if "baselines" in spec.enqueue and spec.controller is not None:
+        study.enqueue_trial(_clip_to_space(spec, None), user_attrs={"start": "the controller file's values"})
+        done.append("the controller file's values")
+    elif "baselines" in spec.enqueue:
+        for i, b in enumerate((spec.base,) + spec.baselines):
+            study.enqueue_trial(_clip_to_space(spec, b), user_attrs={"start": f"baseline {i}"})
+            done.append(f"baseline {i}")
+    study.set_user_attr("starts_enqueued", True)
+    return done
+
+def trial_distributions(spec: StudySpec) -> dict[str, Any]:
+    """The study's space as Optuna distributions (all parameters are sampled at ``ask``)."""
+    from optuna.distributions import FloatDistribution, IntDistribution
+    out: dict[str, Any] = {}
+    for r in spec.space:
+        if r.integer:
+            out[r.label] = IntDistribution(int(math.ceil(r.low)), int(math.floor(r.high)), log=r.log)
+        else:
+            out[r.label] = FloatDistribution(r.low, r.high, log=r.log)
+    return out
+
+def _counts(study: optuna.Study) -> tuple[int, int]:
+    trials = study.get_trials(deepcopy=False, states=DONE_STATES + (TrialState.RUNNING,))
+    done = sum(1 for t in trials if t.state in DONE_STATES)
+    return done, len(trials) - done
+
+def _duplicate_of(study: optuna.Study, trial: optuna.Trial) -> optuna.trial.FrozenTrial | None:
+    """A finished trial that walked exactly these parameters (a resumed sampler, or TPE on an
+    integer axis, can propose a set again); enqueued retries are never duplicates."""
+    params = trial.params
+    for t in study.get_trials(deepcopy=False, states=DONE_STATES):
+        if t.params == params and t.number != trial.number:
+            return t
+    return None
+
+def _tell_copy(study: optuna.Study, trial: optuna.Trial, source: optuna.trial.FrozenTrial) -> None:
+    """Record ``source``'s result for ``trial`` without walking it again."""
+    for key, value in source.user_attrs.items():
+        if key not in ("worker", "start", "retry_of"):
+            trial.set_user_attr(key, value)
+    trial.set_user_attr("duplicate_of", source.number)
+    constraint = trial_result(source).get("fall_constraint")
+    if constraint is not None:
+        record_constraint(trial, float(constraint))
+    if source.state == TrialState.PRUNED:
+        study.tell(trial, state=TrialState.PRUNED)
+    else:
+        study.tell(trial, source.values if len(source.values) > 1 else source.values[0])
+
+class WorkerStop(UserError):
+    """A worker met bad input or a full disk: the whole run stops with this one line."""
+
+def work(spec: StudySpec, store: StudyStore, budget: int, seed: int,
+         log: Callable[[str], None] | None = None, poll: float = 1.0) -> int:
+    """One process's share of a study: trials until the study holds ``budget`` finished ones.
+
+    Each step runs under the store's budget lock: dead trials are failed and re-enqueued
+    (:meth:`StudyStore.reap`), the study's finished and running trials are counted, and a
+    trial is asked only while finished + running < budget. So any number of processes, on any
+    number of machines, run exactly the budget; a process that finds the rest running waits
+    for them (one of them may die and need a retry). Returns the trials this process walked.
+    """
+    log = log or (lambda msg: print(f"gait-tuner: {msg}", file=sys.stderr, flush=True))
+    study = open_study(spec, store.optuna_storage(), seed)
+    objective = objective_for(spec, Evaluator(spec))
+    space = trial_distributions(spec)
+    beat = Heartbeat(store, spec.name).start()
+    ran = 0
+    try:
+        while True:
+            with store.budget_lock(spec.name):
+                for note in store.reap(study):
+                    log(note)
+                done, running = _counts(study)
+                if done >= budget:
+                    return ran
+                trial = None
+                if done + running < budget:
+                    trial = study.ask(space)
+                    trial.set_user_attr("worker", process_identity())
+            if trial is None:
+                time.sleep(poll)
+                continue
+            beat.trial_id = trial._trial_id
+            source = None if trial.user_attrs.get("retry_of") is not None else _duplicate_of(study, trial)
+            if source is not None:
+                _tell_copy(study, trial, source)
+                continue
+            try:
+                value = objective(trial)
+            except optuna.TrialPruned:
+                study.tell(trial, state=TrialState.PRUNED)
+            except BaseException as exc:
+                with contextlib.suppress(Exception):
+                    trial.set_user_attr("failed", f"{type(exc).__name__}: {exc}")
+                    study.tell(trial, state=TrialState.FAIL)
+                raise
+            else:
+                study.tell(trial, value)
+            beat.trial_id = None
+            ran += 1
+    finally:
+        beat.stop()
+
+def _die_with_parent(parent: int) -> None:
+    """Linux: the kernel kills this process when its parent dies (no orphaned workers)."""
+    try:
+        import ctypes
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)    # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+    if os.getppid() != parent:
+        os._exit(1)
+
+def _worker(spec: StudySpec, store: StudyStore, budget: int, seed: int, parent: int, errors: Any) -> None:
+    """A worker process: :func:`work`; bad input or a full disk goes back to the parent as one line."""
+    _die_with_parent(parent)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)       # the parent decides what Ctrl-C stops
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    store = StudyStore(journal=store.journal, url=store.url, grace_s=store.grace_s,
+                       interval_s=store.interval_s)                   # open afresh after fork
+    try:
+        work(spec, store, budget, seed)
+    except (UserError, ParamError) as exc:
+        errors.put(str(exc))
+        sys.exit(2)
+
+def _sampler_seed(seed: int, index: int, existing: int) -> int:
+    # offset by the trials already stored: a resumed study does not re-draw its first samples
+    return (seed + 1000 * index + 7919 * existing) % (2 ** 31)
+
+def prepare_study(spec: StudySpec, store: StudyStore, budget: int | None, seed: int) -> tuple[optuna.Study, int]:
+    """Create or join the study; once per study (whoever comes first), enqueue the CasADi seed
+    and the baselines; set the shared budget (``budget`` None: keep the stored one, or the
+    file's). Returns the study and the budget."""
+    study = None
+    with store.budget_lock(spec.name):
+        study = open_study(spec, store.optuna_storage(), seed)
+        enqueue_starts(study, spec)
+        stored = study.user_attrs.get("budget")
+        if budget is None:
+            budget = int(stored) if stored is not None else spec.trials
+        if stored != budget:
+            study.set_user_attr("budget", budget)
+        for note in store.reap(study):
+            print(f"gait-tuner: {note}", file=sys.stderr)
+    return study, budget
+
+def run_study(spec: StudySpec, store: StudyStore, total: int | None, workers: int,
+              seed: int, on_progress: Callable[[optuna.Study], None] | None = None,
+              poll: float = 0.5, log: Callable[[str], None] | None = None) -> optuna.Study:
+    """Run until the study holds its budget of finished trials, with ``workers`` processes here
+    (other machines' ``worker`` processes may share the same budget). A worker that dies is
+    replaced (its trial is retried by the others); bad input or a full disk in a worker stops
+    all of them and is raised here as one line."""
+    study, budget = prepare_study(spec, store, total, seed)
+    return run_workers(spec, store, study, budget, workers, seed, on_progress, poll, log)
+
+def run_workers(spec: StudySpec, store: StudyStore, study: optuna.Study, budget: int, workers: int,
+                seed: int, on_progress: Callable[[optuna.Study], None] | None = None,
+                poll: float = 0.5, log: Callable[[str], None] | None = None) -> optuna.Study:
+    """:func:`run_study` after :func:`prepare_study` (which gave ``study`` and ``budget``)."""
+    log = log or (lambda msg: print(f"gait-tuner: {msg}", file=sys.stderr, flush=True))
+    if n_done(study) >= budget:
+        return study
+    ctx = mp_context()
+    errors = ctx.Queue()
+    existing = len(study.get_trials(deepcopy=False))
+    parent = os.getpid()
+
+    def spawn(index: int) -> Any:
+        p = ctx.Process(target=_worker, args=(spec, store, budget, _sampler_seed(seed, index, existing),
+                                              parent, errors), daemon=False)
+        p.start()
+        return p
+
+    n = max(1, min(workers, budget - n_done(study)))
+    procs = {i: spawn(i) for i in range(n)}
+    respawns = 0
+    try:
+        while procs:
+            if on_progress is not None:
+                on_progress(study)
+            for i, p in list(procs.items()):
+                p.join(timeout=poll / len(procs))
+                if p.exitcode is None:
+                    continue
+                del procs[i]
+                if p.exitcode == 0:
+                    continue
+                if p.exitcode == 2:
+                    msg = errors.get(timeout=5) if not errors.empty() else "a worker stopped on bad input"
+                    raise WorkerStop(msg)
+                how = f"signal {-p.exitcode}" if p.exitcode < 0 else f"exit code {p.exitcode}"
+                if p.exitcode > 0 or respawns >= 2 * n:
+                    raise RuntimeError(f"worker {i} failed ({how}); see its message above")
+                respawns += 1
+                log(f"worker {i} died ({how}); its trial will be retried; starting another")
+                procs[i] = spawn(i + 100 * respawns)
+    except BaseException:
+        for p in procs.values():
+            p.terminate()
+        for p in procs.values():
+            p.join(timeout=10)
+        raise
+    if on_progress is not None:
+        on_progress(study)
+    return study
