@@ -1,0 +1,736 @@
+"""The online walk engine (ours): TLIPFM's natural-ZMP walk, planned step by step from what the robot
+senses, for a walk command that may change at any tick.
+
+It is a :class:`gaits.control.Controller` in pure numpy, so it runs in the simulator's loop and on
+a robot (``examples/robot_loop.py``). Every control tick it takes the current command (vx, vy, wz),
+rate-limits it (``accel_*``) and clips it to its envelope (:meth:`WalkEngine.envelope`), reads the
+encoders, IMU and sole forces, and returns the 20 joint targets of the next tick.
+
+Per step (ours unless named):
+
+* **footsteps** from the *current* command only: the planner rule of ``gaits/footstep_planner.py``
+  for this step and ``preview_steps`` more, the command held (no future command is known);
+* the **natural ZMP** of the TLIPFM paper (eqs 10-11, the three segments 0, t1, t2, T with d1, d2,
+  a) along them, and the **CoM in closed form** (eqs 23-26; ``gaits/lipm.py``) from a state that
+  blends the plan's with the *estimated* one (``k_pos``, ``k_vel``: 0 is the open-loop plan, 1 a
+  re-plan from the estimate alone);
+* **step adjustment**: the next footstep's place u (in the support foot's frame) and the swing's
+  duration (its single support scaled by lambda in [``min_ssp_scale``, 1]) are chosen so that the
+  capture point (DCM) at the step's end is the one the following steps need:
+  r(u, lambda) = xi_end(u, lambda) - xi_req(u) is affine in u (both sides are closed-form LIPM
+  passes, evaluated at three u), so for each of five lambdas the engine solves the box QP
+  min |r|^2 + ``step_weight`` |u - u_nominal|^2 over the reach box (forward, backward, outward
+  reach; the inward bound keeps the soles ``min_gap`` apart) exactly (``lipm.solve_box_qp``),
+  drops lambdas whose re-targeted swing would exceed ``foot_speed`` (the servos' speed), and
+  takes the lambda of least cost + ``timing_weight`` (1 - lambda)^2. With the estimated state equal
+  to the plan, u is the planner's own footstep and lambda = 1: the walk is the table's;
+* a step is **re-planned in swing** when the DCM error passes ``replan_error`` (a push), and the
+  **cycloid swing** (eq 27) is re-targeted from where the foot is;
+* **phase reset**: a swing foot that touches down early (its sole forces pass ``touchdown_force``
+  of the robot's weight while it descends) lands there and then;
+* the start: a weight shift over ``shift_time`` whose ZMP end point is solved so that the DCM
+  reaches what the first step needs; the stop: with a zero command (and ``idle: stand``) the
+  feet come together, the ZMP returns between them and the robot stands.
+
+The **estimator**: the CoM from the support leg's forward kinematics (encoders) turned by the
+IMU's tilt, as a measurement of a Kalman filter whose model is the same LIPM driven by the
+measured centre of pressure of the sole forces (``kf_accel``, ``kf_position``: its process and
+measurement noise). The support foot is taken to stand where it was planned (no slip): the
+engine's world is its own odometry, starting at the robot's start pose.
+
+Which family does what: only TLIPFM has this state feedback (``gaits.family(...).engine``
+says so); the IMU stabiliser (``gaits/imu_stabiliser.py``) is applied inside the step when the
+gait file has one.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .control import READINGS, Measurement, PlanRecord, StartPose
+from .footstep_planner import StepLimits, compose, relative, swing_fraction
+from .leg_kinematics import LegGeometry, leg_ik_pose
+from .lipm import dcm_backward, dcm_forward, propagate, solve_box_qp, zmp_at
+from .params import GaitParams, ParamError, param
+from .tlipfm import TlipfmParams, pendulum_constants
+from .trajectory import GRAVITY, JOINT_NAMES
+
+__all__ = ["EngineParams", "WalkEngine", "CoMEstimator", "Step", "adjust_step"]
+
+
+@dataclass(frozen=True)
+class EngineParams(GaitParams):
+    """The walk engine's own numbers (ours; the gait's come from its TLIPFM set), SI units."""
+
+    FAMILY = "engine"
+    t_stand: float = param(1.0, "s", 0.0, 10.0, "standing before the first step may start")
+    shift_time: float = param(0.4, "s", 0.1, 2.0, "weight shift onto the first support foot")
+    preview_steps: int = param(3, "-", 1, 8, "steps planned ahead with the current command")
+    accel_vx: float = param(0.6, "m/s^2", 0.05, 20.0, "largest change of the forward command per second")
+    accel_vy: float = param(0.4, "m/s^2", 0.05, 20.0, "largest change of the sideways command per second")
+    accel_wz: float = param(2.0, "rad/s^2", 0.1, 50.0, "largest change of the turning command per second")
+    k_pos: float = param(0.0, "-", 0.0, 1.0, "share of the estimated CoM position in a re-plan")
+    k_vel: float = param(0.5, "-", 0.0, 1.0, "share of the estimated CoM velocity in a re-plan")
+    step_weight: float = param(0.05, "-", 0.0, 100.0, "cost of moving a footstep from the planner's, "
+                               "against the capture point's mismatch")
+    zmp_weight: float = param(0.05, "-", 0.0, 100.0, "cost of moving the ZMP on the sole, against the "
+                              "capture point's mismatch")
+    zmp_margin: float = param(0.01, "m", 0.0, 0.05, "how far inside the sole's edge the ZMP stays")
+    timing_weight: float = param(0.001, "m^2", 0.0, 10.0, "cost of a shorter swing: (1 - lambda)^2 times this")
+    min_ssp_scale: float = param(0.6, "-", 0.3, 1.0, "shortest single support, of the nominal")
+    replan_error: float = param(0.015, "m", 0.001, 0.2, "capture-point error that re-plans a step in swing")
+    replan_interval: float = param(0.05, "s", 0.0, 1.0, "least time between two re-plans of a step")
+    touchdown_force: float = param(0.3, "-", 0.05, 1.0, "sole force, of the robot's weight, that lands "
+                                   "a descending swing foot early")
+    kf_accel: float = param(2.0, "m/s^2", 0.01, 100.0, "estimator: process noise of the CoM acceleration")
+    kf_position: float = param(0.004, "m", 1e-4, 0.1, "estimator: noise of the kinematic CoM")
+    foot_speed: float = param(1.2, "m/s", 0.1, 10.0, "fastest swing foot the servos carry (a re-targeted "
+                              "swing may not need more)")
+    idle: str = param("stand", "-", doc="at a zero command: stand, or step in place",
+                      choices=("stand", "step"))
+    stop_error: float = param(0.005, "m", 0.0005, 0.05, "the plan stops stepping when its capture point is "
+                              "this close to between the feet")
+    stand_time: float = param(0.2, "s", 0.02, 5.0, "standing: time constant of the capture point's return "
+                              "to between the feet")
+
+    def check_consistency(self) -> None:
+        if self.shift_time > self.t_stand + 1e-12 and self.t_stand > 0:
+            raise ParamError(f"engine: shift_time = {self.shift_time:g} s must fit in t_stand = "
+                             f"{self.t_stand:g} s (the shift happens while standing)")
+
+
+# --- the estimator ----------------------------------------------------------------------------
+
+def _rx(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def _ry(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def _rz(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def sole_in_pelvis(q: np.ndarray, leg: LegGeometry, side: int) -> tuple[np.ndarray, np.ndarray]:
+    """The leg's forward kinematics for one sample (``leg_kinematics.leg_fk``'s chain, scalar and
+    fast): the point ``ankle_height`` below the ankle, and the sole's rotation, in the pelvis frame."""
+    q1, q2, q3, q4, q5, q6 = (float(v) for v in q)
+    R = _rz(q1) @ _rx(q2) @ _ry(q3)
+    p = leg.hip_in_pelvis(side) + R @ np.array([0.0, 0.0, -leg.thigh])
+    R = R @ _ry(q4)
+    p = p + R @ np.array([0.0, 0.0, -leg.shank])
+    R = R @ _ry(q5) @ _rx(q6)
+    p = p + R @ np.array([0.0, 0.0, -leg.ankle_height])
+    return p, R
+
+
+class CoMEstimator:
+    """The CoM's horizontal position and velocity in the engine's world (module docstring).
+
+    A Kalman filter per axis on x'' = (x - p) / T_c^2 (exact over a tick for p held), p the measured
+    centre of pressure (the plan's ZMP when the soles carry less than a tenth of the weight),
+    measured by the kinematic CoM. Both axes share one covariance (the same noise on each).
+    """
+
+    def __init__(self, Tc: float, dt: float, accel_noise: float, position_noise: float) -> None:
+        c, s = math.cosh(dt / Tc), math.sinh(dt / Tc)
+        self.A = np.array([[c, Tc * s], [s / Tc, c]])
+        self.B = np.array([1.0 - c, -s / Tc])                # times p
+        G = np.array([0.5 * dt * dt, dt])
+        self.Q = np.outer(G, G) * accel_noise ** 2
+        self.R = position_noise ** 2
+        self.x = np.zeros((2, 2))                            # rows: position, velocity; columns: axes
+        self.P = np.diag([position_noise ** 2, 0.01])
+
+    def reset(self, c: np.ndarray) -> None:
+        self.x = np.array([c, [0.0, 0.0]], dtype=float)
+        self.P = np.diag([self.R, 1e-4])
+
+    def update(self, p: np.ndarray, measured: np.ndarray) -> None:
+        """Predict one tick with the ZMP ``p`` (2,), then correct with the kinematic CoM (2,)."""
+        self.x = self.A @ self.x + np.outer(self.B, p)
+        self.P = self.A @ self.P @ self.A.T + self.Q
+        K = self.P[:, 0] / (self.P[0, 0] + self.R)
+        self.x = self.x + np.outer(K, measured - self.x[0])
+        self.P = self.P - np.outer(K, self.P[0])
+
+    @property
+    def position(self) -> np.ndarray:
+        return self.x[0]
+
+    @property
+    def velocity(self) -> np.ndarray:
+        return self.x[1]
+
+
+# --- a step and its adjustment ----------------------------------------------------------------
+
+@dataclass
+class Step:
+    """One step of the engine's plan (times local to the step, poses (x, y, yaw) in its world)."""
+
+    side: int                    # +1 the left foot supports, -1 the right
+    support: np.ndarray          # (3,) support foot pose
+    swing_from: np.ndarray       # (3,) where the swing foot lifts off
+    target: np.ndarray           # (3,) where it lands
+    p0: np.ndarray               # (2,) the ZMP at the step's start (the previous boundary)
+    t1: float                    # [s] lift-off
+    t2: float                    # [s] touch-down
+    T: float                     # [s] the step's end
+    command: np.ndarray          # (3,) the command it was planned for
+    knots_t: np.ndarray = None   # ZMP profile of the step
+    knots_p: np.ndarray = None
+    shift: np.ndarray = None     # (2,) the flywheel's ZMP shift
+    # the swing, re-targetable: from (tau_a, pose_a, theta_a) to (t2, target)
+    tau_a: float = 0.0
+    pose_a: np.ndarray = None
+    theta_a: float = 0.0
+    landed: bool = False
+    offset: np.ndarray = None    # (2,) the ZMP's move on the support sole (its frame)
+
+
+class _Gait:
+    """What the engine takes from a TLIPFM set, and the step rules that use it."""
+
+    def __init__(self, p: TlipfmParams, limits: StepLimits) -> None:
+        if not isinstance(p, TlipfmParams):
+            raise ParamError(f"the walk engine plans TLIPFM steps; a {p.FAMILY!r} set has no engine "
+                             f"(gaits.family({p.FAMILY!r}).engine)")
+        self.p = p
+        const = pendulum_constants(p)
+        self.Tc = const.T
+        self.zmp_shift = const.zmp_shift
+        self.limits = limits
+        total = p.d1 + p.d2
+        self.rho = p.d2 / total if abs(total) > 1e-12 else 0.5
+
+    def nominal_target(self, support: np.ndarray, side: int, command: np.ndarray) -> np.ndarray:
+        """The planner's footstep (``footstep_planner.plan_footsteps``' rule) for a held command."""
+        p, T, W = self.p, self.p.period, self.p.half_width
+        s = -side
+        vx, vy, wz = command
+        mid = compose(support, np.array([0.0, s * W, 0.0]))
+        dy = 2.0 * vy * T if s * vy > 0 else 0.0
+        dth = 2.0 * wz * T if s * wz > 0 else 0.0
+        return compose(compose(compose(mid, np.array([vx * T, dy, 0.0])), np.array([0.0, 0.0, dth])),
+                       np.array([0.0, s * W, 0.0]))
+
+    def box(self, side: int, turn: float) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds of the swing target (x, y) in the support foot's frame: the reach, and an inward
+        bound that keeps the soles ``min_gap`` apart (widened by a turned foot's corner)."""
+        lim, W = self.limits, self.p.half_width
+        s = -side
+        inner = lim.sole_width + lim.min_gap + abs(math.sin(turn)) * lim.sole_length / 2
+        outer = max(2 * W + lim.max_outward, inner)
+        ys = sorted((s * inner, s * outer))
+        return np.array([-lim.max_backward, ys[0]]), np.array([lim.max_forward, ys[1]])
+
+    def knots(self, support: np.ndarray, p0: np.ndarray, target: np.ndarray, t1: float, t2: float,
+              T: float, offset: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The natural ZMP of a step (``tlipfm.command_zmp_segments``): p0 -> a behind -> a ahead of
+        the support foot along its heading -> the boundary toward the next one; and the shift.
+        ``offset`` (2,) [m], in the support foot's frame, moves the two points on the support foot
+        (the ankle's share of a step adjustment, ours)."""
+        c, s = math.cos(support[2]), math.sin(support[2])
+        h, lat = np.array([c, s]), np.array([-s, c])
+        F = support[:2]
+        if offset is not None:
+            F = F + offset[0] * h + offset[1] * lat
+        nxt = target[:2] - support[:2]
+        boundary = support[:2] + self.rho * float(nxt @ h) * h + 0.5 * float(nxt @ lat) * lat
+        pts = np.array([p0, F - self.p.a * h, F + self.p.a * h, boundary])
+        return np.array([0.0, t1, t2, T]), pts, self.zmp_shift * h
+
+    def zmp_box(self, margin: float) -> tuple[np.ndarray, np.ndarray]:
+        """How far the ZMP's points may move on the support sole (its frame), ``margin`` [m] inside."""
+        L, Wd = self.limits.sole_length, self.limits.sole_width
+        hx = max(L / 2 - abs(self.p.a) - margin, 0.0)
+        hy = max(Wd / 2 - margin, 0.0)
+        return np.array([-hx, -hy]), np.array([hx, hy])
+
+    def required_dcm(self, support: np.ndarray, side: int, p0: np.ndarray, command: np.ndarray,
+                     n: int) -> np.ndarray:
+        """The DCM a step starting on ``support`` needs for ``n`` steps of the held command that end
+        with the ZMP at their last boundary (a zero command's boundary lies between the feet: rest)."""
+        p = self.p
+        steps = []
+        F, sd, start = support, side, p0
+        for _ in range(n):
+            B = self.nominal_target(F, sd, command)
+            kt, kp, sh = self.knots(F, start, B, p.t1, p.t2, p.period)
+            steps.append((kt, kp, sh))
+            F, sd, start = B, -sd, kp[-1]
+        xi = steps[-1][1][-1].copy()
+        for kt, kp, sh in reversed(steps):
+            xi = dcm_backward(xi, kt, kp, sh, self.Tc)
+        return xi
+
+
+def adjust_step(gait: _Gait, step: Step, tau: float, xi: np.ndarray, command: np.ndarray, n_preview: int,
+                swing_pose: np.ndarray | None, params: EngineParams, dt: float,
+                fixed_target: bool = False) -> tuple[np.ndarray, float, np.ndarray, dict]:
+    """The next footstep (x, y; its heading kept), the single-support scale lambda and the ZMP
+    offset on the support sole for a step at local time ``tau`` whose DCM is ``xi``.
+
+    Variables z = (du, dp): the footstep's move from the planner's and the ZMP's move on the sole,
+    both in the support foot's frame. The DCM mismatch at the step's end, r = xi_end - xi_req, is
+    affine in z (closed-form LIPM passes, evaluated at z = 0 and one unit step per variable); the
+    engine minimises |r|^2 + ``step_weight`` |du|^2 + ``zmp_weight`` |dp|^2 over the reach box and the
+    sole (``lipm.solve_box_qp``) for each of five lambdas, drops those whose swing would exceed
+    ``foot_speed``, and keeps the lambda of least cost + ``timing_weight`` (1 - lambda)^2.
+    ``fixed_target``: the foot has landed; only the ZMP offset is free.
+    Returns (target (3,), lambda, offset (2,), info)."""
+    p = gait.p
+    nominal = step.target.copy() if fixed_target else gait.nominal_target(step.support, step.side, command)
+    c, s = math.cos(step.support[2]), math.sin(step.support[2])
+    Rot = np.array([[c, -s], [s, c]])
+    u_nom = Rot.T @ (nominal[:2] - step.support[:2])
+    lo_u, hi_u = gait.box(step.side, nominal[2] - step.support[2])
+    if not fixed_target:
+        u_nom = np.clip(u_nom, lo_u, hi_u)
+    lo_p, hi_p = gait.zmp_box(params.zmp_margin)
+    ssp = p.t2 - p.t1
+    tail = p.period - p.t2
+    n_var = 2 if fixed_target else 4
+
+    def residual(z: np.ndarray, t2: float, T: float) -> np.ndarray:
+        u = u_nom if fixed_target else u_nom + z[2:]
+        B_xy = step.support[:2] + Rot @ u
+        B = np.array([B_xy[0], B_xy[1], nominal[2]])
+        kt, kp, sh = gait.knots(step.support, step.p0, B, step.t1, t2, T, offset=z[:2])
+        xi_end = dcm_forward(xi, tau, T, kt, kp, sh, gait.Tc)
+        return xi_end - gait.required_dcm(B, -step.side, kp[-1], command, n_preview)
+
+    weights = np.array([params.zmp_weight] * 2 + [params.step_weight] * 2)[:n_var]
+    lo = np.concatenate([lo_p, lo_u - u_nom])[:n_var]
+    hi = np.concatenate([hi_p, hi_u - u_nom])[:n_var]
+    lams = [(step.t2 - p.t1) / ssp] if fixed_target else np.linspace(params.min_ssp_scale, 1.0, 5)
+    best = None
+    for lam in lams:
+        t2 = p.t1 + lam * ssp
+        if not fixed_target and t2 < tau + 2 * dt - 1e-12:
+            continue                             # the swing cannot land sooner than that
+        T = t2 + tail if not fixed_target else step.T
+        z0 = np.zeros(n_var)
+        r0 = residual(z0, t2, T)
+        M = np.column_stack([residual(np.eye(n_var)[i] * 0.01, t2, T) - r0 for i in range(n_var)]) / 0.01
+        H = 2.0 * (M.T @ M + np.diag(weights))
+        g = 2.0 * (M.T @ r0)
+        z = solve_box_qp(H, g, lo, hi)
+        r = M @ z + r0
+        u = u_nom if fixed_target else u_nom + z[2:]
+        B_xy = step.support[:2] + Rot @ u
+        if swing_pose is not None and tau >= step.t1 and not fixed_target:
+            remaining = t2 - tau
+            if remaining <= 0 or np.linalg.norm(B_xy - swing_pose[:2]) / remaining > params.foot_speed:
+                continue
+        cost = float(r @ r + z @ (weights * z) + params.timing_weight * (1.0 - lam) ** 2)
+        if best is None or cost < best[0]:
+            best = (cost, B_xy, lam, z[:2].copy(), float(np.linalg.norm(r)))
+    if best is None:                              # no lambda meets the servo speed: keep the step as it is
+        return step.target.copy(), (step.t2 - p.t1) / ssp, step.offset.copy(), {"residual": float("nan"), "kept": True}
+    _, B_xy, lam, dp, res = best
+    return np.array([B_xy[0], B_xy[1], nominal[2]]), float(lam), dp, {"residual": res, "kept": False}
+
+
+# --- the engine -------------------------------------------------------------------------------
+
+_LEG = {1: slice(JOINT_NAMES.index("l_hip_yaw"), JOINT_NAMES.index("l_hip_yaw") + 6),
+        -1: slice(JOINT_NAMES.index("r_hip_yaw"), JOINT_NAMES.index("r_hip_yaw") + 6)}
+STAND, SHIFT, WALK = "stand", "shift", "walk"
+
+
+class WalkEngine:
+    """The online walk engine (module docstring). ``robot`` needs ``leg`` and ``foot_size``;
+    ``limits`` are the step limits (``gaits.family("tlipfm").step_limits``)."""
+
+    senses = frozenset(READINGS)
+
+    def __init__(self, gait: TlipfmParams, params: EngineParams, robot, dt: float, limits: StepLimits) -> None:
+        self.gait = _Gait(gait, limits)
+        self.params = params
+        self.leg: LegGeometry = robot.leg
+        self.foot_size = tuple(robot.foot_size)
+        self.dt = float(dt)
+        self.duration = None
+        self.walk_start = params.t_stand
+        L, Wd = self.foot_size
+        self._sensors = np.array([[sx * L / 4, sy * Wd / 4] for sx, sy in ((1, 1), (1, -1), (-1, 1), (-1, -1))])
+        self._log: list[tuple] = []
+        self.reset_state()
+
+    # --- what the engine offers ------------------------------------------------------------
+    def envelope(self) -> dict[str, float]:
+        """The largest command per direction its step limits and period allow [m/s, rad/s]."""
+        lim, T = self.gait.limits, self.gait.p.period
+        return {"forward": lim.max_forward / T, "backward": lim.max_backward / T,
+                "left": lim.max_outward / (2 * T), "right": lim.max_outward / (2 * T),
+                "turn_left": lim.max_turn / (2 * T), "turn_right": lim.max_turn / (2 * T)}
+
+    def _clip_command(self, c: np.ndarray) -> np.ndarray:
+        e = self.envelope()
+        return np.array([min(max(c[0], -e["backward"]), e["forward"]), min(max(c[1], -e["left"]), e["left"]),
+                         min(max(c[2], -e["turn_left"]), e["turn_left"])])
+
+    # --- the controller protocol -----------------------------------------------------------
+    def reset_state(self) -> None:
+        p = self.gait.p
+        W = p.half_width
+        self.feet = {1: np.array([0.0, W, 0.0]), -1: np.array([0.0, -W, 0.0])}
+        self.mode = STAND
+        self.t = 0.0
+        self.command = np.zeros(3)
+        self.com = np.zeros(2)
+        self.vel = np.zeros(2)
+        self.zmp = np.zeros(2)
+        self.cur: Step | None = None
+        self.step_t0 = 0.0
+        self.state_tau = 0.0
+        self._boundary = np.zeros(2)
+        self.next_side = -p.first_support          # the foot that swings first
+        self.last_replan = -1.0
+        self.weight = (p.mass_upper + p.mass_thigh + p.mass_calf) * GRAVITY
+        self.estimator = CoMEstimator(self.gait.Tc, self.dt, self.params.kf_accel, self.params.kf_position)
+        self.steps_taken = 0
+        self.replans = 0
+        self.touchdowns = 0
+        self.last_residual = 0.0
+        self.events: list[tuple[float, str]] = []      # (time, what): steps, re-plans, touch-downs
+        self._log = []
+
+    def start_pose(self) -> StartPose:
+        self.reset_state()
+        return StartPose(self._joints(self.com, self.feet[1], self.feet[-1])[0])
+
+    def reset(self, m: Measurement) -> None:
+        self.reset_state()
+        if m.foot_force is not None and float(np.sum(m.foot_force)) > 0.2 * self.weight:
+            self.weight = float(np.sum(m.foot_force))
+        self.estimator.reset(self.com)
+
+    def step(self, m: Measurement, command: np.ndarray | None = None) -> np.ndarray:
+        dt = self.dt
+        self._estimate(m)
+        self._command(command)
+        self.t = m.t + dt
+        self._advance(m)
+        q, support, feet = self._targets()
+        self._log.append((support, self.zmp[0], self.zmp[1], feet[1][0], feet[1][1], feet[-1][0], feet[-1][1]))
+        return q
+
+    def plan(self, n: int) -> PlanRecord:
+        rows = [(0, 0.0, 0.0, 0.0, self.gait.p.half_width, 0.0, -self.gait.p.half_width)] + self._log[:n - 1]
+        rows += [rows[-1]] * (n - len(rows))
+        a = np.array(rows, dtype=float)
+        return PlanRecord("tlipfm-engine", a[:, 0].astype(int), a[:, 1:3], a[:, 3:5], a[:, 5:7],
+                          walk_start=self.walk_start, cycle_time=2 * self.gait.p.period,
+                          meta={"steps": self.steps_taken, "replans": self.replans,
+                                "touchdowns": self.touchdowns})
+
+    # --- each tick ---------------------------------------------------------------------------
+    def _command(self, command: np.ndarray | None) -> None:
+        target = self._clip_command(np.zeros(3) if command is None else np.asarray(command, dtype=float))
+        e = self.params
+        lim = np.array([e.accel_vx, e.accel_vy, e.accel_wz]) * self.dt
+        self.command = self.command + np.clip(target - self.command, -lim, lim)
+
+    def _estimate(self, m: Measurement) -> None:
+        """One estimator tick from the encoders, the IMU and the sole forces."""
+        if m.q is None or m.imu_rpy is None:
+            return
+        q = self._q_ours(m)
+        roll, pitch = float(m.imu_rpy[0]), float(m.imu_rpy[1])
+        sides = (self.cur.side,) if (self.cur is not None and self.mode == WALK) else (1, -1)
+        estimates = []
+        for side in sides:
+            p_ps, R_ps = sole_in_pelvis(q[_LEG[side]], self.leg, side)
+            foot = self.feet[side]
+            yaw_pelvis = foot[2] - math.atan2(R_ps[1, 0], R_ps[0, 0])
+            R_wp = _rz(yaw_pelvis) @ _ry(pitch) @ _rx(roll)
+            below_ankle = np.array([foot[0], foot[1], 0.0]) - _rz(foot[2]) @ self.leg.sole_in_ankle(side)
+            estimates.append(below_ankle + R_wp @ (self.leg.com_in_pelvis - p_ps))
+        measured = np.mean(estimates, axis=0)[:2]
+        cop = self._cop(m)
+        self.estimator.update(self.zmp if cop is None else cop, measured)
+
+    def _q_ours(self, m: Measurement) -> np.ndarray:
+        if m.joint_names == JOINT_NAMES:
+            return m.q
+        q = np.zeros(len(JOINT_NAMES))
+        for name, v in zip(m.joint_names, m.q):
+            q[JOINT_NAMES.index(name)] = v
+        return q
+
+    def _cop(self, m: Measurement) -> np.ndarray | None:
+        if m.foot_force is None:
+            return None
+        f = np.maximum(np.asarray(m.foot_force, dtype=float), 0.0)
+        total = float(f.sum())
+        if total < 0.1 * self.weight:
+            return None
+        pts = []
+        for side, block in ((1, f[:4]), (-1, f[4:])):
+            pose = self._foot_now(side)
+            c, s = math.cos(pose[2]), math.sin(pose[2])
+            pts.append(pose[:2] + self._sensors @ np.array([[c, s], [-s, c]]))
+        pts = np.vstack(pts)
+        return (f[:, None] * pts).sum(axis=0) / total
+
+    def _foot_now(self, side: int) -> np.ndarray:
+        st = self.cur
+        if st is None or self.mode != WALK or side == st.side:
+            return self.feet[side]
+        return self._swing_pose(self.t - self.step_t0)[0]
+
+    # --- the plan --------------------------------------------------------------------------
+    def _dcm_error(self) -> np.ndarray:
+        Tc = self.gait.Tc
+        xi_est = self.estimator.position + Tc * self.estimator.velocity
+        return xi_est - (self.com + Tc * self.vel)
+
+    def _blended(self) -> tuple[np.ndarray, np.ndarray]:
+        e = self.params
+        x = self.com + e.k_pos * (self.estimator.position - self.com)
+        v = self.vel + e.k_vel * (self.estimator.velocity - self.vel)
+        return x, v
+
+    def _advance(self, m: Measurement) -> None:
+        """Move the plan on to time ``self.t`` (the targets' time): stand, shift, steps, stop. The
+        plan's CoM state (``com``, ``vel``) is always that of local time ``state_tau`` of the
+        current phase, carried exactly across a step that ends between two ticks."""
+        e, dt = self.params, self.dt
+        t = self.t
+        walking_wanted = bool(np.any(np.abs(self.command) > 1e-6)) or e.idle == "step"
+        if self.mode == STAND:
+            if walking_wanted and t >= e.t_stand - e.shift_time - 1e-9:
+                self._start_shift(t - dt)
+            else:
+                self._hold()
+                return
+        if self.mode == SHIFT:
+            end = self.step_t0 + e.shift_time
+            self._follow(min(t, end) - self.step_t0)
+            if t < end - 1e-9:
+                return
+            self._begin_step(end, first=True)
+        st = self.cur
+        while t >= self.step_t0 + st.T - 1e-9:
+            self._follow(st.T)
+            self._end_step()
+            if self.mode == STAND:
+                self._hold()
+                return
+            st = self.cur
+        tau = t - self.step_t0
+        self._follow(tau)
+        # early touchdown: the descending swing foot carries weight
+        if (not st.landed and st.t1 < tau < st.t2 and self._theta(tau) > math.pi and m.foot_force is not None):
+            block = m.foot_force[:4] if st.side == -1 else m.foot_force[4:]
+            if float(np.sum(block)) > e.touchdown_force * self.weight:
+                self._touch_down(tau)
+                return
+        # a push: re-plan the rest of the step from the blended state
+        err = float(np.linalg.norm(self._dcm_error()))
+        if (err > e.replan_error and not st.landed and tau < st.t2 - 2 * dt
+                and t - self.last_replan >= e.replan_interval - 1e-9):
+            self._replan(tau)
+
+    def _hold(self) -> None:
+        """Standing: the ZMP drives the plan's capture point to between the feet,
+        p = xi + (T_c / ``stand_time``) (xi - mid), within the feet (a fixed ZMP would let any
+        leftover error diverge: x350 in a second for T_c = 0.17 s)."""
+        g = self.gait
+        mid = (self.feet[1][:2] + self.feet[-1][:2]) / 2
+        xi = self.com + g.Tc * self.vel
+        p = xi + (g.Tc / self.params.stand_time) * (xi - mid)
+        lo = np.minimum(self.feet[1][:2], self.feet[-1][:2]) - np.array(self.foot_size) / 2
+        hi = np.maximum(self.feet[1][:2], self.feet[-1][:2]) + np.array(self.foot_size) / 2
+        self.zmp = np.clip(p, lo, hi)
+        self.com, self.vel = propagate(self.com, self.vel, 0.0, self.dt, np.array([0.0, 1.0]),
+                                       np.array([self.zmp, self.zmp]), np.zeros(2), g.Tc)
+
+    def _start_shift(self, t0: float) -> None:
+        """The weight shift before the first step: ZMP from between the feet to a point solved so
+        that the DCM reaches what the first step needs (2 x 2, affine in that point)."""
+        e, g = self.params, self.gait
+        self.mode = SHIFT
+        self.step_t0 = t0
+        self.state_tau = 0.0
+        side = -self.next_side                       # the first support foot
+        support = self.feet[side]
+        mid = (self.feet[1][:2] + self.feet[-1][:2]) / 2
+        x, v = self._blended()
+        xi0 = x + g.Tc * v
+        kt = np.array([0.0, e.shift_time])
+
+        def residual(P: np.ndarray) -> np.ndarray:
+            xi_end = dcm_forward(xi0, 0.0, e.shift_time, kt, np.array([mid, P]), np.zeros(2), g.Tc)
+            return xi_end - g.required_dcm(support, side, P, self.command, e.preview_steps)
+        r0 = residual(mid)
+        J = np.column_stack([residual(mid + d) - r0 for d in (np.array([0.01, 0.0]), np.array([0.0, 0.01]))]) / 0.01
+        P = mid + np.linalg.solve(J, -r0)
+        lo = np.minimum(self.feet[1][:2], self.feet[-1][:2]) - np.array(self.foot_size) / 2
+        hi = np.maximum(self.feet[1][:2], self.feet[-1][:2]) + np.array(self.foot_size) / 2
+        self._shift = (kt, np.array([mid, np.clip(P, lo, hi)]))
+        self.com, self.vel = x, v
+
+    def _begin_step(self, t0: float, first: bool = False) -> None:
+        p = self.gait.p
+        side = -self.next_side
+        support = self.feet[side].copy()
+        p0 = self._shift[1][-1] if first else self._boundary
+        st = Step(side, support, self.feet[-side].copy(), support.copy(), np.array(p0, dtype=float),
+                  p.t1, p.t2, p.period, self.command.copy())
+        self.mode = WALK
+        self.cur = st
+        self.step_t0 = t0
+        self.state_tau = 0.0
+        st.pose_a = st.swing_from.copy()
+        st.tau_a = p.t1
+        st.theta_a = 0.0
+        st.offset = np.zeros(2)
+        if not first:
+            self.com, self.vel = self._blended()
+        self._plan_rest(0.0, swing_pose=None)
+        self.events.append((t0, f"step {self.steps_taken} on the {'left' if side == 1 else 'right'} foot to "
+                                f"{st.target[0]:.3f},{st.target[1]:.3f} in {st.T:.2f} s"))
+
+    def _plan_rest(self, tau: float, swing_pose: np.ndarray | None) -> None:
+        """Adjust the step's target, timing and ZMP offset from its state at ``tau``; rebuild its ZMP."""
+        g, st = self.gait, self.cur
+        xi = self.com + g.Tc * self.vel
+        target, lam, offset, info = adjust_step(g, st, tau, xi, self.command, self.params.preview_steps,
+                                                swing_pose, self.params, self.dt, fixed_target=st.landed)
+        if not info.get("kept"):
+            p = g.p
+            if not st.landed:
+                st.t2 = p.t1 + lam * (p.t2 - p.t1)
+                st.T = st.t2 + (p.period - p.t2)
+                st.target = target
+            st.offset = offset
+        self.last_residual = info.get("residual", float("nan"))
+        st.knots_t, st.knots_p, st.shift = g.knots(st.support, st.p0, st.target, st.t1, st.t2, st.T, st.offset)
+        self.zmp = zmp_at(st.knots_t, st.knots_p, tau)
+
+    def _replan(self, tau: float) -> None:
+        st = self.cur
+        self.replans += 1
+        self.last_replan = self.t
+        self.events.append((self.t, f"re-plan at tau {tau:.2f} s, capture-point error "
+                                    f"{float(np.linalg.norm(self._dcm_error())) * 1000:.0f} mm"))
+        self.com, self.vel = self._blended()
+        if tau > st.t1:                               # re-target the swing from where the foot is
+            pose, theta = self._swing_pose(tau)
+            st.pose_a, st.tau_a, st.theta_a = pose[:3], tau, theta
+            self._plan_rest(tau, swing_pose=pose)
+        else:
+            self._plan_rest(tau, swing_pose=None)
+
+    def _touch_down(self, tau: float) -> None:
+        """An early touch-down: the swing foot stays where it touched (it only comes down the rest of
+        the way, by the plan's t2) and the ZMP's last segment aims from there. The step keeps its
+        timing: a shorter step would leave the capture point where the next step cannot catch it
+        (an error at a step's start grows by e^{T / T_c} by its end: 40x for a 0.64 s step)."""
+        st = self.cur
+        pose, theta = self._swing_pose(tau)
+        self.touchdowns += 1
+        self.events.append((self.t, f"early touch-down at tau {tau:.2f} s (planned {st.t2:.2f} s)"))
+        st.target = pose[:3].copy()
+        st.pose_a, st.tau_a, st.theta_a = pose[:3].copy(), tau, theta
+        st.landed = True
+        self._plan_rest(tau, swing_pose=None)            # the ZMP offset absorbs where it landed
+
+    def _end_step(self) -> None:
+        st = self.cur
+        e = self.params
+        self.feet[-st.side] = st.target.copy()
+        self._boundary = st.knots_p[-1].copy()
+        self.steps_taken += 1
+        self.next_side = st.side                      # the support foot swings next
+        t_end = self.step_t0 + st.T
+        together = abs(relative(self.feet[st.side], self.feet[-st.side])[0]) < 1e-3
+        idle = not np.any(np.abs(self.command) > 1e-6) and e.idle == "stand"
+        mid = (self.feet[1][:2] + self.feet[-1][:2]) / 2
+        at_rest = float(np.linalg.norm(self.com + self.gait.Tc * self.vel - mid)) < e.stop_error
+        if idle and together and at_rest and float(np.linalg.norm(self._dcm_error())) < e.replan_error:
+            self.mode = STAND
+            self.cur = None
+            return
+        self._begin_step(t_end)
+
+    def _follow(self, tau: float) -> None:
+        """The plan's CoM state and ZMP carried (closed form) from ``state_tau`` to local time ``tau``."""
+        g = self.gait
+        if self.mode == SHIFT:
+            kt, kp = self._shift
+            sh = np.zeros(2)
+        else:
+            kt, kp, sh = self.cur.knots_t, self.cur.knots_p, self.cur.shift
+        if tau > self.state_tau:
+            self.com, self.vel = propagate(self.com, self.vel, self.state_tau, tau, kt, kp, sh, g.Tc)
+            self.state_tau = tau
+        self.zmp = zmp_at(kt, kp, tau)
+
+    # --- the swing and the joints ----------------------------------------------------------
+    def _theta(self, tau: float) -> float:
+        st = self.cur
+        if tau <= st.tau_a:
+            return st.theta_a if tau >= st.t1 else 0.0
+        if tau >= st.t2:
+            return 2 * math.pi
+        return st.theta_a + (2 * math.pi - st.theta_a) * (tau - st.tau_a) / (st.t2 - st.tau_a)
+
+    def _swing_pose(self, tau: float) -> tuple[np.ndarray, float]:
+        """The swing foot (x, y, yaw, z) at local time ``tau`` and its cycloid phase (eq 27)."""
+        st, p = self.cur, self.gait.p
+        theta = self._theta(tau)
+        fa = float(swing_fraction(st.theta_a))
+        f = (float(swing_fraction(theta)) - fa) / (1.0 - fa) if fa < 1.0 else 1.0
+        pose = st.pose_a + f * (st.target - st.pose_a)
+        bulge = p.w_y * (-st.side) * (1.0 - math.cos(theta)) / 2.0
+        c, s = math.sin(st.support[2]), math.cos(st.support[2])
+        z = (1.0 - math.cos(theta)) * p.h_z / 2.0
+        return np.array([pose[0] - c * bulge, pose[1] + s * bulge, pose[2], z]), theta
+
+    def _targets(self) -> tuple[np.ndarray, int]:
+        p = self.gait.p
+        feet = {1: np.append(self.feet[1], 0.0), -1: np.append(self.feet[-1], 0.0)}
+        support = 0
+        if self.mode == WALK:
+            st = self.cur
+            tau = self.t - self.step_t0
+            if st.t1 < tau < st.t2:
+                support = 0 if st.landed else st.side
+                feet[-st.side] = self._swing_pose(tau)[0]
+            elif tau >= st.t2:
+                feet[-st.side] = np.append(st.target, 0.0)
+        q = self._joints(self.com, feet[1], feet[-1])
+        return q[0], support, feet
+
+    def _joints(self, com: np.ndarray, left: np.ndarray, right: np.ndarray) -> np.ndarray:
+        """Leg IK for the CoM (x, y) at z_c and the soles (x, y, yaw[, z]) -> (1, 20) targets.
+
+        What ``trajectory.assemble`` does for a table (the pelvis moved by the robot's CoM offset,
+        each ankle by its sole offset, the pelvis heading the mean of the feet's, leaned forward
+        by ``torso_pitch``, the soles flat on the ground), with the closed-form IK
+        (``leg_kinematics.leg_ik_pose``) for one sample."""
+        p, leg = self.gait.p, self.leg
+        psi = (left[2] + right[2]) / 2
+        R_wp = _rz(psi) @ _ry(p.torso_pitch)
+        pelvis = np.array([com[0], com[1], p.z_c - leg.com_above_pelvis]) \
+            - _rz(psi) @ np.array([leg.com_forward, leg.com_lateral, 0.0])
+        q = np.zeros((1, len(JOINT_NAMES)))
+        for side, foot in ((1, left), (-1, right)):
+            z = foot[3] if len(foot) > 3 else 0.0
+            R_f = _rz(foot[2])
+            sole_point = np.array([foot[0], foot[1], z]) - R_f @ leg.sole_in_ankle(side)
+            q[0, _LEG[side]] = leg_ik_pose(R_wp.T @ (sole_point - pelvis), R_wp.T @ R_f, leg, side)
+        return q

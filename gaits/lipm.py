@@ -1,0 +1,168 @@
+"""The linear inverted pendulum with a piecewise-linear ZMP, in closed form, for online planning (ours).
+
+The TLIPFM paper's CoM (eqs 15-26) is the LIPM x'' = (x - p(t) - s) / T_c^2 per horizontal axis,
+with T_c its natural period (``tlipfm.pendulum_constants``: LIPM, DLIPM or TLIPFM), p the ZMP and
+s the flywheel's constant ZMP shift. Within a ZMP segment p(t) = p_i + k_i (t - t_i),
+u = x - p - s obeys u'' = u / T_c^2, so
+
+    x(t) = p(t) + s + (x_i - p_i - s) cosh(d / T_c) + T_c (v_i - k_i) sinh(d / T_c)
+    v(t) = k_i + (x_i - p_i - s) sinh(d / T_c) / T_c + (v_i - k_i) cosh(d / T_c),    d = t - t_i,
+
+and the divergent component of motion xi = x + T_c x' (the capture point, DCM) obeys
+xi(t) = p(t) + s + T_c k_i + (xi_i - p_i - s - T_c k_i) e^{d / T_c}. :func:`propagate` and
+:func:`dcm_forward` carry a state across any number of segments exactly; :func:`dcm_backward`
+runs the DCM back from a step's end (exact for linear segments, the table generator's bounded
+solution). Everything is 2-D (both horizontal axes at once: the LIPM is isotropic, so turning
+walks are the same per world axis). These are the same closed forms as ``gaits/tlipfm.py``
+(eqs 23-26), written for a state that starts anywhere inside a step, as an online planner needs.
+
+A ZMP profile is ``knots``: times (m,) increasing and points (m, 2), linear between knots and
+held after the last.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["propagate", "dcm_forward", "dcm_backward", "zmp_at", "solve_box_qp"]
+
+_KKT_TOL = 1e-10
+
+
+def _segment(knot_t: np.ndarray, knot_p: np.ndarray, t: float) -> int:
+    """Index of the segment [t_i, t_{i+1}) holding t (the last one past the end)."""
+    i = int(np.searchsorted(knot_t, t, side="right")) - 1
+    return min(max(i, 0), len(knot_t) - 2)
+
+
+def zmp_at(knot_t: np.ndarray, knot_p: np.ndarray, t: float) -> np.ndarray:
+    """The ZMP (2,) at time t of a piecewise-linear profile (held beyond its ends)."""
+    if t <= knot_t[0]:
+        return knot_p[0].copy()
+    if t >= knot_t[-1]:
+        return knot_p[-1].copy()
+    i = _segment(knot_t, knot_p, t)
+    f = (t - knot_t[i]) / (knot_t[i + 1] - knot_t[i])
+    return knot_p[i] + f * (knot_p[i + 1] - knot_p[i])
+
+
+def _slope(knot_t: np.ndarray, knot_p: np.ndarray, i: int) -> np.ndarray:
+    dt = knot_t[i + 1] - knot_t[i]
+    return (knot_p[i + 1] - knot_p[i]) / dt if dt > 0 else np.zeros(2)
+
+
+def propagate(x: np.ndarray, v: np.ndarray, t0: float, t1: float, knot_t: np.ndarray, knot_p: np.ndarray,
+              shift: np.ndarray, Tc: float) -> tuple[np.ndarray, np.ndarray]:
+    """The CoM state (x, v) (2,) at t1 from the state at t0 <= t1 (closed form, segment by segment).
+    Beyond the profile's last knot the ZMP is held."""
+    x = np.array(x, dtype=float)
+    v = np.array(v, dtype=float)
+    t = t0
+    while t < t1 - 1e-12:
+        if t >= knot_t[-1]:
+            end, p0, k = t1, knot_p[-1], np.zeros(2)
+        else:
+            i = _segment(knot_t, knot_p, t)
+            end = min(t1, knot_t[i + 1])
+            k = _slope(knot_t, knot_p, i)
+            p0 = knot_p[i] + k * (t - knot_t[i])
+        d = end - t
+        ch, sh = math.cosh(d / Tc), math.sinh(d / Tc)
+        u = x - p0 - shift
+        x = p0 + k * d + shift + u * ch + Tc * (v - k) * sh
+        v = k + u * sh / Tc + (v - k) * ch
+        t = end
+    return x, v
+
+
+def dcm_forward(xi: np.ndarray, t0: float, t1: float, knot_t: np.ndarray, knot_p: np.ndarray,
+                shift: np.ndarray, Tc: float) -> np.ndarray:
+    """The DCM (2,) at t1 from the DCM at t0 <= t1."""
+    xi = np.array(xi, dtype=float)
+    t = t0
+    while t < t1 - 1e-12:
+        if t >= knot_t[-1]:
+            end, p0, k = t1, knot_p[-1], np.zeros(2)
+        else:
+            i = _segment(knot_t, knot_p, t)
+            end = min(t1, knot_t[i + 1])
+            k = _slope(knot_t, knot_p, i)
+            p0 = knot_p[i] + k * (t - knot_t[i])
+        d = end - t
+        xi = p0 + k * d + shift + Tc * k + (xi - p0 - shift - Tc * k) * math.exp(d / Tc)
+        t = end
+    return xi
+
+
+def dcm_backward(xi_end: np.ndarray, knot_t: np.ndarray, knot_p: np.ndarray, shift: np.ndarray,
+                 Tc: float) -> np.ndarray:
+    """The DCM (2,) at the profile's first knot that reaches ``xi_end`` at its last knot."""
+    xi = np.array(xi_end, dtype=float)
+    for i in range(len(knot_t) - 2, -1, -1):
+        d = knot_t[i + 1] - knot_t[i]
+        if d <= 0:
+            continue
+        k = _slope(knot_t, knot_p, i)
+        p0 = knot_p[i]
+        p1 = knot_p[i + 1]
+        # xi(t1) = p1 + s + Tc k + (xi(t0) - p0 - s - Tc k) e^{d/Tc}
+        xi = p0 + shift + Tc * k + (xi - p1 - shift - Tc * k) * math.exp(-d / Tc)
+    return xi
+
+
+def solve_box_qp(H: np.ndarray, g: np.ndarray, lo: np.ndarray, hi: np.ndarray, iterations: int = 50) -> np.ndarray:
+    """argmin 1/2 u^T H u + g^T u over the box lo <= u <= hi, H positive definite (any small n).
+
+    The primal active-set method (Nocedal and Wright, Numerical Optimization, 16.3) with the
+    bounds as constraints: from a feasible point, step to the minimiser on the variables not held
+    at a bound, stopping at the first bound met (which joins the held set); at a minimiser of the
+    held set, release the bound whose multiplier is most negative, or stop when none is
+    (the KKT conditions hold). Exact, and finite for a convex QP; the tests check it against
+    scipy's bounded minimiser.
+    """
+    H = np.asarray(H, dtype=float)
+    g = np.asarray(g, dtype=float)
+    lo = np.asarray(lo, dtype=float)
+    hi = np.asarray(hi, dtype=float)
+    n = len(g)
+    u = np.clip(np.zeros(n), lo, hi)
+    held = np.zeros(n, dtype=bool)
+    at_hi = np.zeros(n, dtype=bool)
+    for i in range(n):                           # start with the bounds the start point sits on
+        if u[i] <= lo[i]:
+            held[i], at_hi[i] = True, False
+        elif u[i] >= hi[i]:
+            held[i], at_hi[i] = True, True
+    for _ in range(iterations):
+        free = ~held
+        step = np.zeros(n)
+        if free.any():
+            grad = H @ u + g
+            step[free] = np.linalg.solve(H[np.ix_(free, free)], -grad[free])
+        if np.max(np.abs(step)) < 1e-14:
+            grad = H @ u + g
+            mult = np.where(at_hi, -grad, grad)           # >= 0 for a bound that should stay
+            mult = np.where(held, mult, np.inf)
+            i = int(np.argmin(mult))
+            if mult[i] >= -_KKT_TOL:
+                return u
+            held[i] = False
+            continue
+        alpha, block = 1.0, -1
+        for i in np.flatnonzero(free):
+            if step[i] < 0 and u[i] + step[i] < lo[i]:
+                a_i = (lo[i] - u[i]) / step[i]
+            elif step[i] > 0 and u[i] + step[i] > hi[i]:
+                a_i = (hi[i] - u[i]) / step[i]
+            else:
+                continue
+            if a_i < alpha:
+                alpha, block = a_i, i
+        u = np.clip(u + alpha * step, lo, hi)
+        if block >= 0:
+            held[block] = True
+            at_hi[block] = step[block] > 0
+            u[block] = hi[block] if at_hi[block] else lo[block]
+    return u
