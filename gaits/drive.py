@@ -24,6 +24,7 @@ import numpy as np
 
 from .command_stream import CommandStream
 from .control import Controller, Stabilised, TablePlayer
+from .engine import EngineParams, WalkEngine
 from .families import RobotGeometry, command_walk, family_of
 from .gait_file import GaitFile
 from .imu_stabiliser import StabiliserParams
@@ -81,6 +82,7 @@ class Drive:
     stream: CommandStream | None = None
     source: str = ""                       # where the set came from, for reports
     user: UserController | None = None
+    engine: EngineParams | None = None     # the online walk engine drives the set (TLIPFM)
 
     def __post_init__(self) -> None:
         if self.command is not None and self.stream is not None:
@@ -98,7 +100,7 @@ class Drive:
             raise ParamError(f"{source or 'the parameter set'} holds no stabiliser section")
         if stabiliser is False:
             stab = None
-        return cls(gait_file.params, stab, command, stream, source)
+        return cls(gait_file.params, stab, command, stream, source, engine=gait_file.engine)
 
     @property
     def family(self) -> str:
@@ -107,16 +109,30 @@ class Drive:
     @property
     def online(self) -> bool:
         """Whether the controller reads the walk command tick by tick (not from a table planned ahead)."""
-        return self.user is not None
+        return self.user is not None or self.engine is not None
+
+    def without_engine(self) -> "Drive":
+        """The same set as a joint table (planned per step for a stream)."""
+        return dataclasses.replace(self, engine=None)
+
+    def the_stream(self) -> CommandStream | None:
+        """What an online controller reads: the stream, or a held command for :data:`ONLINE_DURATION_S`
+        then a stop (the engine's own start and stop take the place of a table's ramp)."""
+        if self.stream is not None:
+            return self.stream
+        if self.command is not None:
+            return CommandStream.constant(self.command, ONLINE_DURATION_S)
+        return None
 
     def run_options(self) -> dict:
         """What the loop needs besides the controller: the command stream an online controller reads
         (``commands``) and the walk's length (``duration``: the stream's, else :data:`ONLINE_DURATION_S`)."""
         if not self.online:
             return {}
-        if self.stream is None:
+        stream = self.the_stream()
+        if stream is None:
             return {"duration": ONLINE_DURATION_S}
-        return {"commands": self.stream, "duration": self.stream.duration}
+        return {"commands": stream, "duration": stream.duration}
 
     @property
     def closed_loop(self) -> bool:
@@ -159,13 +175,17 @@ class Drive:
         stream = None if self.stream is None else (self.stream.t.tobytes(), self.stream.commands.tobytes(),
                                                    self.stream.tail)
         user = None if self.user is None else (self.user.source, tuple(sorted(self.user.params.items())))
-        return (self.params, self.stabiliser, self.command, stream, user)
+        return (self.params, self.stabiliser, self.command, stream, user, self.engine)
 
     def controller(self, robot: RobotGeometry, dt: float, table: GaitTrajectory | None = None) -> Controller:
         """The controller the loop runs: the table (``table``, or planned now), with the stabiliser
         around it when enabled."""
         if self.user is not None:
             ctl = self.user.build(robot, dt)
+            return Stabilised(ctl, self.stabiliser) if self.closed_loop else ctl
+        if self.engine is not None:
+            limits = family_of(self.params).step_limits(self.params, robot)
+            ctl = WalkEngine(self.params, self.engine, robot, dt, limits)
             return Stabilised(ctl, self.stabiliser) if self.closed_loop else ctl
         ctl: Controller = TablePlayer(self.table(robot, dt) if table is None else table)
         if self.closed_loop:
@@ -174,7 +194,8 @@ class Drive:
 
     def describe(self) -> str:
         """One line: the set, how it is driven, and what it is asked to walk."""
-        how = (f"controller {self.user.source}" if self.user is not None else "open-loop table") \
+        how = (f"controller {self.user.source}" if self.user is not None else
+               "the online walk engine" if self.engine is not None else "open-loop table") \
             + (" with the IMU stabiliser" if self.closed_loop else "")
         what = ("its own walk" if self.command is None and self.stream is None else
                 f"command {self.command} (vx m/s, vy m/s, wz rad/s, ramped)" if self.command is not None else

@@ -73,7 +73,7 @@ class EngineParams(GaitParams):
     accel_vy: float = param(0.4, "m/s^2", 0.05, 20.0, "largest change of the sideways command per second")
     accel_wz: float = param(2.0, "rad/s^2", 0.1, 50.0, "largest change of the turning command per second")
     k_pos: float = param(0.0, "-", 0.0, 1.0, "share of the estimated CoM position in a re-plan")
-    k_vel: float = param(0.5, "-", 0.0, 1.0, "share of the estimated CoM velocity in a re-plan")
+    k_vel: float = param(0.8, "-", 0.0, 1.0, "share of the estimated CoM velocity in a re-plan")
     step_weight: float = param(0.05, "-", 0.0, 100.0, "cost of moving a footstep from the planner's, "
                                "against the capture point's mismatch")
     zmp_weight: float = param(0.05, "-", 0.0, 100.0, "cost of moving the ZMP on the sole, against the "
@@ -81,14 +81,22 @@ class EngineParams(GaitParams):
     zmp_margin: float = param(0.01, "m", 0.0, 0.05, "how far inside the sole's edge the ZMP stays")
     timing_weight: float = param(0.001, "m^2", 0.0, 10.0, "cost of a shorter swing: (1 - lambda)^2 times this")
     min_ssp_scale: float = param(0.6, "-", 0.3, 1.0, "shortest single support, of the nominal")
-    replan_error: float = param(0.015, "m", 0.001, 0.2, "capture-point error that re-plans a step in swing")
+    replan_error: float = param(0.06, "m", 0.001, 10.0, "capture-point error (beyond the plan and its slow "
+                                "mean) that re-plans the step: a push")
     replan_interval: float = param(0.05, "s", 0.0, 1.0, "least time between two re-plans of a step")
     touchdown_force: float = param(0.3, "-", 0.05, 1.0, "sole force, of the robot's weight, that lands "
                                    "a descending swing foot early")
-    kf_accel: float = param(2.0, "m/s^2", 0.01, 100.0, "estimator: process noise of the CoM acceleration")
-    kf_position: float = param(0.004, "m", 1e-4, 0.1, "estimator: noise of the kinematic CoM")
+    lag: float = param(0.03, "s", 0.0, 0.2, "estimator: how far the measured CoM lags the plan (servo lag, "
+                       "latency): the estimate is compared with the plan this long ago")
+    bias_time: float = param(0.5, "s", 0.05, 20.0, "estimator: time constant of the slow mean of the capture-"
+                             "point error that is taken as model error, not disturbance")
+    kf_accel: float = param(1.0, "m/s^2", 0.01, 100.0, "estimator: process noise of the CoM acceleration")
+    kf_position: float = param(0.008, "m", 1e-4, 0.1, "estimator: noise of the kinematic CoM")
     foot_speed: float = param(1.2, "m/s", 0.1, 10.0, "fastest swing foot the servos carry (a re-targeted "
                               "swing may not need more)")
+    level_feet: float = param(1.0, "-", 0.0, 1.0, "share of the measured torso tilt the legs' IK takes out, "
+                              "keeping the soles level in the world (0: the plan's upright pelvis)")
+    tilt_filter: float = param(0.03, "s", 0.0, 1.0, "time constant of the tilt the IK uses")
     idle: str = param("stand", "-", doc="at a zero command: stand, or step in place",
                       choices=("stand", "step"))
     stop_error: float = param(0.005, "m", 0.0005, 0.05, "the plan stops stepping when its capture point is "
@@ -214,7 +222,7 @@ class _Gait:
 
     def nominal_target(self, support: np.ndarray, side: int, command: np.ndarray) -> np.ndarray:
         """The planner's footstep (``footstep_planner.plan_footsteps``' rule) for a held command."""
-        p, T, W = self.p, self.p.period, self.p.half_width
+        T, W = self.p.period, self.p.half_width
         s = -side
         vx, vy, wz = command
         mid = compose(support, np.array([0.0, s * W, 0.0]))
@@ -301,20 +309,29 @@ def adjust_step(gait: _Gait, step: Step, tau: float, xi: np.ndarray, command: np
     tail = p.period - p.t2
     n_var = 2 if fixed_target else 4
 
+    required: dict[tuple, np.ndarray] = {}       # the next steps' DCM depends on the footstep alone
+
     def residual(z: np.ndarray, t2: float, T: float) -> np.ndarray:
         u = u_nom if fixed_target else u_nom + z[2:]
         B_xy = step.support[:2] + Rot @ u
         B = np.array([B_xy[0], B_xy[1], nominal[2]])
         kt, kp, sh = gait.knots(step.support, step.p0, B, step.t1, t2, T, offset=z[:2])
         xi_end = dcm_forward(xi, tau, T, kt, kp, sh, gait.Tc)
-        return xi_end - gait.required_dcm(B, -step.side, kp[-1], command, n_preview)
+        key = (float(B_xy[0]), float(B_xy[1]))
+        if key not in required:
+            required[key] = gait.required_dcm(B, -step.side, kp[-1], command, n_preview)
+        return xi_end - required[key]
 
     weights = np.array([params.zmp_weight] * 2 + [params.step_weight] * 2)[:n_var]
     lo = np.concatenate([lo_p, lo_u - u_nom])[:n_var]
     hi = np.concatenate([hi_p, hi_u - u_nom])[:n_var]
-    lams = [(step.t2 - p.t1) / ssp] if fixed_target else np.linspace(params.min_ssp_scale, 1.0, 5)
+    # the nominal timing first: when it leaves no mismatch (undisturbed walking) no shorter swing
+    # can cost less, and the other timings are not tried
+    lams = [(step.t2 - p.t1) / ssp] if fixed_target else [1.0] + list(np.linspace(params.min_ssp_scale, 1.0, 5)[:-1])
     best = None
     for lam in lams:
+        if best is not None and best[4] < 1e-4 and lam < 1.0:
+            break
         t2 = p.t1 + lam * ssp
         if not fixed_target and t2 < tau + 2 * dt - 1e-12:
             continue                             # the swing cannot land sooner than that
@@ -388,6 +405,7 @@ class WalkEngine:
         self.mode = STAND
         self.t = 0.0
         self.command = np.zeros(3)
+        self.asked = np.zeros(3)
         self.com = np.zeros(2)
         self.vel = np.zeros(2)
         self.zmp = np.zeros(2)
@@ -402,7 +420,12 @@ class WalkEngine:
         self.steps_taken = 0
         self.replans = 0
         self.touchdowns = 0
+        self.clamped = 0
+        self.step_starts: list[float] = []
+        self.tilt = np.zeros(2)                    # filtered (roll, pitch beyond the planned lean) [rad]
         self.last_residual = 0.0
+        self._history: list[tuple[np.ndarray, np.ndarray]] = []   # the plan's (com, vel) of recent ticks
+        self._bias = np.zeros(4)                                   # slow mean of (position, velocity) error
         self.events: list[tuple[float, str]] = []      # (time, what): steps, re-plans, touch-downs
         self._log = []
 
@@ -421,23 +444,41 @@ class WalkEngine:
         self._estimate(m)
         self._command(command)
         self.t = m.t + dt
+        if m.q is not None and m.imu_rpy is not None:
+            self._learn_bias()
         self._advance(m)
+        self._history.append((self.com.copy(), self.vel.copy()))
+        if len(self._history) > 50:
+            del self._history[:-25]
         q, support, feet = self._targets()
-        self._log.append((support, self.zmp[0], self.zmp[1], feet[1][0], feet[1][1], feet[-1][0], feet[-1][1]))
+        est = self.estimator
+        self._log.append((support, self.zmp[0], self.zmp[1], feet[1][0], feet[1][1], feet[-1][0], feet[-1][1],
+                          est.position[0], est.position[1], est.velocity[0], est.velocity[1],
+                          self.com[0], self.com[1], self.vel[0], self.vel[1]))
         return q
 
     def plan(self, n: int) -> PlanRecord:
-        rows = [(0, 0.0, 0.0, 0.0, self.gait.p.half_width, 0.0, -self.gait.p.half_width)] + self._log[:n - 1]
+        W = self.gait.p.half_width
+        rows = [(0, 0.0, 0.0, 0.0, W, 0.0, -W) + (0.0,) * 8] + self._log[:n - 1]
         rows += [rows[-1]] * (n - len(rows))
         a = np.array(rows, dtype=float)
         return PlanRecord("tlipfm-engine", a[:, 0].astype(int), a[:, 1:3], a[:, 3:5], a[:, 5:7],
                           walk_start=self.walk_start, cycle_time=2 * self.gait.p.period,
-                          meta={"steps": self.steps_taken, "replans": self.replans,
-                                "touchdowns": self.touchdowns})
+                          meta={"step_starts": list(self.step_starts), "steps": self.steps_taken,
+                                "replans": self.replans,
+                                "touchdowns": self.touchdowns, "estimate_com": a[:, 7:9],
+                                "estimate_vel": a[:, 9:11], "plan_com": a[:, 11:13], "plan_vel": a[:, 13:15]})
 
     # --- each tick ---------------------------------------------------------------------------
     def _command(self, command: np.ndarray | None) -> None:
+        """The command the steps are planned for: the asked one clipped to the envelope and
+        rate-limited by ``accel_*``; the ramp starts with the first step (standing, the engine
+        keeps zero), as a table's ramp does."""
         target = self._clip_command(np.zeros(3) if command is None else np.asarray(command, dtype=float))
+        self.asked = target
+        if self.mode != WALK:
+            self.command = np.zeros(3)
+            return
         e = self.params
         lim = np.array([e.accel_vx, e.accel_vy, e.accel_wz]) * self.dt
         self.command = self.command + np.clip(target - self.command, -lim, lim)
@@ -448,6 +489,8 @@ class WalkEngine:
             return
         q = self._q_ours(m)
         roll, pitch = float(m.imu_rpy[0]), float(m.imu_rpy[1])
+        a = self.dt / (self.params.tilt_filter + self.dt)
+        self.tilt = self.tilt + a * (np.array([roll, pitch - self.gait.p.torso_pitch]) - self.tilt)
         sides = (self.cur.side,) if (self.cur is not None and self.mode == WALK) else (1, -1)
         estimates = []
         for side in sides:
@@ -491,16 +534,29 @@ class WalkEngine:
         return self._swing_pose(self.t - self.step_t0)[0]
 
     # --- the plan --------------------------------------------------------------------------
+    def _disturbance(self) -> tuple[np.ndarray, np.ndarray]:
+        """(position, velocity) (2,) each of the estimated CoM beyond what the plan predicts: the
+        estimate less the plan ``lag`` ago, less the slow mean of that difference (the model's
+        and the servos' systematic share, learnt while walking undisturbed)."""
+        n = int(round(self.params.lag / self.dt))
+        com, vel = self._history[-1 - n] if len(self._history) > n else (self.com, self.vel)
+        e = np.concatenate([self.estimator.position - com, self.estimator.velocity - vel]) - self._bias
+        return e[:2], e[2:]
+
     def _dcm_error(self) -> np.ndarray:
-        Tc = self.gait.Tc
-        xi_est = self.estimator.position + Tc * self.estimator.velocity
-        return xi_est - (self.com + Tc * self.vel)
+        dx, dv = self._disturbance()
+        return dx + self.gait.Tc * dv
+
+    def _learn_bias(self) -> None:
+        """The slow mean of the error (not while it is large: a push is not model error)."""
+        dx, dv = self._disturbance()
+        if float(np.linalg.norm(dx + self.gait.Tc * dv)) < self.params.replan_error:
+            self._bias = self._bias + (self.dt / self.params.bias_time) * np.concatenate([dx, dv])
 
     def _blended(self) -> tuple[np.ndarray, np.ndarray]:
         e = self.params
-        x = self.com + e.k_pos * (self.estimator.position - self.com)
-        v = self.vel + e.k_vel * (self.estimator.velocity - self.vel)
-        return x, v
+        dx, dv = self._disturbance()
+        return self.com + e.k_pos * dx, self.vel + e.k_vel * dv
 
     def _advance(self, m: Measurement) -> None:
         """Move the plan on to time ``self.t`` (the targets' time): stand, shift, steps, stop. The
@@ -508,7 +564,7 @@ class WalkEngine:
         current phase, carried exactly across a step that ends between two ticks."""
         e, dt = self.params, self.dt
         t = self.t
-        walking_wanted = bool(np.any(np.abs(self.command) > 1e-6)) or e.idle == "step"
+        walking_wanted = bool(np.any(np.abs(self.asked) > 1e-6)) or e.idle == "step"
         if self.mode == STAND:
             if walking_wanted and t >= e.t_stand - e.shift_time - 1e-9:
                 self._start_shift(t - dt)
@@ -597,9 +653,10 @@ class WalkEngine:
         st.tau_a = p.t1
         st.theta_a = 0.0
         st.offset = np.zeros(2)
-        if not first:
+        if not first and float(np.linalg.norm(self._dcm_error())) > self.params.replan_error:
             self.com, self.vel = self._blended()
         self._plan_rest(0.0, swing_pose=None)
+        self.step_starts.append(t0)
         self.events.append((t0, f"step {self.steps_taken} on the {'left' if side == 1 else 'right'} foot to "
                                 f"{st.target[0]:.3f},{st.target[1]:.3f} in {st.T:.2f} s"))
 
@@ -657,7 +714,8 @@ class WalkEngine:
         self.next_side = st.side                      # the support foot swings next
         t_end = self.step_t0 + st.T
         together = abs(relative(self.feet[st.side], self.feet[-st.side])[0]) < 1e-3
-        idle = not np.any(np.abs(self.command) > 1e-6) and e.idle == "stand"
+        idle = not np.any(np.abs(self.command) > 1e-6) and not np.any(np.abs(self.asked) > 1e-6) \
+            and e.idle == "stand"
         mid = (self.feet[1][:2] + self.feet[-1][:2]) / 2
         at_rest = float(np.linalg.norm(self.com + self.gait.Tc * self.vel - mid)) < e.stop_error
         if idle and together and at_rest and float(np.linalg.norm(self._dcm_error())) < e.replan_error:
@@ -700,8 +758,7 @@ class WalkEngine:
         z = (1.0 - math.cos(theta)) * p.h_z / 2.0
         return np.array([pose[0] - c * bulge, pose[1] + s * bulge, pose[2], z]), theta
 
-    def _targets(self) -> tuple[np.ndarray, int]:
-        p = self.gait.p
+    def _targets(self) -> tuple[np.ndarray, int, dict]:
         feet = {1: np.append(self.feet[1], 0.0), -1: np.append(self.feet[-1], 0.0)}
         support = 0
         if self.mode == WALK:
@@ -712,25 +769,45 @@ class WalkEngine:
                 feet[-st.side] = self._swing_pose(tau)[0]
             elif tau >= st.t2:
                 feet[-st.side] = np.append(st.target, 0.0)
-        q = self._joints(self.com, feet[1], feet[-1])
+        q = self._joints(self.com, feet[1], feet[-1], swing=-support if support else 0)
         return q[0], support, feet
 
-    def _joints(self, com: np.ndarray, left: np.ndarray, right: np.ndarray) -> np.ndarray:
+    def _joints(self, com: np.ndarray, left: np.ndarray, right: np.ndarray, swing: int = 0) -> np.ndarray:
         """Leg IK for the CoM (x, y) at z_c and the soles (x, y, yaw[, z]) -> (1, 20) targets.
 
         What ``trajectory.assemble`` does for a table (the pelvis moved by the robot's CoM offset,
         each ankle by its sole offset, the pelvis heading the mean of the feet's, leaned forward
         by ``torso_pitch``, the soles flat on the ground), with the closed-form IK
-        (``leg_kinematics.leg_ik_pose``) for one sample."""
+        (``leg_kinematics.leg_ik_pose``) for one sample. The swing leg (``swing`` = its side) takes
+        ``level_feet`` of the measured tilt out, so its sole lands level in the world; the support
+        leg keeps the plan's upright pelvis (its targets are what pushes a tilted trunk back)."""
         p, leg = self.gait.p, self.leg
         psi = (left[2] + right[2]) / 2
-        R_wp = _rz(psi) @ _ry(p.torso_pitch)
+        R_plan = _rz(psi) @ _ry(p.torso_pitch)
+        k = self.params.level_feet
+        R_tilted = _rz(psi) @ _ry(p.torso_pitch + k * self.tilt[1]) @ _rx(k * self.tilt[0]) if k else R_plan
         pelvis = np.array([com[0], com[1], p.z_c - leg.com_above_pelvis]) \
             - _rz(psi) @ np.array([leg.com_forward, leg.com_lateral, 0.0])
         q = np.zeros((1, len(JOINT_NAMES)))
         for side, foot in ((1, left), (-1, right)):
+            R_wp = R_tilted if side == swing else R_plan
             z = foot[3] if len(foot) > 3 else 0.0
             R_f = _rz(foot[2])
             sole_point = np.array([foot[0], foot[1], z]) - R_f @ leg.sole_in_ankle(side)
-            q[0, _LEG[side]] = leg_ik_pose(R_wp.T @ (sole_point - pelvis), R_wp.T @ R_f, leg, side)
+            target, R_ps = R_wp.T @ (sole_point - pelvis), R_wp.T @ R_f
+            q[0, _LEG[side]] = leg_ik_pose(self._reachable(target, R_ps, side), R_ps, leg, side)
         return q
+
+    def _reachable(self, target: np.ndarray, R_ps: np.ndarray, side: int) -> np.ndarray:
+        """The sole target moved toward the hip until the leg reaches it (a plan that runs away, a
+        fall: the engine's targets stay a pose the leg can take, the robot falls as it would)."""
+        leg = self.leg
+        hip = leg.hip_in_pelvis(side)
+        ankle = target + R_ps[:, 2] * leg.ankle_height
+        d = ankle - hip
+        n = float(np.linalg.norm(d))
+        reach = 0.999 * (leg.thigh + leg.shank)
+        if n <= reach:
+            return target
+        self.clamped += 1
+        return hip + d * (reach / n) - R_ps[:, 2] * leg.ankle_height

@@ -1,7 +1,8 @@
-"""Gait parameter files: ``{gait: FAMILY, description: ..., params: {...}, stabiliser: {...}}`` YAML.
+"""Gait parameter files: ``{gait: FAMILY, description: ..., params: {...}, stabiliser: {...}, engine: {...}}``.
 
 The boundary between a user's files and the typed parameters of ``gaits/params.py`` and the
-IMU stabiliser's gains (``gaits/imu_stabiliser.py``): :func:`load_gait_file` validates a file
+IMU stabiliser's gains (``gaits/imu_stabiliser.py``) and the online walk engine's numbers
+(``gaits/engine.py``; a set with an ``engine:`` section walks online): :func:`load_gait_file` validates a file
 (every error names the file, the field, the value and the allowed range), :func:`save_gait_file`
 writes one it reads back identically.
 """
@@ -14,10 +15,11 @@ from typing import Any, Mapping
 
 import yaml
 
+from .engine import EngineParams
 from .imu_stabiliser import StabiliserParams, stabiliser_from_mapping
 from .params import GaitParams, ParamError, families, family_class, params_from_mapping
 
-__all__ = ["GaitFile", "read_yaml", "load_gait_file", "save_gait_file"]
+__all__ = ["GaitFile", "read_yaml", "load_gait_file", "save_gait_file", "engine_from_mapping"]
 
 
 @dataclass(frozen=True)
@@ -27,13 +29,14 @@ class GaitFile:
     params: GaitParams
     description: str = ""
     stabiliser: StabiliserParams | None = None     # the IMU stabiliser, or None (open loop)
+    engine: EngineParams | None = None             # the online walk engine, or None (a joint table)
 
     @property
     def family(self) -> str:
         return self.params.FAMILY
 
 
-_TOP_KEYS = ("gait", "description", "params", "stabiliser")
+_TOP_KEYS = ("gait", "description", "params", "stabiliser", "engine")
 
 
 def read_yaml(path: str | Path, what: str, error: type[Exception] = ParamError) -> Any:
@@ -91,11 +94,31 @@ def load_gait_file(path: str | Path) -> GaitFile:
     stabiliser = None
     if doc.get("stabiliser") is not None:
         stabiliser = stabiliser_from_mapping(doc["stabiliser"], f"{source}: stabiliser")
-    return GaitFile(params_from_mapping(family, doc.get("params"), source), description, stabiliser)
+    engine = None
+    if doc.get("engine") is not None:
+        engine = engine_from_mapping(doc["engine"], f"{source}: engine")
+        if family != "tlipfm":
+            raise ParamError(f"{source}: engine: the walk engine plans TLIPFM steps; a {family!r} set walks "
+                             f"as a joint table (leave the engine section out)")
+    return GaitFile(params_from_mapping(family, doc.get("params"), source), description, stabiliser, engine)
+
+
+def engine_from_mapping(doc: Any, source: str = "engine") -> EngineParams:
+    """A validated :class:`EngineParams` from a YAML mapping (missing fields take their defaults)."""
+    if not isinstance(doc, Mapping):
+        raise ParamError(f"{source}: expected a mapping of the engine's fields (see gaits/engine.py)")
+    names = [f["name"] for f in EngineParams.field_table()]
+    for k in doc:
+        if k not in names:
+            raise ParamError(f"{source}: unknown field {k!r} (allowed: {', '.join(names)})")
+    try:
+        return EngineParams(**dict(doc))
+    except ParamError as exc:
+        raise ParamError(f"{source}: {exc}") from None
 
 
 def save_gait_file(path: str | Path, params: GaitParams, description: str = "",
-                   stabiliser: StabiliserParams | None = None) -> Path:
+                   stabiliser: StabiliserParams | None = None, engine: EngineParams | None = None) -> Path:
     """Write a parameter file that :func:`load_gait_file` reads back identically.
 
     Each value carries its unit and meaning as a YAML comment; the IMU stabiliser's gains
@@ -107,6 +130,23 @@ def save_gait_file(path: str | Path, params: GaitParams, description: str = "",
         lines.append("description: " + yaml.safe_dump(description, default_style='"',
                                                        width=10_000).strip())
     lines.append("params:")
+    lines += _fields(params)
+    if stabiliser is not None:
+        lines.append("stabiliser:  # IMU feedback, ours: see gaits/imu_stabiliser.py for the formula")
+        for name, value in stabiliser.to_mapping().items():
+            text = yaml.safe_dump(value, default_flow_style=True).strip().split("\n")[0]
+            lines.append(f"  {name}: {text}")
+    if engine is not None:
+        lines.append("engine:  # the online walk engine, ours: see gaits/engine.py")
+        lines += _fields(engine)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path
+
+
+def _fields(params: GaitParams) -> list[str]:
+    """One commented YAML line per field: value, unit, meaning, the paper's symbol."""
+    lines = []
     for row in params.field_table():
         value = getattr(params, row["name"])
         text = yaml.safe_dump(value, default_flow_style=True).strip()
@@ -115,11 +155,4 @@ def save_gait_file(path: str | Path, params: GaitParams, description: str = "",
         paper = f" ({row['paper']})" if row["paper"] else ""
         unit = f"[{row['unit']}] " if row["unit"] and row["unit"] != "-" else ""
         lines.append(f"  {row['name']}: {text}  # {unit}{row['doc']}{paper}")
-    if stabiliser is not None:
-        lines.append("stabiliser:  # IMU feedback, ours: see gaits/imu_stabiliser.py for the formula")
-        for name, value in stabiliser.to_mapping().items():
-            text = yaml.safe_dump(value, default_flow_style=True).strip().split("\n")[0]
-            lines.append(f"  {name}: {text}")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    return path
+    return lines

@@ -53,63 +53,77 @@ def _slope(knot_t: np.ndarray, knot_p: np.ndarray, i: int) -> np.ndarray:
     return (knot_p[i + 1] - knot_p[i]) / dt if dt > 0 else np.zeros(2)
 
 
+def _segments(knot_t: np.ndarray, knot_p: np.ndarray, t0: float, t1: float):
+    """(start, end, p at start (x, y), slope (x, y)) of every piece of [t0, t1] (floats)."""
+    kt = knot_t.tolist() if hasattr(knot_t, "tolist") else list(knot_t)
+    kp = knot_p.tolist() if hasattr(knot_p, "tolist") else [list(v) for v in knot_p]
+    m = len(kt)
+    t = t0
+    i = 0
+    while i < m - 2 and kt[i + 1] <= t:
+        i += 1
+    while t < t1 - 1e-12:
+        if t >= kt[-1]:
+            yield t, t1, kp[-1][0], kp[-1][1], 0.0, 0.0
+            return
+        while i < m - 2 and kt[i + 1] <= t:
+            i += 1
+        dt = kt[i + 1] - kt[i]
+        kx = (kp[i + 1][0] - kp[i][0]) / dt if dt > 0 else 0.0
+        ky = (kp[i + 1][1] - kp[i][1]) / dt if dt > 0 else 0.0
+        end = min(t1, kt[i + 1])
+        yield t, end, kp[i][0] + kx * (t - kt[i]), kp[i][1] + ky * (t - kt[i]), kx, ky
+        t = end
+        if end >= kt[i + 1] and i < m - 2:
+            i += 1
+
+
 def propagate(x: np.ndarray, v: np.ndarray, t0: float, t1: float, knot_t: np.ndarray, knot_p: np.ndarray,
               shift: np.ndarray, Tc: float) -> tuple[np.ndarray, np.ndarray]:
     """The CoM state (x, v) (2,) at t1 from the state at t0 <= t1 (closed form, segment by segment).
     Beyond the profile's last knot the ZMP is held."""
-    x = np.array(x, dtype=float)
-    v = np.array(v, dtype=float)
-    t = t0
-    while t < t1 - 1e-12:
-        if t >= knot_t[-1]:
-            end, p0, k = t1, knot_p[-1], np.zeros(2)
-        else:
-            i = _segment(knot_t, knot_p, t)
-            end = min(t1, knot_t[i + 1])
-            k = _slope(knot_t, knot_p, i)
-            p0 = knot_p[i] + k * (t - knot_t[i])
-        d = end - t
+    xx, xy = float(x[0]), float(x[1])
+    vx, vy = float(v[0]), float(v[1])
+    sx, sy = float(shift[0]), float(shift[1])
+    for a, b, px, py, kx, ky in _segments(knot_t, knot_p, t0, t1):
+        d = b - a
         ch, sh = math.cosh(d / Tc), math.sinh(d / Tc)
-        u = x - p0 - shift
-        x = p0 + k * d + shift + u * ch + Tc * (v - k) * sh
-        v = k + u * sh / Tc + (v - k) * ch
-        t = end
-    return x, v
+        ux, uy = xx - px - sx, xy - py - sy
+        xx, vx = px + kx * d + sx + ux * ch + Tc * (vx - kx) * sh, kx + ux * sh / Tc + (vx - kx) * ch
+        xy, vy = py + ky * d + sy + uy * ch + Tc * (vy - ky) * sh, ky + uy * sh / Tc + (vy - ky) * ch
+    return np.array([xx, xy]), np.array([vx, vy])
 
 
 def dcm_forward(xi: np.ndarray, t0: float, t1: float, knot_t: np.ndarray, knot_p: np.ndarray,
                 shift: np.ndarray, Tc: float) -> np.ndarray:
     """The DCM (2,) at t1 from the DCM at t0 <= t1."""
-    xi = np.array(xi, dtype=float)
-    t = t0
-    while t < t1 - 1e-12:
-        if t >= knot_t[-1]:
-            end, p0, k = t1, knot_p[-1], np.zeros(2)
-        else:
-            i = _segment(knot_t, knot_p, t)
-            end = min(t1, knot_t[i + 1])
-            k = _slope(knot_t, knot_p, i)
-            p0 = knot_p[i] + k * (t - knot_t[i])
-        d = end - t
-        xi = p0 + k * d + shift + Tc * k + (xi - p0 - shift - Tc * k) * math.exp(d / Tc)
-        t = end
-    return xi
+    ex, ey = float(xi[0]), float(xi[1])
+    sx, sy = float(shift[0]), float(shift[1])
+    for a, b, px, py, kx, ky in _segments(knot_t, knot_p, t0, t1):
+        d = b - a
+        e = math.exp(d / Tc)
+        ex = px + kx * d + sx + Tc * kx + (ex - px - sx - Tc * kx) * e
+        ey = py + ky * d + sy + Tc * ky + (ey - py - sy - Tc * ky) * e
+    return np.array([ex, ey])
 
 
 def dcm_backward(xi_end: np.ndarray, knot_t: np.ndarray, knot_p: np.ndarray, shift: np.ndarray,
                  Tc: float) -> np.ndarray:
     """The DCM (2,) at the profile's first knot that reaches ``xi_end`` at its last knot."""
-    xi = np.array(xi_end, dtype=float)
-    for i in range(len(knot_t) - 2, -1, -1):
-        d = knot_t[i + 1] - knot_t[i]
+    ex, ey = float(xi_end[0]), float(xi_end[1])
+    sx, sy = float(shift[0]), float(shift[1])
+    kt = knot_t.tolist() if hasattr(knot_t, "tolist") else list(knot_t)
+    kp = knot_p.tolist() if hasattr(knot_p, "tolist") else [list(v) for v in knot_p]
+    for i in range(len(kt) - 2, -1, -1):
+        d = kt[i + 1] - kt[i]
         if d <= 0:
             continue
-        k = _slope(knot_t, knot_p, i)
-        p0 = knot_p[i]
-        p1 = knot_p[i + 1]
+        kx, ky = (kp[i + 1][0] - kp[i][0]) / d, (kp[i + 1][1] - kp[i][1]) / d
+        e = math.exp(-d / Tc)
         # xi(t1) = p1 + s + Tc k + (xi(t0) - p0 - s - Tc k) e^{d/Tc}
-        xi = p0 + shift + Tc * k + (xi - p1 - shift - Tc * k) * math.exp(-d / Tc)
-    return xi
+        ex = kp[i][0] + sx + Tc * kx + (ex - kp[i + 1][0] - sx - Tc * kx) * e
+        ey = kp[i][1] + sy + Tc * ky + (ey - kp[i + 1][1] - sy - Tc * ky) * e
+    return np.array([ex, ey])
 
 
 def solve_box_qp(H: np.ndarray, g: np.ndarray, lo: np.ndarray, hi: np.ndarray, iterations: int = 50) -> np.ndarray:
@@ -136,11 +150,11 @@ def solve_box_qp(H: np.ndarray, g: np.ndarray, lo: np.ndarray, hi: np.ndarray, i
         elif u[i] >= hi[i]:
             held[i], at_hi[i] = True, True
     for _ in range(iterations):
-        free = ~held
+        free = np.flatnonzero(~held)
         step = np.zeros(n)
-        if free.any():
+        if len(free):
             grad = H @ u + g
-            step[free] = np.linalg.solve(H[np.ix_(free, free)], -grad[free])
+            step[free] = np.linalg.solve(H[free][:, free], -grad[free])
         if np.max(np.abs(step)) < 1e-14:
             grad = H @ u + g
             mult = np.where(at_hi, -grad, grad)           # >= 0 for a bound that should stay
@@ -151,7 +165,7 @@ def solve_box_qp(H: np.ndarray, g: np.ndarray, lo: np.ndarray, hi: np.ndarray, i
             held[i] = False
             continue
         alpha, block = 1.0, -1
-        for i in np.flatnonzero(free):
+        for i in free:
             if step[i] < 0 and u[i] + step[i] < lo[i]:
                 a_i = (lo[i] - u[i]) / step[i]
             elif step[i] > 0 and u[i] + step[i] > hi[i]:

@@ -200,7 +200,12 @@ def _walk(drive, robot, sim, duration: float | None, record_qpos: bool = False):
     options = drive.run_options()
     if duration is not None:
         options["duration"] = duration
-    return sim.run(drive.controller(robot, sim.control_period), record_qpos=record_qpos, **options)
+    trace = sim.run(drive.controller(robot, sim.control_period), record_qpos=record_qpos, **options)
+    if drive.online and drive.command is not None:
+        # a held command: its velocity is measured from 2 s after the first step to the stop
+        start = float(getattr(drive.engine, "t_stand", 0.0) or 0.0) + 2.0
+        trace.meta["steady"] = (start, float(drive.the_stream().t[-1]))
+    return trace
 
 
 def _walk_options(f):

@@ -100,7 +100,7 @@ class Evaluator:
             return self._evaluate_speed(drive.params, drive.stabiliser)
         dt = self.sims[0].control_period
         try:
-            if drive.user is not None:          # online: no table; its walk lasts the study's duration
+            if drive.online:                    # no table: its walk lasts the study's duration
                 traj, planned, plan_dist = None, float(spec.duration), 0.0
                 drive.controller(self.robot, dt)       # a controller that cannot be built: invalid, at once
             else:

@@ -459,5 +459,7 @@ class Simulator:
                      cycle_time=plan.cycle_time,
                      meta={"robot": self.robot.name, "surface": self.surface.name,
                            "family": plan.family, "zmp_source": plan.zmp_source,
-                           **{k: plan.meta[k] for k in ("steady", "step_starts", "stream") if k in plan.meta}},
+                           **{k: plan.meta[k] for k in ("steady", "step_starts", "stream", "steps", "replans",
+                                                        "touchdowns", "estimate_com", "estimate_vel", "plan_com",
+                                                        "plan_vel") if k in plan.meta}},
                      yaw=_quat_yaw(sens[:, self._s_quat]))
