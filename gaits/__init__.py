@@ -12,6 +12,7 @@ from .baselines import list_baselines, load_baseline
 from .command_stream import CommandStream
 from .cosine_law import CosineLawParams
 from .drive import Drive, UserController
+from .engine import EngineParams, WalkEngine
 from .eros import ErosParams
 from .families import GaitFamily, all_families, command_walk, family, family_of
 from .footstep_planner import FootstepPlan, PlanError, StepLimits, plan_footsteps
@@ -28,6 +29,8 @@ __all__ = [
     "ArmGeometry",
     "CommandStream",
     "Drive",
+    "EngineParams",
+    "WalkEngine",
     "UserController",
     "GaitFamily",
     "all_families",

@@ -317,6 +317,8 @@ def adjust_step(gait: _Gait, step: Step, tau: float, xi: np.ndarray, command: np
         B = np.array([B_xy[0], B_xy[1], nominal[2]])
         kt, kp, sh = gait.knots(step.support, step.p0, B, step.t1, t2, T, offset=z[:2])
         xi_end = dcm_forward(xi, tau, T, kt, kp, sh, gait.Tc)
+        if n_preview == 0:                       # a stop: at rest between the feet when this step ends
+            return xi_end - kp[-1]
         key = (float(B_xy[0]), float(B_xy[1]))
         if key not in required:
             required[key] = gait.required_dcm(B, -step.side, kp[-1], command, n_preview)
@@ -566,8 +568,8 @@ class WalkEngine:
         t = self.t
         walking_wanted = bool(np.any(np.abs(self.asked) > 1e-6)) or e.idle == "step"
         if self.mode == STAND:
-            if walking_wanted and t >= e.t_stand - e.shift_time - 1e-9:
-                self._start_shift(t - dt)
+            if walking_wanted and t - dt >= e.t_stand - e.shift_time - 1e-9:
+                self._start_shift(t - dt)               # from the state of now: the first step at t_stand
             else:
                 self._hold()
                 return
@@ -664,7 +666,8 @@ class WalkEngine:
         """Adjust the step's target, timing and ZMP offset from its state at ``tau``; rebuild its ZMP."""
         g, st = self.gait, self.cur
         xi = self.com + g.Tc * self.vel
-        target, lam, offset, info = adjust_step(g, st, tau, xi, self.command, self.params.preview_steps,
+        n = 0 if self._stopping() else self.params.preview_steps
+        target, lam, offset, info = adjust_step(g, st, tau, xi, self.command, n,
                                                 swing_pose, self.params, self.dt, fixed_target=st.landed)
         if not info.get("kept"):
             p = g.p
@@ -676,6 +679,16 @@ class WalkEngine:
         self.last_residual = info.get("residual", float("nan"))
         st.knots_t, st.knots_p, st.shift = g.knots(st.support, st.p0, st.target, st.t1, st.t2, st.T, st.offset)
         self.zmp = zmp_at(st.knots_t, st.knots_p, tau)
+
+    def _stopping(self) -> bool:
+        """This step ends the walk: nothing is asked, the command has ramped down, the engine stands
+        at a zero command, and the feet will stand side by side (the planner's zero step)."""
+        idle = self.params.idle == "stand" and not np.any(np.abs(self.asked) > 1e-6) \
+            and not np.any(np.abs(self.command) > 1e-6)
+        if not idle:
+            return False
+        st = self.cur
+        return abs(relative(st.support, st.swing_from)[2]) < 1e-6
 
     def _replan(self, tau: float) -> None:
         st = self.cur

@@ -760,7 +760,7 @@ def export(study_file: str, storage: str | None, runs_dir: Path, number: int | N
     STUDY is the study file (or shipped study name). The YAML is accepted as it
     is by `simulate` and `trajectory`.
     """
-    from .search.trials import best_trial, pareto_pick as pick, trial_fell, trial_params, trial_stabiliser
+    from .search.trials import best_trial, pareto_pick as pick, trial_engine, trial_fell, trial_params, trial_stabiliser
 
     if number is not None and pareto_pick is not None:
         raise UserError("give --trial or --pareto-pick, not both")
@@ -783,14 +783,14 @@ def export(study_file: str, storage: str | None, runs_dir: Path, number: int | N
             + f"; surfaces {', '.join(spec.surfaces)}; robot {spec.robot}")
     from .robots import load_robot
     robot = load_robot(spec.robot)
-    gaits.save_gait_file(out, params, desc, trial_stabiliser(t))
+    gaits.save_gait_file(out, params, desc, trial_stabiliser(t), trial_engine(t))
     from .streams import load_stream
     cmd = _parse_command(command)
     if cmd is not None and commands_file is not None:
         raise UserError("give --command or --commands, not both")
     stream = None if commands_file is None else load_stream(commands_file, _tail(duration, commands_file))
     drive = gaits.Drive(params, trial_stabiliser(t), cmd, stream, source=f"study {spec.name} trial {t.number}")
-    traj = drive.table(robot, robot.sim.control_period)
+    traj = drive.table(robot, robot.sim.control_period)       # an engine set's table: planned per step
     table = write_joint_table(traj, robot, out.with_suffix(".joints.csv"), joint_names,
                               f"{drive.describe()}; surfaces {', '.join(spec.surfaces)}")
     click.echo(f"trial {t.number} (score {t.values[0]:.4f}) -> {out} and {table}")
@@ -943,6 +943,66 @@ def robustness(params_spec: str | None, robot_name: str, surface_name: str, roll
         path = plot_robustness(report, plot_dir)
         if not as_json:
             click.echo(f"wrote {path}")
+
+
+@cli.group()
+def challenge() -> None:
+    """RoboCup Humanoid League technical challenges, simulated."""
+
+
+@challenge.command(name="push")
+@click.option("--params", "params_spec", metavar="PATH|NAME",
+              help="Parameter YAML file or shipped set (`gait-tuner sets`); or --controller.")
+@CONTROLLER_OPTION
+@robot_option()
+@surface_option("carpet4")
+@click.option("--rope", default=1.5, show_default=True, type=click.FloatRange(1.0, 2.0),
+              help="Rope length L [m], fixed between 1 and 2 m by the rules (to the bottle's middle).")
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(0, 2**31 - 1),
+              help="Seed of the push directions.")
+@click.option("--step", default=0.05, show_default=True, type=click.FloatRange(0.01, 0.5),
+              help="How much D [m] grows from trial to trial.")
+@STABILISER_OPTION
+@JSON_OPTION
+def challenge_push(params_spec: str | None, controller_file: Path | None, robot_name: str, surface_name: str,
+                   rope: float, seed: int, step: float, stabiliser: bool | None, as_json: bool) -> None:
+    """The push-recovery challenge: a 1 kg pendulum released from a growing distance D.
+
+    The robot walks in place; a trial is three pushes from random directions, fully successful
+    when it is still up after the third. D grows by --step until a trial fails; the best D, the
+    bottle's momentum at impact and the rules' rank sqrt(H) / (m_robot H_com) are reported
+    (tuner/sim/challenge.py says what is ours).
+    """
+    import json
+
+    from .robots import load_robot
+    from .sim.challenge import challenge as run_challenge
+    from .sim.rollout import Simulator
+    from .sim.surfaces import load_surface
+
+    if params_spec is None and controller_file is None:
+        raise UserError("give --params (a gait set) or --controller (your own)")
+    drive = resolve_drive(params_spec, None, stabiliser=stabiliser, controller=controller_file)
+    sim = Simulator(load_robot(robot_name), load_surface(surface_name), pendulum=rope)
+
+    def shown(trial: dict) -> None:
+        if not as_json:
+            J = [p["measured_Ns"] for p in trial["pushes"]]
+            click.echo(f"  D {trial['distance_m']:.2f} m: {'fully successful' if trial['success'] else trial['reason']}"
+                       f" (pushes {', '.join('-' if j is None else f'{j:.2f}' for j in J)} N s measured)")
+    if not as_json:
+        click.echo(f"push-recovery challenge: {drive.describe()} on {sim.robot.name} / {sim.surface.name}, rope {rope:g} m")
+    report = run_challenge(sim, drive, seed=seed, step=step, progress=shown)
+    if as_json:
+        click.echo(json.dumps({"robot": sim.robot.name, "surface": sim.surface.name, "params": drive.source,
+                               "drive": drive.describe(), **report}, indent=2, allow_nan=False))
+        return
+    if report["best_distance_m"] is None:
+        click.echo("no trial fully successful (not even the first)")
+    else:
+        click.echo(f"best D {report['best_distance_m']:.2f} m: H {report['drop_m'] * 1000:.0f} mm, momentum "
+                   f"{report['momentum_Ns']:.2f} N s at impact, rank {report['rank']:.3f} "
+                   f"(robot {report['robot_mass_kg']:.2f} kg, CoM {report['com_height_m']:.3f} m)")
 
 
 @cli.group()

@@ -98,6 +98,8 @@ class Evaluator:
         spec = self.spec
         if spec.speed is not None:
             return self._evaluate_speed(drive.params, drive.stabiliser)
+        if spec.scenario is not None:
+            return self._evaluate_scenario(drive)
         dt = self.sims[0].control_period
         try:
             if drive.online:                    # no table: its walk lasts the study's duration
@@ -180,6 +182,49 @@ class Evaluator:
             constraint = -1.0
         return TrialResult(score=risk, speed=float(np.mean(speeds)) if speeds else 0.0, fall_constraint=constraint,
                            fell=falls > 0, per_surface=per, survival=survival, hopeless=hopeless)
+
+    def _evaluate_scenario(self, drive: gaits.Drive) -> TrialResult:
+        """K match walks per surface (``tuner/sim/scenario.py``; tuning seeds 0..K-1, the same for
+        every trial) under the study's randomisation; each walk scored pitch RMS [deg] +
+        ``tracking_weight`` x (vx + vy RMSE [m/s] + 0.1 wz RMSE [rad/s]), a fall the full penalty
+        times the share of the walk not walked; the trial's score their mean. Survival below
+        ``min_survival`` is infeasible, and a trial whose falls already exceed what that allows
+        stops at once (``hopeless``)."""
+        from ..sim.robustness import walk_scenario
+        from ..sim.scenario import draw_scenario
+        sc = self.spec.scenario
+        total = sc.walks * len(self.sims)
+        allowed = math.floor((1.0 - sc.min_survival) * total + 1e-9)
+        scores, per, falls, hopeless = [], {}, 0, False
+        rmse = []
+        for name, sim in zip(self.spec.surfaces, self.sims):
+            rows = []
+            for i in range(sc.walks):
+                stream, pushes = draw_scenario(sc.scenario, i, TUNE)
+                p = draw(sc.randomisation, i, *sim.n_random(), namespace=TUNE)
+                r = walk_scenario(sim, drive, stream, pushes, p)
+                tk = r["tracking"] or {}
+                err = sum(v for v in (tk.get("vx_rmse_mps"), tk.get("vy_rmse_mps")) if v is not None) \
+                    + 0.1 * (tk.get("wz_rmse_radps") or 0.0)
+                score = (r["pitch_rms_deg"] or 0.0) + sc.tracking_weight * err
+                if r["fell"]:
+                    falls += 1
+                    score += FALL_PENALTY_DEG * (1.0 - min(max(r["walked"], 0.0), 1.0))
+                else:
+                    rmse.append(err)
+                scores.append(score)
+                rows.append(r)
+                if falls > allowed:
+                    hopeless = True
+                    break
+            per[name] = {"survival": float(np.mean([not r["fell"] for r in rows])), "rollouts": len(rows),
+                         "fell": any(r["fell"] for r in rows)}
+            if hopeless:
+                break
+        survival = 1.0 - falls / len(scores)
+        constraint = (sc.min_survival - (1.0 - falls / total) + 1e-3) if (survival < sc.min_survival or hopeless) else -1.0
+        return TrialResult(score=float(np.mean(scores)), speed=0.0, fall_constraint=constraint, fell=falls > 0,
+                           per_surface=per, survival=survival, hopeless=hopeless)
 
     def _evaluate_speed(self, params: gaits.GaitParams, stabiliser: Any) -> TrialResult:
         """A speed study's trial: every direction's staircase on every surface
@@ -267,11 +312,15 @@ def objective_for(spec: StudySpec, evaluator: Evaluator) -> Callable[[optuna.Tri
         # two journal writes per trial (params, result): workers contend for the file lock
         record_constraint(trial, res.fall_constraint)
         walked = {"controller": dict(drive.user.params)} if drive.user is not None else drive.params.to_mapping()
-        trial.set_user_attr("params", walked if drive.stabiliser is None else
-                            {**walked, "stabiliser": drive.stabiliser.to_mapping()})
+        if drive.stabiliser is not None:
+            walked["stabiliser"] = drive.stabiliser.to_mapping()
+        if drive.engine is not None:
+            walked["engine"] = drive.engine.to_mapping()
+        trial.set_user_attr("params", walked)
         trial.set_user_attr("result", res.stored())
         if res.hopeless:
-            raise optuna.TrialPruned(f"survival already below {spec.robust.min_survival:.0%}")
+            minimum = (spec.scenario or spec.robust).min_survival
+            raise optuna.TrialPruned(f"survival already below {minimum:.0%}")
         if res.values is not None:
             trial.set_user_attr("speed", {"by_direction": res.by_direction, "score": res.score,
                                           "pitch_rms_deg": res.pitch_rms_deg})

@@ -26,6 +26,15 @@ A study tunes one gait family on one robot against one or several surfaces::
       randomisation: {}            #   overrides of tuner/sim/randomisation.py's defaults, or none
     stabiliser: {enabled: true}    # optional: the IMU stabiliser's fixed values; its gains may be
                                    #   searched as space keys stabiliser.k_ankle_pitch etc.
+    engine: {k_vel: 0.8}           # optional (TLIPFM): walk every trial with the online walk engine
+                                   #   (gaits/engine.py), these values fixed; its numbers may be
+                                   #   searched as space keys engine.NAME
+    scenario:                      # optional: K match walks per surface per trial (tuner/sim/scenario.py)
+      walks: 6                     #   scenario seeds 0..K-1 of the tuning stream, the same every trial
+      min_survival: 0.9            #   below this share of walks standing: infeasible (stops early)
+      tracking_weight: 10.0        #   score = pitch RMS [deg] + this x (vx + vy RMSE [m/s] + 0.1 wz RMSE [rad/s])
+      randomisation: {}            #   overrides of tuner/sim/randomisation.py's defaults, or none
+      forward: 0.3                 #   the scenario's distribution: any field of tuner/sim/scenario.py
     controller: my_controller.yaml # optional, instead of gait/base: a controller of your own
                                    #   (tuner/controllers.py); its parameters are searched as
                                    #   controller.NAME (default: every range its file declares);
@@ -74,10 +83,11 @@ OBJECTIVES = {"pitch_rms": "minimize", "speed": "maximize", "speed_score": "maxi
               **{d: "maximize" for d in ("forward", "backward", "left", "right", "turn_left", "turn_right")}}
 _KEYS = ("name", "description", "robot", "surfaces", "aggregate", "gait", "base", "fixed", "space",
          "objectives", "trials", "duration", "enqueue", "baselines", "sampler_seed", "robust", "stabiliser",
-         "speed", "controller")
+         "speed", "controller", "engine", "scenario")
 RISKS = ("cvar25", "worst", "mean")
 STAB_PREFIX = "stabiliser."
 CTRL_PREFIX = "controller."
+ENGINE_PREFIX = "engine."
 #: [s] a study's walk of a controller of the user's own when the study gives no duration
 USER_DURATION_S = 10.0
 
@@ -146,6 +156,8 @@ class StudySpec:
     stabiliser: Any = None            # gaits.StabiliserParams: the fixed values, or None (open loop)
     speed: SpeedSpec | None = None    # a speed study's scoring, or None
     controller: UserController | None = None   # a controller of the user's own (then gait "user")
+    engine: Any = None                # gaits.engine.EngineParams: trials walk the online engine
+    scenario: Any = None              # ScenarioSpec: match walks per surface per trial
 
     @property
     def directions(self) -> list[str]:
@@ -165,12 +177,19 @@ class StudySpec:
         if self.controller is not None:
             values = {k[len(CTRL_PREFIX):]: float(v) for k, v in sampled.items() if k.startswith(CTRL_PREFIX)}
             return Drive(None, stabiliser, source=source, user=self.controller.with_params(values))
-        return Drive(self.params_for(sampled), stabiliser, source=source)
+        return Drive(self.params_for(sampled), stabiliser, source=source, engine=self.engine_for(sampled))
+
+    def engine_for(self, sampled: Mapping[str, Any]) -> Any:
+        """The study's engine with the sampled values (keys ``engine.NAME``), or None."""
+        if self.engine is None:
+            return None
+        values = {k[len(ENGINE_PREFIX):]: v for k, v in sampled.items() if k.startswith(ENGINE_PREFIX)}
+        return dataclasses.replace(self.engine, **values)
 
     def params_for(self, sampled: Mapping[str, Any]) -> GaitParams:
         """The base with the sampled values and the fields that follow from them (the family's
         ``derived`` rule, e.g. TLIPFM's d2 = step_length - d1)."""
-        values = {k: v for k, v in sampled.items() if not k.startswith((STAB_PREFIX, CTRL_PREFIX))}
+        values = {k: v for k, v in sampled.items() if not k.startswith((STAB_PREFIX, CTRL_PREFIX, ENGINE_PREFIX))}
         values.update(family(self.gait).derived(values, self.base))
         return self.base.replace(**values)
 
@@ -250,10 +269,14 @@ def load_study(path_or_name: str) -> StudySpec:
     if not isinstance(space_doc, Mapping) or not space_doc:
         _fail(source, "space must map at least one parameter to {low, high}")
     stabiliser = _study_stabiliser(doc.get("stabiliser"), source)
+    engine = _study_engine(doc.get("engine"), gait, source)
     space = []
     for name, rng in space_doc.items():
         if isinstance(name, str) and name.startswith(STAB_PREFIX):
             space.append(_stabiliser_range(name, rng, stabiliser, source))
+            continue
+        if isinstance(name, str) and name.startswith(ENGINE_PREFIX):
+            space.append(_engine_range(name, rng, engine, source))
             continue
         if name not in numeric:
             _fail(source, f"space: unknown or non-numeric parameter {name!r} for gait {gait!r} "
@@ -280,13 +303,18 @@ def load_study(path_or_name: str) -> StudySpec:
         extra_sets.append(gf.params)
     robot = _study_robot(doc.get("robot", "kidsize"), path, source)
     robust = _study_robust(doc.get("robust"), source)
+    scenario = _study_scenario(doc.get("scenario"), source)
+    if scenario is not None and (robust is not None or speed is not None):
+        _fail(source, "scenario does not go with robust or speed: a scenario study has its own randomised walks")
+    if speed is not None and engine is not None:
+        _fail(source, "speed studies walk tables on staircases: give the engine a scenario: section instead")
     return StudySpec(name=name, gait=str(gait), base=base,
                      space=tuple(space), surfaces=tuple(str(s) for s in surfaces), robot=str(robot),
                      aggregate=aggregate, objectives=tuple(objectives), trials=trials,
                      duration=None if duration is None else float(duration), enqueue=tuple(enqueue),
                      baselines=tuple(extra_sets), sampler_seed=seed,
                      description=description, source=source, robust=robust,
-                     stabiliser=stabiliser, speed=speed)
+                     stabiliser=stabiliser, speed=speed, engine=engine, scenario=scenario)
 
 
 def _common(doc: Mapping[str, Any], path: Path, source: str, gait: str) -> tuple:
@@ -398,6 +426,75 @@ def _user_study(doc: Mapping[str, Any], path: Path, source: str) -> "StudySpec":
                      duration=duration, enqueue=tuple(enqueue), sampler_seed=seed, description=description,
                      source=source, robust=_study_robust(doc.get("robust"), source), stabiliser=stabiliser,
                      controller=user)
+
+
+@dataclass(frozen=True)
+class ScenarioSpec:
+    """A scenario study's walks: K match walks per surface (``tuner/sim/scenario.py``)."""
+
+    walks: int = 6
+    min_survival: float = 0.9
+    tracking_weight: float = 10.0      # [deg per m/s]
+    randomisation: Any = None          # tuner.sim.randomisation.Randomisation
+    scenario: Any = None               # tuner.sim.scenario.Scenario
+
+
+def _study_scenario(doc: Any, source: str) -> ScenarioSpec | None:
+    if doc is None:
+        return None
+    from ..sim.randomisation import randomisation_from_mapping
+    from ..sim.scenario import SCENARIO_FIELDS, scenario_from_mapping
+    own = ("walks", "min_survival", "tracking_weight", "randomisation")
+    if not isinstance(doc, Mapping):
+        _fail(source, f"scenario must be a mapping of {', '.join(own + SCENARIO_FIELDS)}")
+    for k in doc:
+        if k not in own + SCENARIO_FIELDS:
+            _fail(source, f"scenario: unknown key {k!r} (allowed: {', '.join(own + SCENARIO_FIELDS)})")
+    k = doc.get("walks", 6)
+    if not isinstance(k, int) or isinstance(k, bool) or not 1 <= k <= 1000:
+        _fail(source, f"scenario.walks = {k!r}: expected a whole number in [1, 1000]")
+    ms = doc.get("min_survival", 0.9)
+    if not isinstance(ms, (int, float)) or isinstance(ms, bool) or not 0.0 <= ms <= 1.0:
+        _fail(source, f"scenario.min_survival = {ms!r}: expected a fraction in [0, 1]")
+    tw = doc.get("tracking_weight", 10.0)
+    if not isinstance(tw, (int, float)) or isinstance(tw, bool) or not 0.0 <= tw <= 1000.0:
+        _fail(source, f"scenario.tracking_weight = {tw!r}: expected a number in [0, 1000] deg per m/s")
+    try:
+        rnd = randomisation_from_mapping(doc.get("randomisation"), "scenario.randomisation")
+        scen = scenario_from_mapping({kk: v for kk, v in doc.items() if kk in SCENARIO_FIELDS}, "scenario")
+    except UserError as exc:
+        _fail(source, str(exc))
+    return ScenarioSpec(k, float(ms), float(tw), rnd, scen)
+
+
+def _study_engine(doc: Any, gait: str, source: str) -> Any:
+    if doc is None:
+        return None
+    from gaits.gait_file import engine_from_mapping
+    if gait != "tlipfm":
+        _fail(source, f"engine: the walk engine plans TLIPFM steps, not {gait!r}")
+    try:
+        return engine_from_mapping({} if doc is True else doc, "engine")
+    except ParamError as exc:
+        _fail(source, str(exc))
+
+
+def _engine_range(name: str, rng: Any, engine: Any, source: str) -> ParamRange:
+    from gaits.engine import EngineParams
+    field_name = name[len(ENGINE_PREFIX):]
+    if engine is None:
+        _fail(source, f"space: {name!r} needs an engine: section (e.g. engine: {{}})")
+    rows = {r["name"]: r for r in EngineParams.field_table()}
+    numeric = {f.name for f in fields(EngineParams) if isinstance(f.default, (int, float)) and not isinstance(f.default, bool)}
+    if field_name not in numeric:
+        _fail(source, f"space: unknown or non-numeric engine field {field_name!r} (numeric: {', '.join(sorted(numeric))})")
+    low, high, log = _range_bounds(name, rng, source)
+    meta = next(f.metadata for f in fields(EngineParams) if f.name == field_name)
+    if low < meta["lo"] or high > meta["hi"]:
+        _fail(source, f"space: {name} range [{low}, {high}] leaves the allowed range [{meta['lo']}, {meta['hi']}] "
+                      f"{rows[field_name]['unit']}")
+    integer = isinstance(next(f.default for f in fields(EngineParams) if f.name == field_name), int)
+    return ParamRange(name, float(low), float(high), log, integer, meta["unit"])
 
 
 def _study_stabiliser(doc: Any, source: str) -> Any:

@@ -17,7 +17,7 @@ from optuna.trial import TrialState
 import gaits
 
 __all__ = ["DONE_STATES", "best_trial", "PARETO_PICKS", "pareto_pick", "trial_params", "trial_stabiliser",
-           "trial_result", "trial_fell", "trial_feasible", "n_done"]
+           "trial_result", "trial_fell", "trial_feasible", "n_done", "trial_engine"]
 
 DONE_STATES = (TrialState.COMPLETE, TrialState.PRUNED)
 
@@ -74,13 +74,20 @@ def trial_params(spec_gait: str, trial: optuna.trial.FrozenTrial) -> gaits.GaitP
     if data is None:
         raise KeyError(f"trial {trial.number} recorded no parameters (it was rejected: "
                        f"{trial_result(trial).get('invalid') or 'unknown reason'})")
-    data = {k: v for k, v in data.items() if k != "stabiliser"}
+    data = {k: v for k, v in data.items() if k not in ("stabiliser", "engine")}
     return gaits.params_from_mapping(spec_gait, data, f"trial {trial.number}")
 
 def trial_stabiliser(trial: optuna.trial.FrozenTrial) -> gaits.StabiliserParams | None:
     """The IMU stabiliser a trial walked with, or None (open loop)."""
     data = (trial.user_attrs.get("params") or {}).get("stabiliser")
     return None if data is None else gaits.StabiliserParams(**data)
+
+def trial_engine(trial: optuna.trial.FrozenTrial) -> Any:
+    """The walk engine's numbers a trial walked with, or None (a joint table)."""
+    from gaits.engine import EngineParams
+    data = (trial.user_attrs.get("params") or {}).get("engine")
+    return None if data is None else EngineParams(**data)
+
 
 def trial_result(trial: optuna.trial.FrozenTrial) -> dict[str, Any]:
     """What a trial recorded: fell, fall_constraint, per_surface metrics, invalid (reason)."""

@@ -32,7 +32,7 @@ from ..process_pool import mp_context
 from .liveness import Heartbeat, process_identity
 from .objective import Evaluator, objective_for, record_constraint
 from .storage import StudyStore
-from .study import CTRL_PREFIX, STAB_PREFIX, StudySpec
+from .study import CTRL_PREFIX, ENGINE_PREFIX, STAB_PREFIX, StudySpec
 from .trials import DONE_STATES, n_done, trial_result
 
 __all__ = ["open_storage", "open_study", "load_tuned_study", "enqueue_starts", "trial_distributions",
@@ -77,6 +77,8 @@ def _clip_to_space(spec: StudySpec, params: gaits.GaitParams) -> dict[str, Any]:
             v = getattr(spec.stabiliser, r.name[len(STAB_PREFIX):])
         elif r.name.startswith(CTRL_PREFIX):
             v = spec.controller.params[r.name[len(CTRL_PREFIX):]]
+        elif r.name.startswith(ENGINE_PREFIX):
+            v = getattr(spec.engine, r.name[len(ENGINE_PREFIX):])
         else:
             v = getattr(params, r.name)
         v = min(max(v, r.low), r.high)

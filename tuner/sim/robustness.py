@@ -30,7 +30,7 @@ from ..robots import load_robot
 from .rollout import Simulator
 from .surfaces import load_surface
 
-__all__ = ["evaluate", "scenario_walks", "RobustnessReport", "DEFINITIONS", "DEFAULT_PUSHES", "PUSH_SURVIVAL"]
+__all__ = ["evaluate", "scenario_walks", "walk_scenario", "RobustnessReport", "DEFINITIONS", "DEFAULT_PUSHES", "PUSH_SURVIVAL"]
 
 PUSH_SURVIVAL = 0.9
 DEFINITIONS = {
@@ -148,29 +148,35 @@ def evaluate(robot: str, surface: str, drive: gaits.Drive, *, rollouts: int, see
                             drive.describe())
 
 
-def _scenario_walk(task: tuple) -> dict[str, Any]:
-    """One scenario walk (a worker process): its own stream, pushes and perturbation."""
+def walk_scenario(sim: Simulator, drive: gaits.Drive, stream, pushes, perturb) -> dict[str, Any]:
+    """One scenario walk of ``drive`` on ``sim``: fell, pitch, tracking (``metrics.tracking``)."""
     import dataclasses
 
     from .metrics import tracking
+    walk = dataclasses.replace(drive, stream=stream, command=None)
+    try:
+        controller = walk.controller(sim.robot, sim.control_period)
+    except (gaits.ParamError, gaits.UnreachableTargetError) as exc:
+        return {"fell": True, "t_fall_s": 0.0, "walked": 0.0, "pitch_rms_deg": None, "invalid": str(exc),
+                "tracking": None, "segments": [], "pushes": len(pushes)}
+    trace = sim.run(controller, perturb=perturb, pushes=pushes, **walk.run_options())
+    m = summarize(trace)
+    starts = trace.meta.get("step_starts")
+    tk = tracking(trace, stream, np.asarray(starts if starts is not None else []))
+    return {"fell": m.fell, "t_fall_s": m.t_fall_s, "walked": float(trace.t[-1]) / stream.duration,
+            "pitch_rms_deg": m.pitch_rms_deg,
+            "tracking": {k: tk[k] for k in ("vx_rmse_mps", "vy_rmse_mps", "wz_rmse_radps", "steps")},
+            "segments": tk["segments"], "pushes": len(pushes)}
+
+
+def _scenario_walk(task: tuple) -> dict[str, Any]:
+    """One scenario walk (a worker process): its own stream, pushes and perturbation."""
     from .scenario import draw_scenario
     robot, surface, drive, scenario, randomisation, seed, namespace = task
     sim = simulator(robot, surface)
     stream, pushes = draw_scenario(scenario, seed, namespace)
-    walk = dataclasses.replace(drive, stream=stream, command=None)
     p = draw(randomisation, seed, *sim.n_random(), namespace=namespace)
-    try:
-        controller = walk.controller(sim.robot, sim.control_period)
-    except (gaits.ParamError, gaits.UnreachableTargetError) as exc:
-        return {"seed": list(seed), "fell": True, "t_fall_s": 0.0, "pitch_rms_deg": None, "invalid": str(exc),
-                "tracking": None, "pushes": len(pushes)}
-    trace = sim.run(controller, perturb=p, pushes=pushes, **walk.run_options())
-    m = summarize(trace)
-    starts = trace.meta.get("step_starts")
-    tk = tracking(trace, stream, np.asarray(starts if starts is not None else []))
-    return {"seed": list(seed), "fell": m.fell, "t_fall_s": m.t_fall_s, "pitch_rms_deg": m.pitch_rms_deg,
-            "tracking": {k: tk[k] for k in ("vx_rmse_mps", "vy_rmse_mps", "wz_rmse_radps", "steps")},
-            "segments": tk["segments"], "pushes": len(pushes)}
+    return {"seed": list(seed), **walk_scenario(sim, drive, stream, pushes, p)}
 
 
 def scenario_walks(robot: str, surface: str, drive: gaits.Drive, scenario, *, walks: int, seed: int,

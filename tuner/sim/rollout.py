@@ -40,7 +40,7 @@ from .centre_of_pressure import centre_of_pressure
 from .randomisation import Perturbation
 from .sensors import SensorReader, tilt_from_quat
 from ..robots import RobotModel, SimOptions
-from .scene import CORNERS, IMU_SITE_POS, PREFIX, build_scene
+from .scene import CORNERS, IMU_SITE_POS, PREFIX, add_pendulum, build_scene
 from .surfaces import Surface
 
 __all__ = ["FallCriteria", "Trace", "Simulator", "dead_band"]
@@ -113,7 +113,10 @@ class Simulator:
     """One compiled MuJoCo model of a robot on a surface, reused across rollouts."""
 
     def __init__(self, robot: RobotModel, surface: Surface, *, control_period: float | None = None,
-                 timestep: float | None = None, fall: FallCriteria | None = None) -> None:
+                 timestep: float | None = None, fall: FallCriteria | None = None,
+                 pendulum: float | None = None) -> None:
+        """``pendulum`` [m]: add the push-recovery challenge's pendulum on a rope this long
+        (``scene.add_pendulum``; ``tuner/sim/challenge.py`` swings it)."""
         self.robot = robot
         self.surface = surface
         opts = robot.sim
@@ -126,6 +129,9 @@ class Simulator:
         self.control_period = opts.control_period
         self.nstep = int(round(opts.control_period / opts.timestep))
         spec, self.layout = build_scene(robot, surface)
+        if pendulum is not None:
+            add_pendulum(spec, pendulum)
+        self.rope = pendulum
         self.spec = spec
         self.model = spec.compile()
         self.data = mujoco.MjData(self.model)
@@ -286,7 +292,8 @@ class Simulator:
         return self.run(controller, duration=duration, perturb=perturb, record_qpos=record_qpos)
 
     def run(self, controller: Controller, *, duration: float | None = None, perturb: Perturbation | None = None,
-            commands=None, pushes=(), record_qpos: bool = False, start=None, height_check: bool = True) -> Trace:
+            commands=None, pushes=(), record_qpos: bool = False, start=None, height_check: bool = True,
+            hooks=None) -> Trace:
         """Walk the robot under ``controller`` (``gaits/control.py``); stop at the end, a fall, or
         divergence.
 
@@ -298,7 +305,8 @@ class Simulator:
         tick. ``pushes``: (t [s], impulse (3,) [N s]) pairs, each applied to the torso over one
         control tick. ``record_qpos`` keeps the model's qpos per tick (for a video). ``start``
         (ours, for experiments): ``start(model, data)`` changes the placed state before the
-        first measurement.
+        first measurement. ``hooks`` (ours, for experiments): {tick: fn(model, data)} called before
+        that tick's physics (the push-recovery challenge releases its pendulum so).
         """
         dt = float(controller.dt)
         if abs(dt - self.control_period) > 1e-9:
@@ -309,15 +317,15 @@ class Simulator:
             raise ValueError("give a duration: this controller walks as long as it is run")
         length = own if duration is None else (duration if own is None else min(duration, own))
         if perturb is None:
-            return self._run(controller, length, None, commands, pushes, record_qpos, start, height_check)
+            return self._run(controller, length, None, commands, pushes, record_qpos, start, height_check, hooks)
         self._apply(perturb)
         try:
-            return self._run(controller, length, perturb, commands, pushes, record_qpos, start, height_check)
+            return self._run(controller, length, perturb, commands, pushes, record_qpos, start, height_check, hooks)
         finally:
             self._restore()
 
     def _run(self, controller: Controller, length: float, pert: Perturbation | None, commands, pushes,
-             record_qpos: bool, start, height_check: bool) -> Trace:
+             record_qpos: bool, start, height_check: bool, hooks=None) -> Trace:
         m, d = self.model, self.data
         dt = self.control_period
         n_ticks = int(round(length / dt)) + 1
@@ -394,6 +402,8 @@ class Simulator:
             kick = kicks.get(k - 1)
             if kick is not None:
                 d.xfrc_applied[torso, :3] = kick
+            if hooks and (k - 1) in hooks:
+                hooks[k - 1](m, d)
             mujoco.mj_step(m, d, nstep=self.nstep)
             if kick is not None:
                 d.xfrc_applied[torso, :3] = 0.0
@@ -429,7 +439,7 @@ class Simulator:
         pitch, roll = _quat_pitch_roll(sens[:, self._s_quat])
         force = sens[:, self._s_touch] @ self._touch_sum
         p_touch = sens[:, self._s_touchpos].reshape(k, 8, 3)
-        weight = float(np.sum(self.model.body_mass)) * 9.81
+        weight = float(self.model.body_subtreemass[self._torso]) * 9.81      # the robot's (not a pendulum's)
         zmp = centre_of_pressure(force, p_touch, min_total=0.1 * weight)
         # relative to the support foot (the midpoint of both in double support), so that an
         # open-loop drift of the whole walk does not count as ZMP tracking error

@@ -256,3 +256,29 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
         key.ctrl = ctrl + [0.0] * n_drag
         key.act = []
     return spec, SceneLayout(servo_joints, held, n_drag, tuple(blocks), tuple(touch_quadrant))
+
+
+#: The push-recovery challenge's pendulum (RoboCup Humanoid League, technical challenges, Part A,
+#: KidSize): a 1 kg bottle with up to 1 cm of foam on a rope. Ours: a 1 L PET bottle, 8 cm across
+#: and 25 cm long, as a capsule; the foam as a soft contact (a 15 ms time constant).
+BOTTLE_MASS = 1.0          # [kg]
+BOTTLE_RADIUS = 0.045      # [m] the bottle (4 cm) and its foam (<= 1 cm)
+BOTTLE_LENGTH = 0.25       # [m]
+FOAM_TIMECONST = 0.015     # [s]
+
+
+def add_pendulum(spec: mujoco.MjSpec, rope: float) -> None:
+    """The challenge's pendulum in the scene: a mocap pivot (``gt/pivot``, placed before each push)
+    and the bottle hanging ``rope`` [m] below it on a ball joint (``gt/rope``), the bottle's axis
+    along the rope. It touches only the robot (not the ground, its own contacts excluded)."""
+    pivot = spec.worldbody.add_body(name=PREFIX + "pivot", mocap=True, pos=[0.0, 0.0, 5.0])
+    bottle = pivot.add_body(name=PREFIX + "bottle", pos=[0.0, 0.0, 0.0])
+    bottle.add_joint(name=PREFIX + "rope", type=mujoco.mjtJoint.mjJNT_BALL, damping=0.0)
+    half = BOTTLE_LENGTH / 2 - BOTTLE_RADIUS
+    g = bottle.add_geom(name=PREFIX + "bottle", type=mujoco.mjtGeom.mjGEOM_CAPSULE,
+                        fromto=[0, 0, -rope, 0, 0, -rope - 2 * half], size=[BOTTLE_RADIUS, 0, 0],
+                        mass=BOTTLE_MASS, rgba=[0.9, 0.5, 0.1, 1.0])
+    g.solref = [FOAM_TIMECONST, 1.0]
+    g.contype = 2              # collides with the robot's geoms (contype 1), not with the ground planes
+    g.conaffinity = 1
+    g.friction = [0.3, 0.005, 0.0001]

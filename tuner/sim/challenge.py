@@ -1,0 +1,187 @@
+"""The RoboCup Humanoid League's push-recovery challenge (technical challenges, Part A, KidSize), simulated.
+
+As the rules run it: a 1 kg pendulum (a bottle with up to 1 cm of foam) on a rope of a fixed
+length L between 1 and 2 m, the bottle's bottom at the robot's CoM height, released from a
+ground-projected distance D; the robot walks in place; a trial is three pushes from random
+directions, fully successful when the robot is standing or walking after all three; the rank is
+sqrt(H) / (m_robot H_com) with H = L - sqrt(L^2 - D^2), the bottle's drop.
+
+Ours, where the rules leave it open: the rope is measured to the bottle's middle (so H is the drop
+of its centre of mass and it meets the robot at sqrt(2 g H)); the bottle hangs, at rest, just
+touching the robot on the side it comes from (``scene.add_pendulum``: a capsule 9 cm across with a
+soft 15 ms contact for the foam); the pushes come at 3, 7 and 11 s of a 14 s walk in place, each
+from a direction drawn uniformly around the robot's heading at that moment, the bottle released a
+quarter of its (exact, large-angle) period before; after each push the pendulum is taken away.
+:func:`challenge` raises D in steps of ``step`` until a trial fails and reports the largest D fully
+successful. A set with the walk engine steps in place (``idle: step``); any other set walks a zero
+command stream (a table planned per step, or a controller of the user's own).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any, Callable
+
+import mujoco
+import numpy as np
+from scipy.special import ellipk
+
+import gaits
+from gaits import CommandStream
+
+from .rollout import Simulator
+from .scene import BOTTLE_LENGTH, BOTTLE_MASS, BOTTLE_RADIUS, PREFIX
+
+__all__ = ["challenge", "push_trial", "drop_height", "rank", "PUSH_TIMES_S", "TRIAL_S"]
+
+PUSH_TIMES_S = (3.0, 7.0, 11.0)   # [s] when the three pushes meet the robot
+TRIAL_S = 14.0                     # [s] one trial
+GRAVITY = 9.81
+GAP = 0.005                        # [m] between the resting bottle and the robot
+
+
+def drop_height(rope: float, distance: float) -> float:
+    """H = L - sqrt(L^2 - D^2) [m]: how far the bottle falls from its release (the rules' H)."""
+    return rope - math.sqrt(max(rope * rope - distance * distance, 0.0))
+
+
+def rank(rope: float, distance: float, robot_mass: float, com_height: float) -> float:
+    """The rules' rank sqrt(H) / (m_robot H_com)."""
+    return math.sqrt(drop_height(rope, distance)) / (robot_mass * com_height)
+
+
+def _quarter_period(rope: float, angle: float) -> float:
+    """[s] from release at ``angle`` to the bottom (a pendulum's exact quarter period)."""
+    return math.sqrt(rope / GRAVITY) * float(ellipk(math.sin(angle / 2) ** 2))
+
+
+def _reach(m: mujoco.MjModel, d: mujoco.MjData, sim: Simulator, u: np.ndarray, z_lo: float, z_hi: float) -> float:
+    """How far the robot's geoms reach along the horizontal unit vector ``u`` from the torso, over
+    the heights the bottle spans (each geom's bounding box, as axis-aligned in the world)."""
+    root = m.body_rootid[sim._torso]
+    centre = d.xpos[sim._torso, :2]
+    best = 0.0
+    for g in range(m.ngeom):
+        if m.body_rootid[m.geom_bodyid[g]] != root or not m.geom_contype[g]:
+            continue
+        R = d.geom_xmat[g].reshape(3, 3)
+        half = np.abs(R) @ m.geom_aabb[g, 3:]
+        c = d.geom_xpos[g] + R @ m.geom_aabb[g, :3]
+        if c[2] + half[2] < z_lo or c[2] - half[2] > z_hi:
+            continue
+        best = max(best, float((c[:2] - centre) @ u) + abs(u[0]) * half[0] + abs(u[1]) * half[1])
+    return best
+
+
+def push_trial(sim: Simulator, drive: gaits.Drive, distance: float, seed: int, keep_trace: bool = False) -> dict[str, Any]:
+    """One trial of three pushes at ``distance`` [m]; returns success and each push's record
+    (``keep_trace``: and the walk's trace, under ``trace``)."""
+    m = sim.model
+    rope = sim.rope
+    rng = np.random.default_rng(np.random.SeedSequence([0xC4A1, int(seed), int(round(distance * 1000))]))
+    rel = rng.uniform(0.0, 2 * math.pi, len(PUSH_TIMES_S))
+    angle0 = math.asin(min(distance / rope, 1.0))
+    quarter = _quarter_period(rope, angle0)
+    jnt = m.joint(PREFIX + "rope").id
+    qadr, vadr = m.jnt_qposadr[jnt], m.jnt_dofadr[jnt]
+    mocap = m.body(PREFIX + "pivot").mocapid[0]
+    dt = sim.control_period
+    records: list[dict[str, Any]] = []
+    state = {"com_height": None}
+
+    def release(i: int) -> Callable:
+        def fn(model: mujoco.MjModel, data: mujoco.MjData) -> None:
+            torso = data.xpos[sim._torso]
+            R = data.xmat[sim._torso].reshape(3, 3)
+            heading = math.atan2(R[1, 0], R[0, 0])
+            phi = heading + rel[i]
+            u = np.array([math.cos(phi), math.sin(phi)])          # the way the bottle moves
+            h_com = state["com_height"]
+            z_lo, z_hi = h_com, h_com + BOTTLE_LENGTH
+            rest = torso[:2] - u * (_reach(model, data, sim, -u, z_lo, z_hi) + BOTTLE_RADIUS + GAP)
+            data.mocap_pos[mocap] = [rest[0], rest[1], h_com + BOTTLE_LENGTH / 2 + rope]
+            axis = np.array([-u[1], u[0], 0.0])                     # z x u: the bottle swings back along -u
+            data.qpos[qadr:qadr + 4] = [math.cos(angle0 / 2), *(axis * math.sin(angle0 / 2))]
+            data.qvel[vadr:vadr + 3] = 0.0
+            records.append({"t_s": float(PUSH_TIMES_S[i]), "direction_deg": float(math.degrees(rel[i]) % 360),
+                            "release_tick": None, "pivot": data.mocap_pos[mocap].copy()})
+        return fn
+
+    def park(model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        data.mocap_pos[mocap] = [0.0, 0.0, 50.0]
+        data.qvel[vadr:vadr + 3] = 0.0
+
+    def measure_com(model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        state["com_height"] = float(data.subtree_com[sim._torso][2])
+
+    hooks = {0: measure_com}
+    for i, t in enumerate(PUSH_TIMES_S):
+        k = int(round((t - quarter) / dt))
+        hooks[k] = release(i)
+        hooks[int(round((t + 1.5) / dt))] = park
+    walk = _in_place(drive)
+    controller = walk.controller(sim.robot, dt)
+    trace = sim.run(controller, hooks=hooks, record_qpos=True, **{**walk.run_options(), "duration": TRIAL_S})
+    # the bottle's speed before it met the robot: its fastest over the swing (the drop's energy, less
+    # nothing until contact), from the recorded joint angle about the known pivot
+    for i, rec in enumerate(records):
+        k0 = int(round((PUSH_TIMES_S[i] - quarter) / dt)) + 2       # the rows after the release
+        k1 = min(len(trace.t), k0 + int(round(1.6 * quarter / dt)))
+        if k1 - k0 < 3:
+            rec["measured_Ns"] = None
+            continue
+        quats = trace.qpos[k0:k1, qadr:qadr + 4]
+        pos = np.array([rec["pivot"] + _rotate(q, np.array([0.0, 0.0, -rope])) for q in quats])
+        speed = np.linalg.norm(np.diff(pos, axis=0), axis=1) / dt
+        rec["measured_Ns"] = float(BOTTLE_MASS * speed.max())
+        rec["pivot"] = [float(v) for v in rec["pivot"]]
+    ok = not trace.fell
+    out = {"distance_m": distance, "success": ok, "reason": trace.reason, "pushes": records,
+           "com_height_m": state["com_height"]}
+    if keep_trace:
+        out["trace"] = trace
+    return out
+
+
+def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    out = np.zeros(3)
+    mujoco.mju_rotVecQuat(out, v, np.asarray(q, dtype=float))
+    return out
+
+
+def _in_place(drive: gaits.Drive) -> gaits.Drive:
+    """The drive walking in place for the trial: the engine steps at a zero command, others walk a
+    zero command stream."""
+    still = CommandStream(np.array([0.0]), np.zeros((1, 3)), tail=TRIAL_S)
+    if drive.engine is not None:
+        return dataclasses.replace(drive, engine=dataclasses.replace(drive.engine, idle="step"), stream=still,
+                                   command=None)
+    return dataclasses.replace(drive, stream=still, command=None)
+
+
+def challenge(sim: Simulator, drive: gaits.Drive, *, seed: int = 0, start: float = 0.05, step: float = 0.05,
+              progress: Callable[[dict], None] | None = None) -> dict[str, Any]:
+    """Raise D from ``start`` by ``step`` [m] until a trial fails (module docstring)."""
+    rope = sim.rope
+    robot_mass = float(sim.model.body_subtreemass[sim._torso])
+    trials = []
+    best = None
+    distance = start
+    com_height = None
+    while distance < 0.95 * rope + 1e-9:
+        trial = push_trial(sim, drive, round(distance, 4), seed)
+        com_height = trial["com_height_m"]
+        trials.append(trial)
+        if progress is not None:
+            progress(trial)
+        if not trial["success"]:
+            break
+        best = round(distance, 4)
+        distance += step
+    H = drop_height(rope, best) if best is not None else 0.0
+    return {"rope_m": rope, "best_distance_m": best,
+            "momentum_Ns": BOTTLE_MASS * math.sqrt(2 * GRAVITY * H) if best is not None else None,
+            "drop_m": H if best is not None else None,
+            "rank": rank(rope, best, robot_mass, com_height) if best is not None else None,
+            "robot_mass_kg": robot_mass, "com_height_m": com_height, "trials": trials}
