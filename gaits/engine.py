@@ -688,7 +688,7 @@ class WalkEngine:
         if not idle:
             return False
         st = self.cur
-        return abs(relative(st.support, st.swing_from)[2]) < 1e-6
+        return abs(relative(st.support, st.swing_from)[2]) < 1e-3
 
     def _replan(self, tau: float) -> None:
         st = self.cur

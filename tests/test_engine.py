@@ -236,3 +236,30 @@ def test_engine_cost_per_tick_on_a_robots_budget():
     stream = CommandStream([0.0, 3.0], [[0.3, 0, 0], [0, 0, 0]], tail=2.0)
     simulator(ROBOT, "carpet4").run(e, commands=stream, duration=stream.duration)
     assert e.steps_taken < len(e._log) / 10                    # adjustments are a tenth of the ticks or fewer
+
+
+def test_live_walk_steers_from_the_keyboard_and_ends_when_the_window_closes():
+    """``view``'s live loop with a stand-in viewer: keys change the command the engine reads, closing
+    the window ends the walk (the viewer itself needs a display, which CI has not)."""
+    from tuner.report.live import KeyboardCommand, live_walk
+
+    class Viewer:
+        def __init__(self, keyboard, close_at):
+            self.keyboard, self.close_at, self.ticks = keyboard, close_at, 0
+
+        def is_running(self):
+            return self.ticks < self.close_at
+
+        def sync(self):
+            self.ticks += 1
+            if self.ticks == 150:
+                for _ in range(3):
+                    self.keyboard.key(265)          # up arrow: 0.15 m/s forward
+            if self.ticks == 450:
+                self.keyboard.key(32)               # space: stop
+    keyboard = KeyboardCommand()
+    viewer = Viewer(keyboard, close_at=600)
+    trace = live_walk(simulator(ROBOT, "carpet4"), engine(), viewer, keyboard, realtime=False)
+    assert trace.reason == "stopped" and len(trace.t) == 602          # 600 ticks shown, the 601st finds it closed
+    assert trace.p_torso[440, 0] - trace.p_torso[150, 0] > 0.2
+    assert keyboard.at(0.0).tolist() == [0.0, 0.0, 0.0]

@@ -312,11 +312,13 @@ def _open_display() -> None:
 def view(robot_name: str, surface_name: str, family: str | None, params_spec: str | None,
          duration: float | None, command: str | None, commands_file: Path | None, stabiliser: bool | None,
          controller_file: Path | None, save_scene: Path | None) -> None:
-    """Watch a walk in MuJoCo's interactive viewer (needs a display), replayed in real time.
+    """Watch a walk in MuJoCo's interactive viewer (needs a display).
 
-    The walk is simulated first (as `simulate` does), then replayed on a loop until the
-    window is closed. Without a display: use `render` for a video, or --save-scene and
-    open the scene in any MuJoCo tool.
+    A set that walks online (the walk engine, --controller) without --command/--commands runs
+    live physics: the keyboard steers it (arrows, Z/X, space) and the mouse pushes it (see
+    tuner/report/live.py). Otherwise the walk is simulated first (as `simulate` does), then
+    replayed in real time until the window is closed. Without a display: use `render` for a
+    video, or --save-scene and open the scene in any MuJoCo tool.
     """
     import os
     import time
@@ -328,6 +330,18 @@ def view(robot_name: str, surface_name: str, family: str | None, params_spec: st
                         "use `gait-tuner render ... --out walk.mp4`, or --save-scene with `view`'s options")
     drive, robot, sim, duration = _walk_setup(robot_name, surface_name, family, params_spec, duration, command,
                                               commands_file, stabiliser, save_scene, controller_file)
+    if drive.online and command is None and commands_file is None:
+        from .report.live import KeyboardCommand, live_walk
+        _open_display()
+        import mujoco.viewer
+        keyboard = KeyboardCommand()
+        click.echo(f"{drive.describe()}: live physics; arrows steer (forward/back, turning), Z/X sideways, "
+                   f"space stops; double-click a body and Ctrl + right-drag to push it; close the window to end")
+        with mujoco.viewer.launch_passive(sim.model, sim.data, key_callback=keyboard.key) as viewer:
+            trace = live_walk(sim, drive.controller(robot, sim.control_period), viewer, keyboard,
+                              limit_s=duration or 3600.0)
+        click.echo(f"the walk: {trace.reason} after {trace.t[-1]:.1f} s")
+        return
     trace = _walk(drive, robot, sim, duration, record_qpos=True)
     click.echo(f"{drive.describe()}; the walk: {trace.reason}; replaying {trace.t[-1]:.1f} s (close the window to stop)")
     _open_display()

@@ -61,9 +61,17 @@ def _one(task: tuple) -> dict[str, Any]:
     robot, surface, drive, randomisation, seed, push = task
     sim = simulator(robot, surface)
     p = draw(randomisation.with_push(push), seed, *sim.n_random(), namespace=EVALUATE)
-    m = summarize(sim.run(_controller(sim, drive), perturb=p, **drive.run_options()))
-    return {"push": push, "seed": list(seed), "fell": m.fell, "t_fall_s": m.t_fall_s,
-            "pitch_rms_deg": m.pitch_rms_deg, "speed_mps": m.speed_mps, "distance_m": m.distance_m}
+    trace = sim.run(_controller(sim, drive), perturb=p, **drive.run_options())
+    m = summarize(trace)
+    row = {"push": push, "seed": list(seed), "fell": m.fell, "t_fall_s": m.t_fall_s,
+           "pitch_rms_deg": m.pitch_rms_deg, "speed_mps": m.speed_mps, "distance_m": m.distance_m}
+    if drive.stream is not None:
+        from .metrics import tracking
+        starts = trace.meta.get("step_starts")
+        tk = tracking(trace, drive.stream, np.asarray(starts if starts is not None else []))
+        row["tracking"] = {k: tk[k] for k in ("vx_rmse_mps", "vy_rmse_mps", "wz_rmse_radps", "steps")}
+        row["segments"] = tk["segments"]
+    return row
 
 
 @dataclass

@@ -293,7 +293,7 @@ class Simulator:
 
     def run(self, controller: Controller, *, duration: float | None = None, perturb: Perturbation | None = None,
             commands=None, pushes=(), record_qpos: bool = False, start=None, height_check: bool = True,
-            hooks=None) -> Trace:
+            hooks=None, on_tick=None) -> Trace:
         """Walk the robot under ``controller`` (``gaits/control.py``); stop at the end, a fall, or
         divergence.
 
@@ -306,7 +306,9 @@ class Simulator:
         control tick. ``record_qpos`` keeps the model's qpos per tick (for a video). ``start``
         (ours, for experiments): ``start(model, data)`` changes the placed state before the
         first measurement. ``hooks`` (ours, for experiments): {tick: fn(model, data)} called before
-        that tick's physics (the push-recovery challenge releases its pendulum so).
+        that tick's physics (the push-recovery challenge releases its pendulum so). ``on_tick``:
+        fn(tick, data) after each tick's physics (a live viewer syncs there); returning False ends
+        the walk ("stopped").
         """
         dt = float(controller.dt)
         if abs(dt - self.control_period) > 1e-9:
@@ -317,15 +319,17 @@ class Simulator:
             raise ValueError("give a duration: this controller walks as long as it is run")
         length = own if duration is None else (duration if own is None else min(duration, own))
         if perturb is None:
-            return self._run(controller, length, None, commands, pushes, record_qpos, start, height_check, hooks)
+            return self._run(controller, length, None, commands, pushes, record_qpos, start, height_check, hooks,
+                             on_tick)
         self._apply(perturb)
         try:
-            return self._run(controller, length, perturb, commands, pushes, record_qpos, start, height_check, hooks)
+            return self._run(controller, length, perturb, commands, pushes, record_qpos, start, height_check, hooks,
+                             on_tick)
         finally:
             self._restore()
 
     def _run(self, controller: Controller, length: float, pert: Perturbation | None, commands, pushes,
-             record_qpos: bool, start, height_check: bool, hooks=None) -> Trace:
+             record_qpos: bool, start, height_check: bool, hooks=None, on_tick=None) -> Trace:
         m, d = self.model, self.data
         dt = self.control_period
         n_ticks = int(round(length / dt)) + 1
@@ -417,6 +421,9 @@ class Simulator:
             if xmat[torso, 8] < cos_tilt or xpos[torso, 2] < z_min:
                 k_end = k + 1
                 reason = "fell"
+                break
+            if on_tick is not None and on_tick(k, d) is False:
+                k_end, reason = k + 1, "stopped"
                 break
         trace = self._trace(controller.plan(k_end), sens[:k_end], cmds[:k_end], targets[:k_end, col],
                             reason, z0)

@@ -1,0 +1,140 @@
+"""The online walk engine beside the best open-loop set, measured in one run (issue 21's benchmark).
+
+Usage: ``python benchmarks/bench_engine.py [--walks 100] [--workers 2] [--quick]``
+
+For carpet4 and grass50, each figure for the engine set (``kidsize-engine-<surface>``) and the best
+open-loop set of the same surface (``kidsize-omni-<surface>``, a table planned per step):
+
+* survival of ``--walks`` randomised walks (default randomisation, evaluation seeds) of the match
+  stream ``examples/streams/match-<surface>.csv`` (segments up to 0.3 m/s forward, 0.2 back, 0.1
+  sideways, 1.0 rad/s on carpet4; up to 0.2 m/s forward on grass50);
+* survival of randomised sustained walks (0.3 m/s on carpet4, 0.2 on grass50, 8 s);
+* velocity tracking in the steady segments of the match stream: per moving segment, the measured
+  velocity over its steps from the second on, as a share of the command (median over the walks
+  that stayed up), and the RMS errors;
+* the push-recovery challenge (``gait-tuner challenge push``) on carpet4 and grass30: the largest
+  fully successful D and the bottle's momentum at impact, engine vs open-loop;
+* the engine's cost per tick in Python (median, 99th percentile) beside one tick of physics.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+import gaits  # noqa: E402
+from tuner.params_io import resolve_params  # noqa: E402
+from tuner.sim.challenge import challenge  # noqa: E402
+from tuner.sim.robustness import evaluate  # noqa: E402
+from tuner.sim.rollout import Simulator  # noqa: E402
+from tuner.sim.surfaces import load_surface  # noqa: E402
+from tuner.streams import load_stream  # noqa: E402
+from tuner.robots import load_robot  # noqa: E402
+
+SETS = {"carpet4": ("kidsize-engine-carpet4", "kidsize-omni-carpet4", 0.3),
+        "grass50": ("kidsize-engine-grass50", "kidsize-omni-grass50", 0.2)}
+
+
+def survival(rows) -> float:
+    return float(np.mean([not r["fell"] for r in rows])) if rows else float("nan")
+
+
+def tracking_shares(rows) -> tuple[float, float]:
+    """Median measured/commanded along each moving segment's own axis, and its spread (IQR)."""
+    shares = []
+    for r in rows:
+        if r["fell"]:
+            continue
+        for seg in r.get("segments") or []:
+            c, got = np.array(seg["command"]), seg["measured"]
+            if got is None or not np.any(c):
+                continue
+            axis = int(np.argmax(np.abs(c) * [1, 1, 0.1]))
+            if abs(c[axis]) > 1e-9:
+                shares.append(got[axis] / c[axis])
+    if not shares:
+        return float("nan"), float("nan")
+    q = np.percentile(shares, [25, 50, 75])
+    return float(q[1]), float(q[2] - q[0])
+
+
+def walks(name: str, surface: str, drive: gaits.Drive, n: int, workers: int, seed: int):
+    return evaluate("kidsize", surface, drive, rollouts=n, seed=seed, pushes=(), workers=workers).rollouts
+
+
+def cost_per_tick(engine_set: str, surface: str) -> tuple[float, float, float]:
+    """(engine median, engine p99, physics median) [ms] over a 20 s match walk, timed per tick."""
+    from tuner.sim.cache import simulator
+    robot = load_robot("kidsize")
+    sim = simulator(robot, surface)
+    drive = gaits.Drive.of(resolve_params(engine_set, None))
+    stream = load_stream(ROOT / "examples" / "streams" / f"match-{surface}.csv")
+    ctl = dataclasses.replace(drive, stream=stream).controller(robot, sim.control_period)
+    inner = getattr(ctl, "inner", ctl)
+    times = []
+    orig = inner.step
+
+    def timed(m, c=None):
+        t0 = time.perf_counter()
+        out = orig(m, c)
+        times.append(time.perf_counter() - t0)
+        return out
+    inner.step = timed
+    t0 = time.perf_counter()
+    trace = sim.run(ctl, commands=stream, duration=stream.duration)
+    total = time.perf_counter() - t0
+    t = np.array(times) * 1000
+    physics = (total - t.sum() / 1000) / len(trace.t) * 1000      # the loop's rest: physics, sensors, plant
+    return float(np.median(t)), float(np.percentile(t, 99)), physics
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--walks", type=int, default=100)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--quick", action="store_true", help="20 walks, no challenge on grass30")
+    args = ap.parse_args()
+    n = 20 if args.quick else args.walks
+    for surface, (engine_set, table_set, top) in SETS.items():
+        stream = load_stream(ROOT / "examples" / "streams" / f"match-{surface}.csv")
+        sustained = gaits.CommandStream([0.0, 8.0], [[top, 0, 0], [0, 0, 0]], tail=2.0)
+        print(f"\n{surface}: {n} randomised walks each (evaluation seed {args.seed})")
+        print(f"{'set':28s} {'match %':>8s} {f'{top:g} m/s %':>9s} {'tracking':>10s} {'IQR':>6s} {'vx rmse':>8s}")
+        for label in (engine_set, table_set):
+            gf = resolve_params(label, None)
+            drive = gaits.Drive.of(gf, source=label, stream=stream)
+            t0 = time.perf_counter()
+            match = walks(label, surface, drive, n, args.workers, args.seed)
+            steady = walks(label, surface, dataclasses.replace(drive, stream=sustained), n, args.workers, args.seed)
+            share, iqr = tracking_shares(match)
+            vx = [r["tracking"]["vx_rmse_mps"] for r in match if not r["fell"] and r["tracking"]["vx_rmse_mps"] is not None]
+            print(f"{label:28s} {survival(match):8.0%} {survival(steady):9.0%} {share:10.0%} {iqr:6.0%} "
+                  f"{np.median(vx) if vx else float('nan'):8.3f}   ({time.perf_counter() - t0:.0f} s; "
+                  f"{'online engine' if gf.engine is not None else 'table planned per step'})", flush=True)
+    print("\npush-recovery challenge (rope 1.5 m, seed 0): best D [m] / momentum at impact [N s]")
+    for surface in ("carpet4",) + (() if args.quick else ("grass30",)):
+        robot = load_robot("kidsize")
+        sim = Simulator(robot, load_surface(surface), pendulum=1.5)
+        cells = []
+        for label in ("kidsize-engine-carpet4", "kidsize-omni-carpet4"):
+            r = challenge(sim, gaits.Drive.of(resolve_params(label, None), source=label))
+            cells.append(f"{label} {r['best_distance_m'] or 0:.2f} / {r['momentum_Ns'] or 0:.2f}")
+        print(f"  {surface:8s} " + "   ".join(cells), flush=True)
+    print("\nthe engine's cost per tick, in Python on this machine (a 20 s match walk)")
+    for surface, (engine_set, _, _) in SETS.items():
+        med, p99, phys = cost_per_tick(engine_set, surface)
+        print(f"  {engine_set:28s} median {med:.3f} ms, p99 {p99:.3f} ms; the rest of the tick (physics, "
+              f"sensors, plant) {phys:.3f} ms")
+
+
+if __name__ == "__main__":
+    main()

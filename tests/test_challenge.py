@@ -1,0 +1,106 @@
+"""The push-recovery challenge's pendulum really hits the robot with the momentum it reports, and a
+scenario study runs end to end through the CLI."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+import gaits
+from tuner.params_io import resolve_params
+from tuner.robots import load_robot
+from tuner.sim.challenge import drop_height, push_trial, rank
+from tuner.sim.rollout import Simulator
+from tuner.sim.scene import BOTTLE_MASS
+from tuner.sim.surfaces import SURFACES
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def run(cmd, args, env, **kw):
+    return subprocess.run(cmd + [str(a) for a in args], capture_output=True, text=True, env=env, timeout=900, **kw)
+
+
+@pytest.fixture(scope="module")
+def trial():
+    sim = Simulator(load_robot("kidsize"), SURFACES["rigid"], pendulum=1.5)
+    drive = gaits.Drive.of(resolve_params("kidsize-omni-carpet4", None))
+    return sim, push_trial(sim, drive, 0.5, 3, keep_trace=True)
+
+
+def test_the_rules_numbers():
+    assert drop_height(1.5, 0.0) == 0.0
+    assert drop_height(1.5, 0.5) == pytest.approx(1.5 - math.sqrt(1.5 ** 2 - 0.25))
+    assert rank(1.5, 0.5, 5.0, 0.25) == pytest.approx(math.sqrt(drop_height(1.5, 0.5)) / 1.25)
+
+
+def test_the_pendulum_delivers_the_momentum_it_reports(trial):
+    """Measured from the bottle's speed before it meets the robot: sqrt(2 g H) times its mass, within
+    4% (the 10 ms sampling of the swing clips its peak)."""
+    sim, r = trial
+    expected = BOTTLE_MASS * math.sqrt(2 * 9.81 * drop_height(1.5, 0.5))
+    assert len(r["pushes"]) == 3
+    for push in r["pushes"]:
+        assert push["measured_Ns"] == pytest.approx(expected, rel=0.04)
+
+
+def test_the_bottle_really_touches_the_robot_at_each_push(trial):
+    sim, r = trial
+    tr = r["trace"]
+    m = sim.model
+    d = mujoco.MjData(m)
+    bottle = m.geom("gt/bottle").id
+    robot_root = m.body_rootid[sim._torso]
+    mocap = m.body("gt/pivot").mocapid[0]
+    for push in r["pushes"]:
+        d.mocap_pos[mocap] = push["pivot"]
+        touched = False
+        for k in range(int((push["t_s"] - 0.2) / 0.01), int((push["t_s"] + 0.2) / 0.01)):
+            d.qpos[:] = tr.qpos[k]
+            mujoco.mj_forward(m, d)
+            for c in d.contact[:d.ncon]:
+                other = c.geom2 if c.geom1 == bottle else (c.geom1 if c.geom2 == bottle else None)
+                if other is not None and m.body_rootid[m.geom_bodyid[other]] == robot_root:
+                    touched = True
+        assert touched, push
+
+
+def test_challenge_through_the_cli(gait_tuner_cmd, run_env):
+    r = run(gait_tuner_cmd, ["challenge", "push", "--params", "kidsize-omni-carpet4", "--surface", "rigid",
+                             "--step", "0.25", "--json"], run_env)
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert out["rope_m"] == 1.5 and {"best_distance_m", "momentum_Ns", "rank", "trials"} <= set(out)
+    assert all(len(t["pushes"]) == 3 for t in out["trials"] if t["success"])     # a fall ends a trial early
+    assert all(1 <= len(t["pushes"]) <= 3 for t in out["trials"])
+    assert not out["trials"][-1]["success"] or out["trials"][-1]["distance_m"] >= 1.4
+    if out["best_distance_m"] is not None:
+        assert out["momentum_Ns"] == pytest.approx(math.sqrt(2 * 9.81 * drop_height(1.5, out["best_distance_m"])))
+    bad = run(gait_tuner_cmd, ["challenge", "push", "--params", "kidsize-omni-carpet4", "--rope", "3"], run_env)
+    assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1
+
+
+def test_a_tiny_scenario_study_end_to_end(gait_tuner_cmd, run_env, tmp_path):
+    study = tmp_path / "tiny-engine.yaml"
+    study.write_text(
+        "gait: tlipfm\nbase: kidsize-omni-carpet4\nsurfaces: [carpet4]\nengine: {}\n"
+        "space:\n  engine.k_vel: {low: 0.0, high: 1.0}\n  h_z: {low: 0.02, high: 0.05}\n"
+        "scenario: {walks: 2, duration: 4.0, min_survival: 0.5, push_rate: 0.2}\ntrials: 3\nenqueue: [baselines]\n")
+    runs = tmp_path / "runs"
+    r = run(gait_tuner_cmd, ["tune", study, "--workers", "2", "--runs", runs], run_env)
+    assert r.returncode == 0, r.stderr
+    out = tmp_path / "best.yaml"
+    r = run(gait_tuner_cmd, ["export", study, "--runs", runs, "--out", out], run_env)
+    assert r.returncode == 0, r.stderr
+    gf = gaits.load_gait_file(out)
+    assert gf.engine is not None and 0.0 <= gf.engine.k_vel <= 1.0
+    r = run(gait_tuner_cmd, ["simulate", "--params", out, "--surface", "carpet4", "--commands",
+                             ROOT / "examples" / "streams" / "match-carpet4.csv", "--json"], run_env)
+    assert r.returncode == 0, r.stderr
+    assert "online walk engine" in json.loads(r.stdout)["drive"]
