@@ -9,7 +9,6 @@ import subprocess
 from pathlib import Path
 
 import mujoco
-import numpy as np
 import pytest
 
 import gaits
