@@ -108,3 +108,27 @@ def test_control_period_mismatch_is_an_error():
     traj = gaits.generate(gaits.load_baseline("tkux-table2").params, ROBOT.leg, 0.005)
     with pytest.raises(ValueError, match=r"dt \(0.005 s\) must equal the control period \(0.01 s\)"):
         sim.rollout(traj)
+
+
+def test_a_diverged_or_impossible_walk_never_survives():
+    """Stiff servos without damping on a 5 ms physics step blow the simulation up (measured: 378 m/s
+    at 0.08 s): the walk ends "impossible" (a state no kid-size robot reaches) or "diverged", is
+    not a fall, and counts as a survival nowhere: the trace, the metrics, a robustness report."""
+    import dataclasses
+
+    from tuner.sim.metrics import summarize
+    stiff = {k: dataclasses.replace(v, kp=1000.0, kv=0.0, damping=0.0, armature=0.0, frictionloss=0.0)
+             for k, v in ROBOT.servos.items()}
+    bad = dataclasses.replace(ROBOT, servos=stiff)
+    sim = Simulator(bad, SURFACES["rigid"], timestep=0.005)
+    trace = sim.rollout(gaits.generate(gaits.load_baseline("tkux-table2").params, bad.leg, sim.control_period),
+                        duration=2.0)
+    assert trace.outcome in ("diverged", "impossible") and not trace.survived and not trace.fell
+    assert trace.reason.startswith(trace.outcome)
+    m = summarize(trace)
+    d = m.to_dict()
+    assert not m.survived and d["outcome"] == trace.outcome and d["survived"] is False
+    from tuner.sim.robustness import RobustnessReport
+    rep = RobustnessReport("r", "rigid", "p", False, [{"fell": False, "survived": False, "outcome": trace.outcome,
+                                                         "t_fall_s": None, "pitch_rms_deg": 1.0, "speed_mps": 0.1}], {})
+    assert rep.survival == 0.0 and rep.to_dict()["outcomes"][trace.outcome] == 1

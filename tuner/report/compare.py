@@ -79,8 +79,8 @@ def _row(task: tuple) -> dict:
     traj = drive.table(robot, sim.control_period)
     own = summarize(sim.run(drive.controller(robot, sim.control_period, table=traj)))
     # robustness: the own walk under the default randomisation, evaluation seeds (0, i)
-    survived = [not summarize(sim.run(drive.controller(robot, sim.control_period, table=traj), perturb=draw(
-        Randomisation(), (0, i), *sim.n_random(), namespace=EVALUATE))).fell for i in range(n_random)]
+    survived = [summarize(sim.run(drive.controller(robot, sim.control_period, table=traj), perturb=draw(
+        Randomisation(), (0, i), *sim.n_random(), namespace=EVALUATE))).survived for i in range(n_random)]
     survival = 100.0 * float(np.mean(survived)) if survived else float("nan")
     plan = float(traj.p_world_pelvis[-1, 0] - traj.p_world_pelvis[0, 0])
     covered = 100.0 * own.distance_m / plan if abs(plan) > 1e-3 else float("nan")
@@ -90,7 +90,7 @@ def _row(task: tuple) -> dict:
             cell = drive.with_params(with_step(drive.params, (1 if direction == "forward" else -1) * mm / 1000))
             try:
                 m = summarize(sim.run(cell.controller(robot, sim.control_period)))
-                cells.append(not m.fell)
+                cells.append(m.survived)
             except (gaits.ParamError, gaits.UnreachableTargetError):
                 cells.append(False)
     return {"set": drive.source, "surface": surface.name, "cells": cells,
@@ -153,7 +153,7 @@ def run_compare(specs: list[str], robot_name: str, surface_names: list[str], bas
             "S" if c else "." for c in r["cells"][7:])
         lines.append(f"| {r['set']} | {r['surface']} | {r['stability']:.0f} | `{mat}` | {o.pitch_pm_deg:.2f} "
                      f"| {o.pitch_rms_deg:.2f} | {o.zmp_error_x_cm:.2f}/{o.zmp_error_y_cm:.2f} "
-                     f"| {o.speed_mps:.4f} | {r['covered']:.0f} | {'fell' if o.fell else 'stable'} "
+                     f"| {o.speed_mps:.4f} | {r['covered']:.0f} | {'stable' if o.survived else o.outcome} "
                      f"| {'-' if r['n_random'] == 0 else format(r['survival'], '.0f')} "
                      f"| {_speeds_text(r['speeds'])} |")
     summary = ["", "| set | mean stability % |", "|---|---|"]
@@ -200,7 +200,7 @@ def _plots(rows, sets, surfaces, out_dir: Path, title: str) -> None:
     for i, label in enumerate(d.source for d in sets):
         mine = [next(r for r in rows if r["set"] == label and r["surface"] == s.name) for s in surfaces]
         values = {"stability": [r["stability"] for r in mine], "pitch": [r["own"].pitch_rms_deg for r in mine],
-                  "speed": [0.0 if r["own"].fell else r["own"].speed_mps for r in mine],
+                  "speed": [0.0 if not r["own"].survived else r["own"].speed_mps for r in mine],
                   "covered": [r["covered"] for r in mine]}
         for ax, (key, _, _) in zip(axes, PANELS):
             bars = ax.bar(x + i * width, values[key], width, label=label, color=f"C{i}")

@@ -114,7 +114,7 @@ def _walk_cell(sim: Simulator, ped: int, optimised: bool, direction: str, step: 
     if lift_scale != 1.0:
         p = p.replace(foot_lift=p.foot_lift * lift_scale)
     m = summarize(sim.rollout(gaits.generate(p, sim.robot.leg, sim.control_period)))
-    return EROSCell(ped, sim.surface.name, direction, step, optimised, not m.fell, m)
+    return EROSCell(ped, sim.surface.name, direction, step, optimised, m.survived, m)
 
 
 def eros_matrix(robot: RobotModel, surfaces: dict[int, Surface], optimised: bool,

@@ -48,7 +48,7 @@ def stand_test(robot: RobotModel, duration: float = 2.0) -> dict[str, Any]:
     sag = np.mean(trace.q[-last:] - trace.q_cmd[-last:], axis=0)
     k = int(np.argmax(np.abs(sag)))
     tau = float(np.mean(trace.tau[-last:, k]))
-    return {"stays_up": not trace.fell and trace.completed, "reason": trace.reason,
+    return {"stays_up": trace.survived, "reason": trace.reason,
             "duration_s": float(trace.t[-1]),
             "pitch_deg": float(np.degrees(np.mean(trace.pitch[-last:]))),
             "roll_deg": float(np.degrees(np.mean(trace.roll[-last:]))),

@@ -124,12 +124,12 @@ class Evaluator:
             if covered is not None:
                 shortfall = max(shortfall, MIN_PROGRESS - covered)
             scores.append(score)
-            speeds.append(0.0 if m.fell else m.speed_mps)
-            walked.append(frac if m.fell else 1.0 + 1e-9)
+            speeds.append(0.0 if not m.survived else m.speed_mps)
+            walked.append(frac if not m.survived else 1.0 + 1e-9)
             per[name] = m.to_dict()
             if report is not None and report(self._aggregate(scores), i):
                 raise optuna.TrialPruned()
-        fell_any = any(v["fell"] for v in per.values())
+        fell_any = any(not v["survived"] for v in per.values())
         constraint = (1.0 - min(walked) + 1e-3) if fell_any else (shortfall if shortfall > 0 else -1.0)
         return TrialResult(score=self._aggregate(scores), speed=float(np.mean(speeds)),
                            fall_constraint=constraint, fell=fell_any, per_surface=per)
@@ -153,13 +153,14 @@ class Evaluator:
                                       perturb=p, **{**drive.run_options(), "duration": self.spec.duration}))
                 score, _, covered = rollout_score(m, planned, plan_dist)
                 scores.append(score)
-                if m.fell:
+                if not m.survived:
                     falls += 1
                 else:
                     speeds.append(m.speed_mps)
                     if covered is not None:
                         covered_all.append(covered)
-                rows.append({"fell": m.fell, "pitch_rms_deg": m.pitch_rms_deg, "speed_mps": m.speed_mps,
+                rows.append({"fell": not m.survived, "outcome": m.outcome, "pitch_rms_deg": m.pitch_rms_deg,
+                             "speed_mps": m.speed_mps,
                              "t_fall_s": m.t_fall_s})
                 if falls > allowed:
                     hopeless = True
@@ -207,7 +208,7 @@ class Evaluator:
                 err = sum(v for v in (tk.get("vx_rmse_mps"), tk.get("vy_rmse_mps")) if v is not None) \
                     + 0.1 * (tk.get("wz_rmse_radps") or 0.0)
                 score = (r["pitch_rms_deg"] or 0.0) + sc.tracking_weight * err
-                if r["fell"]:
+                if not r["survived"]:
                     falls += 1
                     score += FALL_PENALTY_DEG * (1.0 - min(max(r["walked"], 0.0), 1.0))
                 else:
@@ -217,8 +218,8 @@ class Evaluator:
                 if falls > allowed:
                     hopeless = True
                     break
-            per[name] = {"survival": float(np.mean([not r["fell"] for r in rows])), "rollouts": len(rows),
-                         "fell": any(r["fell"] for r in rows)}
+            per[name] = {"survival": float(np.mean([r["survived"] for r in rows])), "rollouts": len(rows),
+                         "fell": any(not r["survived"] for r in rows)}
             if hopeless:
                 break
         survival = 1.0 - falls / len(scores)
@@ -264,12 +265,13 @@ class Evaluator:
 def rollout_score(m: Any, planned: float, plan_dist: float) -> tuple[float, float, float | None]:
     """One rollout's score [deg] (see the module docstring), its walked fraction and, when it
     stayed up and had somewhere to go, the covered fraction of its planned distance."""
-    frac = 1.0 if not m.fell else float(np.clip(m.walk_time_s / max(planned, 1e-9), 0, 1))
-    score = m.pitch_rms_deg + (FALL_PENALTY_DEG * (1.0 - frac) if m.fell else 0.0)
-    if m.fell and frac >= 1.0:
+    failed = not m.survived                # a fall, and a diverged or impossible walk just the same
+    frac = 1.0 if not failed else float(np.clip(m.walk_time_s / max(planned, 1e-9), 0, 1))
+    score = m.pitch_rms_deg + (FALL_PENALTY_DEG * (1.0 - frac) if failed else 0.0)
+    if failed and frac >= 1.0:
         score += 1.0
     covered = None
-    if not m.fell and abs(plan_dist) > 1e-3:
+    if not failed and abs(plan_dist) > 1e-3:
         covered = float(np.clip(m.distance_m / plan_dist, 0.0, 1.0))
         score += PROGRESS_PENALTY_DEG * (1.0 - covered)
     return score, frac, covered

@@ -136,7 +136,7 @@ def push_trial(sim: Simulator, drive: gaits.Drive, distance: float, seed: int, k
         speed = np.linalg.norm(np.diff(pos, axis=0), axis=1) / dt
         rec["measured_Ns"] = float(BOTTLE_MASS * speed.max())
         rec["pivot"] = [float(v) for v in rec["pivot"]]
-    ok = not trace.fell
+    ok = trace.survived
     out = {"distance_m": distance, "success": ok, "reason": trace.reason, "pushes": records,
            "com_height_m": state["com_height"]}
     if keep_trace:

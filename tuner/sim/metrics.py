@@ -47,6 +47,8 @@ DEFINITIONS = {
     "pitch_rms_deg": "RMS of torso pitch about its mean over the walk [deg]",
     "pitch_pm_deg": "half the peak-to-peak torso pitch per gait cycle, averaged (the EROS +- figure) [deg]",
     "fell": "the robot fell (torso tilt > limit or torso too low)",
+    "outcome": "how the walk ended: completed, fell, diverged (MuJoCo's warning), impossible (a state no "
+               "kid-size robot reaches), stopped; only completed and stopped count as survival",
     "t_fall_s": "time of the fall [s]",
     "distance_m": "forward torso displacement over the walk [m]",
     "speed_mps": "distance / walking time [m/s]",
@@ -74,12 +76,20 @@ class Metrics:
     vx_mps: float = float("nan")
     vy_mps: float = float("nan")
     wz_radps: float = float("nan")
+    outcome: str = "completed"
+
+    @property
+    def survived(self) -> bool:
+        """The walk ended standing (completed or stopped); a fall, a diverged or an impossible
+        simulation never counts as survival."""
+        return self.outcome in ("completed", "stopped")
 
     def to_dict(self) -> dict:
         """The metrics for strict JSON: a value that is not a number (the ZMP error of a walk
         with no sample that loads the soles, e.g. an early fall) is null, and ``undefined``
         says why."""
         out = asdict(self)
+        out["survived"] = self.survived
         undefined = {k: ("the robot fell before the steady window ended" if k in _VELOCITY else
                          "no sample with at least 10% of the robot's weight on its sole sensors")
                      for k, v in out.items() if isinstance(v, float) and not math.isfinite(v)}
@@ -162,7 +172,7 @@ def summarize(trace: Trace) -> Metrics:
                    speed_mps=dist / walk if walk > 0 else 0.0,
                    zmp_error_x_cm=ex * 100, zmp_error_y_cm=ey * 100, walk_time_s=walk,
                    reason=trace.reason, vx_mps=float(vel[0]), vy_mps=float(vel[1]),
-                   wz_radps=float(vel[2]))
+                   wz_radps=float(vel[2]), outcome=trace.outcome)
 
 
 def tracking(trace: Trace, stream, step_starts: np.ndarray) -> dict:

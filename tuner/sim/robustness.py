@@ -34,7 +34,8 @@ __all__ = ["evaluate", "scenario_walks", "walk_scenario", "RobustnessReport", "D
 
 PUSH_SURVIVAL = 0.9
 DEFINITIONS = {
-    "survival": "fraction of randomised rollouts (default randomisation, evaluation seeds) that did not fall",
+    "survival": "fraction of randomised rollouts (default randomisation, evaluation seeds) that completed: a "
+                "fall, a diverged or an impossible simulation is not a survival",
     "t_fall_s": "quartiles of the fall time of the rollouts that fell [s]",
     "pitch_rms_deg": "10/50/90th percentiles of torso pitch RMS over rollouts that stayed up [deg]",
     "speed_mps": "10/50/90th percentiles of forward speed over rollouts that stayed up [m/s]",
@@ -63,7 +64,8 @@ def _one(task: tuple) -> dict[str, Any]:
     p = draw(randomisation.with_push(push), seed, *sim.n_random(), namespace=EVALUATE)
     trace = sim.run(_controller(sim, drive), perturb=p, **drive.run_options())
     m = summarize(trace)
-    row = {"push": push, "seed": list(seed), "fell": m.fell, "t_fall_s": m.t_fall_s,
+    row = {"push": push, "seed": list(seed), "fell": m.fell, "outcome": m.outcome, "survived": m.survived,
+           "t_fall_s": m.t_fall_s,
            "pitch_rms_deg": m.pitch_rms_deg, "speed_mps": m.speed_mps, "distance_m": m.distance_m}
     if drive.stream is not None:
         from .metrics import tracking
@@ -86,15 +88,15 @@ class RobustnessReport:
 
     @property
     def survival(self) -> float:
-        return float(np.mean([not r["fell"] for r in self.rollouts])) if self.rollouts else 0.0
+        return float(np.mean([r["survived"] for r in self.rollouts])) if self.rollouts else 0.0
 
     def _pct(self, key: str) -> list[float] | None:
-        vals = [r[key] for r in self.rollouts if not r["fell"]]
+        vals = [r[key] for r in self.rollouts if r["survived"]]
         return [float(v) for v in np.percentile(vals, [10, 50, 90])] if vals else None
 
     @property
     def push_survival(self) -> dict[float, float]:
-        return {size: float(np.mean([not r["fell"] for r in rows])) for size, rows in sorted(self.pushes.items())}
+        return {size: float(np.mean([r["survived"] for r in rows])) for size, rows in sorted(self.pushes.items())}
 
     @property
     def largest_push(self) -> float | None:
@@ -107,9 +109,11 @@ class RobustnessReport:
 
     def to_dict(self) -> dict[str, Any]:
         falls = [r["t_fall_s"] for r in self.rollouts if r["fell"]]
+        outcomes = {o: sum(1 for r in self.rollouts if r.get("outcome", "fell" if r["fell"] else "completed") == o)
+                    for o in ("completed", "fell", "diverged", "impossible")}
         return {"robot": self.robot, "surface": self.surface, "params": self.params, "drive": self.drive,
                 "stabiliser": self.stabiliser, "rollouts": len(self.rollouts), "survival": self.survival,
-                "falls": len(falls),
+                "falls": len(falls), "outcomes": outcomes,
                 "t_fall_s": [float(v) for v in np.percentile(falls, [25, 50, 75])] if falls else None,
                 "pitch_rms_deg": self._pct("pitch_rms_deg"), "speed_mps": self._pct("speed_mps"),
                 "push_survival": {f"{k:g}": v for k, v in self.push_survival.items()},
@@ -123,7 +127,9 @@ class RobustnessReport:
         lines = [f"robustness of {self.params} on robot {self.robot} / {self.surface} "
                  f"(stabiliser {'on' if self.stabiliser else 'off'})" + (f"\n  walked          {self.drive}"
                                                                           if self.drive else ""),
-                 f"  survival        {d['survival']:.1%} of {d['rollouts']} randomised rollouts ({d['falls']} fell)",
+                 f"  survival        {d['survival']:.1%} of {d['rollouts']} randomised rollouts ({d['falls']} fell"
+                 + "".join(f", {n} {o}" for o, n in d["outcomes"].items() if o in ("diverged", "impossible") and n)
+                 + ")",
                  f"  time to fall    {pct(d['t_fall_s'], '.2f')} s (quartiles of those that fell)",
                  f"  pitch RMS       {pct(d['pitch_rms_deg'], '.2f')} deg (10/50/90th pct, stayed up)",
                  f"  speed           {pct(d['speed_mps'], '.3f')} m/s (10/50/90th pct, stayed up)"]
@@ -165,13 +171,15 @@ def walk_scenario(sim: Simulator, drive: gaits.Drive, stream, pushes, perturb) -
     try:
         controller = walk.controller(sim.robot, sim.control_period)
     except (gaits.ParamError, gaits.UnreachableTargetError) as exc:
-        return {"fell": True, "t_fall_s": 0.0, "walked": 0.0, "pitch_rms_deg": None, "invalid": str(exc),
+        return {"fell": True, "survived": False, "outcome": "invalid", "t_fall_s": 0.0, "walked": 0.0,
+                "pitch_rms_deg": None, "invalid": str(exc),
                 "tracking": None, "segments": [], "pushes": len(pushes)}
     trace = sim.run(controller, perturb=perturb, pushes=pushes, **walk.run_options())
     m = summarize(trace)
     starts = trace.meta.get("step_starts")
     tk = tracking(trace, stream, np.asarray(starts if starts is not None else []))
-    return {"fell": m.fell, "t_fall_s": m.t_fall_s, "walked": float(trace.t[-1]) / stream.duration,
+    return {"fell": m.fell, "survived": m.survived, "outcome": m.outcome, "t_fall_s": m.t_fall_s,
+            "walked": float(trace.t[-1]) / stream.duration,
             "pitch_rms_deg": m.pitch_rms_deg,
             "tracking": {k: tk[k] for k in ("vx_rmse_mps", "vy_rmse_mps", "wz_rmse_radps", "steps")},
             "segments": tk["segments"], "pushes": len(pushes)}

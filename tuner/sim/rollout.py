@@ -43,15 +43,22 @@ from ..robots import RobotModel, SimOptions
 from .scene import CORNERS, IMU_SITE_POS, PREFIX, add_pendulum, build_scene
 from .surfaces import Surface
 
-__all__ = ["FallCriteria", "Trace", "Simulator", "dead_band"]
+__all__ = ["FallCriteria", "OUTCOMES", "Trace", "Simulator", "dead_band"]
 
 
 @dataclass(frozen=True)
 class FallCriteria:
-    """When a rollout counts as a fall (and stops early)."""
+    """When a rollout counts as a fall (and stops early), and which states no kid-size robot
+    reaches (a blow-up of the simulation that MuJoCo did not flag: the walk is "impossible")."""
 
     max_tilt: float = math.radians(50.0)   # [rad] torso tilt from upright (pitch and roll together)
     min_height_ratio: float = 0.6          # torso below this fraction of its starting height
+    max_speed: float = 10.0                # [m/s] torso speed (a falling 50 cm robot reaches ~3)
+    max_spin: float = 60.0                 # [rad/s] torso angular speed
+    max_height: float = 1.5                # [m] torso height (three times a kid-size robot's)
+
+#: How a rollout can end; only "completed" (and "stopped", a live walk ended by its viewer) survive.
+OUTCOMES = ("completed", "fell", "diverged", "impossible", "stopped")
 
 
 @dataclass
@@ -80,17 +87,24 @@ class Trace:
     fell: bool
     t_fall: float | None
     p_fall: np.ndarray | None
-    reason: str                 # "completed", "fell: ...", "diverged: ..."
+    reason: str                 # "completed", "fell at ...", "diverged: ...", "impossible: ..."
     walk_start: float           # [s] first planned single support
     cycle_time: float           # [s] one gait cycle (two steps), for the +- amplitude
     meta: dict = field(default_factory=dict)
     q_sent: np.ndarray | None = None   # (K, n) [rad] targets the servos received (after latency, backlash)
     yaw: np.ndarray | None = None      # (K,) [rad] torso heading, unwrapped (counter-clockwise positive)
     qpos: np.ndarray | None = None     # (K, nq) MuJoCo qpos per tick, when the rollout recorded it
+    outcome: str = "completed"         # one of OUTCOMES
 
     @property
     def completed(self) -> bool:
         return self.reason == "completed"
+
+    @property
+    def survived(self) -> bool:
+        """It ended standing: completed (or stopped by a live viewer). A fall, a diverged or an
+        impossible simulation never survives."""
+        return self.outcome in ("completed", "stopped")
 
 
 def dead_band(target: np.ndarray, q: np.ndarray, half_width: np.ndarray) -> np.ndarray:
@@ -370,6 +384,8 @@ class Simulator:
             qpos_log[0] = d.qpos
         reader = SensorReader(self, getattr(controller, "senses", None), pert)
         cos_tilt = math.cos(self.fall.max_tilt)
+        max_speed2, max_spin2, max_height = self.fall.max_speed ** 2, self.fall.max_spin ** 2, self.fall.max_height
+        qvel = d.qvel
         z_min = self.fall.min_height_ratio * z0 if height_check else -math.inf
         drag = self.surface.drag > 0.0
         warn = d.warning[mujoco.mjtWarning.mjWARN_BADQACC]
@@ -418,6 +434,15 @@ class Simulator:
             if warn.number or not math.isfinite(qacc[0]):
                 reason, k_end = f"diverged: MuJoCo reported unstable accelerations at t = {k * dt:.2f} s", k
                 break
+            v0, v1, v2, w0, w1, w2 = qvel[0], qvel[1], qvel[2], qvel[3], qvel[4], qvel[5]
+            if (v0 * v0 + v1 * v1 + v2 * v2 > max_speed2 or w0 * w0 + w1 * w1 + w2 * w2 > max_spin2
+                    or xpos[torso, 2] > max_height or not math.isfinite(v0)):
+                k_end = k + 1
+                reason = (f"impossible: at t = {k * dt:.2f} s the torso moves {math.sqrt(v0 * v0 + v1 * v1 + v2 * v2):.1f} "
+                          f"m/s, spins {math.sqrt(w0 * w0 + w1 * w1 + w2 * w2):.0f} rad/s, {xpos[torso, 2]:.2f} m high "
+                          f"(no kid-size robot does: limits {self.fall.max_speed:g} m/s, {self.fall.max_spin:g} "
+                          f"rad/s, {max_height:g} m)")
+                break
             if xmat[torso, 8] < cos_tilt or xpos[torso, 2] < z_min:
                 k_end = k + 1
                 reason = "fell"
@@ -456,6 +481,7 @@ class Simulator:
         anchor = np.where(sup == 1, sole_l, np.where(sup == -1, sole_r, (sole_l + sole_r) / 2))
         anchor_ref = np.where(sup == 1, plan_l, np.where(sup == -1, plan_r, (plan_l + plan_r) / 2))
         fell = reason == "fell"
+        outcome = reason.split(":")[0] if reason.split(":")[0] in OUTCOMES else reason
         t_fall = p_fall = None
         if fell:
             t_fall = float(t[-1])
@@ -479,4 +505,4 @@ class Simulator:
                            **{k: plan.meta[k] for k in ("steady", "step_starts", "stream", "steps", "replans",
                                                         "touchdowns", "estimate_com", "estimate_vel", "plan_com",
                                                         "plan_vel") if k in plan.meta}},
-                     yaw=_quat_yaw(sens[:, self._s_quat]))
+                     yaw=_quat_yaw(sens[:, self._s_quat]), outcome=outcome)

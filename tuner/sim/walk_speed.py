@@ -101,7 +101,7 @@ def speed_test(sim, params: gaits.GaitParams, stairs: SpeedStaircase, tolerance:
         extra["saturation_stair"] = float(values[i])
         extra["saturation"] = saturation(sim, trace, float(starts[a]), float(starts[b]))[:3]
     return DirectionResult(stairs.direction, reached, measured, tuple(float(x) for x in stairs.level_values()),
-                           tuple(achieved), trace.fell,
+                           tuple(achieved), not trace.survived,
                            pitch_rms(np.degrees(trace.pitch[w])) if w.any() else float("nan"),
                            trace.reason, stairs.unit, extra)
 
