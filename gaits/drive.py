@@ -25,6 +25,7 @@ import numpy as np
 from .command_stream import CommandStream
 from .control import Controller, Stabilised, TablePlayer
 from .engine import EngineParams, WalkEngine
+from .online_table import OnlineTable
 from .families import RobotGeometry, command_walk, family_of
 from .gait_file import GaitFile
 from .imu_stabiliser import StabiliserParams
@@ -184,8 +185,13 @@ class Drive:
             ctl = self.user.build(robot, dt)
             return Stabilised(ctl, self.stabiliser) if self.closed_loop else ctl
         if self.engine is not None:
-            limits = family_of(self.params).step_limits(self.params, robot)
-            ctl = WalkEngine(self.params, self.engine, robot, dt, limits)
+            fam = family_of(self.params)
+            limits = fam.step_limits(self.params, robot)
+            if fam.engine == "feedback":
+                ctl = WalkEngine(self.params, self.engine, robot, dt, limits)
+            else:
+                ctl = OnlineTable(self.params, robot, dt, limits, preview=self.engine.preview_steps,
+                                  idle=self.engine.idle)
             return Stabilised(ctl, self.stabiliser) if self.closed_loop else ctl
         ctl: Controller = TablePlayer(self.table(robot, dt) if table is None else table)
         if self.closed_loop:
@@ -195,10 +201,14 @@ class Drive:
     def describe(self) -> str:
         """One line: the set, how it is driven, and what it is asked to walk."""
         how = (f"controller {self.user.source}" if self.user is not None else
-               "the online walk engine" if self.engine is not None else "open-loop table") \
+               ("the online walk engine" if family_of(self.params).engine == "feedback"
+                else "the online table (re-planned each step)") if self.engine is not None
+               else "open-loop table") \
             + (" with the IMU stabiliser" if self.closed_loop else "")
         what = ("its own walk" if self.command is None and self.stream is None else
-                f"command {self.command} (vx m/s, vy m/s, wz rad/s, ramped)" if self.command is not None else
+                (f"command {self.command} (vx m/s, vy m/s, wz rad/s, held {ONLINE_DURATION_S:g} s, then a stop)"
+                 if self.online else f"command {self.command} (vx m/s, vy m/s, wz rad/s, ramped)")
+                if self.command is not None else
                 f"a command stream of {len(self.stream.t)} rows, "
                 + ("read tick by tick" if self.online else "planned per step before the walk"))
         return f"{self.source or self.family}: {how}, {what}"

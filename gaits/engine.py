@@ -38,9 +38,11 @@ measured centre of pressure of the sole forces (``kf_accel``, ``kf_position``: i
 measurement noise). The support foot is taken to stand where it was planned (no slip): the
 engine's world is its own odometry, starting at the robot's start pose.
 
-Which family does what: only TLIPFM has this state feedback (``gaits.family(...).engine``
-says so); the IMU stabiliser (``gaits/imu_stabiliser.py``) is applied inside the step when the
-gait file has one.
+Which family does what (``gaits.family(...).engine``): TLIPFM has this engine and its state
+feedback; EROS and the cosine law walk online commands through their own tables re-planned at
+each step (``gaits/online_table.py``: no state feedback; of the engine section they use
+``preview_steps`` and ``idle``). The IMU stabiliser (``gaits/imu_stabiliser.py``) is applied
+inside the step when the gait file has one.
 """
 
 from __future__ import annotations

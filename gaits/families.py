@@ -71,6 +71,8 @@ class GaitFamily:
     default_baseline: str                                 # the set used when --params is not given
     derived: Callable[[Mapping[str, Any], Any], dict[str, Any]] = _no_derived
     seed_on_own_masses: bool = False                      # the seed's CoM model takes the base's masses
+    engine: str = "table"                                 # online: "feedback" (gaits/engine.py) or
+                                                          #   "table" (gaits/online_table.py)
 
     # --- walking -------------------------------------------------------------------------
     def generate(self, params: GaitParams, leg: LegGeometry = LegGeometry(), dt: float = 0.01,
@@ -215,7 +217,7 @@ register(GaitFamily(
     step_field="step_length", with_step=_tlipfm_with_step, derived=_tlipfm_derived,
     stance_width=lambda p: 2.0 * p.half_width,
     seed_inputs=lambda p: (p.step_length, p.half_width), from_seed=lambda seed, sway, base: seed,
-    seed_on_own_masses=True,
+    seed_on_own_masses=True, engine="feedback",
     baselines=("tkux-table2",), default_baseline="tkux-table2"))
 
 register(GaitFamily(

@@ -97,9 +97,6 @@ def load_gait_file(path: str | Path) -> GaitFile:
     engine = None
     if doc.get("engine") is not None:
         engine = engine_from_mapping(doc["engine"], f"{source}: engine")
-        if family != "tlipfm":
-            raise ParamError(f"{source}: engine: the walk engine plans TLIPFM steps; a {family!r} set walks "
-                             f"as a joint table (leave the engine section out)")
     return GaitFile(params_from_mapping(family, doc.get("params"), source), description, stabiliser, engine)
 
 

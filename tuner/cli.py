@@ -1084,6 +1084,10 @@ def params_cmd(family: str) -> None:
         click.echo(f"{row['name']:22s} {str(row['default']):>12.12s}  {row['range']:28s} "
                    f"{paper:8s} {row['doc']}")
     click.echo(f"walk command (--command): {gaits.family(family).commands_text}")
+    click.echo("online (an engine: section): " + ("the walk engine, footsteps and CoM re-planned each step from "
+               "the measured state (gaits/engine.py)" if gaits.family(family).engine == "feedback" else
+               "the family's table re-planned at each step start for the current command, no state feedback "
+               "(gaits/online_table.py)"))
 
 
 def main(argv: list[str] | None = None) -> int:

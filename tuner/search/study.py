@@ -198,6 +198,15 @@ def list_studies() -> list[Path]:
     return sorted(STUDY_DIR.glob("*.yaml"))
 
 
+def _beside(spec: str, study: Path) -> str:
+    """A parameter file named by a study: a relative path is taken beside the study file (as its
+    robot map is) when a file is there; shipped set names pass through."""
+    p = Path(spec)
+    if not p.is_absolute() and p.suffix in (".yaml", ".yml") and (study.parent / p).exists():
+        return str(study.parent / p)
+    return spec
+
+
 def _fail(source: str, msg: str) -> None:
     raise UserError(f"{source}: {msg}")
 
@@ -248,7 +257,7 @@ def load_study(path_or_name: str) -> StudySpec:
         _fail(source, str(exc))
     base_spec = doc.get("base")
     try:
-        base = resolve_params(None if base_spec is None else str(base_spec), gait).params
+        base = resolve_params(None if base_spec is None else _beside(str(base_spec), path), gait).params
     except Exception as exc:
         _fail(source, f"base: {exc}")
     numeric = {f.name: f for f in fields(cls) if isinstance(f.default, (int, float))
@@ -297,7 +306,7 @@ def load_study(path_or_name: str) -> StudySpec:
         _fail(source, f"baselines must be a list of parameter sets, got {doc.get('baselines')!r}")
     for b in doc.get("baselines") or []:
         try:
-            gf = resolve_params(str(b), gait)
+            gf = resolve_params(_beside(str(b), path), gait)
         except Exception as exc:
             _fail(source, f"baselines: {exc}")
         extra_sets.append(gf.params)
