@@ -162,8 +162,10 @@ def test_params_says_which_commands_a_family_walks(gait_tuner_cmd, run_env):
                       ("tlipfm", "any (vx, vy, wz)")):
         r = subprocess.run(gait_tuner_cmd + ["params", fam], capture_output=True, text=True, env=run_env,
                            timeout=60)
-        assert r.returncode == 0 and r.stdout.splitlines()[-1].startswith("walk command (--command): ")
-        assert text in r.stdout.splitlines()[-1]
+        walk, online = r.stdout.splitlines()[-2:]
+        assert r.returncode == 0 and walk.startswith("walk command (--command): ") and text in walk
+        assert online.startswith("online (an engine: section): ")
+        assert ("gaits/engine.py" in online) == (fam == "tlipfm")
 
 
 def test_tiny_eros_speed_study_end_to_end(gait_tuner_cmd, run_env, tmp_path):
