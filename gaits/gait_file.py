@@ -39,6 +39,36 @@ class GaitFile:
 _TOP_KEYS = ("gait", "description", "params", "stabiliser", "engine")
 
 
+class DuplicateKey(yaml.YAMLError):
+    def __init__(self, key, where: str) -> None:
+        super().__init__(f"duplicate key {key!r}")
+        self.key, self.where = key, where
+
+
+class _StrictLoader(yaml.SafeLoader):
+    """PyYAML's safe loader, except that a mapping naming a key twice is an error (PyYAML keeps the
+    last one silently)."""
+
+    def construct_mapping(self, node, deep=False):
+        seen = set()
+        for key_node, _ in node.value:
+            if key_node.tag == "tag:yaml.org,2002:merge":
+                continue                            # a merge (<<) may be overridden by the mapping's own keys
+            key = self.construct_object(key_node, deep=deep)
+            try:
+                dup = key in seen
+            except TypeError:
+                dup = False
+            if dup:
+                m = key_node.start_mark
+                raise DuplicateKey(key, f" (line {m.line + 1})")
+            try:
+                seen.add(key)
+            except TypeError:
+                pass
+        return super().construct_mapping(node, deep=deep)
+
+
 def read_yaml(path: str | Path, what: str, error: type[Exception] = ParamError) -> Any:
     """The parsed document of a user's YAML file; every way it can be wrong is one ``error``
     naming the file: a directory, a missing file, binary or non-UTF-8 content, YAML syntax, and
@@ -59,7 +89,9 @@ def read_yaml(path: str | Path, what: str, error: type[Exception] = ParamError) 
     except UnicodeDecodeError as exc:
         raise error(f"{path}: is not UTF-8 text (byte {exc.start})") from None
     try:
-        return yaml.safe_load(text)
+        return yaml.load(text, Loader=_StrictLoader)
+    except DuplicateKey as exc:
+        raise error(f"{path}: key {exc.key!r} appears twice{exc.where}: a {what} file names each key once") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""

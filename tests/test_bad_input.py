@@ -10,6 +10,7 @@ line, the ``gait-tuner: error:`` prefix, no traceback, and the words that name t
 from __future__ import annotations
 
 import copy
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -340,3 +341,16 @@ def test_the_suite_is_as_large_as_promised():
     n = (len(STUDY_FIELDS) + len(MAP_FIELDS) + len(PARAMS_FIELDS) + len(SURFACE_FIELDS) + len(RANDOM_FIELDS)
          + len(KINDS) * len(FILE_OPTIONS) + len(OPTIONS) + 3)
     assert n >= 200, n
+
+
+@pytest.mark.parametrize("args, content, key", [
+    (["simulate", "--params"], "gait: tlipfm\nparams:\n  t1: 0.1\n  t1: 0.2\n", "t1"),
+    (["tune"], "gait: tlipfm\ngait: eros\nspace: {t1: {low: 0.1, high: 0.2}}\n", "gait"),
+    (["robustness", "--params", "tkux-table2", "--rollouts", "1", "--randomisation"], "push: 1\npush: 2\n", "push"),
+])
+def test_duplicate_yaml_keys_are_refused_naming_the_key(gait_tuner_cmd, run_env, tmp_path, args, content, key):
+    f = tmp_path / "dup.yaml"
+    f.write_text(content)
+    r = subprocess.run(gait_tuner_cmd + args + [str(f)] + (["--runs", str(tmp_path / "runs")] if args == ["tune"] else []),
+                       capture_output=True, text=True, env=run_env, timeout=120)
+    assert r.returncode == 2 and f"key {key!r} appears twice" in r.stderr and len(r.stderr.strip().splitlines()) == 1

@@ -183,3 +183,18 @@ def test_sqlite_storage_url(gait_tuner_cmd, run_env, tmp_path):
     assert len([t for t in s.trials if t.state == optuna.trial.TrialState.COMPLETE]) == 4
     r = run(gait_tuner_cmd, ["export", str(study), "--storage", url, "--out", str(tmp_path / "b.yaml")], run_env)
     assert r.returncode == 0, r.stderr
+
+
+def test_the_dashboard_shows_the_objectives_names(tmp_path):
+    """optuna-dashboard reads the study's metric names: set once, from the study's objectives."""
+    import warnings
+
+    from tuner.search.storage import StudyStore
+    from tuner.search.study import load_study
+    from tuner.search.workers import open_study
+    spec = load_study("quickstart")
+    store = StudyStore.open(spec.name, None, tmp_path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")             # and without a warning shown
+        study = open_study(spec, store.optuna_storage(), 0)
+    assert study.metric_names == ["pitch score [deg]"]

@@ -694,7 +694,8 @@ def _tuned_study(study_file: str, storage: str | None, runs_dir: Path):
 @click.option("--pareto", is_flag=True, help="Only Optuna's best trials (the Pareto front of feasible "
               "trials for two objectives, the best feasible one for one).")
 @click.option("--sort", "sort_key", type=click.Choice(["number", "score", "speed"]), default="score",
-              show_default=True, help="Order of the rows (score ascending, speed descending).")
+              show_default=True, help="Order of the rows (score best first: ascending for a minimised study, "
+                                      "descending for a maximised one; speed descending).")
 @click.option("--limit", type=click.IntRange(1, 100_000), default=20, show_default=True)
 @JSON_OPTION
 def trials(study_file: str, storage: str | None, runs_dir: Path, pareto: bool, sort_key: str, limit: int,
@@ -723,8 +724,10 @@ def trials(study_file: str, storage: str | None, runs_dir: Path, pareto: bool, s
                      "feasible": trial_feasible(t), "survival": res.get("survival"),
                      "start": t.user_attrs.get("start"),
                      "params": {r.name: t.params.get(r.label, t.params.get(r.name)) for r in spec.space}})
+    maximised = spec.directions[0] == "maximize"
     keys = {"number": lambda r: r["number"],
-            "score": lambda r: (r["score"] is None, r["score"] if r["score"] is not None else 0.0),
+            "score": lambda r: (r["score"] is None, (-r["score"] if maximised else r["score"])
+                                if r["score"] is not None else 0.0),
             "speed": lambda r: (r["speed"] is None, -(r["speed"] or 0.0))}
     rows.sort(key=keys[sort_key])
     shown = rows[:limit]
@@ -859,6 +862,13 @@ def compare(params_specs: tuple[str, ...], robot_name: str | None, surface_names
     names = [s for s in surface_names.split(",") if s]
     if not names:
         raise UserError("--surfaces: give at least one surface name or file")
+    if study_file is not None:
+        _tuned_study(study_file, None, runs_dir)     # a study with no runs: one line, before any walk
+    for spec in params_specs:
+        resolve_params(spec, None)
+    from .sim.surfaces import load_surface
+    for name in names:
+        load_surface(name)
     if robot_name is None:
         if study_file is not None:
             from .search.study import load_study
@@ -1068,10 +1078,35 @@ def surfaces() -> None:
 
 @cli.command()
 def baselines() -> None:
-    """List the papers' shipped parameter sets."""
+    """List the papers' shipped parameter sets (`gait-tuner sets` lists the tuned ones too)."""
     for name in list_baselines():
         gf = load_baseline(name)
         click.echo(f"{name:22s} {gf.family:7s} {gf.description[:90]}")
+
+
+@cli.command()
+@JSON_OPTION
+def sets(as_json: bool) -> None:
+    """List every shipped parameter set: the papers' baselines and the tuned results, with where
+    each comes from (a study, trial and commit for a tuned one) and how it walks."""
+    import json
+
+    from .params_io import RESULTS_DIR, list_results
+    rows = []
+    for name in list_baselines():
+        gf = load_baseline(name)
+        rows.append({"name": name, "kind": "baseline", "family": gf.family, "online": gf.engine is not None,
+                     "stabiliser": gf.stabiliser is not None, "source": gf.description})
+    for name in list_results():
+        gf = gaits.load_gait_file(RESULTS_DIR / f"{name}.yaml")
+        rows.append({"name": name, "kind": "tuned", "family": gf.family, "online": gf.engine is not None,
+                     "stabiliser": gf.stabiliser is not None, "source": gf.description})
+    if as_json:
+        click.echo(json.dumps(rows, indent=2))
+        return
+    for r in rows:
+        how = "engine" if r["online"] else ("table+imu" if r["stabiliser"] else "table")
+        click.echo(f"{r['name']:28s} {r['kind']:8s} {r['family']:7s} {how:9s} {r['source'][:80]}")
 
 
 @cli.command(name="params")

@@ -68,7 +68,20 @@ def open_study(spec: StudySpec, storage: Any, seed: int | None = None) -> optuna
     if "spec" not in study.user_attrs:
         study.set_user_attr("spec", {"gait": spec.gait, "robot": spec.robot,
                                      "surfaces": list(spec.surfaces), "objectives": list(spec.objectives)})
+    if study.metric_names is None:              # optuna-dashboard and Optuna's plots show these names
+        import warnings
+        with warnings.catch_warnings():         # "experimental since 3.2": expected, not the user's concern
+            warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+            study.set_metric_names([OBJECTIVE_NAMES.get(o, o) for o in spec.objectives])
     return study
+
+
+#: The objectives as a reader of the dashboard should see them
+OBJECTIVE_NAMES = {"pitch_rms": "pitch score [deg]", "speed": "forward speed [m/s]",
+                   "speed_score": "speed score", "forward": "forward stair [m/s]", "backward": "backward stair [m/s]",
+                   "left": "left stair [m/s]", "right": "right stair [m/s]", "turn_left": "turn-left stair [rad/s]",
+                   "turn_right": "turn-right stair [rad/s]"}
+
 
 def _clip_to_space(spec: StudySpec, params: gaits.GaitParams) -> dict[str, Any]:
     out = {}
