@@ -161,6 +161,7 @@ class Drive:
         if self.user is not None:
             raise ParamError(f"controller {self.user.source} walks online: it has no joint table")
         fam = family_of(self.params)
+        fam.check_stance(self.params, robot)
         if self.command is not None:
             return command_walk(self.params, robot, self.command, dt)
         if self.stream is not None:
@@ -186,6 +187,7 @@ class Drive:
             return Stabilised(ctl, self.stabiliser) if self.closed_loop else ctl
         if self.engine is not None:
             fam = family_of(self.params)
+            fam.check_stance(self.params, robot)
             limits = fam.step_limits(self.params, robot)
             if fam.engine == "feedback":
                 ctl = WalkEngine(self.params, self.engine, robot, dt, limits)

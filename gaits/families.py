@@ -105,6 +105,16 @@ class GaitFamily:
                           max_outward=min(reach[2] * legs, 0.3), max_turn=min(reach[3], 1.6),
                           min_gap=min_gap, sole_length=length, sole_width=width)
 
+    def check_stance(self, params: GaitParams, robot: RobotGeometry) -> None:
+        """The soles must not overlap standing: the stance width at least the sole's width (a
+        ParamError with the overlap in mm)."""
+        stance = self.stance_width(params)
+        width = float(robot.foot_size[1])
+        if stance is not None and stance < width - 1e-9:
+            raise ParamError(f"{self.name}: the soles overlap by {(width - stance) * 1000:.1f} mm standing: the "
+                             f"feet are {stance * 1000:.1f} mm apart (centre to centre) and the robot's soles "
+                             f"{width * 1000:.1f} mm wide; widen the stance")
+
     def command_limit(self, params: GaitParams, robot: RobotGeometry, unit: tuple[float, float, float]) -> float:
         """The largest command along a unit direction (one axis) the step limits allow [m/s or rad/s];
         0 for a direction the family does not walk."""

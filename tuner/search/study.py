@@ -328,7 +328,10 @@ def load_study(path_or_name: str) -> StudySpec:
 
 def _common(doc: Mapping[str, Any], path: Path, source: str, gait: str) -> tuple:
     """The keys every study reads the same way (surfaces .. description)."""
-    surfaces = doc.get("surfaces", ["grass50"])
+    if "surfaces" not in doc:
+        _fail(source, "missing 'surfaces': name the surfaces to tune on, e.g. surfaces: [grass50] "
+                      "(`gait-tuner surfaces` lists them)")
+    surfaces = doc["surfaces"]
     if isinstance(surfaces, str):
         surfaces = [surfaces]
     if not isinstance(surfaces, list) or not surfaces:
