@@ -15,6 +15,7 @@ from typing import Any, Mapping
 
 import yaml
 
+from .files import write_text_atomic
 from .engine import EngineParams
 from .imu_stabiliser import StabiliserParams, stabiliser_from_mapping
 from .params import GaitParams, ParamError, families, family_class, params_from_mapping
@@ -168,9 +169,7 @@ def save_gait_file(path: str | Path, params: GaitParams, description: str = "",
     if engine is not None:
         lines.append("engine:  # the online walk engine, ours: see gaits/engine.py")
         lines += _fields(engine)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    return path
+    return write_text_atomic(path, "\n".join(lines) + "\n")
 
 
 def _fields(params: GaitParams) -> list[str]:

@@ -14,11 +14,13 @@ differences of sole and pelvis turned into the pelvis frame.
 from __future__ import annotations
 
 import csv
+import io
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from .files import write_text_atomic
 from .leg_kinematics import LEG_JOINTS, LegGeometry, leg_ik, refine_ik, rot_y, rot_z
 
 __all__ = [
@@ -103,19 +105,17 @@ class GaitTrajectory:
     def to_csv(self, path: str | Path, comment: str | None = None) -> Path:
         """Write the joint table and references as CSV (one row per sample); ``comment`` goes
         first as a ``#`` line (what robot, study and surfaces the table is for)."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
         cols = self.columns()
         names = list(cols)
         data = np.column_stack([np.asarray(cols[n], dtype=float) for n in names])
-        with path.open("w", newline="", encoding="utf-8") as fh:
-            if comment:
-                fh.write("# " + " ".join(comment.split()) + "\n")
-            w = csv.writer(fh)
-            w.writerow(names)
-            for row in data:
-                w.writerow([f"{v:.9g}" for v in row])
-        return path
+        fh = io.StringIO(newline="")
+        if comment:
+            fh.write("# " + " ".join(comment.split()) + "\n")
+        w = csv.writer(fh)
+        w.writerow(names)
+        for row in data:
+            w.writerow([f"{v:.9g}" for v in row])
+        return write_text_atomic(path, fh.getvalue())
 
 
 def cart_table_zmp(t: np.ndarray, p_world_com: np.ndarray, g: float = GRAVITY) -> np.ndarray:

@@ -6,6 +6,7 @@ Exit codes: 0 done; 1 internal error (a bug: please report it); 2 bad input
 
 from __future__ import annotations
 
+import errno
 import os
 import sys
 from pathlib import Path
@@ -15,8 +16,9 @@ import numpy as np
 
 import gaits
 from gaits import ParamError, UnreachableTargetError, families, family_class, list_baselines, load_baseline
+from gaits.files import write_text_atomic
 
-from .errors import EXIT_INTERNAL, EXIT_USAGE, UserError
+from .errors import EXIT_INTERNAL, EXIT_SYSTEM, EXIT_USAGE, UserError
 from .params_io import resolve_drive, resolve_params
 from .sim.randomisation import DEFAULT_PUSHES
 
@@ -495,7 +497,7 @@ def experiment(paper: str, robot_name: str, surface_name: str, lift_scale: float
     click.echo(text)
     if out_dir is not None:
         out_dir.mkdir(parents=True, exist_ok=True)
-        (out_dir / "report.md").write_text("```\n" + text + "\n```\n", encoding="utf-8")
+        write_text_atomic(out_dir / "report.md", "```\n" + text + "\n```\n")
         click.echo(f"wrote {out_dir / 'report.md'}")
 
 
@@ -1125,6 +1127,9 @@ def params_cmd(family: str) -> None:
                "(gaits/online_table.py)"))
 
 
+_SYSTEM_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.EFBIG}
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point: run the CLI, turn bad input into one line on stderr and exit code 2."""
     assert families()  # the registry is filled on import of gaits
@@ -1145,6 +1150,17 @@ def main(argv: list[str] | None = None) -> int:
     except (UserError, ParamError, UnreachableTargetError) as exc:
         click.echo(f"gait-tuner: error: {exc}", err=True)
         return EXIT_USAGE
+    except OSError as exc:
+        if exc.errno not in _SYSTEM_ERRNOS:
+            raise_internal = exc
+        else:
+            where = f"{exc.filename}: " if exc.filename else ""
+            click.echo(f"gait-tuner: error: {where}{exc.strerror or exc} (a file being written there was "
+                       f"left as it was)", err=True)
+            return EXIT_SYSTEM
+        click.echo(f"gait-tuner: internal error: {raise_internal.__class__.__name__}: {raise_internal} "
+                   f"(please report it)", err=True)
+        return EXIT_INTERNAL
     except Exception as exc:  # noqa: BLE001 - last resort: one line, not a traceback
         click.echo(f"gait-tuner: internal error: {exc.__class__.__name__}: {exc} "
                    f"(please report it)", err=True)

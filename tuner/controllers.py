@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from gaits import UserController
+from gaits.files import write_text_atomic
 
 from .errors import UserError
 from .yaml_input import read_yaml_file
@@ -127,7 +128,6 @@ def save_controller(path: str | Path, user: UserController, description: str = "
            "ranges": {k: {"low": float(lo), "high": float(hi)} for k, (lo, hi) in user.ranges.items()}}
     if not description:
         del doc["description"]
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("# a controller of your own (tuner/controllers.py); naming this file runs its class's code\n"
-                    + yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
+    write_text_atomic(path, "# a controller of your own (tuner/controllers.py); naming this file runs its "
+                            "class's code\n" + yaml.safe_dump(doc, sort_keys=False))
     return path

@@ -22,6 +22,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import gaits  # noqa: E402
+from gaits.files import write_text_atomic  # noqa: E402
 
 from ..errors import UserError  # noqa: E402
 from .experiments import EROS_STEPS_MM  # noqa: E402
@@ -175,7 +176,7 @@ def run_compare(specs: list[str], robot_name: str, surface_names: list[str], bas
             + ", ".join(f"{d} {v:g}" for d, v in SPEED_STAIRS.items())
             + "; held = still up and at least 70% of the command measured on it, as the speed studies score), "
             "'-' for a direction the family does not walk (the cosine law walks forward and backward only).")
-    (out_dir / "compare.md").write_text(text + "\n" + defs + "\n", encoding="utf-8")
+    write_text_atomic(out_dir / "compare.md", text + "\n" + defs + "\n")
     _plots(rows, sets, surfaces, out_dir, f"robot {robot.name}; {study_label}; surfaces "
            f"{', '.join(s.name for s in surfaces)}")
     if study_file:
@@ -304,4 +305,4 @@ def _study_plots(study_file: str, runs_dir: Path, out_dir: Path) -> None:
         except (ValueError, RuntimeError) as exc:
             notes.append(f"{name}: not drawn ({exc})")
     if notes:
-        (out_dir / "study_plots.txt").write_text("\n".join(notes) + "\n", encoding="utf-8")
+        write_text_atomic(out_dir / "study_plots.txt", "\n".join(notes) + "\n")

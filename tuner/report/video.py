@@ -24,6 +24,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from gaits.files import write_text_atomic
+
 from ..errors import UserError
 from ..sim.rollout import Simulator, Trace
 
@@ -159,6 +161,5 @@ def save_scene(sim: Simulator, out: Path) -> Path:
     ``sim/rollout.py``), so on grass a plain MuJoCo loop walks with less drag than we do.
     """
     out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(sim.spec.to_xml(), encoding="utf-8")
+    write_text_atomic(out, sim.spec.to_xml())
     return out
