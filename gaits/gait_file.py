@@ -15,7 +15,7 @@ from typing import Any, Mapping
 
 import yaml
 
-from .files import write_text_atomic
+from .files import MAX_BYTES, read_bytes_checked, write_text_atomic
 from .engine import EngineParams
 from .imu_stabiliser import StabiliserParams, stabiliser_from_mapping
 from .params import GaitParams, ParamError, families, family_class, params_from_mapping
@@ -72,17 +72,11 @@ class _StrictLoader(yaml.SafeLoader):
 
 def read_yaml(path: str | Path, what: str, error: type[Exception] = ParamError) -> Any:
     """The parsed document of a user's YAML file; every way it can be wrong is one ``error``
-    naming the file: a directory, a missing file, binary or non-UTF-8 content, YAML syntax, and
+    naming the file: a missing file, anything but a regular file of at most 1 MB
+    (:func:`gaits.files.read_bytes_checked`), binary or non-UTF-8 content, YAML syntax, and
     nesting deep enough to exhaust the parser. ``what`` names the kind of file in messages."""
     path = Path(path)
-    if path.is_dir():
-        raise error(f"{path}: is a directory, expected a {what} YAML file")
-    try:
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        raise error(f"{path}: no such {what} file") from None
-    except OSError as exc:
-        raise error(f"{path}: cannot read the {what} file ({exc.strerror})") from None
+    raw = read_bytes_checked(path, what, MAX_BYTES["yaml"], error)
     if b"\x00" in raw:
         raise error(f"{path}: is a binary file, expected a {what} YAML file")
     try:

@@ -10,6 +10,7 @@ line, the ``gait-tuner: error:`` prefix, no traceback, and the words that name t
 from __future__ import annotations
 
 import copy
+import os
 import subprocess
 from pathlib import Path
 
@@ -226,6 +227,12 @@ KINDS = {
     "badyaml": (b"a: [1, 2\nb: }\n", ""),
     "directory": (None, "directory"),
     "missing": (False, ""),
+    # never opened for reading, so nothing waits for a writer or reads forever
+    "fifo": ("fifo", "FIFO"),
+    "device": ("/dev/zero", "device"),
+    "symlink-loop": ("loop", "loop of symbolic links"),
+    "dangling-link": ("dangling", "link to a missing file"),
+    "too-large": (b"# " + b"x" * 1_100_000 + b"\n", "limit of 1,000,000 bytes"),
 }
 FILE_OPTIONS = {
     "study": lambda f: ["tune", f, "--workers", "1"],
@@ -245,11 +252,42 @@ FILE_OPTIONS = {
 def test_file_kinds(capsys, workdir, option, kind):
     content, words = KINDS[kind]
     path = workdir / f"input-{option}.yaml"
+    make_kind(path, content)
+    run_bad(capsys, FILE_OPTIONS[option](path), words)
+
+
+def make_kind(path: Path, content) -> None:
     if content is None:
         path.mkdir()
+    elif content == "fifo":
+        os.mkfifo(path)
+    elif content == "loop":
+        path.symlink_to(path.with_name(path.name + ".other"))
+        path.with_name(path.name + ".other").symlink_to(path)
+    elif content == "dangling":
+        path.symlink_to(path.with_name("nowhere.yaml"))
+    elif isinstance(content, str):
+        path.symlink_to(content)
     elif content is not False:
         path.write_bytes(content)
-    run_bad(capsys, FILE_OPTIONS[option](path), words)
+
+
+@pytest.mark.parametrize("kind", ["fifo", "device", "symlink-loop", "directory", "too-large"])
+@pytest.mark.parametrize("what", ["mjcf", "commands"])
+def test_file_kinds_of_a_robot_mjcf_and_a_command_stream(capsys, workdir, what, kind):
+    content, words = KINDS[kind]
+    if what == "mjcf":
+        if kind == "too-large":
+            with (workdir / "robot.xml").open("wb") as fh:
+                fh.truncate(50_000_001)   # sparse: no 50 MB written
+        else:
+            make_kind(workdir / "robot.xml", content)
+        robot = dump(workdir / "map.yaml", {**MAP_DOC, "mjcf": "robot.xml"})
+        run_bad(capsys, ["robot", "check", robot], words.replace("1,000,000", "50,000,000"))
+    else:
+        make_kind(workdir / "s.csv", content if kind != "too-large" else b"#" * 10_000_001)
+        run_bad(capsys, ["simulate", "--params", "tkux-table2", "--commands", workdir / "s.csv"],
+                words.replace("1,000,000", "10,000,000"))
 
 
 # -- option values -------------------------------------------------------------------------------
@@ -328,6 +366,14 @@ def test_runs_folder_read_only(capsys, workdir):
     ro = workdir / "ro"
     ro.mkdir(mode=0o500)
     run_bad(capsys, ["tune", "quickstart", "--runs", ro], "not writable")
+
+
+@pytest.mark.parametrize("kind", ["fifo", "device", "symlink-loop", "directory"])
+def test_journal_of_the_wrong_kind(capsys, workdir, kind):
+    content, words = KINDS[kind]
+    (workdir / "runs").mkdir()
+    make_kind(workdir / "runs" / "quickstart.journal", content)
+    run_bad(capsys, ["trials", "quickstart"], words)
 
 
 def test_journal_that_is_not_a_journal(capsys, workdir):

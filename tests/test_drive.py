@@ -129,7 +129,7 @@ def test_stream_file_kinds_are_one_line(gait_tuner_cmd, run_env, tmp_path):
     fifo = tmp_path / "fifo.csv"
     os.mkfifo(fifo)
     for path, message in ((tmp_path, "is a directory"), (tmp_path / "none.csv", "no such command stream file"),
-                          (fifo, "not a regular file")):
+                          (fifo, "is a FIFO")):
         r = run(gait_tuner_cmd, ["simulate", "--params", "tkux-table2", "--commands", path], run_env)
         assert r.returncode == 2 and message in r.stderr, r.stderr
     r = run(gait_tuner_cmd, ["simulate", "--params", "tkux-table2", "--commands", tmp_path / "x.csv",

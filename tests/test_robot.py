@@ -85,7 +85,7 @@ def test_bad_map_files(tmp_path):
     with pytest.raises(UserError, match="torso body 'pelvis' not in robot.xml"):
         load_robot(str(path))
     path.write_text(text.replace("mjcf: robot.xml", "mjcf: nothing.xml"))
-    with pytest.raises(UserError, match="mjcf file .*nothing.xml.* not found"):
+    with pytest.raises(UserError, match="mjcf: .*nothing.xml: no such MJCF file"):
         load_robot(str(path))
     path.write_text(text + "wheels: 4\n")
     with pytest.raises(UserError, match="unknown key 'wheels'"):

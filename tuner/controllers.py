@@ -84,9 +84,6 @@ def load_controller(path: str | Path) -> UserController:
     """The controller a YAML file names, its class imported (see the module docstring)."""
     path = Path(path)
     source = str(path)
-    if not path.is_file():
-        raise UserError(f"{source}: no such controller file" if not path.exists()
-                        else f"{source}: not a regular file (a controller is a YAML file)")
     doc = read_yaml_file(path, "controller")
     if not isinstance(doc, Mapping):
         raise UserError(f"{source}: expected a mapping with keys {', '.join(_KEYS)}")

@@ -4,6 +4,7 @@ trial and commit produced it)."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from gaits import Drive, GaitFile, ParamError, all_families, list_baselines, load_baseline, load_gait_file
@@ -30,7 +31,7 @@ def resolve_params(spec: str | None, family: str | None) -> GaitFile:
             raise UserError("give --gait or --params")
         return load_baseline(DEFAULT_BASELINE[family])
     path = Path(spec)
-    if path.suffix in (".yaml", ".yml") or path.exists():
+    if path.suffix in (".yaml", ".yml") or os.path.lexists(path):
         gait_file = load_gait_file(path)
     elif spec in list_baselines():
         gait_file = load_baseline(spec)

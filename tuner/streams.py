@@ -13,28 +13,21 @@ import io
 from pathlib import Path
 
 from gaits import CommandStream, ParamError
+from gaits.files import MAX_BYTES, read_bytes_checked
 
 from .errors import UserError
 
 __all__ = ["load_stream", "MAX_STREAM_BYTES"]
 
-MAX_STREAM_BYTES = 10_000_000   # a 10-minute stream at 100 Hz is ~2 MB
+MAX_STREAM_BYTES = MAX_BYTES["csv"]   # a 10-minute stream at 100 Hz is ~2 MB
 HEADER = ["t", "vx", "vy", "wz"]
 
 
 def load_stream(path: str | Path, tail: float | None = None) -> CommandStream:
     path = Path(path)
-    if path.is_dir():
-        raise UserError(f"{path}: is a directory, expected a command stream CSV (t,vx,vy,wz)")
-    if not path.exists():
-        raise UserError(f"{path}: no such command stream file")
-    if not path.is_file():
-        raise UserError(f"{path}: not a regular file (a command stream is a CSV file)")
-    size = path.stat().st_size
-    if size > MAX_STREAM_BYTES:
-        raise UserError(f"{path}: {size:,} bytes, more than a command stream's limit of {MAX_STREAM_BYTES:,}")
+    raw = read_bytes_checked(path, "command stream", MAX_STREAM_BYTES, UserError)
     try:
-        text = path.read_bytes().decode("utf-8")
+        text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise UserError(f"{path}: is not UTF-8 text (byte {exc.start})") from None
     rows = [(i + 1, r) for i, r in enumerate(csv.reader(io.StringIO(text)))

@@ -10,6 +10,7 @@ our simulation (a robot map YAML naming its torso, feet and leg joints).
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Callable
 
@@ -34,7 +35,7 @@ def load_robot(name_or_path: str | Path, *, relative_to: Path | None = None) -> 
     path = Path(name)
     if relative_to is not None and not path.is_absolute():
         path = relative_to / path
-    if not path.exists():
+    if not os.path.lexists(path):
         raise UserError(f"robot {name!r}: not a built-in robot ({', '.join(BUILTIN_ROBOTS)}) and no such file"
                         + (f" (looked in {relative_to})" if relative_to is not None else ""))
     return load_map(path)

@@ -34,6 +34,7 @@ import numpy as np
 
 from gaits import JOINT_NAMES, LegGeometry, ParamError
 from gaits.leg_kinematics import LEG_JOINTS
+from gaits.files import MAX_BYTES, read_bytes_checked
 
 from ..errors import UserError
 from ..yaml_input import read_yaml_file
@@ -78,10 +79,14 @@ def load_map(path: Path) -> RobotModel:
     for key in ("mjcf", "torso", "feet", "joints"):
         _require(key in doc, source, f"missing {key!r}")
     _require(isinstance(doc["mjcf"], str), source, f"mjcf = {doc['mjcf']!r}: expected a file path")
-    mjcf = (path.parent / doc["mjcf"]).resolve()
-    _require(mjcf.is_file(), source, f"mjcf file {str(mjcf)!r} not found")
+    mjcf = path.parent / doc["mjcf"]
     try:
-        xml = mjcf.read_text(encoding="utf-8")
+        raw = read_bytes_checked(mjcf, "MJCF", MAX_BYTES["mjcf"], UserError)
+    except UserError as exc:
+        raise UserError(f"{source}: mjcf: {exc}") from None
+    mjcf = mjcf.resolve()
+    try:
+        xml = raw.decode("utf-8")
         model = mujoco.MjModel.from_xml_path(str(mjcf))
     except UnicodeDecodeError:
         raise UserError(f"{source}: mjcf file {mjcf.name} is not UTF-8 text") from None

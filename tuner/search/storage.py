@@ -26,6 +26,7 @@ import contextlib
 import hashlib
 import json
 import os
+import stat
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -137,9 +138,19 @@ class StudyStore:
             raise UserError(f"--runs {runs}: cannot create it ({exc.strerror})") from None
         if not os.access(runs, os.W_OK | os.X_OK):
             raise UserError(f"--runs {runs}: folder is not writable")
-        path = (runs / f"{name}.journal").resolve()
-        if path.is_dir():
-            raise UserError(f"journal {path} is a directory")
+        link = runs / f"{name}.journal"
+        try:
+            path = link.resolve()
+        except (RuntimeError, OSError):
+            raise UserError(f"journal {link}: a loop of symbolic links, expected a journal file") from None
+        if os.path.lexists(path):
+            mode = os.stat(path).st_mode if path.exists() else 0
+            if stat.S_ISDIR(mode):
+                raise UserError(f"journal {path} is a directory")
+            if not stat.S_ISREG(mode):
+                kind = ("a FIFO (named pipe)" if stat.S_ISFIFO(mode) else "a device"
+                        if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else "not a regular file")
+                raise UserError(f"journal {path} is {kind}, expected a journal file")
         return cls(journal=path)
 
     @property

@@ -60,6 +60,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import re
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -231,10 +232,10 @@ def _study_robot(robot: Any, path: Path, source: str) -> str:
 def load_study(path_or_name: str) -> StudySpec:
     """Read and validate a study YAML (a path, or the name of a shipped study)."""
     path = Path(path_or_name)
-    if not path.exists() and (STUDY_DIR / f"{path_or_name}.yaml").exists():
+    if not os.path.lexists(path) and (STUDY_DIR / f"{path_or_name}.yaml").exists():
         path = STUDY_DIR / f"{path_or_name}.yaml"
     source = str(path)
-    if not path.exists():
+    if not os.path.lexists(path):
         _fail(source, "no such study file (shipped studies: "
               + ", ".join(p.stem for p in list_studies()) + ")")
     doc = read_yaml_file(path, "study")

@@ -50,7 +50,7 @@ def _sampler(spec: StudySpec, seed: int) -> optuna.samplers.BaseSampler:
 def load_tuned_study(spec: StudySpec, storage: str | None, runs_dir: Path) -> optuna.Study:
     """A study that has been tuned, from its storage; a one-line :class:`UserError` if it has not."""
     journal = Path(runs_dir) / f"{spec.name}.journal"
-    if storage is None and not journal.exists():
+    if storage is None and not os.path.lexists(journal):
         raise UserError(f"no runs of study {spec.name!r} in {journal} (run `gait-tuner tune` first)")
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     try:

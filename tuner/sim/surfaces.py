@@ -28,6 +28,7 @@ and in the calibration note of the README.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
@@ -100,7 +101,7 @@ def load_surface(name_or_path: str) -> Surface:
     if name_or_path in SURFACES:
         return SURFACES[name_or_path]
     path = Path(name_or_path)
-    if not path.exists():
+    if not os.path.lexists(path):
         raise UserError(f"--surface {name_or_path!r}: not a built-in surface "
                         f"({', '.join(SURFACES)}) and no such file")
     doc: Any = read_yaml_file(path, "surface")
