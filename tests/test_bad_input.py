@@ -57,6 +57,8 @@ STUDY_FIELDS = [
     ("surfaces", {"a": 1}, "surfaces"), ("surfaces", [None], "surfaces"), ("surfaces", 7, "surfaces"),
     ("gait", "nope", "gait"), ("gait", 3, "gait"), ("gait", None, "gait"), ("gait", ["tlipfm"], "gait"),
     ("gait", DELETE, "missing 'gait'"),
+    ("sampler_seed", -1, "sampler_seed = -1: allowed 0 to 2147483647"),
+    ("sampler_seed", 2 ** 40, "sampler_seed = 1099511627776"), ("sampler_seed", 2.5, "sampler_seed"),
     ("base", "no-such-baseline", "base"), ("base", 5, "base"), ("base", "eros-x8-with", "base"),
     ("fixed", [1, 2], "fixed"), ("fixed", {"nope": 1}, "fixed: unknown parameter 'nope'"),
     ("fixed", {"period": "slow"}, "period"), ("fixed", {"period": float("nan")}, "period"),
@@ -213,6 +215,22 @@ def test_randomisation_fields(capsys, workdir, field, value, words):
     rnd = dump(workdir / "random.yaml", _set(RANDOM, field, value))
     run_bad(capsys, ["robustness", "--params", "tkux-table2", "--surface", "rigid", "--rollouts", "1",
                      "--randomisation", rnd], words)
+
+
+@pytest.mark.parametrize("rng, words", [({"low": 2.2, "high": 2.8}, "holds no integer"),
+                                         ({"low": 7.01, "high": 7.99, "log": True}, "holds no integer")])
+def test_an_integer_range_must_hold_an_integer(capsys, workdir, rng, words):
+    doc = {**STUDY, "fixed": {}, "space": {"n_steps": rng}}
+    run_bad(capsys, ["tune", dump(workdir / "s.yaml", doc), "--workers", "1"], words)
+
+
+@pytest.mark.parametrize("argv", [["compare", "tkux-table2", "--out", ""], ["export", "quickstart", "--out", ""],
+                                  ["trajectory", "--gait", "tlipfm", "--out", " "],
+                                  ["render", "--params", "tkux-table2", "--out", ""],
+                                  ["simulate", "--params", "tkux-table2", "--plot", ""]])
+def test_an_empty_output_path_is_refused_before_any_work(capsys, workdir, argv):
+    run_bad(capsys, argv, "an empty path")
+    assert list(workdir.iterdir()) == []
 
 
 # -- file kinds, for every option that reads a file ---------------------------------------------

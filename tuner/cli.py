@@ -41,6 +41,19 @@ def cli() -> None:
 FAMILIES = ("eros", "tlipfm", "cosine")
 
 
+class OutPath(click.Path):
+    """A path the command writes (``--out``, ``--plot``): click's checks, and an empty one refused
+    before any work (``Path('')`` would silently be the current folder)."""
+
+    def __init__(self, **kwargs):
+        super().__init__(path_type=Path, **kwargs)
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, str) and not value.strip():
+            self.fail("an empty path: name the file or folder to write", param, ctx)
+        return super().convert(value, param, ctx)
+
+
 def robot_option(default: str | None = "kidsize", help: str = "Built-in robot name or a robot map YAML."):
     return click.option("--robot", "robot_name", default=default, show_default=default is not None,
                         metavar="NAME|PATH", help=help)
@@ -62,7 +75,7 @@ PARAMS_OPTION = click.option("--params", "params_spec", metavar="PATH|NAME",
                                   "Default: the family's paper baseline.")
 JSON_OPTION = click.option("--json", "as_json", is_flag=True, help="Print the result as strict JSON.")
 RUNS_OPTION = click.option("--runs", "runs_dir", default="runs", show_default=True,
-                           type=click.Path(file_okay=False, path_type=Path), help="Folder of the journal files.")
+                           type=OutPath(file_okay=False), help="Folder of the journal files.")
 STABILISER_OPTION = click.option(
     "--stabiliser/--no-stabiliser", default=None,
     help="Use the parameter file's IMU stabiliser (default: as the file says) or switch it off.")
@@ -110,7 +123,7 @@ def write_joint_table(traj: "gaits.GaitTrajectory", robot, path: Path, joint_nam
 @GAIT_OPTION
 @PARAMS_OPTION
 @robot_option(help="Built-in robot name or a robot map YAML: its legs set the IK.")
-@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False, path_type=Path),
+@click.option("--out", "out_dir", required=True, type=OutPath(file_okay=False),
               help="Directory for joints.csv, references.png and params.yaml.")
 @click.option("--dt", default=0.01, show_default=True, type=float,
               help="Control period of the joint table [s].")
@@ -159,7 +172,7 @@ def trajectory(family: str | None, params_spec: str | None, robot_name: str, out
 
 
 SAVE_SCENE_OPTION = click.option(
-    "--save-scene", type=click.Path(dir_okay=False, path_type=Path), metavar="SCENE.xml",
+    "--save-scene", type=OutPath(dir_okay=False), metavar="SCENE.xml",
     help="Also write the assembled robot + surface model as one MJCF file (loads in any MuJoCo tool; "
          "the blade drag is applied by our loop, not in the file).")
 
@@ -256,7 +269,7 @@ def _parse_size(size: str) -> tuple[int, int]:
 
 @cli.command()
 @_walk_options
-@click.option("--out", required=True, type=click.Path(dir_okay=False, path_type=Path), metavar="WALK.mp4",
+@click.option("--out", required=True, type=OutPath(dir_okay=False), metavar="WALK.mp4",
               help="The video file to write (H.264 MP4).")
 @click.option("--size", default="640x480", show_default=True, help="Frame size WIDTHxHEIGHT [px], multiples of 16.")
 @click.option("--fps", default=30, show_default=True, type=int, help="Frames per second.")
@@ -363,7 +376,7 @@ def view(robot_name: str, surface_name: str, family: str | None, params_spec: st
 @cli.command()
 @_walk_options
 @JSON_OPTION
-@click.option("--plot", "plot_dir", type=click.Path(file_okay=False, path_type=Path),
+@click.option("--plot", "plot_dir", type=OutPath(file_okay=False),
               help="Write pitch.png and zmp.png into this directory.")
 @SAVE_SCENE_OPTION
 def simulate(robot_name: str, surface_name: str, family: str | None, params_spec: str | None,
@@ -442,7 +455,7 @@ def simulate(robot_name: str, surface_name: str, family: str | None, params_spec
               help="eros only: also walk Table 8's cells with this EROS set's heel gain, C_DC, n and "
                    "double-support share (e.g. the export of the eros-paper study).")
 @JSON_OPTION
-@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path),
+@click.option("--out", "out_dir", type=OutPath(file_okay=False),
               help="Also write the report as Markdown (report.md) here.")
 def experiment(paper: str, robot_name: str, surface_name: str, lift_scale: float, double_support: float | None,
                long_steps: int, workers: int, tuned_spec: str | None, as_json: bool, out_dir: Path | None) -> None:
@@ -764,7 +777,7 @@ def trials(study_file: str, storage: str | None, runs_dir: Path, pareto: bool, s
 @click.option("--pareto-pick", type=click.Choice(["pitch", "speed", "knee"]),
               help="Two-objective studies: the Pareto point with the lowest pitch, the highest speed, or "
                    "the knee (nearest the best of both, each scaled over the front).")
-@click.option("--out", type=click.Path(dir_okay=False, path_type=Path),
+@click.option("--out", type=OutPath(dir_okay=False),
               help="Parameter file to write (default: RUNS/<study>/best.yaml); the joint table goes "
                    "beside it (<out>.joints.csv).")
 @COMMAND_OPTION
@@ -841,7 +854,7 @@ def _export_controller(spec, t, out: Path) -> None:
               "and parameter importances.")
 @RUNS_OPTION
 @click.option("--out", "out_dir", default="runs/compare", show_default=True,
-              type=click.Path(file_okay=False, path_type=Path))
+              type=OutPath(file_okay=False))
 @workers_option("Processes walking the (set, surface) pairs; the results do not depend on it.")
 @click.option("--random-rollouts", type=click.IntRange(0, 1000), default=10, show_default=True,
               help="Randomised walks per (set, surface) for the survival column (0: none).")
@@ -912,7 +925,7 @@ def compare(params_specs: tuple[str, ...], robot_name: str | None, surface_names
 @CONTROLLER_OPTION
 @workers_option()
 @JSON_OPTION
-@click.option("--plot", "plot_dir", type=click.Path(file_okay=False, path_type=Path),
+@click.option("--plot", "plot_dir", type=OutPath(file_okay=False),
               help="Write robustness.png into this directory.")
 def robustness(params_spec: str | None, robot_name: str, surface_name: str, rollouts: int, seed: int,
                randomisation_spec: str | None, pushes: str, push_rollouts: int, command: str | None,

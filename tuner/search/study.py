@@ -119,6 +119,18 @@ class SpeedSpec:
         return SpeedStaircase(name, top, self.levels, self.steps_per_level)
 
 
+MAX_SEED = 2 ** 31 - 1
+
+
+def _check_integer_ranges(space: list, source: str) -> None:
+    """An integer parameter's range must hold an integer (Optuna draws from ceil(low)..floor(high))."""
+    for r in space:
+        if r.integer and math.ceil(r.low) > math.floor(r.high):
+            _fail(source, f"space: {r.name} is an integer, but [{r.low:g}, {r.high:g}] holds no integer")
+        if r.integer and r.log and math.ceil(r.low) < 1:
+            _fail(source, f"space: {r.name} is an integer on a log scale: low must be at least 1, got {r.low:g}")
+
+
 @dataclass(frozen=True)
 class ParamRange:
     name: str
@@ -318,6 +330,7 @@ def load_study(path_or_name: str) -> StudySpec:
         _fail(source, "scenario does not go with robust or speed: a scenario study has its own randomised walks")
     if speed is not None and engine is not None:
         _fail(source, "speed studies walk tables on staircases: give the engine a scenario: section instead")
+    _check_integer_ranges(space, source)
     return StudySpec(name=name, gait=str(gait), base=base,
                      space=tuple(space), surfaces=tuple(str(s) for s in surfaces), robot=str(robot),
                      aggregate=aggregate, objectives=tuple(objectives), trials=trials,
@@ -378,6 +391,8 @@ def _common(doc: Mapping[str, Any], path: Path, source: str, gait: str) -> tuple
     seed = doc.get("sampler_seed", 0)
     if not isinstance(seed, int) or isinstance(seed, bool):
         _fail(source, f"sampler_seed must be an integer, got {seed!r}")
+    if not 0 <= seed <= MAX_SEED:
+        _fail(source, f"sampler_seed = {seed}: allowed 0 to {MAX_SEED} (the sampler's seed range)")
     name = doc.get("name") or path.stem
     if not isinstance(name, str) or not NAME_PATTERN.fullmatch(name):
         _fail(source, f"name must be letters, digits, '.', '_' or '-' (at most 100, no path), "
