@@ -362,6 +362,54 @@ def test_fall_constraint_is_where_optuna_and_the_dashboard_read_it(gait_tuner_cm
     assert any(n.endswith(" [m]") or n.endswith(" [s]") for n in names), names
 
 
+def test_two_tunes_of_one_study_at_once_never_walk_a_set_twice(gait_tuner_cmd, run_env, tmp_path):
+    """Both start from the file's sampler seed; each start is counted in the storage under the
+    budget lock, so their samplers differ. Holds however the two overlap in time (both may even
+    run one after the other): the assertion is on what was walked, not on a moment."""
+    study = write_study(tmp_path, "twin", trials=16)
+    runs = tmp_path / "runs"
+    procs = [start(gait_tuner_cmd, "tune", study, "--workers", "1", "--runs", runs, env=run_env) for _ in range(2)]
+    for p in procs:
+        assert p.wait(timeout=900) == 0, p.communicate()[1]
+    trials = [t for t in load("twin", None, runs).get_trials(deepcopy=False) if t.state in DONE]
+    copies = [t.number for t in trials if "duplicate_of" in t.user_attrs]
+    sampled = [tuple(sorted(t.params.items())) for t in trials
+               if "duplicate_of" not in t.user_attrs and t.user_attrs.get("retry_of") is None]
+    assert len(trials) == 16 and copies == [] and len(sampled) == len(set(sampled))
+    assert load("twin", None, runs).user_attrs["starts"] == 2
+
+
+def test_the_budget_changes_only_by_trials_and_says_so(gait_tuner_cmd, run_env, tmp_path):
+    study = write_study(tmp_path, "bud", trials=3)
+    runs = tmp_path / "runs"
+    r = cli(gait_tuner_cmd, "tune", study, "--trials", 4, "--workers", "1", "--runs", runs, env=run_env)
+    assert r.returncode == 0 and "budget" not in r.stderr, r.stderr
+    # a plain re-run keeps the stored budget (4), not the file's 3, and changes nothing
+    r = cli(gait_tuner_cmd, "tune", study, "--workers", "1", "--runs", runs, env=run_env)
+    assert r.returncode == 0 and "is finished: 4 of 4" in r.stdout and "budget" not in r.stderr, r.stdout
+    r = cli(gait_tuner_cmd, "tune", study, "--trials", 6, "--workers", "1", "--runs", runs, env=run_env)
+    assert r.returncode == 0 and "raised from 4 to 6 trials (--trials)" in r.stderr, r.stderr
+    assert tally(load("bud", None, runs))["done"] == 6
+
+
+def test_a_running_worker_reads_a_lowered_budget(tmp_path):
+    """The budget is read from the storage before each trial: a second `tune --trials` that
+    lowers it stops a run already going at the same number (no run goes on to its own)."""
+    from tuner.search.study import load_study
+    from tuner.search.workers import prepare_study, work
+
+    spec = load_study(str(write_study(tmp_path, "low", trials=40)))
+    store = StudyStore.open("low", None, tmp_path / "runs")
+    study, budget, run = prepare_study(spec, store, None, 0, log=lambda m: None)
+    assert (budget, run) == (40, 0)
+    notes = []
+    _, budget, run = prepare_study(spec, store, 3, 0, log=notes.append)
+    assert (budget, run) == (3, 1) and notes == ["budget of study low lowered from 40 to 3 trials (--trials); "
+                                                 "every process on it stops at 3"]
+    assert work(spec, store, 40, 0, log=lambda m: None) == 3      # started with 40, stops at the stored 3
+    assert tally(load("low", None, tmp_path / "runs"))["done"] == 3
+
+
 def test_one_worker_and_a_seed_give_the_same_study_and_pareto_lists_optunas_best(gait_tuner_cmd, run_env,
                                                                                    tmp_path):
     study = tmp_path / "par.yaml"

@@ -586,7 +586,7 @@ def _run_and_report(spec, store, study_file: str, storage: str | None, total: in
     from .search.trials import DONE_STATES, best_trial, trial_feasible, trial_fell
     from .search.workers import prepare_study, run_workers
     optuna.logging.set_verbosity(optuna.logging.WARNING)
-    study, budget = prepare_study(spec, store, total, seed)
+    study, budget, run = prepare_study(spec, store, total, seed)
     done = len(study.get_trials(deepcopy=False, states=DONE_STATES))
     click.echo(f"study {spec.name}: {spec.gait} on {spec.robot} / {', '.join(spec.surfaces)} "
                f"({spec.aggregate if len(spec.surfaces) > 1 else 'single surface'}), "
@@ -602,7 +602,7 @@ def _run_and_report(spec, store, study_file: str, storage: str | None, total: in
                        "timing; --workers 1 --seed S gives the same study every run")
         bar, progress = _study_progress(spec, budget)
         try:
-            study = run_workers(spec, store, study, budget, workers, seed, progress)
+            study = run_workers(spec, store, study, budget, workers, seed, progress, run=run)
         except KeyboardInterrupt:
             bar.close()
             click.echo(f"interrupted: finished trials are kept in {store.where}; "
@@ -640,7 +640,7 @@ def _run_and_report(spec, store, study_file: str, storage: str | None, total: in
               "Re-running resumes: finished trials are kept.")
 @workers_option("Processes running trials of this study on this machine.")
 @_storage_option
-@click.option("--seed", type=int, help="Sampler seed (default: the file's sampler_seed).")
+@click.option("--seed", type=click.IntRange(0, 2 ** 31 - 1), help="Sampler seed (default: the file's sampler_seed).")
 @RUNS_OPTION
 def tune(study_file: str, trials: int | None, workers: int, storage: str | None, seed: int | None,
          runs_dir: Path) -> None:
@@ -656,7 +656,7 @@ def tune(study_file: str, trials: int | None, workers: int, storage: str | None,
 
     spec = load_study(study_file)
     store = StudyStore.open(spec.name, storage, runs_dir)
-    _run_and_report(spec, store, study_file, storage, trials or spec.trials,
+    _run_and_report(spec, store, study_file, storage, trials,
                     workers, spec.sampler_seed if seed is None else seed, "tune")
 
 
@@ -664,7 +664,7 @@ def tune(study_file: str, trials: int | None, workers: int, storage: str | None,
 @click.argument("study_file", metavar="STUDY.yaml")
 @_storage_option
 @workers_option("Processes running trials on this machine.")
-@click.option("--seed", type=int, help="Sampler seed of this machine's processes (default: the file's "
+@click.option("--seed", type=click.IntRange(0, 2 ** 31 - 1), help="Sampler seed of this machine's processes (default: the file's "
               "sampler_seed plus a number drawn from the host name, so machines sample differently).")
 @RUNS_OPTION
 def worker(study_file: str, storage: str | None, workers: int, seed: int | None, runs_dir: Path) -> None:

@@ -193,6 +193,7 @@ def work(spec: StudySpec, store: StudyStore, budget: int, seed: int,
             with store.budget_lock(spec.name):
                 for note in store.reap(study):
                     log(note)
+                budget = int(study.user_attrs.get("budget", budget))   # as another `tune --trials` set it
                 done, running = _counts(study)
                 if done >= budget:
                     return ran
@@ -248,26 +249,38 @@ def _worker(spec: StudySpec, store: StudyStore, budget: int, seed: int, parent: 
         errors.put(str(exc))
         sys.exit(2)
 
-def _sampler_seed(seed: int, index: int, existing: int) -> int:
-    # offset by the trials already stored: a resumed study does not re-draw its first samples
-    return (seed + 1000 * index + 7919 * existing) % (2 ** 31)
+def _sampler_seed(seed: int, index: int, run: int) -> int:
+    """Worker ``index`` of the study's ``run``-th start (counted in the storage under the budget
+    lock): two commands started on one study at once, or a resumed one, never share a sampler
+    seed, so they do not walk the same sets; a fresh study's first run is reproducible."""
+    return (seed + 1000 * index + 7919 * run) % (2 ** 31)
 
-def prepare_study(spec: StudySpec, store: StudyStore, budget: int | None, seed: int) -> tuple[optuna.Study, int]:
+def prepare_study(spec: StudySpec, store: StudyStore, budget: int | None, seed: int,
+                  log: Callable[[str], None] | None = None) -> tuple[optuna.Study, int, int]:
     """Create or join the study; once per study (whoever comes first), enqueue the CasADi seed
     and the baselines; set the shared budget (``budget`` None: keep the stored one, or the
-    file's). Returns the study and the budget."""
+    file's; a given budget that changes the stored one is said in one line: workers already
+    running read it before each trial, so every process stops at the same budget); count this
+    start. Returns the study, the budget and this start's number (for the sampler seeds)."""
+    log = log or (lambda msg: print(f"gait-tuner: {msg}", file=sys.stderr, flush=True))
     study = None
     with store.budget_lock(spec.name):
         study = open_study(spec, store.optuna_storage(), seed)
         enqueue_starts(study, spec)
-        stored = study.user_attrs.get("budget")
+        attrs = study.user_attrs
+        stored = attrs.get("budget")
         if budget is None:
             budget = int(stored) if stored is not None else spec.trials
         if stored != budget:
             study.set_user_attr("budget", budget)
+            if stored is not None:
+                log(f"budget of study {spec.name} {'raised' if budget > stored else 'lowered'} from "
+                    f"{stored} to {budget} trials (--trials); every process on it stops at {budget}")
+        run = int(attrs.get("starts", 0))
+        study.set_user_attr("starts", run + 1)
         for note in store.reap(study):
-            print(f"gait-tuner: {note}", file=sys.stderr)
-    return study, budget
+            log(note)
+    return study, budget, run
 
 def run_study(spec: StudySpec, store: StudyStore, total: int | None, workers: int,
               seed: int, on_progress: Callable[[optuna.Study], None] | None = None,
@@ -276,23 +289,22 @@ def run_study(spec: StudySpec, store: StudyStore, total: int | None, workers: in
     (other machines' ``worker`` processes may share the same budget). A worker that dies is
     replaced (its trial is retried by the others); bad input or a full disk in a worker stops
     all of them and is raised here as one line."""
-    study, budget = prepare_study(spec, store, total, seed)
-    return run_workers(spec, store, study, budget, workers, seed, on_progress, poll, log)
+    study, budget, run = prepare_study(spec, store, total, seed, log)
+    return run_workers(spec, store, study, budget, workers, seed, on_progress, poll, log, run)
 
 def run_workers(spec: StudySpec, store: StudyStore, study: optuna.Study, budget: int, workers: int,
                 seed: int, on_progress: Callable[[optuna.Study], None] | None = None,
-                poll: float = 0.5, log: Callable[[str], None] | None = None) -> optuna.Study:
+                poll: float = 0.5, log: Callable[[str], None] | None = None, run: int = 0) -> optuna.Study:
     """:func:`run_study` after :func:`prepare_study` (which gave ``study`` and ``budget``)."""
     log = log or (lambda msg: print(f"gait-tuner: {msg}", file=sys.stderr, flush=True))
     if n_done(study) >= budget:
         return study
     ctx = mp_context()
     errors = ctx.Queue()
-    existing = len(study.get_trials(deepcopy=False))
     parent = os.getpid()
 
     def spawn(index: int) -> Any:
-        p = ctx.Process(target=_worker, args=(spec, store, budget, _sampler_seed(seed, index, existing),
+        p = ctx.Process(target=_worker, args=(spec, store, budget, _sampler_seed(seed, index, run),
                                               parent, errors), daemon=False)
         p.start()
         return p
