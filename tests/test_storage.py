@@ -95,12 +95,13 @@ def running_worker(name, storage, runs):
     except Exception:
         return None
     for t in study.get_trials(deepcopy=False):
-        if t.state == optuna.trial.TrialState.RUNNING and "worker" in t.user_attrs:
+        if t.state == optuna.trial.TrialState.RUNNING and "worker" in t.user_attrs \
+                and alive(int(t.user_attrs["worker"]["pid"])):
             return t.number, int(t.user_attrs["worker"]["pid"])
     return None
 
 
-def kill_mid_trial(name, storage, runs, procs) -> tuple[int, int]:
+def kill_mid_trial(name, storage, runs, procs, sig=signal.SIGKILL) -> tuple[int, int]:
     """SIGKILL a worker while it walks a trial: stop it (SIGSTOP), check that its trial is still
     running, kill; if the trial had just ended, let it go on and aim again. Synchronised on the
     stopped process, not on a moment in wall time. Returns (trial number, pid)."""
@@ -109,7 +110,10 @@ def kill_mid_trial(name, storage, runs, procs) -> tuple[int, int]:
         os.kill(pid, signal.SIGSTOP)
         trial = load(name, storage, runs).trials[number]
         if trial.state == optuna.trial.TrialState.RUNNING:
-            os.kill(pid, signal.SIGKILL)
+            os.kill(pid, sig)
+            if sig != signal.SIGKILL:
+                os.kill(pid, signal.SIGCONT)           # a stopped process takes other signals on waking
+            wait_for(lambda: not alive(pid), timeout=60)   # dead before the next aim
             return number, pid
         os.kill(pid, signal.SIGCONT)                   # it had just finished: aim again
 
@@ -147,6 +151,50 @@ def test_killed_worker_trial_is_failed_and_retried_once_with_same_params(gait_tu
     assert failed.number == number and failed.user_attrs["failed"] == "its worker died"
     [retry] = [r for r in t["retries"] if r.user_attrs["retry_of"] == failed.number]
     assert retry.params == failed.params and retry.state in DONE
+
+
+def test_workers_killed_again_and_again_are_replaced_and_their_trials_retried(gait_tuner_cmd, run_env, tmp_path):
+    """Five workers killed in one run (more than the old limit of 2 per worker): each is replaced,
+    each trial retried, its heartbeat file removed; the run ends when the test lowers the budget
+    (a budget too large to finish first, so no kill races the end)."""
+    from tuner.search.study import load_study
+    from tuner.search.workers import prepare_study
+
+    study = write_study(tmp_path, "k5", trials=100, surfaces=LONG)
+    runs = tmp_path / "runs"
+    proc = start(gait_tuner_cmd, "tune", study, "--trials", 5000, "--workers", "2", "--runs", runs, env=run_env)
+    killed = [kill_mid_trial("k5", None, runs, [proc]) for _ in range(5)]
+    spec = load_study(str(study))
+    store = StudyStore.open("k5", None, runs)
+    with store.budget_lock("k5"):
+        done = tally(load("k5", None, runs))["done"]
+    prepare_study(spec, store, done + 3, 0, log=lambda m: None)
+    _, err = proc.communicate(timeout=600)
+    assert proc.returncode == 0, err
+    assert err.count("was killed by SIGKILL; starting another") == 5, (killed, err)
+    t = tally(load("k5", None, runs))
+    assert t["running"] == 0
+    trials = load("k5", None, runs).trials
+    for number, pid in killed:
+        root = trials[number].user_attrs.get("retry_of", number)      # a retry may be killed too
+        retries = [r for r in t["retries"] if r.user_attrs["retry_of"] == root]
+        assert retries and all(r.params == trials[number].params for r in retries)
+        assert not (runs / "k5.heartbeats" / f"{os.uname().nodename}-{pid}").exists()
+
+
+def test_a_worker_that_crashes_by_itself_leaves_its_trial_failed(gait_tuner_cmd, run_env, tmp_path):
+    """One worker, so its parent is the only one to see it die: a native fault (SIGSEGV here) is a
+    crash, its trial failed and not retried; the run goes on with a new worker."""
+    study = write_study(tmp_path, "seg", trials=6, surfaces=LONG)
+    runs = tmp_path / "runs"
+    proc = start(gait_tuner_cmd, "tune", study, "--workers", "1", "--runs", runs, env=run_env)
+    number, _ = kill_mid_trial("seg", None, runs, [proc], sig=signal.SIGSEGV)
+    _, err = proc.communicate(timeout=600)
+    assert proc.returncode == 0, err
+    assert f"trial {number} crashed its worker (SIGSEGV): failed, not retried" in err, err
+    t = tally(load("seg", None, runs))
+    assert t["done"] == 6 and [r for r in t["retries"] if r.user_attrs["retry_of"] == number] == []
+    assert load("seg", None, runs).trials[number].user_attrs["died"] == "SIGSEGV"
 
 
 def test_killed_parent_takes_its_workers_and_resume_loses_nothing(gait_tuner_cmd, run_env, tmp_path):
@@ -314,6 +362,7 @@ def test_postgres_two_workers_and_a_tune_share_one_budget(postgres, gait_tuner_c
     procs.append(start(gait_tuner_cmd, "tune", study, "--storage", url, "--workers", "1", env=run_env))
     errs = [p.communicate(timeout=300)[1] for p in procs]
     assert [p.returncode for p in procs] == [0, 0, 0], errs
+    assert not any("Heartbeat of storage" in e or "Warning" in e for e in errs), errs   # none we expect
     study_ = load("share", url, tmp_path)
     t = tally(study_)
     assert t["done"] == 14 and t["running"] == 0 and not t["failed"]

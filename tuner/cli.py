@@ -584,7 +584,7 @@ def _run_and_report(spec, store, study_file: str, storage: str | None, total: in
     import optuna
 
     from .search.trials import DONE_STATES, best_trial, trial_feasible, trial_fell
-    from .search.workers import prepare_study, run_workers
+    from .search.workers import WorkersDying, prepare_study, run_workers
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     study, budget, run = prepare_study(spec, store, total, seed)
     done = len(study.get_trials(deepcopy=False, states=DONE_STATES))
@@ -608,6 +608,10 @@ def _run_and_report(spec, store, study_file: str, storage: str | None, total: in
             click.echo(f"interrupted: finished trials are kept in {store.where}; "
                        f"run the same command to resume", err=True)
             raise SystemExit(130) from None
+        except WorkersDying as exc:
+            bar.close()
+            click.echo(f"gait-tuner: error: {exc}", err=True)
+            raise SystemExit(EXIT_INTERNAL) from None
         finally:
             bar.close()
     if verb == "worker":

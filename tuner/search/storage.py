@@ -16,8 +16,10 @@ reaps dead trials, counts the study's trials and asks for a new one, so that any
 processes on any number of machines run exactly the study's budget (``pg_advisory_lock`` on
 PostgreSQL, ``flock`` on the journal and SQLite).
 
-Liveness (``liveness.py``): a trial whose worker is gone is failed and enqueued again once with
-the same parameters (:meth:`StudyStore.reap`); a retry that dies is not retried.
+Liveness (``liveness.py``): a trial whose worker is gone is failed and, unless the worker crashed
+by itself (a native fault or an abort, which its parent records), enqueued again with the same
+parameters, at most :data:`MAX_RETRIES` times (:meth:`StudyStore.reap`); the heartbeat file of a
+worker judged dead is removed.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ import contextlib
 import hashlib
 import json
 import os
+import socket
 import stat
 import time
 import warnings
@@ -41,18 +44,14 @@ from ..errors import UserError
 from .journal import DISK_FULL, FlockLock, SafeJournalBackend, StorageFull, repair_journal
 from .liveness import HEARTBEAT_GRACE_S, HEARTBEAT_INTERVAL_S, alive_here, worker_file
 
-__all__ = ["StudyStore", "normalise_url"]
+__all__ = ["StudyStore", "normalise_url", "CRASH_SIGNALS", "MAX_RETRIES"]
 
-
-
-
-
-
-
-
-
-
-
+#: Signals by which a process crashes by itself (a fault in native code, an abort): the trial it
+#: walked is left failed, not retried. Any other death (SIGKILL, SIGTERM, a lost machine: killed
+#: from outside) is retried with the same parameters, at most MAX_RETRIES times (the OOM killer's
+#: SIGKILL looks like one from outside, and a set that always exhausts memory must not loop).
+CRASH_SIGNALS = frozenset({"SIGSEGV", "SIGBUS", "SIGFPE", "SIGILL", "SIGABRT"})
+MAX_RETRIES = 3
 
 
 def normalise_url(url: str) -> str:
@@ -316,8 +315,20 @@ class StudyStore:
                     dead.append(t)
         return dead
 
+    def mark_death(self, study: optuna.Study, pid: int, how: str) -> None:
+        """Record on the running trial of this host's worker ``pid`` how it died (a signal's
+        name), so that :meth:`reap` tells a crash from a kill; call under the budget lock."""
+        host = socket.gethostname()
+        for t in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
+            ident = t.user_attrs.get("worker") or {}
+            if ident.get("host") == host and int(ident.get("pid", -1)) == pid:
+                with contextlib.suppress(RuntimeError, optuna.exceptions.UpdateFinishedTrialError):
+                    study._storage.set_trial_user_attr(t._trial_id, "died", how)
+
     def reap(self, study: optuna.Study) -> list[str]:
-        """Fail the study's dead trials and enqueue each once more; call under the budget lock."""
+        """Fail the study's dead trials and enqueue each again unless its worker crashed by
+        itself or it has been retried :data:`MAX_RETRIES` times; remove dead workers' heartbeat
+        files. Call under the budget lock."""
         notes = []
         for t in self.dead_trials(study):
             try:
@@ -325,15 +336,44 @@ class StudyStore:
                 study._storage.set_trial_state_values(t._trial_id, TrialState.FAIL)
             except (RuntimeError, optuna.exceptions.UpdateFinishedTrialError):
                 continue          # finished meanwhile
-            if t.user_attrs.get("retry_of") is not None:
-                notes.append(f"trial {t.number} died again (a retry of trial "
-                             f"{t.user_attrs['retry_of']}): not retried")
+            self._forget_worker(study.study_name, t.user_attrs.get("worker"))
+            how = t.user_attrs.get("died")
+            if how in CRASH_SIGNALS:
+                notes.append(f"trial {t.number} crashed its worker ({how}): failed, not retried "
+                             f"(its parameters are in the study: gait-tuner trials)")
                 continue
-            attrs = {k: v for k, v in t.user_attrs.items() if k not in ("worker", "result", "params")}
-            attrs["retry_of"] = t.number
+            retries = int(t.user_attrs.get("retries", 1 if t.user_attrs.get("retry_of") is not None else 0))
+            if retries >= MAX_RETRIES:
+                notes.append(f"trial {t.number}'s worker died {retries + 1} times with these parameters "
+                             f"(a retry of trial {t.user_attrs.get('retry_of')}): failed, not retried")
+                continue
+            attrs = {k: v for k, v in t.user_attrs.items()
+                     if k not in ("worker", "result", "params", "died", "failed")}
+            attrs["retry_of"] = t.user_attrs.get("retry_of", t.number)
+            attrs["retries"] = retries + 1
             study.enqueue_trial(dict(t.params), user_attrs=attrs, skip_if_exists=False)
-            notes.append(f"trial {t.number} died with its worker: failed, enqueued again")
+            notes.append(f"trial {t.number} died with its worker{f' ({how})' if how else ''}: failed, "
+                         f"enqueued again")
+        self._sweep_heartbeats(study.study_name)
         return notes
+
+    def _forget_worker(self, study_name: str, ident: dict[str, Any] | None) -> None:
+        folder = self.heartbeat_dir(study_name)
+        if folder is not None and ident:
+            with contextlib.suppress(OSError):
+                (folder / worker_file(ident)).unlink()
+
+    def _sweep_heartbeats(self, study_name: str) -> None:
+        """Remove heartbeat files not touched for the grace time (their worker is dead)."""
+        folder = self.heartbeat_dir(study_name)
+        if folder is None:
+            return
+        now = time.time()
+        with contextlib.suppress(OSError):
+            for beat in folder.iterdir():
+                with contextlib.suppress(OSError):
+                    if now - beat.stat().st_mtime > self.grace_s:
+                        beat.unlink()
 
 
 

@@ -18,6 +18,7 @@ import os
 import signal
 import sys
 import time
+import warnings
 from pathlib import Path
 from typing import Any, Callable
 
@@ -36,7 +37,7 @@ from .study import CTRL_PREFIX, ENGINE_PREFIX, STAB_PREFIX, StudySpec
 from .trials import DONE_STATES, n_done, trial_result
 
 __all__ = ["open_storage", "open_study", "load_tuned_study", "enqueue_starts", "trial_distributions",
-           "WorkerStop", "work", "prepare_study", "run_study", "run_workers"]
+           "WorkerStop", "WorkersDying", "work", "prepare_study", "run_study", "run_workers"]
 
 
 def open_storage(spec: StudySpec, storage: str | None, runs_dir: Path) -> Any:
@@ -169,6 +170,22 @@ def _tell_copy(study: optuna.Study, trial: optuna.Trial, source: optuna.trial.Fr
     else:
         study.tell(trial, source.values if len(source.values) > 1 else source.values[0])
 
+#: A worker that dies by a signal is replaced as often as the study needs; only this many deaths
+#: per worker with no trial finishing in between stop the run (a crash loop, not bad luck).
+MAX_DEATHS_IN_A_ROW = 3
+
+
+class WorkersDying(RuntimeError):
+    """Workers keep dying with no trial finishing: the run stops with this one line (exit 1)."""
+
+
+def _signal_name(number: int) -> str:
+    try:
+        return signal.Signals(number).name
+    except ValueError:
+        return f"signal {number}"
+
+
 class WorkerStop(UserError):
     """A worker met bad input or a full disk: the whole run stops with this one line."""
 
@@ -199,7 +216,10 @@ def work(spec: StudySpec, store: StudyStore, budget: int, seed: int,
                     return ran
                 trial = None
                 if done + running < budget:
-                    trial = study.ask(space)
+                    with warnings.catch_warnings():
+                        # ours: heartbeats with ask/tell, on purpose (StudyStore.beat); not for users
+                        warnings.filterwarnings("ignore", message="Heartbeat of storage is supposed")
+                        trial = study.ask(space)
                     trial.set_user_attr("worker", process_identity())
             if trial is None:
                 time.sleep(poll)
@@ -311,7 +331,7 @@ def run_workers(spec: StudySpec, store: StudyStore, study: optuna.Study, budget:
 
     n = max(1, min(workers, budget - n_done(study)))
     procs = {i: spawn(i) for i in range(n)}
-    respawns = 0
+    respawns, in_a_row, last_done = 0, 0, n_done(study)
     try:
         while procs:
             if on_progress is not None:
@@ -326,11 +346,24 @@ def run_workers(spec: StudySpec, store: StudyStore, study: optuna.Study, budget:
                 if p.exitcode == 2:
                     msg = errors.get(timeout=5) if not errors.empty() else "a worker stopped on bad input"
                     raise WorkerStop(msg)
-                how = f"signal {-p.exitcode}" if p.exitcode < 0 else f"exit code {p.exitcode}"
-                if p.exitcode > 0 or respawns >= 2 * n:
-                    raise RuntimeError(f"worker {i} failed ({how}); see its message above")
+                if p.exitcode > 0:
+                    raise RuntimeError(f"worker {i} (pid {p.pid}) failed with exit code {p.exitcode}; "
+                                       f"see its message above")
+                how = _signal_name(-p.exitcode)
+                with store.budget_lock(spec.name):
+                    store.mark_death(study, p.pid, how)
+                    for note in store.reap(study):
+                        log(note)
+                done_now = n_done(study)
+                in_a_row = 0 if done_now > last_done else in_a_row
+                last_done = done_now
+                in_a_row += 1
+                if in_a_row > MAX_DEATHS_IN_A_ROW * n:
+                    raise WorkersDying(f"workers of study {spec.name} died {in_a_row} times without a trial "
+                                       f"finishing in between (the last, worker {i}, by {how}): stopped; "
+                                       f"finished trials are kept, run the command again to resume")
                 respawns += 1
-                log(f"worker {i} died ({how}); its trial will be retried; starting another")
+                log(f"worker {i} (pid {p.pid}) was killed by {how}; starting another")
                 procs[i] = spawn(i + 100 * respawns)
     except BaseException:
         for p in procs.values():
