@@ -182,7 +182,7 @@ def test_tiny_eros_speed_study_end_to_end(gait_tuner_cmd, run_env, tmp_path):
     assert r.returncode == 0, r.stderr
     assert "highest stairs held: forward" in r.stdout and "left" in r.stdout
     bad = tmp_path / "cosine-speed.yaml"
-    bad.write_text("name: c\ngait: cosine\nspace: {motion_time: {low: 1, high: 2}}\n"
+    bad.write_text("name: c\ngait: cosine\nsurfaces: [carpet4]\nspace: {motion_time: {low: 1, high: 2}}\n"
                    "speed:\n  directions: {left: {top: 0.01}}\n")
     r = subprocess.run(gait_tuner_cmd + ["tune", str(bad), "--runs", str(tmp_path / "runs")],
                        capture_output=True, text=True, env=run_env, timeout=120)

@@ -94,7 +94,7 @@ def test_speed_test_holds_stairs_in_order_and_respects_step_limits():
 
 
 def test_speed_study_validation(tmp_path):
-    base = ("gait: tlipfm\nbase: tkux-table2\nspace: {period: {low: 0.3, high: 0.4}}\n"
+    base = ("gait: tlipfm\nbase: tkux-table2\nsurfaces: [carpet4]\nspace: {period: {low: 0.3, high: 0.4}}\n"
             "fixed: {t1: 0.04, t2: 0.25}\n")
     cases = {
         "speed:\n  directions: {up: {top: 0.2}}\n": "unknown direction 'up'",

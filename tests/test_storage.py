@@ -108,6 +108,10 @@ def kill_mid_trial(name, storage, runs, procs, sig=signal.SIGKILL) -> tuple[int,
     while True:
         number, pid = wait_for(lambda: running_worker(name, storage, runs), procs=procs)
         os.kill(pid, signal.SIGSTOP)
+        wait_for(lambda: stopped(pid), timeout=60)
+        if holds_a_file_lock(pid):                     # stopped inside a journal write: reading
+            os.kill(pid, signal.SIGCONT)               # the study would wait for it; aim again
+            continue
         trial = load(name, storage, runs).trials[number]
         if trial.state == optuna.trial.TrialState.RUNNING:
             os.kill(pid, sig)
@@ -116,6 +120,22 @@ def kill_mid_trial(name, storage, runs, procs, sig=signal.SIGKILL) -> tuple[int,
             wait_for(lambda: not alive(pid), timeout=60)   # dead before the next aim
             return number, pid
         os.kill(pid, signal.SIGCONT)                   # it had just finished: aim again
+
+
+def stopped(pid: int) -> bool:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] in ("T", "t", "Z", "X")
+    except OSError:
+        return True
+
+
+def holds_a_file_lock(pid: int) -> bool:
+    """Does ``pid`` hold a kernel file lock (``/proc/locks``; a waiter's line has '->')?"""
+    for line in Path("/proc/locks").read_text().splitlines():
+        parts = line.split()
+        if len(parts) > 4 and parts[1] != "->" and parts[4] == str(pid):
+            return True
+    return False
 
 
 def alive(pid: int) -> bool:
@@ -166,8 +186,7 @@ def test_workers_killed_again_and_again_are_replaced_and_their_trials_retried(ga
     killed = [kill_mid_trial("k5", None, runs, [proc]) for _ in range(5)]
     spec = load_study(str(study))
     store = StudyStore.open("k5", None, runs)
-    with store.budget_lock("k5"):
-        done = tally(load("k5", None, runs))["done"]
+    done = tally(load("k5", None, runs))["done"]
     prepare_study(spec, store, done + 3, 0, log=lambda m: None)
     _, err = proc.communicate(timeout=600)
     assert proc.returncode == 0, err
@@ -278,7 +297,7 @@ def test_full_disk_is_one_line_and_loses_nothing(gait_tuner_cmd, run_env, tmp_pa
     # the "disk" holds 3 kB more: the next trials' writes fail part-way
     r = cli(gait_tuner_cmd, "tune", study, "--trials", "30", "--workers", "2", "--runs", runs, env=run_env,
             preexec_fn=_limit_file_size(size + 3000))
-    assert r.returncode == 2, r.stderr
+    assert r.returncode == 3, r.stderr
     last = r.stderr.strip().splitlines()[-1]
     assert last.startswith("gait-tuner: error: disk full"), r.stderr
     assert "Traceback" not in r.stderr
@@ -289,6 +308,32 @@ def test_full_disk_is_one_line_and_loses_nothing(gait_tuner_cmd, run_env, tmp_pa
     after = tally(load("fd", None, runs))
     assert {n: v for n, v in after["finished"].items() if n in before} == before
     assert after["done"] == 8 and after["running"] == 0
+
+
+def test_full_disk_on_sqlite_is_one_line_and_every_trial_is_walked_on_resume(gait_tuner_cmd, run_env, tmp_path):
+    """SQLite as the journal: one line (exit 3), no worker traceback; on resume every trial the full
+    disk interrupted is retried (none left failed without a retry) and the budget is run exactly."""
+    study = write_study(tmp_path, "sq", trials=4)
+    db = tmp_path / "sq.db"
+    url = f"sqlite:///{db}"
+    r = cli(gait_tuner_cmd, "tune", study, "--storage", url, "--workers", "1", env=run_env)
+    assert r.returncode == 0, r.stderr
+    before = tally(load("sq", url, tmp_path))["finished"]
+    r = cli(gait_tuner_cmd, "tune", study, "--storage", url, "--trials", "60", "--workers", "2", env=run_env,
+            preexec_fn=_limit_file_size(db.stat().st_size + 16_384))
+    assert r.returncode == 3, r.stderr
+    lines = [x for x in r.stderr.strip().splitlines() if not x.startswith("[I ")]
+    assert lines[-1].startswith("gait-tuner: error: disk full"), r.stderr
+    assert "Traceback" not in r.stderr and "internal error" not in r.stderr, r.stderr
+    budget = tally(load("sq", url, tmp_path))["done"] + 4
+    r = cli(gait_tuner_cmd, "tune", study, "--storage", url, "--trials", budget, "--workers", "2", env=run_env)
+    assert r.returncode == 0, r.stderr
+    after = tally(load("sq", url, tmp_path))
+    assert {n: v for n, v in after["finished"].items() if n in before} == before
+    assert after["done"] == budget and after["running"] == 0
+    trials = load("sq", url, tmp_path).trials
+    retried = {t.user_attrs.get("retry_for") for t in trials}
+    assert all(t.number in retried for t in after["failed"]), [t.user_attrs for t in after["failed"]]
 
 
 def test_resume_never_walks_a_parameter_set_twice(gait_tuner_cmd, run_env, tmp_path):

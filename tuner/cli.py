@@ -583,9 +583,37 @@ def _run_and_report(spec, store, study_file: str, storage: str | None, total: in
                     seed: int, verb: str) -> None:
     import optuna
 
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    with _storage_errors(store):
+        _run_study_and_report(spec, store, study_file, storage, total, workers, seed, verb)
+
+
+def _storage_errors(store):
+    """A database's full disk met in this process (opening, enqueueing, reaping) as one line."""
+    import contextlib
+
+    from .search.journal import StorageFull
+    from .search.storage import storage_full
+
+    @contextlib.contextmanager
+    def guard():
+        try:
+            yield
+        except (UserError, ParamError, KeyboardInterrupt, SystemExit):
+            raise
+        except Exception as exc:  # noqa: BLE001
+            full = storage_full(exc)
+            if full is None:
+                raise
+            raise StorageFull(f"disk full writing the study's storage {store.where} ({full}); free space "
+                              f"and run the same command to resume") from None
+    return guard()
+
+
+def _run_study_and_report(spec, store, study_file: str, storage: str | None, total: int | None, workers: int,
+                          seed: int, verb: str) -> None:
     from .search.trials import DONE_STATES, best_trial, trial_feasible, trial_fell
     from .search.workers import WorkersDying, prepare_study, run_workers
-    optuna.logging.set_verbosity(optuna.logging.WARNING)
     study, budget, run = prepare_study(spec, store, total, seed)
     done = len(study.get_trials(deepcopy=False, states=DONE_STATES))
     click.echo(f"study {spec.name}: {spec.gait} on {spec.robot} / {', '.join(spec.surfaces)} "
@@ -653,7 +681,7 @@ def tune(study_file: str, trials: int | None, workers: int, storage: str | None,
     The progress bar shows finished trials of the budget, the best score so far
     (torso pitch RMS [deg] of a gait that did not fall), falls so far and the
     time left. Ctrl-C stops cleanly: finished trials stay in the storage. A trial
-    whose process died is retried once with the same parameters.
+    whose worker was killed is retried with the same parameters (up to 3 times).
     """
     from .search.storage import StudyStore
     from .search.study import load_study
@@ -1166,7 +1194,7 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_USAGE
     except (UserError, ParamError, UnreachableTargetError) as exc:
         click.echo(f"gait-tuner: error: {exc}", err=True)
-        return EXIT_USAGE
+        return EXIT_SYSTEM if type(exc).__name__ == "StorageFull" else EXIT_USAGE
     except OSError as exc:
         if exc.errno not in _SYSTEM_ERRNOS:
             raise_internal = exc

@@ -44,7 +44,7 @@ from ..errors import UserError
 from .journal import DISK_FULL, FlockLock, SafeJournalBackend, StorageFull, repair_journal
 from .liveness import HEARTBEAT_GRACE_S, HEARTBEAT_INTERVAL_S, alive_here, worker_file
 
-__all__ = ["StudyStore", "normalise_url", "CRASH_SIGNALS", "MAX_RETRIES"]
+__all__ = ["StudyStore", "normalise_url", "CRASH_SIGNALS", "MAX_RETRIES", "storage_full"]
 
 #: Signals by which a process crashes by itself (a fault in native code, an abort): the trial it
 #: walked is left failed, not retried. Any other death (SIGKILL, SIGTERM, a lost machine: killed
@@ -52,6 +52,53 @@ __all__ = ["StudyStore", "normalise_url", "CRASH_SIGNALS", "MAX_RETRIES"]
 #: SIGKILL looks like one from outside, and a set that always exhausts memory must not loop).
 CRASH_SIGNALS = frozenset({"SIGSEGV", "SIGBUS", "SIGFPE", "SIGILL", "SIGABRT"})
 MAX_RETRIES = 3
+WORKER_DIED = "its worker died"
+
+
+_FULL_WORDS = ("database or disk is full", "disk full", "no space left on device", "could not extend file",
+               "file too large", "disk quota exceeded", "disk i/o error")
+
+
+def storage_full(exc: BaseException) -> str | None:
+    """The reason, when ``exc`` (or what caused it) is the storage's disk refusing a write: an
+    ``OSError`` of a full disk, SQLite's SQLITE_FULL, PostgreSQL's disk_full (SQLSTATE 53100) as
+    SQLAlchemy raises them; else None. So that SQLite and PostgreSQL say it in one line, as the
+    journal does."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        seen.add(id(exc))
+        if isinstance(exc, StorageFull):
+            return str(exc)
+        if isinstance(exc, OSError) and exc.errno in DISK_FULL:
+            return os.strerror(exc.errno)
+        orig = getattr(exc, "orig", None)
+        if getattr(orig, "sqlstate", None) == "53100" or getattr(orig, "pgcode", None) == "53100":
+            return "PostgreSQL: disk full"
+        text = str(exc).lower()
+        for words in _FULL_WORDS:
+            if words in text and type(exc).__module__.split(".")[0] in ("sqlalchemy", "sqlite3", "psycopg",
+                                                                         "psycopg2", "optuna"):
+                return words
+        exc = orig if orig is not None else (exc.__cause__ or exc.__context__)
+    return None
+
+
+def _retries(t: optuna.trial.FrozenTrial) -> int:
+    """How many times ``t``'s parameters were retried before it (a retry from before the count
+    was kept counts once)."""
+    return int(t.user_attrs.get("retries", 1 if t.user_attrs.get("retry_of") is not None else 0))
+
+
+def _not_retried(t: optuna.trial.FrozenTrial) -> str | None:
+    """Why a trial whose worker died is not retried, or None: its worker crashed by itself, or
+    its parameters have died :data:`MAX_RETRIES` times."""
+    how = t.user_attrs.get("died")
+    if how in CRASH_SIGNALS:
+        return f"trial {t.number} crashed its worker ({how}): failed, not retried"
+    if _retries(t) >= MAX_RETRIES:
+        return (f"trial {t.number}'s worker died {_retries(t) + 1} times with these parameters "
+                f"(first as trial {t.user_attrs.get('retry_of')}): failed, not retried")
+    return None
 
 
 def normalise_url(url: str) -> str:
@@ -326,35 +373,42 @@ class StudyStore:
                     study._storage.set_trial_user_attr(t._trial_id, "died", how)
 
     def reap(self, study: optuna.Study) -> list[str]:
-        """Fail the study's dead trials and enqueue each again unless its worker crashed by
-        itself or it has been retried :data:`MAX_RETRIES` times; remove dead workers' heartbeat
-        files. Call under the budget lock."""
+        """Fail the study's dead trials; enqueue a retry of every trial failed so (now, or at an
+        earlier open whose retry could not be stored: a full disk) unless its worker crashed by
+        itself or the parameters have died :data:`MAX_RETRIES` times; remove dead workers'
+        heartbeat files. Call under the budget lock."""
         notes = []
         for t in self.dead_trials(study):
+            why = _not_retried(t)
             try:
-                study._storage.set_trial_user_attr(t._trial_id, "failed", "its worker died")
+                if why:
+                    study._storage.set_trial_user_attr(t._trial_id, "not_retried", why)
+                study._storage.set_trial_user_attr(t._trial_id, "failed", WORKER_DIED)
                 study._storage.set_trial_state_values(t._trial_id, TrialState.FAIL)
             except (RuntimeError, optuna.exceptions.UpdateFinishedTrialError):
                 continue          # finished meanwhile
+            if why:
+                notes.append(why)
             self._forget_worker(study.study_name, t.user_attrs.get("worker"))
-            how = t.user_attrs.get("died")
-            if how in CRASH_SIGNALS:
-                notes.append(f"trial {t.number} crashed its worker ({how}): failed, not retried "
-                             f"(its parameters are in the study: gait-tuner trials)")
-                continue
-            retries = int(t.user_attrs.get("retries", 1 if t.user_attrs.get("retry_of") is not None else 0))
-            if retries >= MAX_RETRIES:
-                notes.append(f"trial {t.number}'s worker died {retries + 1} times with these parameters "
-                             f"(a retry of trial {t.user_attrs.get('retry_of')}): failed, not retried")
-                continue
-            attrs = {k: v for k, v in t.user_attrs.items()
-                     if k not in ("worker", "result", "params", "died", "failed")}
-            attrs["retry_of"] = t.user_attrs.get("retry_of", t.number)
-            attrs["retries"] = retries + 1
-            study.enqueue_trial(dict(t.params), user_attrs=attrs, skip_if_exists=False)
-            notes.append(f"trial {t.number} died with its worker{f' ({how})' if how else ''}: failed, "
-                         f"enqueued again")
+        notes += self._enqueue_retries(study)
         self._sweep_heartbeats(study.study_name)
+        return notes
+
+    def _enqueue_retries(self, study: optuna.Study) -> list[str]:
+        notes = []
+        trials = study.get_trials(deepcopy=False)
+        retried = {t.user_attrs.get("retry_for", t.user_attrs.get("retry_of")) for t in trials}
+        for t in trials:
+            a = t.user_attrs
+            if t.state != TrialState.FAIL or a.get("failed") != WORKER_DIED or t.number in retried \
+                    or a.get("not_retried"):
+                continue
+            how = a.get("died")
+            attrs = {k: v for k, v in a.items() if k not in ("worker", "result", "params", "died", "failed")}
+            attrs.update(retry_of=a.get("retry_of", t.number), retry_for=t.number, retries=_retries(t) + 1)
+            study.enqueue_trial(dict(t.params), user_attrs=attrs, skip_if_exists=False)
+            notes.append(f"trial {t.number} died with its worker{f' ({how})' if how else ''}: "
+                         f"failed, enqueued again")
         return notes
 
     def _forget_worker(self, study_name: str, ident: dict[str, Any] | None) -> None:

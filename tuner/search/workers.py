@@ -32,7 +32,8 @@ from ..errors import UserError
 from ..process_pool import mp_context
 from .liveness import Heartbeat, process_identity
 from .objective import Evaluator, objective_for, record_constraint
-from .storage import StudyStore
+from .journal import StorageFull
+from .storage import StudyStore, storage_full
 from .study import CTRL_PREFIX, ENGINE_PREFIX, STAB_PREFIX, StudySpec
 from .trials import DONE_STATES, n_done, trial_result
 
@@ -234,6 +235,13 @@ def work(spec: StudySpec, store: StudyStore, budget: int, seed: int,
             except optuna.TrialPruned:
                 study.tell(trial, state=TrialState.PRUNED)
             except BaseException as exc:
+                if isinstance(exc, StorageFull):
+                    raise                       # left running, as below
+                full = storage_full(exc)
+                if full is not None:
+                    # left running: the next open finds its worker dead and retries it
+                    raise StorageFull(f"disk full writing the study's storage {store.where} ({full}); "
+                                      f"free space and run the same command to resume") from None
                 with contextlib.suppress(Exception):
                     trial.set_user_attr("failed", f"{type(exc).__name__}: {exc}")
                     study.tell(trial, state=TrialState.FAIL)
@@ -265,9 +273,19 @@ def _worker(spec: StudySpec, store: StudyStore, budget: int, seed: int, parent: 
                        interval_s=store.interval_s)                   # open afresh after fork
     try:
         work(spec, store, budget, seed)
+    except StorageFull as exc:
+        errors.put(str(exc))
+        sys.exit(3)
     except (UserError, ParamError) as exc:
         errors.put(str(exc))
         sys.exit(2)
+    except Exception as exc:  # noqa: BLE001 - a database's full disk, outside a trial
+        full = storage_full(exc)
+        if full is None:
+            raise
+        errors.put(f"disk full writing the study's storage {store.where} ({full}); free space and run "
+                   f"the same command to resume")
+        sys.exit(3)
 
 def _sampler_seed(seed: int, index: int, run: int) -> int:
     """Worker ``index`` of the study's ``run``-th start (counted in the storage under the budget
@@ -346,6 +364,9 @@ def run_workers(spec: StudySpec, store: StudyStore, study: optuna.Study, budget:
                 if p.exitcode == 2:
                     msg = errors.get(timeout=5) if not errors.empty() else "a worker stopped on bad input"
                     raise WorkerStop(msg)
+                if p.exitcode == 3:
+                    raise StorageFull(errors.get(timeout=5) if not errors.empty() else
+                                      f"disk full writing the study's storage {store.where}")
                 if p.exitcode > 0:
                     raise RuntimeError(f"worker {i} (pid {p.pid}) failed with exit code {p.exitcode}; "
                                        f"see its message above")
