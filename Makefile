@@ -18,8 +18,11 @@ run: $(STAMP)
 	$(BIN)/gait-tuner export studies/quickstart.yaml --out runs/quickstart/best.yaml
 	$(BIN)/gait-tuner compare runs/quickstart/best.yaml --study studies/quickstart.yaml --out runs/quickstart/compare
 
+# the default run, then the kill/resume and bad-input tests again with every core kept busy
+# (tests/run_loaded.py): a test that waits for a window in wall time fails there
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
+	$(BIN)/python tests/run_loaded.py tests/test_storage.py tests/test_bad_input.py -p no:cacheprovider
 
 clean:
 	rm -rf $(VENV) runs
