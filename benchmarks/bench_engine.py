@@ -102,9 +102,15 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--quick", action="store_true", help="20 walks, no challenge on grass30")
+    ap.add_argument("--parts", default="walks,challenge,cost",
+                    help="which parts to run, comma-separated (walks, challenge, cost); the tick cost is "
+                         "best measured alone on an idle machine: --parts cost")
     args = ap.parse_args()
+    parts = set(args.parts.split(","))
+    if not parts <= {"walks", "challenge", "cost"}:
+        ap.error(f"--parts: {args.parts!r}: the parts are walks, challenge, cost")
     n = 20 if args.quick else args.walks
-    for surface, (engine_set, table_set, top) in SETS.items():
+    for surface, (engine_set, table_set, top) in (SETS.items() if "walks" in parts else ()):
         stream = load_stream(ROOT / "examples" / "streams" / f"match-{surface}.csv")
         sustained = gaits.CommandStream([0.0, 8.0], [[top, 0, 0], [0, 0, 0]], tail=2.0)
         print(f"\n{surface}: {n} randomised walks each (evaluation seed {args.seed})")
@@ -120,8 +126,9 @@ def main() -> None:
             print(f"{label:28s} {survival(match):8.0%} {survival(steady):9.0%} {share:10.0%} {iqr:6.0%} "
                   f"{np.median(vx) if vx else float('nan'):8.3f}   ({time.perf_counter() - t0:.0f} s; "
                   f"{'online engine' if gf.engine is not None else 'table planned per step'})", flush=True)
-    print("\npush-recovery challenge (rope 1.5 m, seed 0): best D [m] / momentum at impact [N s]")
-    for surface in ("carpet4",) + (() if args.quick else ("grass30",)):
+    if "challenge" in parts:
+        print("\npush-recovery challenge (rope 1.5 m, seed 0): best D [m] / momentum at impact [N s]")
+    for surface in (("carpet4",) + (() if args.quick else ("grass30",))) if "challenge" in parts else ():
         robot = load_robot("kidsize")
         sim = Simulator(robot, load_surface(surface), pendulum=1.5)
         cells = []
@@ -129,8 +136,9 @@ def main() -> None:
             r = challenge(sim, gaits.Drive.of(resolve_params(label, None), source=label))
             cells.append(f"{label} {r['best_distance_m'] or 0:.2f} / {r['momentum_Ns'] or 0:.2f}")
         print(f"  {surface:8s} " + "   ".join(cells), flush=True)
-    print("\nthe engine's cost per tick, in Python on this machine (a 20 s match walk)")
-    for surface, (engine_set, _, _) in SETS.items():
+    if "cost" in parts:
+        print("\nthe engine's cost per tick, in Python on this machine (a 20 s match walk)")
+    for surface, (engine_set, _, _) in (SETS.items() if "cost" in parts else ()):
         med, p99, phys = cost_per_tick(engine_set, surface)
         print(f"  {engine_set:28s} median {med:.3f} ms, p99 {p99:.3f} ms; the rest of the tick (physics, "
               f"sensors, plant) {phys:.3f} ms")
