@@ -14,7 +14,11 @@ open-loop set of the same surface (``kidsize-omni-<surface>``, a table planned p
   that stayed up), and the RMS errors;
 * the push-recovery challenge (``gait-tuner challenge push``) on carpet4 and grass30: the largest
   fully successful D and the bottle's momentum at impact, engine vs open-loop;
-* the engine's cost per tick in Python (median, 99th percentile) beside one tick of physics.
+* the engine's cost per tick in Python (median, 99th percentile) beside one tick of physics;
+* which limit binds (``--parts limits``): the engine set's first failing challenge trial on carpet4
+  and grass30 walked again, its re-plans counted by the limit their step sat on (reach, the sole's
+  edge for the ZMP, a shorter swing, the swing foot's speed) and, per push, the servos at their
+  torque or speed limit in the second after it, beside the last successful trial.
 """
 
 from __future__ import annotations
@@ -102,13 +106,13 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--quick", action="store_true", help="20 walks, no challenge on grass30")
-    ap.add_argument("--parts", default="walks,challenge,cost",
-                    help="which parts to run, comma-separated (walks, challenge, cost); the tick cost is "
-                         "best measured alone on an idle machine: --parts cost")
+    ap.add_argument("--parts", default="walks,challenge,cost,limits",
+                    help="which parts to run, comma-separated (walks, challenge, cost, limits); the tick "
+                         "cost is best measured alone on an idle machine: --parts cost")
     args = ap.parse_args()
     parts = set(args.parts.split(","))
-    if not parts <= {"walks", "challenge", "cost"}:
-        ap.error(f"--parts: {args.parts!r}: the parts are walks, challenge, cost")
+    if not parts <= {"walks", "challenge", "cost", "limits"}:
+        ap.error(f"--parts: {args.parts!r}: the parts are walks, challenge, cost, limits")
     n = 20 if args.quick else args.walks
     for surface, (engine_set, table_set, top) in (SETS.items() if "walks" in parts else ()):
         stream = load_stream(ROOT / "examples" / "streams" / f"match-{surface}.csv")
@@ -142,6 +146,37 @@ def main() -> None:
         med, p99, phys = cost_per_tick(engine_set, surface)
         print(f"  {engine_set:28s} median {med:.3f} ms, p99 {p99:.3f} ms; the rest of the tick (physics, "
               f"sensors, plant) {phys:.3f} ms")
+    if "limits" in parts:
+        print("\nwhich limit binds: kidsize-engine-carpet4's challenge trials walked again (rope 1.5 m, seed 0)")
+        for surface in ("carpet4", "grass30"):
+            limits(surface)
+
+
+def limits(surface: str) -> None:
+    """Print, for the engine set's last successful and first failing challenge trial on ``surface``,
+    the re-plans per limit and the servos at a limit in the second after each push."""
+    from tuner.sim.challenge import PUSH_TIMES_S, push_trial
+    from tuner.sim.walk_speed import saturation
+    sim = Simulator(load_robot("kidsize"), load_surface(surface), pendulum=1.5)
+    drive = gaits.Drive.of(resolve_params("kidsize-engine-carpet4", None), source="kidsize-engine-carpet4")
+    r = challenge(sim, drive)
+    failing = r["trials"][-1]["distance_m"] if not r["trials"][-1]["success"] else None
+    for D in (r["best_distance_m"], failing):
+        if D is None:
+            continue
+        trial = push_trial(sim, drive, D, 0, keep_trace=True)
+        tr = trial["trace"]
+        b = tr.meta.get("binding", {})
+        n = max(b.get("replans", 0), 1)
+        on = ", ".join(f"{k} {b.get(k, 0) / n:.0%}" for k in ("reach", "sole", "timing", "speed"))
+        print(f"  {surface:8s} D {D:.2f} m ({'up' if trial['success'] else 'fell at %.1f s' % tr.t_fall}): "
+              f"{b.get('replans', 0)} re-plans; on a limit: {on}")
+        for t_push in PUSH_TIMES_S:
+            if tr.t[-1] < t_push:
+                break
+            sat = saturation(sim, tr, t_push, min(t_push + 1.0, float(tr.t[-1])))[:3]
+            print(f"  {'':8s}   push at {t_push:.0f} s, servos at a limit in the next second: " +
+                  "; ".join(f"{x['joint']} torque {x['torque_share']:.0%} speed {x['speed_share']:.0%}" for x in sat))
 
 
 if __name__ == "__main__":

@@ -297,7 +297,10 @@ def adjust_step(gait: _Gait, step: Step, tau: float, xi: np.ndarray, command: np
     sole (``lipm.solve_box_qp``) for each of five lambdas, drops those whose swing would exceed
     ``foot_speed``, and keeps the lambda of least cost + ``timing_weight`` (1 - lambda)^2.
     ``fixed_target``: the foot has landed; only the ZMP offset is free.
-    Returns (target (3,), lambda, offset (2,), info)."""
+    Returns (target (3,), lambda, offset (2,), info); ``info["binds"]`` names the limits the chosen
+    solution sits on (ours, for reports): ``reach`` (the footstep at its reach box or sole gap),
+    ``sole`` (the ZMP at the sole's edge less ``zmp_margin``), ``timing`` (a shorter swing than
+    planned), ``speed`` (a swing dropped because it would exceed ``foot_speed``)."""
     p = gait.p
     nominal = step.target.copy() if fixed_target else gait.nominal_target(step.support, step.side, command)
     c, s = math.cos(step.support[2]), math.sin(step.support[2])
@@ -333,6 +336,7 @@ def adjust_step(gait: _Gait, step: Step, tau: float, xi: np.ndarray, command: np
     # can cost less, and the other timings are not tried
     lams = [(step.t2 - p.t1) / ssp] if fixed_target else [1.0] + list(np.linspace(params.min_ssp_scale, 1.0, 5)[:-1])
     best = None
+    dropped = False
     for lam in lams:
         if best is not None and best[4] < 1e-4 and lam < 1.0:
             break
@@ -352,14 +356,21 @@ def adjust_step(gait: _Gait, step: Step, tau: float, xi: np.ndarray, command: np
         if swing_pose is not None and tau >= step.t1 and not fixed_target:
             remaining = t2 - tau
             if remaining <= 0 or np.linalg.norm(B_xy - swing_pose[:2]) / remaining > params.foot_speed:
+                dropped = True
                 continue
         cost = float(r @ r + z @ (weights * z) + params.timing_weight * (1.0 - lam) ** 2)
         if best is None or cost < best[0]:
-            best = (cost, B_xy, lam, z[:2].copy(), float(np.linalg.norm(r)))
+            best = (cost, B_xy, lam, z.copy(), float(np.linalg.norm(r)))
     if best is None:                              # no lambda meets the servo speed: keep the step as it is
-        return step.target.copy(), (step.t2 - p.t1) / ssp, step.offset.copy(), {"residual": float("nan"), "kept": True}
-    _, B_xy, lam, dp, res = best
-    return np.array([B_xy[0], B_xy[1], nominal[2]]), float(lam), dp, {"residual": res, "kept": False}
+        return step.target.copy(), (step.t2 - p.t1) / ssp, step.offset.copy(), \
+            {"residual": float("nan"), "kept": True, "binds": ("speed",)}
+    _, B_xy, lam, z, res = best
+    at = (np.abs(z - lo) < 1e-9) | (np.abs(z - hi) < 1e-9)
+    binds = tuple(name for name, hit in (("reach", bool(at[2:].any())), ("sole", bool(at[:2].any())),
+                                         ("timing", lam < 1.0 - 1e-9 and not fixed_target),
+                                         ("speed", dropped)) if hit)
+    return np.array([B_xy[0], B_xy[1], nominal[2]]), float(lam), z[:2].copy(), \
+        {"residual": res, "kept": False, "binds": binds}
 
 
 # --- the engine -------------------------------------------------------------------------------
@@ -425,6 +436,7 @@ class WalkEngine:
         self.replans = 0
         self.touchdowns = 0
         self.clamped = 0
+        self.binding = {"replans": 0, "reach": 0, "sole": 0, "timing": 0, "speed": 0}   # re-plans on a limit
         self.step_starts: list[float] = []
         self.tilt = np.zeros(2)                    # filtered (roll, pitch beyond the planned lean) [rad]
         self.last_residual = 0.0
@@ -469,7 +481,7 @@ class WalkEngine:
         return PlanRecord("tlipfm-engine", a[:, 0].astype(int), a[:, 1:3], a[:, 3:5], a[:, 5:7],
                           walk_start=self.walk_start, cycle_time=2 * self.gait.p.period,
                           meta={"step_starts": list(self.step_starts), "steps": self.steps_taken,
-                                "replans": self.replans,
+                                "replans": self.replans, "binding": dict(self.binding),
                                 "touchdowns": self.touchdowns, "estimate_com": a[:, 7:9],
                                 "estimate_vel": a[:, 9:11], "plan_com": a[:, 11:13], "plan_vel": a[:, 13:15]})
 
@@ -664,8 +676,9 @@ class WalkEngine:
         self.events.append((t0, f"step {self.steps_taken} on the {'left' if side == 1 else 'right'} foot to "
                                 f"{st.target[0]:.3f},{st.target[1]:.3f} in {st.T:.2f} s"))
 
-    def _plan_rest(self, tau: float, swing_pose: np.ndarray | None) -> None:
-        """Adjust the step's target, timing and ZMP offset from its state at ``tau``; rebuild its ZMP."""
+    def _plan_rest(self, tau: float, swing_pose: np.ndarray | None) -> dict:
+        """Adjust the step's target, timing and ZMP offset from its state at ``tau``; rebuild its ZMP.
+        Returns :func:`adjust_step`'s info."""
         g, st = self.gait, self.cur
         xi = self.com + g.Tc * self.vel
         n = 0 if self._stopping() else self.params.preview_steps
@@ -681,6 +694,7 @@ class WalkEngine:
         self.last_residual = info.get("residual", float("nan"))
         st.knots_t, st.knots_p, st.shift = g.knots(st.support, st.p0, st.target, st.t1, st.t2, st.T, st.offset)
         self.zmp = zmp_at(st.knots_t, st.knots_p, tau)
+        return info
 
     def _stopping(self) -> bool:
         """This step ends the walk: nothing is asked, the command has ramped down, the engine stands
@@ -702,9 +716,12 @@ class WalkEngine:
         if tau > st.t1:                               # re-target the swing from where the foot is
             pose, theta = self._swing_pose(tau)
             st.pose_a, st.tau_a, st.theta_a = pose[:3], tau, theta
-            self._plan_rest(tau, swing_pose=pose)
+            info = self._plan_rest(tau, swing_pose=pose)
         else:
-            self._plan_rest(tau, swing_pose=None)
+            info = self._plan_rest(tau, swing_pose=None)
+        self.binding["replans"] += 1
+        for name in info["binds"]:
+            self.binding[name] += 1
 
     def _touch_down(self, tau: float) -> None:
         """An early touch-down: the swing foot stays where it touched (it only comes down the rest of

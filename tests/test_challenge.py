@@ -103,3 +103,15 @@ def test_a_tiny_scenario_study_end_to_end(gait_tuner_cmd, run_env, tmp_path):
                              ROOT / "examples" / "streams" / "match-carpet4.csv", "--json"], run_env)
     assert r.returncode == 0, r.stderr
     assert "online walk engine" in json.loads(r.stdout)["drive"]
+
+
+def test_the_engine_says_which_limits_its_re_plans_sat_on():
+    """A pushed engine walk re-plans, and the trace counts, per limit, the re-plans whose step sat on
+    it (the figures ``bench_engine.py --parts limits`` reports)."""
+    sim = Simulator(load_robot("kidsize"), SURFACES["rigid"], pendulum=1.5)
+    drive = gaits.Drive.of(resolve_params("kidsize-engine-carpet4", None))
+    tr = push_trial(sim, drive, 0.6, 0, keep_trace=True)["trace"]
+    b = tr.meta["binding"]
+    assert b["replans"] == tr.meta["replans"] > 0
+    assert set(b) == {"replans", "reach", "sole", "timing", "speed"}
+    assert all(0 <= b[k] <= b["replans"] for k in b)

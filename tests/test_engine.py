@@ -108,6 +108,26 @@ def test_an_undisturbed_step_is_the_planners():
     B, lam, dp, info = adjust_step(g, st, 0.0, xi, cmd, 3, None, EngineParams(), 0.01)
     assert np.allclose(B, g.nominal_target(st.support, st.side, cmd), atol=1e-9)
     assert lam == 1.0 and np.allclose(dp, 0.0, atol=1e-9) and info["residual"] < 1e-8
+    assert info["binds"] == ()                                       # no limit touched
+
+
+def test_the_limits_a_step_sits_on_are_named():
+    """A small push leaves every limit free; a large forward one puts the footstep on its reach and
+    the ZMP on the sole's edge, and ``binds`` says so (checked against the bounds themselves)."""
+    g, st, cmd = _step_on_the_left()
+    params = EngineParams(step_weight=0.05, zmp_weight=0.05)
+    xi0 = g.required_dcm(st.support, st.side, st.p0, cmd, 4)
+    *_, small = adjust_step(g, st, 0.0, xi0 + np.array([0.004, 0.0]), cmd, 3, None, params, 0.01)
+    assert "reach" not in small["binds"] and "sole" not in small["binds"]
+    B, lam, dp, big = adjust_step(g, st, 0.0, xi0 + np.array([0.3, 0.0]), cmd, 3, None, params, 0.01)
+    lo, hi = g.box(st.side, 0.0)
+    u = B[:2] - st.support[:2]
+    plo, phi = g.zmp_box(params.zmp_margin)
+    on_reach = bool(np.any(np.isclose(u, lo, atol=1e-9) | np.isclose(u, hi, atol=1e-9)))
+    on_sole = bool(np.any(np.isclose(dp, plo, atol=1e-9) | np.isclose(dp, phi, atol=1e-9)))
+    assert on_reach and on_sole
+    assert ("reach" in big["binds"]) == on_reach and ("sole" in big["binds"]) == on_sole
+    assert ("timing" in big["binds"]) == (lam < 1.0)
 
 
 @pytest.mark.parametrize("push", [(0.06, 0.0), (0.0, -0.05), (-0.04, 0.02), (0.12, -0.08)])

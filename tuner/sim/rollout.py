@@ -503,6 +503,6 @@ class Simulator:
                      meta={"robot": self.robot.name, "surface": self.surface.name,
                            "family": plan.family, "zmp_source": plan.zmp_source,
                            **{k: plan.meta[k] for k in ("steady", "step_starts", "stream", "steps", "replans",
-                                                        "touchdowns", "estimate_com", "estimate_vel", "plan_com",
+                                                        "binding", "touchdowns", "estimate_com", "estimate_vel", "plan_com",
                                                         "plan_vel") if k in plan.meta}},
                      yaw=_quat_yaw(sens[:, self._s_quat]), outcome=outcome)
