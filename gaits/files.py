@@ -54,7 +54,7 @@ def write_text_atomic(path: str | Path, text: str, encoding: str = "utf-8") -> P
 
 #: Largest file of each kind the tool reads (ours: a hundred times the largest real one we know),
 #: so that ``/dev/zero`` or a mistaken log file is refused at once instead of filling memory.
-MAX_BYTES = {"yaml": 1_000_000, "csv": 10_000_000, "mjcf": 50_000_000}
+MAX_BYTES = {"yaml": 1_000_000, "csv": 10_000_000, "mjcf": 50_000_000, "urdf": 50_000_000, "mesh": 100_000_000}
 
 
 def read_bytes_checked(path: str | Path, what: str, limit: int, error: type[Exception]) -> bytes:

@@ -175,3 +175,141 @@ def write(tmp: Path, xml: str | None = None, yaml_text: str | None = None, subdi
     mjcf_rel = f"{subdir}/robot.xml" if subdir else "robot.xml"
     (tmp / "map.yaml").write_text(map_yaml(mjcf_name=mjcf_rel) if yaml_text is None else yaml_text)
     return tmp / "map.yaml"
+
+
+# --- the same robot as a ROS team would describe it: URDF -----------------------------------
+
+def _rpy(quat_wxyz) -> str:
+    from scipy.spatial.transform import Rotation
+    w, x, y, z = (float(v) for v in quat_wxyz)
+    import warnings
+    with warnings.catch_warnings():            # a gimbal lock still gives the same rotation
+        warnings.simplefilter("ignore", UserWarning)
+        r = Rotation.from_quat([x, y, z, w]).as_euler("xyz")   # URDF rpy: fixed axes x, y, z
+    return " ".join(f"{v:.12g}" for v in r)
+
+
+def _xyz(v) -> str:
+    return " ".join(f"{float(a):.12g}" for a in v)
+
+
+def urdf(xml: str | None = None, *, velocity: float = 6.0, sole_link: str | None = None,
+         mesh_uri: str | None = None, continuous: str | None = None, mimic: tuple[str, str] | None = None,
+         imu_frame: bool = True) -> str:
+    """The robot of :func:`mjcf` written as URDF (the MJCF compiled, then each body a link and each
+    hinge a revolute joint at the child link's origin, with the file's range, its actuator's force
+    range as ``effort`` and ``velocity`` [rad/s]; capsules become a cylinder and two spheres, URDF
+    having no capsule). Options a ROS description often has: ``imu_frame`` a massless link on a fixed
+    joint; ``sole_link`` a link on a fixed joint under each foot (``sole_link`` + ``_l``/``_r``)
+    that carries the feet's collision geometry; ``mesh_uri`` (with ``{side}``) a mesh file for
+    that sole instead of its boxes; ``continuous`` a joint made continuous (no limits); ``mimic``
+    (joint, leader) a mimic joint."""
+    import mujoco
+    import numpy as np
+    m = mujoco.MjModel.from_xml_string(mjcf() if xml is None else xml)
+    G = mujoco.mjtGeom
+    out = ['<?xml version="1.0"?>', '<robot name="third_party_kid">']
+    act_force = {}
+    for a in range(m.nu):
+        act_force[int(m.actuator_trnid[a, 0])] = float(max(abs(m.actuator_forcerange[a])))
+
+    def geoms(b: int, skip_feet: bool) -> list[str]:
+        rows = []
+        for g in range(m.ngeom):
+            if m.geom_bodyid[g] != b:
+                continue
+            if skip_feet and int(m.geom_type[g]) == G.mjGEOM_BOX:
+                continue
+            pos, quat, size, kind = m.geom_pos[g], m.geom_quat[g], m.geom_size[g], int(m.geom_type[g])
+            origin = f'<origin xyz="{_xyz(pos)}" rpy="{_rpy(quat)}"/>'
+            if kind == G.mjGEOM_BOX:
+                shapes = [(origin, f'<box size="{_xyz(2 * size)}"/>')]
+            elif kind == G.mjGEOM_SPHERE:
+                shapes = [(origin, f'<sphere radius="{size[0]:.12g}"/>')]
+            elif kind in (G.mjGEOM_CYLINDER, G.mjGEOM_CAPSULE):
+                shapes = [(origin, f'<cylinder radius="{size[0]:.12g}" length="{2 * size[1]:.12g}"/>')]
+                if kind == G.mjGEOM_CAPSULE:
+                    R = np.zeros(9)
+                    mujoco.mju_quat2Mat(R, quat)
+                    ax = R.reshape(3, 3)[:, 2]
+                    for s in (1, -1):
+                        shapes.append((f'<origin xyz="{_xyz(pos + s * size[1] * ax)}"/>',
+                                       f'<sphere radius="{size[0]:.12g}"/>'))
+            else:
+                continue
+            rows += [f'    <collision>{o}<geometry>{s}</geometry></collision>' for o, s in shapes]
+        return rows
+
+    def link(b: int, name: str, skip_feet: bool = False) -> str:
+        iq = m.body_iquat[b]
+        I = m.body_inertia[b]
+        rows = [f'  <link name="{name}">']
+        if m.body_mass[b] > 0:
+            rows.append(f'    <inertial><origin xyz="{_xyz(m.body_ipos[b])}" rpy="{_rpy(iq)}"/>'
+                        f'<mass value="{m.body_mass[b]:.12g}"/><inertia ixx="{I[0]:.12g}" iyy="{I[1]:.12g}" '
+                        f'izz="{I[2]:.12g}" ixy="0" ixz="0" iyz="0"/></inertial>')
+        rows += geoms(b, skip_feet)
+        rows.append("  </link>")
+        return "\n".join(rows)
+
+    feet = {m.body(f"foot_{s}").id: s for s in "lr"} if sole_link else {}
+    for b in range(1, m.nbody):
+        name = m.body(b).name
+        out.append(link(b, name, skip_feet=b in feet))
+        if b in feet:
+            s = feet[b]
+            sole = f"{sole_link}_{s}"
+            rows = [f'  <link name="{sole}">']
+            if mesh_uri:
+                rows.append(f'    <collision><origin xyz="0 0 0"/><geometry><mesh filename="'
+                            f'{mesh_uri.format(side=s)}"/></geometry></collision>')
+                rows.append(f'    <visual><geometry><mesh filename="package://missing_visuals/{s}.dae"/>'
+                            f'</geometry></visual>')
+            else:
+                rows += [r for r in geoms(b, False) if "<box" in r]
+            rows.append("  </link>")
+            out.append("\n".join(rows))
+            out.append(f'  <joint name="{sole}_fixed" type="fixed"><parent link="{name}"/><child link="{sole}"/>'
+                       f'<origin xyz="0 0 0"/></joint>')
+        parent = m.body_parentid[b]
+        if parent == 0:
+            continue
+        origin = f'<origin xyz="{_xyz(m.body_pos[b])}" rpy="{_rpy(m.body_quat[b])}"/>'
+        pname = m.body(parent).name
+        if m.body_jntnum[b] == 0:
+            out.append(f'  <joint name="{name}_fixed" type="fixed"><parent link="{pname}"/><child link="{name}"/>'
+                       f'{origin}</joint>')
+            continue
+        j = m.body_jntadr[b]
+        jn = m.joint(j).name
+        lo, hi = m.jnt_range[j]
+        kind = "continuous" if jn == continuous else "revolute"
+        lim = (f'<limit effort="{act_force.get(j, 0.0):.12g}" velocity="{velocity:.12g}"/>' if kind == "continuous"
+               else f'<limit lower="{lo:.12g}" upper="{hi:.12g}" effort="{act_force.get(j, 0.0):.12g}" '
+                    f'velocity="{velocity:.12g}"/>')
+        mim = f'<mimic joint="{mimic[1]}"/>' if mimic and mimic[0] == jn else ""
+        out.append(f'  <joint name="{jn}" type="{kind}"><parent link="{pname}"/><child link="{name}"/>{origin}'
+                   f'<axis xyz="{_xyz(m.jnt_axis[j])}"/>{lim}{mim}</joint>')
+    if imu_frame:
+        out.append('  <link name="imu_link"/>')
+        out.append('  <joint name="imu_fixed" type="fixed"><parent link="body_link"/><child link="imu_link"/>'
+                   '<origin xyz="0 0 0.05"/></joint>')
+    out.append("</robot>")
+    return "\n".join(out) + "\n"
+
+
+def box_stl(half: tuple[float, float, float], centre: tuple[float, float, float]) -> bytes:
+    """A binary STL (MuJoCo reads binary STL only) of a box (half sizes, centre) [m], for mesh
+    collision tests."""
+    import itertools
+    import struct
+    import numpy as np
+    hx, hy, hz = half
+    V = np.array([[sx * hx, sy * hy, sz * hz] for sx, sy, sz in itertools.product((-1, 1), repeat=3)]) + centre
+    faces = [(0, 1, 3), (0, 3, 2), (4, 6, 7), (4, 7, 5), (0, 4, 5), (0, 5, 1), (2, 3, 7), (2, 7, 6),
+             (0, 2, 6), (0, 6, 4), (1, 5, 7), (1, 7, 3)]
+    out = bytearray(b"box".ljust(80, b" ")) + struct.pack("<I", len(faces))
+    for a, b, d in faces:
+        n = np.cross(V[b] - V[a], V[d] - V[a])
+        out += struct.pack("<12fH", *(n / np.linalg.norm(n)), *V[a], *V[b], *V[d], 0)
+    return bytes(out)

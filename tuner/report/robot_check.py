@@ -87,7 +87,8 @@ def robot_report(robot: RobotModel, *, stand: bool = True, duration: float = 2.0
                        "source": robot.sources.get(f"sole.{side}", "built-in sole box"),
                        "touch_sensors": "4 quadrants of the sole's bounding box, 2.5 mm past each edge"}
     report: dict[str, Any] = {
-        "robot": robot.name, "map": robot.map_path, "mjcf": robot.mjcf_path or "built-in",
+        "robot": robot.name, "map": robot.map_path,
+        "mjcf": robot.mjcf_path or ("built-in" if robot.urdf_path is None else None), "urdf": robot.urdf_path,
         "mass_kg": float(np.sum(model.body_mass)), "bodies": int(model.nbody - 1),
         "leg_mm": {k: round(1000 * getattr(L, k), 2) for k in
                    ("hip_offset_y", "hip_offset_z", "thigh", "shank", "ankle_height", "sole_forward",
@@ -119,7 +120,8 @@ def _fmt(v: Any) -> str:
 def format_report(r: dict[str, Any]) -> str:
     """The report as text for a terminal."""
     L, c = r["leg_mm"], r["com_mm"]
-    lines = [f"robot {r['robot']}  (map {r['map'] or '-'}; mjcf {r['mjcf']})",
+    lines = [f"robot {r['robot']}  (map {r['map'] or '-'}; " +
+             (f"urdf {r['urdf']}, read into MJCF)" if r.get("urdf") else f"mjcf {r['mjcf']})"),
              f"  mass {r['mass_kg']:.3f} kg in {r['bodies']} bodies",
              f"leg geometry [{r['sources'].get('leg', '')}]",
              f"  hip offset y {L['hip_offset_y']:.1f} mm, hip below torso origin {L['hip_offset_z']:.1f} mm, "

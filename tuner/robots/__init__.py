@@ -1,7 +1,8 @@
 """The robots room: the built-in kid-size humanoid, and the one adapter between a user's MJCF and
 our simulation (a robot map YAML naming its torso, feet and leg joints).
 
-* ``kidsize.py``: the built-in robot; ``robot_map.py``: reading and checking a map;
+* ``kidsize.py``: the built-in robot; ``robot_map.py``: reading and checking a map; ``urdf.py``: a
+  map's URDF read into MJCF (fixed-joint links kept, the torso given the free joint);
   ``mjcf_geometry.py``: what is derived from a model (axis lines, sole hull, CoM);
   ``servo.py``: the servo model and presets; ``solver.py``: the solver options a file may set.
   The robot on a surface (our servos, sensors and drag) is built by ``tuner/sim/scene.py``; the

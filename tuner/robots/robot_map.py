@@ -2,7 +2,10 @@
 
 Format (paths relative to the map file)::
 
-    mjcf: my_robot.xml            # the robot file, unedited
+    mjcf: my_robot.xml            # the robot file, unedited (or urdf: my_robot.urdf, see urdf.py;
+                                  #   an mjcf: path ending in .urdf is read as a URDF)
+    packages: {my_robot_description: ../src/my_robot_description}   # URDF only: package:// folders
+    ranges: {HeadPan: [-2.5, 2.5]}  # URDF only: [rad] ranges of continuous joints (or over the file's)
     name: my_robot                # optional; default: the map file's stem
     torso: base_link              # the body with the free joint; its frame is the IK's pelvis frame
     feet: {left: l_foot, right: r_foot}
@@ -42,13 +45,15 @@ from .mjcf_geometry import (CROUCH, axis_line_distance, body_chain, com_offset, 
                             sole_polygon)
 from .robot_model import GROUPS, RobotModel, SimOptions, joint_group
 from .servo import SERVO_FIELDS, SERVO_PRESETS, servo_from_file, servo_from_mapping
+from .urdf import UrdfRobot, urdf_to_mjcf
 
 __all__ = ["load_map", "LEG_AXES", "MAP_KEYS", "AXIS_TOLERANCE"]
 
 #: Expected joint axis of each leg joint in the torso frame at the zero pose.
 LEG_AXES = {"hip_yaw": (0, 0, 1), "hip_roll": (1, 0, 0), "hip_pitch": (0, 1, 0),
             "knee": (0, 1, 0), "ankle_pitch": (0, 1, 0), "ankle_roll": (1, 0, 0)}
-MAP_KEYS = ("mjcf", "name", "torso", "feet", "joints", "leg", "servo", "pose", "sim")
+MAP_KEYS = ("mjcf", "urdf", "packages", "ranges", "name", "torso", "feet", "joints", "leg", "servo", "pose",
+            "sim")
 #: How far apart two axis lines that must meet may be, and how far the straight leg's
 #: centres may stray from a vertical line [m] (ours).
 AXIS_TOLERANCE = 0.005
@@ -76,20 +81,38 @@ def load_map(path: Path) -> RobotModel:
     _require(isinstance(doc, Mapping), source, f"expected a mapping with keys {', '.join(MAP_KEYS)}")
     for key in doc:
         _require(key in MAP_KEYS, source, f"unknown key {key!r} (allowed: {', '.join(MAP_KEYS)})")
-    for key in ("mjcf", "torso", "feet", "joints"):
+    _require(("mjcf" in doc) != ("urdf" in doc), source,
+             "give the robot file as mjcf: FILE or urdf: FILE (one of them)" if "mjcf" not in doc else
+             "mjcf and urdf both given: give one robot file")
+    for key in ("torso", "feet", "joints"):
         _require(key in doc, source, f"missing {key!r}")
-    _require(isinstance(doc["mjcf"], str), source, f"mjcf = {doc['mjcf']!r}: expected a file path")
-    mjcf = path.parent / doc["mjcf"]
+    key = "mjcf" if "mjcf" in doc else "urdf"
+    _require(isinstance(doc[key], str) and doc[key] != "", source, f"{key} = {doc[key]!r}: expected a file path")
+    is_urdf = key == "urdf" or doc[key].lower().endswith(".urdf")
+    for k in ("packages", "ranges"):
+        _require(k not in doc or is_urdf, source, f"{k}: only for a URDF robot file (urdf: FILE)")
+    mjcf = path.parent / doc[key]
     try:
-        raw = read_bytes_checked(mjcf, "MJCF", MAX_BYTES["mjcf"], UserError)
+        raw = read_bytes_checked(mjcf, "URDF" if is_urdf else "MJCF", MAX_BYTES["urdf" if is_urdf else "mjcf"],
+                                 UserError)
     except UserError as exc:
-        raise UserError(f"{source}: mjcf: {exc}") from None
+        raise UserError(f"{source}: {key}: {exc}") from None
     mjcf = mjcf.resolve()
+    urdf_limits = None
     try:
         xml = raw.decode("utf-8")
-        model = mujoco.MjModel.from_xml_path(str(mjcf))
+        if is_urdf:
+            conv = urdf_to_mjcf(mjcf, raw, torso=doc["torso"] if isinstance(doc["torso"], str) else "",
+                                packages=_packages(doc.get("packages"), path.parent, source),
+                                ranges=_ranges(doc.get("ranges"), source), source=source)
+            xml, urdf_limits = conv.xml, conv
+            model = mujoco.MjModel.from_xml_string(xml)
+        else:
+            model = mujoco.MjModel.from_xml_path(str(mjcf))
     except UnicodeDecodeError:
-        raise UserError(f"{source}: mjcf file {mjcf.name} is not UTF-8 text") from None
+        raise UserError(f"{source}: {key} file {mjcf.name} is not UTF-8 text") from None
+    except UserError:
+        raise
     except Exception as exc:
         raise UserError(f"{source}: {mjcf.name} does not load in MuJoCo: {str(exc).splitlines()[0]}") from None
     name = doc.get("name", path.stem)
@@ -215,7 +238,7 @@ def load_map(path: Path) -> RobotModel:
     except UserError as exc:
         raise UserError(f"{source}: {exc}") from None
 
-    servos, servo_sources = _servos(model, final, doc.get("servo"), source)
+    servos, servo_sources = _servos(model, final, doc.get("servo"), source, urdf_limits)
     sources.update(servo_sources)
     pose, pose_source = _pose(model, final, servos, doc.get("pose"), source)
     sources["pose"] = pose_source
@@ -230,9 +253,42 @@ def load_map(path: Path) -> RobotModel:
                      f"(see servos), with a speed limit")
     if model.nsensor:
         notes.append(f"the file's {model.nsensor} sensor(s) are left out of the simulation")
+    if urdf_limits is not None:
+        notes = list(urdf_limits.notes) + notes
     return RobotModel(name, xml, final, torso, (str(feet["left"]), str(feet["right"])),
                       (soles[0], soles[1]), sizes[0], leg, servos, pose, tuple(hulls), sources,
-                      tuple(notes), sim, str(mjcf), str(path.resolve()), tuple(axes), tuple(bodies))
+                      tuple(notes), sim, None if is_urdf else str(mjcf), str(path.resolve()), tuple(axes),
+                      tuple(bodies), urdf_path=str(mjcf) if is_urdf else None)
+
+
+def _packages(doc: Any, base: Path, source: str) -> dict[str, Path]:
+    """The map's ``packages: {NAME: FOLDER}`` (folders relative to the map file, which must exist)."""
+    if doc is None:
+        return {}
+    _require(isinstance(doc, Mapping), source, "packages must be a mapping of ROS package name: folder")
+    out = {}
+    for k, v in doc.items():
+        _require(isinstance(k, str) and isinstance(v, str) and v != "", source,
+                 f"packages.{k} = {v!r}: expected a folder path")
+        folder = base / v
+        _require(folder.is_dir(), source, f"packages.{k} = {v!r}: no such folder ({folder})")
+        out[k] = folder
+    return out
+
+
+def _ranges(doc: Any, source: str) -> dict[str, tuple[float, float]]:
+    """The map's ``ranges: {JOINT: [LOW, HIGH]}`` [rad], LOW < HIGH, finite."""
+    if doc is None:
+        return {}
+    _require(isinstance(doc, Mapping), source, "ranges must be a mapping of URDF joint name: [LOW, HIGH] [rad]")
+    out = {}
+    for k, v in doc.items():
+        ok = (isinstance(v, (list, tuple)) and len(v) == 2
+              and all(isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x) for x in v))
+        _require(ok, source, f"ranges.{k} = {v!r}: expected [LOW, HIGH] in rad, finite numbers")
+        _require(v[0] < v[1], source, f"ranges.{k} = {v!r}: LOW must be below HIGH")
+        out[str(k)] = (float(v[0]), float(v[1]))
+    return out
 
 
 def _read_joints(joints: Any, model: mujoco.MjModel, source: str, fname: str) -> dict[str, tuple[str, int | None]]:
@@ -329,9 +385,10 @@ def _signs(model: mujoco.MjModel, d: mujoco.MjData, jmap: Mapping[str, tuple[str
 
 
 def _servos(model: mujoco.MjModel, final: Mapping[str, tuple[str, int]], doc: Any,
-            source: str) -> tuple[dict[str, Any], dict[str, str]]:
+            source: str, urdf: UrdfRobot | None = None) -> tuple[dict[str, Any], dict[str, str]]:
     """A servo for every hinge joint but the free one: the file's own position actuator, else
-    the group's default preset, then the map's ``servo:`` fields on top."""
+    the group's default preset (for a URDF with its torque and speed from the joint's ``<limit
+    effort velocity>`` where stated), then the map's ``servo:`` fields on top."""
     doc = doc or {}
     _require(isinstance(doc, Mapping), source, f"servo must be a mapping with keys {', '.join(GROUPS)}")
     if doc and set(doc) <= set(SERVO_FIELDS) | {"preset"}:
@@ -340,6 +397,7 @@ def _servos(model: mujoco.MjModel, final: Mapping[str, tuple[str, int]], doc: An
         _require(k in GROUPS, source, f"servo: unknown group {k!r} (allowed: {', '.join(GROUPS)})")
     ours_of = {theirs: ours for ours, (theirs, _) in final.items()}
     servos, by_group = {}, {g: [] for g in GROUPS}
+    urdf_used = {g: {"torque": 0, "speed": 0} for g in GROUPS}
     for j in range(model.njnt):
         if model.jnt_type[j] != mujoco.mjtJoint.mjJNT_HINGE:
             continue
@@ -351,6 +409,18 @@ def _servos(model: mujoco.MjModel, final: Mapping[str, tuple[str, int]], doc: An
         spec, why = servo_from_file(model, theirs, preset.speed)
         if spec is None:
             spec = preset
+        if urdf is not None:
+            lim = {}
+            effort, velocity = urdf.effort.get(theirs), urdf.velocity.get(theirs)
+            if effort is not None and 0 < effort <= 200:
+                lim["torque"] = effort
+                urdf_used[group]["torque"] += 1
+            if velocity is not None and 0 < velocity <= 100:
+                lim["speed"] = velocity
+                urdf_used[group]["speed"] += 1
+            if lim:
+                spec = dataclasses.replace(spec, **lim)
+                why = "urdf"
         if group in doc:
             spec = servo_from_mapping(doc[group], f"servo.{group}", spec)
         servos[theirs] = spec
@@ -367,9 +437,23 @@ def _servos(model: mujoco.MjModel, final: Mapping[str, tuple[str, int]], doc: An
         if rest:
             parts.append(f"preset {_DEFAULT_PRESET[g]} on {rest} joint(s) (no position actuator with a force "
                          f"range in the file)")
-        speed_src = ("speed from the map" if g in doc and isinstance(doc[g], Mapping) and "speed" in doc[g]
-                     else f"speed {SERVO_PRESETS[_DEFAULT_PRESET[g]].speed:g} rad/s from preset "
-                          f"{_DEFAULT_PRESET[g]} (a file states none)")
+        map_sets = g in doc and isinstance(doc[g], Mapping)
+        if urdf is not None:
+            parts = [f"preset {_DEFAULT_PRESET[g]} on {len(items)} joint(s) (a URDF has no servo gains)"]
+            n_t = urdf_used[g]["torque"]
+            if n_t and not (map_sets and "torque" in doc[g]):
+                parts.append(f"torque from the URDF's <limit effort> on {n_t} joint(s)" +
+                             (f", the preset's on {len(items) - n_t}" if n_t < len(items) else ""))
+        n_v = urdf_used[g]["speed"]
+        if map_sets and "speed" in doc[g]:
+            speed_src = "speed from the map"
+        elif urdf is not None and n_v:
+            speed_src = f"speed from the URDF's <limit velocity> on {n_v} joint(s)" + \
+                (f", {SERVO_PRESETS[_DEFAULT_PRESET[g]].speed:g} rad/s from preset {_DEFAULT_PRESET[g]} on "
+                 f"{len(items) - n_v}" if n_v < len(items) else "")
+        else:
+            speed_src = (f"speed {SERVO_PRESETS[_DEFAULT_PRESET[g]].speed:g} rad/s from preset "
+                         f"{_DEFAULT_PRESET[g]} (a file states none)")
         over = f"; map servo.{g} on top" if g in doc else ""
         sources[f"servos.{g}"] = "; ".join(parts) + f"; {speed_src}{over}"
     return servos, sources

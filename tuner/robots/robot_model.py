@@ -90,6 +90,7 @@ class RobotModel:
     #: cleats) with their pose in the foot frame (name, R_foot_body (3, 3), p_foot_body (3,));
     #: empty: the foot body alone. Touch sensors are per body, so each gets its own sites.
     sole_bodies: tuple[tuple[tuple[str, np.ndarray, np.ndarray], ...], ...] = ()
+    urdf_path: str | None = None                  # a URDF robot's file (``xml`` is its MJCF, meshes absolute)
 
     def touch_bodies(self, side: int) -> tuple[tuple[str, np.ndarray, np.ndarray], ...]:
         if self.sole_bodies:

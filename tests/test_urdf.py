@@ -1,0 +1,240 @@
+"""Teams' robots as URDF: URDFs written here (the third-party robot of ``third_party_robot.py`` as a
+ROS description would give it: fixed-joint frames, a sole link, cleats, package:// meshes, limits,
+a continuous joint, a mimic joint) load unedited or give one line naming what to change, and give
+the same robot as the MJCF they were written from."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import third_party_robot as T
+from tuner.errors import UserError
+from tuner.robots import load_robot
+
+PKG = "kid_description"
+
+
+def run(cmd, args, env):
+    return subprocess.run(cmd + [str(a) for a in args], capture_output=True, text=True, env=env, timeout=600)
+
+
+def one_line_exit_2(r) -> str:
+    assert r.returncode == 2, (r.returncode, r.stdout, r.stderr)
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "Traceback" not in r.stderr, r.stderr
+    return lines[0]
+
+
+def workspace(tmp: Path, urdf_text: str, extra: str = "", meshes: bool = True) -> Path:
+    """A ROS-like workspace: ws/src/kid_description/{package.xml, urdf/robot.urdf, meshes/sole_*.stl}
+    and map.yaml beside ws/."""
+    pkg = tmp / "ws" / "src" / PKG
+    (pkg / "urdf").mkdir(parents=True, exist_ok=True)
+    (pkg / "meshes").mkdir(exist_ok=True)
+    (pkg / "package.xml").write_text(f"<package format='3'>\n  <name>{PKG}</name>\n</package>\n")
+    if meshes:
+        for s, sg in (("l", 1), ("r", -1)):
+            (pkg / "meshes" / f"sole_{s}.stl").write_bytes(T.box_stl((0.0635, 0.039, 0.004),
+                                                                     (0.024, sg * 0.0125, -0.0265)))
+    (pkg / "urdf" / "robot.urdf").write_text(urdf_text)
+    path = tmp / "map.yaml"
+    path.write_text(T.map_yaml(mjcf_name=f"ws/src/{PKG}/urdf/robot.urdf", extra=extra))
+    return path
+
+
+def mesh_urdf(**kw) -> str:
+    return T.urdf(sole_link="sole", mesh_uri=f"package://{PKG}/meshes/sole_{{side}}.stl", **kw)
+
+
+@pytest.mark.parametrize("feet", ["two_box", "cleats"])
+def test_a_urdf_gives_the_robot_of_the_mjcf_it_was_written_from(tmp_path, feet):
+    """Leg geometry, CoM, soles and masses the same (1e-6 m; the URDF's numbers are printed to 12
+    digits); the fixed-joint frames (an IMU link, the cleats' bodies) stay bodies; the torso carries
+    the free joint. (Capsule feet are left out: URDF has no capsule, and a cylinder with two spheres
+    is another sole.)"""
+    mj = T.write(tmp_path / "mjcf", T.mjcf(feet=feet))
+    (tmp_path / "urdf").mkdir()
+    (tmp_path / "urdf" / "robot.urdf").write_text(T.urdf(T.mjcf(feet=feet)))
+    (tmp_path / "urdf" / "map.yaml").write_text(T.map_yaml(mjcf_name="robot.urdf"))
+    a, b = load_robot(str(mj)), load_robot(str(tmp_path / "urdf" / "map.yaml"))
+    for f in ("hip_offset_y", "hip_offset_z", "thigh", "shank", "ankle_height", "sole_forward", "sole_outward",
+              "com_forward", "com_lateral", "com_above_pelvis"):
+        assert getattr(b.leg, f) == pytest.approx(getattr(a.leg, f), abs=1e-6), f
+    assert np.allclose(b.soles, a.soles, atol=1e-6) and b.foot_size == pytest.approx(a.foot_size, abs=1e-6)
+    import mujoco
+    m = mujoco.MjModel.from_xml_string(b.xml)
+    assert m.body("imu_link").id > 0                       # a fixed-joint frame is kept, not fused
+    assert m.jnt_type[m.body_jntadr[m.body("body_link").id]] == mujoco.mjtJoint.mjJNT_FREE
+    ref = mujoco.MjModel.from_xml_string(T.mjcf(feet=feet))
+    assert m.body_mass.sum() == pytest.approx(ref.body_mass.sum(), abs=1e-9)
+    assert b.urdf_path.endswith("robot.urdf") and b.mjcf_path is None
+
+
+def test_robot_check_of_a_ros_workspace_urdf(tmp_path, gait_tuner_cmd, run_env):
+    """package:// meshes found through the package.xml above the URDF, a sole link on a fixed joint
+    carrying a mesh, servo torque and speed from <limit effort velocity> (and said so), visual
+    meshes missing: a note; the robot stands."""
+    path = workspace(tmp_path, mesh_urdf(velocity=5.5))
+    r = run(gait_tuner_cmd, ["robot", "check", path, "--json"], run_env)
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(r.stdout)
+    assert doc["urdf"].endswith("robot.urdf") and doc["mjcf"] is None
+    legs = doc["servos"]["legs"]
+    assert legs["torque"] == pytest.approx(5.0) and legs["speed"] == pytest.approx(5.5)
+    assert "<limit effort>" in legs["source"] and "<limit velocity>" in legs["source"]
+    assert "1 collision geom" in doc["sources"]["sole.left"]           # the mesh on the sole link
+    assert doc["soles"]["left"]["size_mm"] == pytest.approx([127.0, 78.0], abs=0.01)
+    assert any("visual" in n and "not found" in n for n in doc["notes"])
+    assert doc["stand"]["stays_up"]
+    text = run(gait_tuner_cmd, ["robot", "check", path, "--no-stand"], run_env)
+    assert text.returncode == 0 and "urdf " in text.stdout.splitlines()[0], text.stdout
+
+
+def test_a_torso_fixed_below_the_root_link_gets_the_free_joint(tmp_path):
+    """ROS's base_link pattern: the root is a tiny link and the torso hangs from it by a fixed joint
+    (here turned and offset); the joint is turned round and the robot is the same."""
+    plain = workspace(tmp_path / "a", mesh_urdf())
+    text = mesh_urdf().replace('<robot name="third_party_kid">', '<robot name="third_party_kid">\n'
+                               '  <link name="base_link"><inertial><mass value="0.0001"/><inertia ixx="0" iyy="0" '
+                               'izz="0" ixy="0" ixz="0" iyz="0"/></inertial></link>\n'
+                               '  <joint name="base_link_to_torso" type="fixed"><parent link="base_link"/>'
+                               '<child link="body_link"/><origin xyz="0.01 -0.02 0.3" rpy="0.1 -0.2 0.3"/></joint>')
+    rerooted = workspace(tmp_path / "b", text)
+    a, b = load_robot(str(plain)), load_robot(str(rerooted))
+    for f in ("hip_offset_y", "thigh", "shank", "ankle_height"):
+        assert getattr(b.leg, f) == pytest.approx(getattr(a.leg, f), abs=1e-9), f
+    for f in ("com_forward", "com_lateral", "com_above_pelvis"):        # base_link's 0.1 g, 0.3 m away
+        assert getattr(b.leg, f) == pytest.approx(getattr(a.leg, f), abs=2e-5), f
+    assert any("'base_link' hangs from the torso" in n for n in b.notes)
+    import mujoco
+    m = mujoco.MjModel.from_xml_string(b.xml)
+    assert m.body_parentid[m.body("base_link").id] == m.body("body_link").id
+    assert m.jnt_type[m.body_jntadr[m.body("body_link").id]] == mujoco.mjtJoint.mjJNT_FREE
+
+
+def test_the_packages_map_and_plain_paths(tmp_path):
+    """packages: in the map wins over the search (relative to the map file); a plain relative mesh
+    path resolves against the URDF's folder."""
+    elsewhere = tmp_path / "meshes_here"
+    elsewhere.mkdir()
+    for s, sg in (("l", 1), ("r", -1)):
+        (elsewhere / f"sole_{s}.stl").write_bytes(T.box_stl((0.05, 0.03, 0.004), (0.024, sg * 0.0125, -0.0265)))
+    text = T.urdf(sole_link="sole", mesh_uri="package://other_pkg/sole_{side}.stl")
+    path = workspace(tmp_path, text, extra="packages: {other_pkg: meshes_here}\n")
+    assert load_robot(str(path)).foot_size == pytest.approx((0.10, 0.06), abs=1e-6)
+    urdf = tmp_path / "ws" / "src" / PKG / "urdf" / "robot.urdf"
+    urdf.write_text(T.urdf(sole_link="sole", mesh_uri="../meshes/sole_{side}.stl"))
+    path.write_text(T.map_yaml(mjcf_name=f"ws/src/{PKG}/urdf/robot.urdf"))
+    assert load_robot(str(path)).foot_size == pytest.approx((0.127, 0.078), abs=1e-6)
+
+
+def test_a_continuous_joint_needs_a_range_in_the_map(tmp_path, gait_tuner_cmd, run_env):
+    path = workspace(tmp_path, mesh_urdf(continuous="HeadPan_C"))
+    line = one_line_exit_2(run(gait_tuner_cmd, ["robot", "check", path, "--no-stand"], run_env))
+    assert "'HeadPan_C'" in line and "continuous" in line and "ranges:" in line
+    path.write_text(path.read_text() + "ranges: {HeadPan_C: [-2.0, 2.0]}\n")
+    r = load_robot(str(path))
+    import mujoco
+    m = mujoco.MjModel.from_xml_string(r.xml)
+    assert list(m.jnt_range[m.joint("HeadPan_C").id]) == [-2.0, 2.0]
+    assert any("HeadPan_C" in n for n in r.notes)
+
+
+@pytest.mark.parametrize("case, needle", [
+    ("mimic", "mimics 'Elbow_L'"),
+    ("missing collision mesh", "collision mesh 'package://kid_description/meshes/sole_l.stl' not found"),
+    ("unknown package", "no folder for package 'nowhere_pkg'"),
+    ("torso below a moving joint", "through the revolute joint"),
+    ("range of a joint it lacks", "ranges: 'NoSuchJoint' is not a joint"),
+    ("bad range", "LOW must be below HIGH"),
+    ("packages with mjcf", "packages: only for a URDF"),
+    ("both files", "mjcf and urdf both given"),
+    ("not xml", "is not well-formed XML"),
+    ("not a urdf", "expected a URDF (<robot> at the top)"),
+    ("prismatic", "is prismatic"),
+    ("bad number", "not a number"),
+])
+def test_what_a_urdf_map_cannot_do_is_one_line(tmp_path, gait_tuner_cmd, run_env, case, needle):
+    text, extra, meshes = mesh_urdf(), "", True
+    if case == "mimic":
+        text = mesh_urdf(mimic=("Elbow_R", "Elbow_L"))
+    elif case == "missing collision mesh":
+        meshes = False
+    elif case == "unknown package":
+        text = T.urdf(sole_link="sole", mesh_uri="package://nowhere_pkg/sole_{side}.stl")
+    elif case == "torso below a moving joint":
+        text = text.replace('<robot name="third_party_kid">', '<robot name="third_party_kid">\n  <link name="base_footprint"/>\n'
+                            '  <joint name="footprint" type="revolute"><parent link="base_footprint"/>'
+                            '<child link="body_link"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" '
+                            'velocity="1"/></joint>')
+    elif case == "range of a joint it lacks":
+        extra = "ranges: {NoSuchJoint: [-1, 1]}\n"
+    elif case == "bad range":
+        extra = "ranges: {HeadPan_C: [1, -1]}\n"
+    elif case == "not xml":
+        text = "<robot><link name='a'>"
+    elif case == "not a urdf":
+        text = "<mujoco model='x'/>"
+    elif case == "prismatic":
+        text = text.replace('name="Elbow_R" type="revolute"', 'name="Elbow_R" type="prismatic"')
+    elif case == "bad number":
+        text = text.replace('velocity="6"', 'velocity="fast"', 1)
+    path = workspace(tmp_path, text, extra, meshes)
+    if case == "packages with mjcf":
+        T.write(tmp_path, T.mjcf(), T.map_yaml(extra="packages: {a: ws}\n"))
+    elif case == "both files":
+        path.write_text(path.read_text() + "urdf: x.urdf\n")
+    line = one_line_exit_2(run(gait_tuner_cmd, ["robot", "check", path, "--no-stand"], run_env))
+    assert needle in line, line
+    assert line.startswith(str(path)) or "map.yaml" in line
+
+
+def test_a_urdf_robot_walks_the_tlipfm_baseline(tmp_path, gait_tuner_cmd, run_env):
+    path = workspace(tmp_path, mesh_urdf())
+    for surface in ("rigid", "grass30"):
+        r = run(gait_tuner_cmd, ["simulate", "--robot", path, "--gait", "tlipfm", "--surface", surface, "--json"],
+                run_env)
+        assert r.returncode == 0, r.stderr
+        m = json.loads(r.stdout)["metrics"]
+        assert m["outcome"] == "completed" and m["distance_m"] > 0.2, (surface, m)
+
+
+def test_the_map_names_the_error_in_the_urdf_path(tmp_path):
+    path = tmp_path / "map.yaml"
+    path.write_text(T.map_yaml(mjcf_name="missing.urdf"))
+    with pytest.raises(UserError, match="mjcf: .*missing.urdf"):
+        load_robot(str(path))
+    path.write_text(T.map_yaml(mjcf_name="x").replace("mjcf: x", "urdf: ''"))
+    with pytest.raises(UserError, match="urdf = '': expected a file path"):
+        load_robot(str(path))
+
+
+@pytest.mark.parametrize("kind, words", [("fifo", "FIFO"), ("device", "device"), ("symlink-loop", "loop of symbolic links"),
+                                         ("directory", "directory"), ("too-large", "larger than")])
+@pytest.mark.parametrize("what", ["urdf", "mesh"])
+def test_file_kinds_of_a_urdf_and_its_meshes(tmp_path, gait_tuner_cmd, run_env, what, kind, words):
+    """Checked before opening (a FIFO never blocks): one line, exit 2, naming the file."""
+    import os
+    path = workspace(tmp_path, mesh_urdf())
+    pkg = tmp_path / "ws" / "src" / PKG
+    target = pkg / "urdf" / "robot.urdf" if what == "urdf" else pkg / "meshes" / "sole_l.stl"
+    target.unlink()
+    if kind == "fifo":
+        os.mkfifo(target)
+    elif kind == "device":
+        target.symlink_to("/dev/zero")
+    elif kind == "symlink-loop":
+        target.symlink_to(target.with_name("other"))
+        target.with_name("other").symlink_to(target)
+    elif kind == "directory":
+        target.mkdir()
+    else:
+        with target.open("wb") as fh:
+            fh.truncate(50_000_001 if what == "urdf" else 100_000_001)     # sparse
+    line = one_line_exit_2(run(gait_tuner_cmd, ["robot", "check", path, "--no-stand"], run_env))
+    assert words in line and target.name in line, line

@@ -1,0 +1,257 @@
+"""A robot map's URDF, made into the MJCF the rest of the tool reads (the URDF border's adapter).
+
+ROS teams describe their robots as URDF. MuJoCo's own URDF import fuses every body hung on a
+fixed joint into its parent (and the root link into the world), and gives the robot no free
+joint; here, on the other hand (our choices, each said by ``robot check``):
+
+* bodies joined by fixed joints stay bodies of their own (MuJoCo's ``fusestatic`` off), so a map
+  can name a sole, a cleat or the torso frame; the map's torso gets the free joint: the URDF's
+  root link, or a link fixed to it (ROS's ``base_link`` pattern: the fixed joints between them are
+  turned round, parent and child swapped and the origin inverted, so the torso becomes the root);
+* the collision geometry is the URDF's ``<collision>`` elements (meshes, boxes, cylinders,
+  spheres), as MuJoCo imports them; ``<visual>`` elements are left out (the simulation and the
+  videos show the collision geometry), so a missing visual mesh is a note, a missing collision
+  mesh one line naming the link and the file;
+* mesh paths: ``package://NAME/rest`` resolves through the map's ``packages: {NAME: folder}``
+  (relative to the map file), else through a folder called NAME (or holding a ``package.xml``
+  naming NAME) beside the URDF or above it, as a ROS workspace is laid out; ``package:///FILE``
+  (no name, as onshape-to-robot exports) is the URDF's folder; ``file://`` and plain paths are
+  the file system's (plain ones relative to the URDF);
+* a ``continuous`` joint (no limits) needs a range in the map (``ranges: {JOINT: [low, high]}``
+  [rad]); a ``<mimic>`` joint is refused by name (our servos drive joints one by one);
+* servo limits: ``<limit effort velocity>`` [N m, rad/s] of each joint, used where the map's
+  ``servo:`` section does not set the field (``robot_map._servos``).
+
+Nothing here runs physics; errors are :class:`tuner.errors.UserError`, one line.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+import mujoco
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from gaits.files import MAX_BYTES, read_bytes_checked
+
+from ..errors import UserError
+
+__all__ = ["UrdfRobot", "urdf_to_mjcf", "resolve_package"]
+
+#: The compiler settings injected into the URDF before MuJoCo reads it (see the module docstring).
+COMPILER = {"fusestatic": "false", "discardvisual": "true", "strippath": "false", "angle": "radian"}
+
+
+@dataclass
+class UrdfRobot:
+    """What :func:`urdf_to_mjcf` gives: the MJCF text, each joint's ``<limit effort velocity>``
+    (None where the URDF states none or zero) and what was changed, for ``robot check``."""
+
+    xml: str
+    effort: dict[str, float | None] = field(default_factory=dict)     # [N m]
+    velocity: dict[str, float | None] = field(default_factory=dict)   # [rad/s]
+    notes: list[str] = field(default_factory=list)
+
+
+def _package_dirs(name: str, urdf: Path) -> list[Path]:
+    """Folders that may be ROS package NAME: beside the URDF or above it, named NAME or holding a
+    package.xml that names it."""
+    out = []
+    for d in [urdf.parent, *urdf.parent.parents][:6]:
+        for cand in (d, d / name):
+            if cand.name == name and cand.is_dir():
+                out.append(cand)
+            px = cand / "package.xml"
+            if px.is_file():
+                try:
+                    text = px.read_text(errors="replace")
+                except OSError:
+                    continue
+                if f"<name>{name}</name>" in text.replace(" ", ""):
+                    out.append(cand)
+    seen, uniq = set(), []
+    for d in out:
+        if d.resolve() not in seen:
+            seen.add(d.resolve())
+            uniq.append(d)
+    return uniq
+
+
+def resolve_package(uri: str, urdf: Path, packages: Mapping[str, Path]) -> tuple[Path | None, str]:
+    """A mesh ``filename`` of ``urdf`` -> (path or None, where it was looked for)."""
+    if uri.startswith("package://"):
+        rest = uri[len("package://"):]
+        name, _, sub = rest.partition("/")
+        if name == "":                       # package:///FILE (as onshape-to-robot writes): beside the URDF
+            p = urdf.parent / sub
+            return (p if os.path.lexists(p) else None), "package:/// is read as the URDF's folder"
+        if name in packages:
+            p = packages[name] / sub
+            return (p if os.path.lexists(p) else None), f"packages.{name} = {packages[name]}"
+        dirs = _package_dirs(name, urdf)
+        for d in dirs:
+            if os.path.lexists(d / sub):
+                return d / sub, str(d)
+        return None, (f"no folder for package {name!r} beside or above the URDF (give packages: {{{name}: FOLDER}} "
+                      f"in the map)" if not dirs else f"package {name!r} at {', '.join(map(str, dirs))}")
+    if uri.startswith("file://"):
+        p = Path(uri[len("file://"):])
+        return (p if os.path.lexists(p) else None), "file:// path"
+    p = Path(uri) if os.path.isabs(uri) else urdf.parent / uri
+    return (p if os.path.lexists(p) else None), "relative to the URDF"
+
+
+def _number(text: str | None, what: str, source: str) -> float | None:
+    if text is None:
+        return None
+    try:
+        v = float(text)
+    except ValueError:
+        raise UserError(f"{source}: {what} = {text!r}: not a number") from None
+    if not math.isfinite(v):
+        raise UserError(f"{source}: {what} = {text!r}: not a finite number")
+    return v
+
+
+def _origin(j: ET.Element) -> tuple[np.ndarray, np.ndarray]:
+    """A joint's ``<origin xyz rpy>`` as (R_parent_child (3, 3), p_parent_child (3,))."""
+    o = j.find("origin")
+    xyz = [float(v) for v in (o.get("xyz", "0 0 0") if o is not None else "0 0 0").split()]
+    rpy = [float(v) for v in (o.get("rpy", "0 0 0") if o is not None else "0 0 0").split()]
+    return Rotation.from_euler("xyz", rpy).as_matrix(), np.array(xyz)
+
+
+def _reroot(joints: list[ET.Element], root: str, torso: str, source: str, name: str) -> None:
+    """Turn round the fixed joints from the URDF's root link down to ``torso``, so that ``torso``
+    becomes the root (each joint's parent and child swapped, its origin inverted: T -> T^-1)."""
+    parent_of = {j.find("child").get("link"): j for j in joints if j.find("child") is not None}
+    path, link = [], torso
+    while link != root:
+        j = parent_of.get(link)
+        if j is None:
+            raise UserError(f"{source}: torso link {torso!r} does not hang from the root link {root!r} of {name}")
+        if j.get("type") != "fixed":
+            raise UserError(f"{source}: torso link {torso!r} hangs from the root link {root!r} of {name} through "
+                            f"the {j.get('type')} joint {j.get('name')!r}: name the root link (or a link fixed to "
+                            f"it) as the torso")
+        path.append(j)
+        link = j.find("parent").get("link")
+    for j in path:
+        R, p = _origin(j)
+        Ri = R.T
+        pi = -Ri @ p
+        o = j.find("origin")
+        if o is None:
+            o = ET.SubElement(j, "origin")
+        o.set("xyz", " ".join(repr(float(v)) for v in pi))
+        o.set("rpy", " ".join(repr(float(v)) for v in Rotation.from_matrix(Ri).as_euler("xyz")))
+        par, chi = j.find("parent"), j.find("child")
+        a, b = par.get("link"), chi.get("link")
+        par.set("link", b)
+        chi.set("link", a)
+
+
+def urdf_to_mjcf(path: Path, raw: bytes, *, torso: str, packages: Mapping[str, Path],
+                 ranges: Mapping[str, tuple[float, float]], source: str) -> UrdfRobot:
+    """Read the URDF text ``raw`` (of ``path``) into MJCF (module docstring)."""
+    name = path.name
+    try:
+        root = ET.fromstring(raw)
+    except ET.ParseError as exc:
+        raise UserError(f"{source}: {name} is not well-formed XML: {exc}") from None
+    if root.tag != "robot":
+        raise UserError(f"{source}: {name}: expected a URDF (<robot> at the top), found <{root.tag}>")
+    out = UrdfRobot(xml="")
+    links = {ln.get("name") for ln in root.findall("link")}
+    joints = root.findall("joint")
+    for r in ranges:
+        if r not in {j.get("name") for j in joints}:
+            raise UserError(f"{source}: ranges: {r!r} is not a joint of {name}")
+    children = set()
+    for j in joints:
+        jname, jtype = j.get("name"), j.get("type")
+        children.add((j.find("child").get("link") if j.find("child") is not None else None))
+        if j.find("mimic") is not None:
+            raise UserError(f"{source}: joint {jname!r} of {name} mimics {j.find('mimic').get('joint')!r}: mimic "
+                            f"joints are not supported (each joint gets its own servo); make it a revolute "
+                            f"joint of its own or fix it")
+        if jtype in ("floating", "planar", "prismatic"):
+            raise UserError(f"{source}: joint {jname!r} of {name} is {jtype}: only revolute, continuous and "
+                            f"fixed joints are supported (the robot's free joint is added at its torso)")
+        lim = j.find("limit")
+        if jtype == "continuous":
+            if jname not in ranges:
+                raise UserError(f"{source}: joint {jname!r} of {name} is continuous (no limits): give it a range "
+                                f"in the map, ranges: {{{jname}: [LOW, HIGH]}} [rad]")
+            j.set("type", "revolute")
+        if jname in ranges:
+            if lim is None:
+                lim = ET.SubElement(j, "limit")
+            lo, hi = ranges[jname]
+            lim.set("lower", repr(float(lo)))
+            lim.set("upper", repr(float(hi)))
+            out.notes.append(f"{'continuous ' if jtype == 'continuous' else ''}joint {jname!r}: range "
+                             f"[{lo:g}, {hi:g}] rad from the map" + ("" if jtype == "continuous" else
+                                                                    " (over the URDF's)"))
+        if jtype in ("revolute", "continuous"):
+            where = f"joint {jname!r} <limit>"
+            effort = _number(lim.get("effort") if lim is not None else None, f"{where} effort", source)
+            velocity = _number(lim.get("velocity") if lim is not None else None, f"{where} velocity", source)
+            out.effort[jname] = effort if effort is not None and effort > 0 else None
+            out.velocity[jname] = velocity if velocity is not None and velocity > 0 else None
+    roots = sorted(links - children - {None})
+    if torso not in links:
+        raise UserError(f"{source}: torso link {torso!r} not in {name} (its root link: "
+                        f"{', '.join(map(repr, roots)) or 'none'})")
+    if len(roots) != 1:
+        raise UserError(f"{source}: {name} has {len(roots)} root links ({', '.join(map(repr, roots))}); a URDF "
+                        f"robot is one tree")
+    if roots != [torso]:
+        _reroot(joints, roots[0], torso, source, name)
+        out.notes.append(f"the URDF's root link {roots[0]!r} hangs from the torso {torso!r} (its fixed joints "
+                         f"turned round), so that the torso carries the free joint")
+    missing_visual = 0
+    for link in root.findall("link"):
+        for kind in ("visual", "collision"):
+            for el in link.findall(kind):
+                mesh = el.find("geometry/mesh")
+                if mesh is None:
+                    continue
+                uri = mesh.get("filename", "")
+                found, where = resolve_package(uri, path, packages)
+                if kind == "visual":
+                    missing_visual += found is None
+                    continue
+                if found is None:
+                    raise UserError(f"{source}: link {link.get('name')!r}: collision mesh {uri!r} not found "
+                                    f"({where})")
+                try:
+                    read_bytes_checked(found, "mesh", MAX_BYTES["mesh"], UserError)
+                except UserError as exc:
+                    raise UserError(f"{source}: link {link.get('name')!r}: collision mesh {uri!r}: {exc}") from None
+                mesh.set("filename", str(found.resolve()))
+        for el in link.findall("visual"):
+            link.remove(el)
+    out.notes.append("the URDF's <visual> elements are left out: the simulation and the videos show its "
+                     "<collision> geometry" + (f" ({missing_visual} visual mesh(es) not found, so no loss)"
+                                               if missing_visual else ""))
+    for old in root.findall("mujoco"):
+        root.remove(old)
+    ext = ET.Element("mujoco")
+    ET.SubElement(ext, "compiler", COMPILER)
+    root.insert(0, ext)
+    text = ET.tostring(root, encoding="unicode")
+    try:
+        spec = mujoco.MjSpec.from_string(text)
+        spec.body(torso).add_freejoint()
+        spec.compile()
+        out.xml = spec.to_xml()
+    except Exception as exc:  # mujoco raises ValueError with the compiler's message
+        raise UserError(f"{source}: {name} does not load in MuJoCo: {str(exc).splitlines()[0]}") from None
+    return out
