@@ -238,3 +238,53 @@ def test_file_kinds_of_a_urdf_and_its_meshes(tmp_path, gait_tuner_cmd, run_env, 
             fh.truncate(50_000_001 if what == "urdf" else 100_000_001)     # sparse
     line = one_line_exit_2(run(gait_tuner_cmd, ["robot", "check", path, "--no-stand"], run_env))
     assert words in line and target.name in line, line
+
+
+# --- robot files checked before they walk (issue: team robots, item 3) ------------------------
+
+def test_a_range_that_excludes_the_walking_crouch_is_named(tmp_path, gait_tuner_cmd, run_env):
+    xml = T.mjcf().replace('name="Knee_L" axis="0 1 0" range="-2.6 2.6"', 'name="Knee_L" axis="0 1 0" range="-0.01 0.01"')
+    assert "range=\"-0.01 0.01\"" in xml
+    path = T.write(tmp_path, xml)
+    line = one_line_exit_2(run(gait_tuner_cmd, ["robot", "check", path, "--no-stand"], run_env))
+    assert "joints.l_knee" in line and "'Knee_L'" in line and "[-0.010, +0.010]" in line and "needs" in line, line
+    line = one_line_exit_2(run(gait_tuner_cmd, ["simulate", "--robot", path, "--gait", "tlipfm", "--surface",
+                                                "rigid"], run_env))
+    assert "joints.l_knee" in line
+
+
+def test_a_gait_that_leaves_a_joints_range_is_named_before_it_walks(tmp_path, gait_tuner_cmd, run_env):
+    """The crouch fits, but the gait's sway asks the hip roll for more than the file allows: simulate
+    names the joint, the angle, the time and the range in one line on stderr, and walks (the servo
+    stops at the limit, as it always did, but no longer without a word); a gait within the ranges
+    gets no such line."""
+    xml = T.mjcf().replace('name="HipRoll_L" axis="-1 0 0" range="-0.8 0.8"',
+                           'name="HipRoll_L" axis="-1 0 0" range="-0.02 0.02"')
+    path = T.write(tmp_path, xml)
+    assert run(gait_tuner_cmd, ["robot", "check", path, "--no-stand"], run_env).returncode == 0
+    r = run(gait_tuner_cmd, ["simulate", "--robot", path, "--params", "tkux-table2", "--surface", "rigid", "--json"],
+            run_env)
+    assert r.returncode == 0, r.stderr
+    notes = [ln for ln in r.stderr.splitlines() if ln.startswith("note: tkux-table2: the gait asks")]
+    assert len(notes) == 1, r.stderr
+    assert "l_hip_roll (HipRoll_L" in notes[0] and "[-0.020, +0.020]" in notes[0] and "at t = " in notes[0]
+    json.loads(r.stdout)                                   # stdout stays strict JSON
+    plain = T.write(tmp_path / "plain", T.mjcf())
+    r = run(gait_tuner_cmd, ["simulate", "--robot", plain, "--params", "tkux-table2", "--surface", "rigid"], run_env)
+    assert r.returncode == 0 and "the gait asks" not in r.stderr, r.stderr
+
+
+@pytest.mark.parametrize("kind", ["mjcf", "urdf"])
+@pytest.mark.parametrize("value", ["nan", "inf", "-inf"])
+def test_non_finite_numbers_in_a_robot_file_are_named(tmp_path, gait_tuner_cmd, run_env, kind, value):
+    if kind == "mjcf":
+        xml = T.mjcf().replace('<body name="shank_l" pos="0 0 -0.11015">', f'<body name="shank_l" pos="0 {value} -0.11015">')
+        path = T.write(tmp_path, xml)
+        needle = f"<body name='shank_l'> pos='0 {value} -0.11015'"
+    else:
+        text = T.urdf().replace('<mass value="0.04"/>', f'<mass value="{value}"/>', 1)
+        assert value in text
+        path = workspace(tmp_path, text)
+        needle = f"<mass> value='{value}'"
+    line = one_line_exit_2(run(gait_tuner_cmd, ["robot", "check", path, "--no-stand"], run_env))
+    assert needle in line and "NaN or infinity" in line, line

@@ -215,7 +215,13 @@ def _walk(drive, robot, sim, duration: float | None, record_qpos: bool = False):
     options = drive.run_options()
     if duration is not None:
         options["duration"] = duration
-    trace = sim.run(drive.controller(robot, sim.control_period), record_qpos=record_qpos, **options)
+    controller = drive.controller(robot, sim.control_period)
+    table = getattr(getattr(controller, "inner", controller), "traj", None)    # planned in advance: checked
+    if table is not None:
+        problem = sim.range_error(table.q_ref, table.t)
+        if problem is not None:       # said, not refused: the papers' own EROS tables ask the built-in robot so
+            click.echo(f"note: {drive.source}: {problem}", err=True)
+    trace = sim.run(controller, record_qpos=record_qpos, **options)
     if drive.online and drive.command is not None:
         # a held command: its velocity is measured from 2 s after the first step to the stop
         start = float(getattr(drive.engine, "t_stand", 0.0) or 0.0) + 2.0

@@ -28,6 +28,7 @@ what is allowed.
 from __future__ import annotations
 
 import dataclasses
+import math
 import re
 from pathlib import Path
 from typing import Any, Mapping
@@ -98,6 +99,7 @@ def load_map(path: Path) -> RobotModel:
     except UserError as exc:
         raise UserError(f"{source}: {key}: {exc}") from None
     mjcf = mjcf.resolve()
+    _xml_finite(raw, mjcf.name, source)
     urdf_limits = None
     try:
         xml = raw.decode("utf-8")
@@ -115,6 +117,7 @@ def load_map(path: Path) -> RobotModel:
         raise
     except Exception as exc:
         raise UserError(f"{source}: {mjcf.name} does not load in MuJoCo: {str(exc).splitlines()[0]}") from None
+    _check_finite(model, mjcf.name, source)
     name = doc.get("name", path.stem)
     _require(isinstance(name, str) and re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9._ -]{0,99}", name) is not None,
              source, f"name = {name!r}: expected letters, digits, '.', '_', '-' or spaces (at most 100, "
@@ -224,6 +227,7 @@ def load_map(path: Path) -> RobotModel:
         leg = dataclasses.replace(leg, **{k: float(v) for k, v in
                                           zip(("com_forward", "com_lateral", "com_above_pelvis"), com)
                                           if k not in leg_over})
+    _check_crouch(model, leg, final, source)
     sources["leg"] = "joint axis lines at the zero pose" + (f"; overridden: {', '.join(leg_over)}" if leg_over else "")
     sources["com"] = f"the model's masses, legs at the walking crouch ({CROUCH:g} x straight hip height)"
 
@@ -259,6 +263,78 @@ def load_map(path: Path) -> RobotModel:
                       (soles[0], soles[1]), sizes[0], leg, servos, pose, tuple(hulls), sources,
                       tuple(notes), sim, None if is_urdf else str(mjcf), str(path.resolve()), tuple(axes),
                       tuple(bodies), urdf_path=str(mjcf) if is_urdf else None)
+
+
+#: (model array, object kind, what the file calls it) checked for NaN and infinity before anything is derived
+_FINITE = (("body_pos", mujoco.mjtObj.mjOBJ_BODY, "pos"), ("body_quat", mujoco.mjtObj.mjOBJ_BODY, "quat/euler"),
+           ("body_mass", mujoco.mjtObj.mjOBJ_BODY, "mass"), ("body_ipos", mujoco.mjtObj.mjOBJ_BODY, "inertial pos"),
+           ("body_inertia", mujoco.mjtObj.mjOBJ_BODY, "inertia"), ("jnt_pos", mujoco.mjtObj.mjOBJ_JOINT, "pos"),
+           ("jnt_axis", mujoco.mjtObj.mjOBJ_JOINT, "axis"), ("jnt_range", mujoco.mjtObj.mjOBJ_JOINT, "range"),
+           ("geom_pos", mujoco.mjtObj.mjOBJ_GEOM, "pos"), ("geom_size", mujoco.mjtObj.mjOBJ_GEOM, "size"),
+           ("geom_quat", mujoco.mjtObj.mjOBJ_GEOM, "quat/euler"))
+
+
+#: attributes that name things (a joint may be called "inf"), never checked as numbers
+_NAME_KEYS = frozenset({"name", "class", "childclass", "joint", "joint1", "joint2", "link", "body", "body1", "body2",
+                        "site", "mesh", "material", "texture", "objname", "target", "file", "filename", "type",
+                        "mode", "tendon", "actuator", "geom", "geom1", "geom2", "hfield", "key"})
+
+
+def _xml_finite(raw: bytes, fname: str, source: str) -> None:
+    """A NaN or an infinity written in any attribute of the robot file, named by element and
+    attribute before MuJoCo reads it (MuJoCo itself loads ``nan`` with a warning on the terminal)."""
+    import xml.etree.ElementTree as ET
+    try:
+        root = ET.fromstring(raw)
+    except ET.ParseError:
+        return                                   # MuJoCo's own parser names the syntax error
+    for el in root.iter():
+        for key, value in el.attrib.items():
+            if key in _NAME_KEYS:
+                continue
+            try:
+                numbers = [float(tok) for tok in value.split()]
+            except ValueError:
+                continue                         # not a numeric attribute
+            if numbers and not all(math.isfinite(v) for v in numbers):
+                who = f"<{el.tag} name={el.get('name')!r}>" if el.get("name") else f"<{el.tag}>"
+                raise UserError(f"{source}: {fname}: {who} {key}={value!r}: NaN or infinity is not a number "
+                                f"a robot file can hold")
+
+
+def _check_finite(model: mujoco.MjModel, fname: str, source: str) -> None:
+    """NaN or infinity anywhere in the robot's geometry or masses is named as such (it used to surface
+    as a puzzling later check, e.g. feet swapped)."""
+    kinds = {mujoco.mjtObj.mjOBJ_BODY: "body", mujoco.mjtObj.mjOBJ_JOINT: "joint", mujoco.mjtObj.mjOBJ_GEOM: "geom"}
+    for attr, obj, what in _FINITE:
+        a = np.asarray(getattr(model, attr))
+        bad = ~np.isfinite(a.reshape(len(a), -1)).all(axis=1) if len(a) else np.zeros(0, bool)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            label = mujoco.mj_id2name(model, obj, i) or f"#{i}"
+            raise UserError(f"{source}: {kinds[obj]} {label!r} of {fname} has a non-finite {what} "
+                            f"({np.asarray(a[i]).tolist()}): NaN or infinity")
+
+
+def _check_crouch(model: mujoco.MjModel, leg: LegGeometry, final: Mapping[str, tuple[str, int]], source: str) -> None:
+    """Every leg joint's range in the file holds the walking crouch (the legs bent by the IK to
+    ``CROUCH`` x the straight hip height, feet under the hips), else one line naming the joint,
+    its range and the angle the crouch needs."""
+    try:
+        angles = crouch_angles(leg, final)
+    except ValueError as exc:
+        raise UserError(f"{source}: leg: {exc}") from None
+    for ours, (theirs, _) in final.items():
+        if theirs not in angles:
+            continue
+        j = model.joint(theirs).id
+        if not model.jnt_limited[j]:
+            continue
+        lo, hi = (float(v) for v in model.jnt_range[j])
+        a = angles[theirs]
+        _require(lo - 1e-6 <= a <= hi + 1e-6, source,
+                 f"joints.{ours}: {theirs!r} has the range [{lo:+.3f}, {hi:+.3f}] rad in the file, which excludes "
+                 f"the walking crouch ({CROUCH:g} x the straight hip height): it needs {a:+.3f} rad")
 
 
 def _packages(doc: Any, base: Path, source: str) -> dict[str, Path]:

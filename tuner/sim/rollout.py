@@ -201,6 +201,21 @@ class Simulator:
         """Joint targets in gait-tuner order and signs (..., 20) -> the robot's servos (..., n)."""
         return np.asarray(q_gait, dtype=float)[..., self._col_in_gait] * self._sign + self._offset
 
+    def range_error(self, q_gait: np.ndarray, t: np.ndarray, tolerance: float = 1e-3) -> str | None:
+        """The first target of a joint table (N, 20) in gait-tuner order outside its joint's range in
+        the robot file (the servos would be clipped there, silently), as one sentence; None if none.
+        ``tolerance`` [rad] (ours): rounding at a range's edge is not reported."""
+        q = self.to_robot(q_gait)
+        bad = (q < self._q_lo - tolerance) | (q > self._q_hi + tolerance)
+        if not bad.any():
+            return None
+        i, j = (int(v[0]) for v in np.nonzero(bad))
+        ours = self.joint_names[j]
+        theirs = self.robot.joint_map[ours][0]
+        return (f"the gait asks {ours} ({theirs} in the robot file) for {q[i, j]:+.3f} rad at t = {float(t[i]):.2f} s, "
+                f"outside its range [{self._q_lo[j]:+.3f}, {self._q_hi[j]:+.3f}] rad in the file "
+                f"(the servo stops at the limit there; widen the joint's range or change the gait)")
+
     def from_robot(self, q: np.ndarray) -> np.ndarray:
         """The robot's servo angles (..., n) -> gait-tuner signs (..., n), columns ``joint_names``."""
         return (np.asarray(q, dtype=float) - self._offset) * self._sign
