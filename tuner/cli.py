@@ -110,13 +110,62 @@ JOINT_NAMES_OPTION = click.option(
          "or in gait-tuner's names and signs.")
 
 
-def write_joint_table(traj: "gaits.GaitTrajectory", robot, path: Path, joint_names: str, comment: str) -> Path:
-    """The joint table of ``traj`` for ``robot`` as CSV, headed by a comment naming what it is for."""
+FORMAT_OPTION = click.option(
+    "--format", "table_format", type=click.Choice(["csv", "servo"]), default="csv", show_default=True,
+    help="csv: angles [rad] with the references; servo: the robot map's servo IDs and position units "
+         "(its servos: section) at the control rate, checked against each servo's speed and range "
+         "(a target it cannot follow is an error unless --clip).")
+CLIP_OPTION = click.option(
+    "--clip", is_flag=True,
+    help="With --format servo: write the table the servos can play (moves limited to each servo's "
+         "speed, targets clipped into the joint's range, as the simulated servo does) and say what changed.")
+
+
+def write_joint_table(traj: "gaits.GaitTrajectory", robot, path: Path, joint_names: str, comment: str,
+                      table_format: str = "csv", clip: bool = False) -> Path:
+    """The joint table of ``traj`` for ``robot`` as CSV, headed by a comment naming what it is for;
+    ``table_format`` servo: in the map's servo units instead (``<name>.servo.csv``, checked)."""
     from .robots.joint_table import robot_joint_table
-    if joint_names == "robot":
-        traj = robot_joint_table(traj, robot)
-    return traj.to_csv(path, comment=f"gait-tuner joint table for robot {robot.name} "
-                                     f"({joint_names} joint names and signs; angles in rad); {comment}")
+    from .robots.servo_table import check_table, servo_columns, to_units
+    if clip and table_format != "servo":
+        raise UserError("--clip applies to --format servo")
+    if table_format == "servo" and joint_names != "robot":
+        raise UserError("--format servo writes the robot's own joints: leave out --joint-names ours")
+    table = robot_joint_table(traj, robot)
+    names = tuple(table.joint_names)
+    speed = np.array([robot.servos[n].speed for n in names])
+    lo, hi = robot.joint_ranges(names)
+    if table_format == "csv":
+        rate = np.abs(np.diff(table.q_ref, axis=0)) / np.diff(table.t)[:, None]
+        over = rate > speed[None, :] * (1 + 1e-6)
+        if over.any():                       # said, as the simulator's servo limits it (never silently)
+            j = int(np.argmax((rate / speed).max(axis=0)))
+            click.echo(f"note: the table asks {names[j]} for up to {rate[:, j].max():.2f} rad/s where its servo "
+                       f"gives {speed[j]:g} rad/s (the simulated servo moves at most that fast; {int(over.any(axis=1).sum())} "
+                       f"row(s) ask more of some servo): --format servo --clip writes what the servos can play",
+                       err=True)
+        if joint_names == "robot":
+            traj = table
+        return traj.to_csv(path, comment=f"gait-tuner joint table for robot {robot.name} "
+                                         f"({joint_names} joint names and signs; angles in rad); {comment}")
+    units = servo_columns(robot.servo_units, names)
+    q, notes = check_table(table.q_ref, table.t, names, speed, lo, hi, clip)
+    for line in notes:
+        click.echo(f"note: {line}", err=True)
+    ticks = np.column_stack([to_units(q[:, j], u) for j, u in enumerate(units)])
+    dt = float(np.median(np.diff(table.t)))
+    out = path.with_name(path.name.replace("joints.csv", "servo.csv")) if path.name.endswith("joints.csv") \
+        else path.with_suffix(".servo.csv")
+    rows = [f"# gait-tuner servo table for robot {robot.name}; {comment}; every {dt * 1000:g} ms "
+            f"({1 / dt:g} Hz); positions in the servos' units (robot map servos:)" +
+            ("; clipped to the servos' speed and range" if notes else ""),
+            "# " + ", ".join(f"id{u.id} = {n} ({u.units_per_rad * 2 * np.pi:g} per turn, centre {u.centre:g}, "
+                             f"direction {u.direction:+d}, offset {u.offset:g} rad)" for n, u in zip(names, units)),
+            "t_s," + ",".join(f"id{u.id}" for u in units)]
+    rows += [f"{t:.4f}," + ",".join(str(int(v)) for v in r) for t, r in zip(table.t, ticks)]
+    from gaits.files import write_text_atomic
+    write_text_atomic(out, "\n".join(rows) + "\n")
+    return out
 
 
 @cli.command()
@@ -133,10 +182,12 @@ def write_joint_table(traj: "gaits.GaitTrajectory", robot, path: Path, joint_nam
 @COMMANDS_OPTION
 @click.option("--duration", type=float, help="With --commands: seconds walked after the stream's last row [s] (default 2).")
 @JOINT_NAMES_OPTION
+@FORMAT_OPTION
+@CLIP_OPTION
 @click.option("--no-plot", is_flag=True, help="Skip the PNG.")
 def trajectory(family: str | None, params_spec: str | None, robot_name: str, out_dir: Path, dt: float,
                model: str | None, command: str | None, commands_file: Path | None, duration: float | None,
-               joint_names: str, no_plot: bool) -> None:
+               joint_names: str, table_format: str, clip: bool, no_plot: bool) -> None:
     """Generate a gait's joint table q_ref(t) and its Cartesian references for a robot.
 
     Writes OUT/joints.csv (a comment line naming the robot, then time, the joint targets
@@ -146,6 +197,8 @@ def trajectory(family: str | None, params_spec: str | None, robot_name: str, out
     """
     if not str(out_dir).strip() or str(out_dir) == ".":
         raise UserError("--out: give a folder for the joint table, e.g. --out runs/tk")
+    if clip and table_format != "servo":
+        raise UserError("--clip applies to --format servo")
     from .robots import load_robot
 
     drive = resolve_drive(params_spec, family, command=_parse_command(command), commands_file=commands_file,
@@ -157,7 +210,8 @@ def trajectory(family: str | None, params_spec: str | None, robot_name: str, out
     robot = load_robot(robot_name)
     traj = drive.table(robot, dt)
     out_dir.mkdir(parents=True, exist_ok=True)
-    csv_path = write_joint_table(traj, robot, out_dir / "joints.csv", joint_names, f"gait {drive.describe()}")
+    csv_path = write_joint_table(traj, robot, out_dir / "joints.csv", joint_names,
+                                 f"gait {drive.describe()}", table_format, clip)
     yaml_path = gaits.save_gait_file(out_dir / "params.yaml", drive.params,
                                      resolve_params(params_spec, family).description, drive.stabiliser)
     click.echo(f"{traj.family} for robot {robot.name}: {len(traj.t)} samples every {dt:g} s, "
@@ -822,9 +876,11 @@ def trials(study_file: str, storage: str | None, runs_dir: Path, pareto: bool, s
 @COMMANDS_OPTION
 @click.option("--duration", type=float, help="With --commands: seconds walked after the stream's last row [s] (default 2).")
 @JOINT_NAMES_OPTION
+@FORMAT_OPTION
+@CLIP_OPTION
 def export(study_file: str, storage: str | None, runs_dir: Path, number: int | None, pareto_pick: str | None,
            out: Path | None, command: str | None, commands_file: Path | None, duration: float | None,
-           joint_names: str) -> None:
+           joint_names: str, table_format: str, clip: bool) -> None:
     """Write a study's best (or a chosen) trial as a parameter YAML plus its joint table.
 
     STUDY is the study file (or shipped study name). The YAML is accepted as it
@@ -834,6 +890,8 @@ def export(study_file: str, storage: str | None, runs_dir: Path, number: int | N
 
     if number is not None and pareto_pick is not None:
         raise UserError("give --trial or --pareto-pick, not both")
+    if clip and table_format != "servo":
+        raise UserError("--clip applies to --format servo")
     spec, study = _tuned_study(study_file, storage, runs_dir)
     if out is None:
         out = runs_dir / spec.name / "best.yaml"
@@ -853,7 +911,6 @@ def export(study_file: str, storage: str | None, runs_dir: Path, number: int | N
             + f"; surfaces {', '.join(spec.surfaces)}; robot {spec.robot}")
     from .robots import load_robot
     robot = load_robot(spec.robot)
-    gaits.save_gait_file(out, params, desc, trial_stabiliser(t), trial_engine(t))
     from .streams import load_stream
     cmd = _parse_command(command)
     if cmd is not None and commands_file is not None:
@@ -862,7 +919,9 @@ def export(study_file: str, storage: str | None, runs_dir: Path, number: int | N
     drive = gaits.Drive(params, trial_stabiliser(t), cmd, stream, source=f"study {spec.name} trial {t.number}")
     traj = drive.table(robot, robot.sim.control_period)       # an engine set's table: planned per step
     table = write_joint_table(traj, robot, out.with_suffix(".joints.csv"), joint_names,
-                              f"{drive.describe()}; surfaces {', '.join(spec.surfaces)}")
+                              f"set {out.stem} ({drive.describe()}); surfaces {', '.join(spec.surfaces)}",
+                              table_format, clip)
+    gaits.save_gait_file(out, params, desc, trial_stabiliser(t), trial_engine(t))     # after the table's checks
     click.echo(f"trial {t.number} (score {t.values[0]:.4f}) -> {out} and {table}")
 
 

@@ -14,6 +14,8 @@ Format (paths relative to the map file)::
       l_knee: {name: LKnee, sign: -1}
       ...                         # all 12 leg joints; head and arm joints optional
     leg: {thigh: 0.11}            # optional: LegGeometry fields, derived from the model otherwise
+    servos: {default: {ticks_per_turn: 4096, centre: 2048}, Knee_L: {id: 14, direction: -1}}
+                                  # optional: servo IDs and units for --format servo (servo_table.py)
     servo:                        # optional: per group (legs, arms, head, other) a preset name or
       legs: {speed: 5.5}          #   fields over the file's own servo (or over {preset: MX-64, ...})
     pose: {LShoulderRoll: 1.3}    # optional: held angle [rad] of non-leg joints (default: the file's
@@ -46,6 +48,7 @@ from .mjcf_geometry import (CROUCH, axis_line_distance, body_chain, com_offset, 
                             sole_polygon)
 from .robot_model import GROUPS, RobotModel, SimOptions, joint_group
 from .servo import SERVO_FIELDS, SERVO_PRESETS, servo_from_file, servo_from_mapping
+from .servo_table import read_servo_units
 from .urdf import UrdfRobot, urdf_to_mjcf
 
 __all__ = ["load_map", "LEG_AXES", "MAP_KEYS", "AXIS_TOLERANCE"]
@@ -53,8 +56,8 @@ __all__ = ["load_map", "LEG_AXES", "MAP_KEYS", "AXIS_TOLERANCE"]
 #: Expected joint axis of each leg joint in the torso frame at the zero pose.
 LEG_AXES = {"hip_yaw": (0, 0, 1), "hip_roll": (1, 0, 0), "hip_pitch": (0, 1, 0),
             "knee": (0, 1, 0), "ankle_pitch": (0, 1, 0), "ankle_roll": (1, 0, 0)}
-MAP_KEYS = ("mjcf", "urdf", "packages", "ranges", "name", "torso", "feet", "joints", "leg", "servo", "pose",
-            "sim")
+MAP_KEYS = ("mjcf", "urdf", "packages", "ranges", "name", "torso", "feet", "joints", "leg", "servo", "servos",
+            "pose", "sim")
 #: How far apart two axis lines that must meet may be, and how far the straight leg's
 #: centres may stray from a vertical line [m] (ours).
 AXIS_TOLERANCE = 0.005
@@ -243,6 +246,7 @@ def load_map(path: Path) -> RobotModel:
         raise UserError(f"{source}: {exc}") from None
 
     servos, servo_sources = _servos(model, final, doc.get("servo"), source, urdf_limits)
+    units = read_servo_units(doc.get("servos"), tuple(servos), source)
     sources.update(servo_sources)
     pose, pose_source = _pose(model, final, servos, doc.get("pose"), source)
     sources["pose"] = pose_source
@@ -262,7 +266,7 @@ def load_map(path: Path) -> RobotModel:
     return RobotModel(name, xml, final, torso, (str(feet["left"]), str(feet["right"])),
                       (soles[0], soles[1]), sizes[0], leg, servos, pose, tuple(hulls), sources,
                       tuple(notes), sim, None if is_urdf else str(mjcf), str(path.resolve()), tuple(axes),
-                      tuple(bodies), urdf_path=str(mjcf) if is_urdf else None)
+                      tuple(bodies), urdf_path=str(mjcf) if is_urdf else None, servo_units=units)
 
 
 #: (model array, object kind, what the file calls it) checked for NaN and infinity before anything is derived

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Mapping
+from typing import Any, Mapping
 
 import mujoco
 import numpy as np
@@ -91,6 +91,19 @@ class RobotModel:
     #: empty: the foot body alone. Touch sensors are per body, so each gets its own sites.
     sole_bodies: tuple[tuple[tuple[str, np.ndarray, np.ndarray], ...], ...] = ()
     urdf_path: str | None = None                  # a URDF robot's file (``xml`` is its MJCF, meshes absolute)
+    servo_units: Mapping[str, Any] = field(default_factory=dict)   # file joint -> servo_table.ServoUnit
+
+    def joint_ranges(self, names) -> tuple[np.ndarray, np.ndarray]:
+        """(low, high) [rad] of the file's joints ``names``; +-inf where a joint is not limited."""
+        model = mujoco.MjModel.from_xml_path(self.mjcf_path) if self.mjcf_path else \
+            mujoco.MjModel.from_xml_string(self.xml)
+        lo, hi = [], []
+        for n in names:
+            j = model.joint(n).id
+            limited = bool(model.jnt_limited[j])
+            lo.append(float(model.jnt_range[j, 0]) if limited else -np.inf)
+            hi.append(float(model.jnt_range[j, 1]) if limited else np.inf)
+        return np.array(lo), np.array(hi)
 
     def touch_bodies(self, side: int) -> tuple[tuple[str, np.ndarray, np.ndarray], ...]:
         if self.sole_bodies:

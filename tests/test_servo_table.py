@@ -1,0 +1,130 @@
+"""Exports a robot can play: a map's servos: section, tables in servo units at the control rate,
+checked against each servo's speed and range (issue: team robots, item 4)."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+
+import numpy as np
+import pytest
+
+import third_party_robot as T
+from tuner.errors import UserError
+from tuner.robots import load_robot
+from tuner.robots.servo_table import ServoUnit, check_table, from_units, read_servo_units, to_units
+
+JOINTS = [T.joint_name("head_pan", "c"), T.joint_name("head_tilt", "c")] + \
+    [T.joint_name(k, s) for s in "lr" for k in T.ARM] + [T.joint_name(k, s) for s in "lr" for k in T.LEG]
+
+
+def servos_yaml(skip: str | None = None, extra: str = "") -> str:
+    rows = ["servos:", "  default: {ticks_per_turn: 4096, centre: 2048}"]
+    for i, j in enumerate(JOINTS):
+        if j == skip:
+            continue
+        more = ", direction: -1, offset: 0.05" if j == "Knee_L" else ""
+        rows.append(f"  {j}: {{id: {i + 1}{more}}}")
+    return "\n".join(rows) + "\n" + extra
+
+
+def run(cmd, args, env):
+    return subprocess.run(cmd + [str(a) for a in args], capture_output=True, text=True, env=env, timeout=600)
+
+
+def test_units_round_trip_within_half_a_tick():
+    rng = np.random.default_rng(3)
+    for u in (ServoUnit(1), ServoUnit(2, units_per_rad=1000 / math.radians(300), centre=512, direction=-1, offset=0.1)):
+        q = rng.uniform(-2, 2, 500)
+        back = from_units(to_units(q, u), u)
+        assert np.max(np.abs(back - q)) <= 0.5 / u.units_per_rad + 1e-12
+
+
+def test_the_check_names_the_first_move_too_fast_and_clip_plays_what_the_servo_can():
+    t = np.arange(0, 1.0, 0.01)
+    q = np.column_stack([np.zeros_like(t), np.where(t > 0.5, 0.5, 0.0)])      # a 0.5 rad jump at 0.51 s
+    names = ("A", "B")
+    speed, lo, hi = np.array([6.5, 6.5]), np.array([-1.0, -1.0]), np.array([1.0, 0.3])
+    with pytest.raises(UserError, match=r"joint B is asked to move at 50.00 rad/s at t = 0.51 s where its servo "
+                                        r"gives 6.5 rad/s"):
+        check_table(q, t, names, speed, lo, hi, clip=False)
+    out, notes = check_table(q, t, names, speed, lo, hi, clip=True)
+    assert np.all(np.abs(np.diff(out[:, 1])) <= 6.5 * 0.01 + 1e-12)         # at most the servo's speed
+    assert out[:, 1].max() == pytest.approx(0.3)                            # and within the range
+    assert np.array_equal(out[:, 0], q[:, 0]) and len(notes) == 1 and notes[0].startswith("clipped B:")
+    slow = np.column_stack([0.2 * np.sin(t), 0.1 * t])
+    assert np.array_equal(check_table(slow, t, names, speed, lo, hi, clip=False)[0], slow)
+
+
+def test_a_servo_table_through_the_cli_round_trips_and_refuses_a_too_fast_gait(tmp_path, gait_tuner_cmd, run_env):
+    path = T.write(tmp_path, T.mjcf(), T.map_yaml(extra=servos_yaml()))
+    robot = load_robot(str(path))
+    r = run(gait_tuner_cmd, ["trajectory", "--robot", path, "--gait", "tlipfm", "--out", tmp_path / "slow",
+                             "--format", "servo", "--no-plot"], run_env)
+    assert r.returncode == 0, r.stderr
+    lines = (tmp_path / "slow" / "servo.csv").read_text().splitlines()
+    assert lines[0].startswith(f"# gait-tuner servo table for robot {robot.name}") and "every 10 ms (100 Hz)" in lines[0]
+    header = lines[2].split(",")
+    ticks = np.array([[float(v) for v in ln.split(",")] for ln in lines[3:]])
+    # the same gait in radians, in the robot's names
+    r = run(gait_tuner_cmd, ["trajectory", "--robot", path, "--gait", "tlipfm", "--out", tmp_path / "rad",
+                             "--no-plot"], run_env)
+    assert r.returncode == 0, r.stderr
+    rad_lines = [ln for ln in (tmp_path / "rad" / "joints.csv").read_text().splitlines() if not ln.startswith("#")]
+    cols = rad_lines[0].split(",")
+    rad = np.array([[float(v) for v in ln.split(",")] for ln in rad_lines[1:]])
+    ids = {u.id: n for n, u in robot.servo_units.items()}
+    assert len(ticks) == len(rad)
+    for k, h in enumerate(header[1:], start=1):
+        name = ids[int(h[2:])]
+        back = from_units(ticks[:, k], robot.servo_units[name])
+        assert np.max(np.abs(back - rad[:, cols.index(f"{name}[rad]")])) <= 0.5 / robot.servo_units[name].units_per_rad + 1e-6
+    # a fast set: refused in one line naming joint, time and rate, unless --clip
+    fast = ["trajectory", "--robot", path, "--params", "kidsize-omni-grass50", "--command", "0.2,0,0",
+            "--format", "servo", "--no-plot", "--out"]
+    r = run(gait_tuner_cmd, fast + [tmp_path / "fast"], run_env)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert "is asked to move at" in r.stderr and "rad/s at t = " in r.stderr and "--clip" in r.stderr
+    assert not (tmp_path / "fast" / "servo.csv").exists()
+    r = run(gait_tuner_cmd, fast + [tmp_path / "fast", "--clip"], run_env)
+    assert r.returncode == 0 and "note: clipped Knee_L" in r.stderr, r.stderr
+    # a plain table of the same set says it is too fast for the servos (the simulator limits it)
+    r = run(gait_tuner_cmd, ["trajectory", "--robot", path, "--params", "kidsize-omni-grass50", "--command", "0.2,0,0",
+                             "--no-plot", "--out", tmp_path / "plain"], run_env)
+    assert r.returncode == 0 and "note: the table asks" in r.stderr, r.stderr
+
+
+@pytest.mark.parametrize("extra, needle", [
+    ("dup", "id 1 given to more than one joint"),
+    ("unknown", "'NoSuchJoint' is not an actuated joint"),
+    ("ticks", "ticks_per_turn = 0"),
+    ("direction", "direction = 2: must be 1 or -1"),
+    ("id", "id = 300: expected an integer in [0, 253]"),
+    ("field", "unknown field 'speed'"),
+])
+def test_bad_servos_sections_are_one_line(tmp_path, gait_tuner_cmd, run_env, extra, needle):
+    text = servos_yaml()
+    text = {"dup": text.replace("{id: 2}", "{id: 1}", 1),
+            "unknown": text + "  NoSuchJoint: {id: 99}\n",
+            "ticks": text.replace("ticks_per_turn: 4096", "ticks_per_turn: 0"),
+            "direction": text.replace("{id: 3}", "{id: 3, direction: 2}"),
+            "id": text.replace("{id: 3}", "{id: 300}"),
+            "field": text.replace("{id: 3}", "{id: 3, speed: 5}")}[extra]
+    path = T.write(tmp_path, T.mjcf(), T.map_yaml(extra=text))
+    r = run(gait_tuner_cmd, ["robot", "check", path, "--no-stand"], run_env)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and needle in r.stderr, r.stderr
+
+
+def test_a_servo_table_needs_an_id_for_every_column_and_clip_needs_it(tmp_path, gait_tuner_cmd, run_env):
+    path = T.write(tmp_path, T.mjcf(), T.map_yaml(extra=servos_yaml(skip="Knee_R")))
+    r = run(gait_tuner_cmd, ["trajectory", "--robot", path, "--gait", "tlipfm", "--out", tmp_path / "o",
+                             "--format", "servo", "--no-plot"], run_env)
+    assert r.returncode == 2 and "no id for joint(s) Knee_R" in r.stderr, r.stderr
+    r = run(gait_tuner_cmd, ["trajectory", "--robot", path, "--gait", "tlipfm", "--out", tmp_path / "o",
+                             "--clip", "--no-plot"], run_env)
+    assert r.returncode == 2 and "--clip applies to --format servo" in r.stderr, r.stderr
+
+
+def test_read_servo_units_defaults():
+    units = read_servo_units({"default": {"ticks_per_turn": 1024, "centre": 512}, "A": {"id": 3}}, ("A", "B"), "m")
+    assert units["A"] == ServoUnit(3, 1024 / (2 * math.pi), 512.0, 1, 0.0) and "B" not in units
