@@ -264,12 +264,34 @@ def _walk_setup(robot_name: str, surface_name: str, family: str | None, params_s
     return drive, robot, sim, (None if commands_file is not None else duration)
 
 
+def _envelope_note(drive, controller) -> None:
+    """One note line when an engine's stream or command asks more than its envelope (the engine walks
+    it clipped there, gaits/engine.py), naming the direction, the asked and the largest speed."""
+    engine = getattr(controller, "inner", controller)
+    stream = drive.the_stream()
+    if stream is None or not hasattr(engine, "envelope"):
+        return
+    e = engine.envelope()
+    c = np.asarray(stream.commands, dtype=float)
+    over = []
+    for name, k, sign in (("forward", 0, 1), ("backward", 0, -1), ("left", 1, 1), ("right", 1, -1),
+                          ("turn_left", 2, 1), ("turn_right", 2, -1)):
+        asked = float(np.max(sign * c[:, k])) if len(c) else 0.0
+        if asked > e[name] + 1e-9:
+            unit = "rad/s" if k == 2 else "m/s"
+            over.append(f"{name} {asked:g} {unit} (envelope {e[name]:.3g})")
+    if over:
+        click.echo(f"note: {drive.source}: the engine walks these commands clipped to its envelope: "
+                   f"{', '.join(over)}", err=True)
+
+
 def _walk(drive, robot, sim, duration: float | None, record_qpos: bool = False):
     """The rollout of a drive on the simulator (the controller it names, for ``duration`` or its own length)."""
     options = drive.run_options()
     if duration is not None:
         options["duration"] = duration
     controller = drive.controller(robot, sim.control_period)
+    _envelope_note(drive, controller)
     table = getattr(getattr(controller, "inner", controller), "traj", None)    # planned in advance: checked
     if table is not None:
         problem = sim.range_error(table.q_ref, table.t)
@@ -1062,10 +1084,10 @@ def robustness(params_spec: str | None, robot_name: str, surface_name: str, roll
     if any(not (0 < v <= 50) for v in sizes):
         raise UserError(f"--pushes {pushes!r}: each impulse must be in (0, 50] N s")
     from .robots import load_robot
-    if drive.user is None:
+    if not drive.online:
         drive.table(load_robot(robot_name), 0.01)      # a command the set cannot walk: one line, before any work
-    else:
-        drive.controller(load_robot(robot_name), 0.01)
+    else:                                              # an engine clips a command to its envelope: said
+        _envelope_note(drive, drive.controller(load_robot(robot_name), 0.01))
     total = rollouts + len(sizes) * push_rollouts
     with tqdm(total=total, desc="robustness", unit="rollout", **_bar_options()) as bar:
         report = evaluate(robot_name, surface_name, drive, rollouts=rollouts, seed=seed, randomisation=rnd,
