@@ -288,3 +288,22 @@ def test_non_finite_numbers_in_a_robot_file_are_named(tmp_path, gait_tuner_cmd, 
         needle = f"<mass> value='{value}'"
     line = one_line_exit_2(run(gait_tuner_cmd, ["robot", "check", path, "--no-stand"], run_env))
     assert needle in line and "NaN or infinity" in line, line
+
+
+@pytest.mark.parametrize("edit, why", [
+    (lambda x: x.replace('<position kp="21.1"', '<position kp="0"'), "is not a position servo"),
+    (lambda x: x.replace(' forcerange="-5.0 5.0"', ""), "has no force range"),
+    (lambda x: x.replace("<position name=", "<motor name="), "is not a position servo"),
+])
+def test_servo_sources_say_per_field_where_the_numbers_came_from(tmp_path, edit, why):
+    """A file whose actuators cannot be used gets the preset, and the source says so and why, also
+    when the map overrides only the speed (it used to say "the file's actuators")."""
+    xml = edit(T.mjcf())
+    assert xml != T.mjcf()
+    r = load_robot(str(T.write(tmp_path, xml, T.map_yaml(extra="servo: {legs: {speed: 5.5, kv: 0.4}}\n"))))
+    src = r.sources["servos.legs"]
+    assert "the file's actuators" not in src and f"preset MX-64 on 12 joint(s) (its actuator {why}" in src, src
+    assert "speed from the map" in src and "map servo.legs sets kv" in src, src
+    assert r.servo_of("l_knee").kp == pytest.approx(40.0) and r.servo_of("l_knee").speed == pytest.approx(5.5)
+    ok = load_robot(str(T.write(tmp_path / "ok", T.mjcf())))
+    assert ok.sources["servos.legs"].startswith("the file's actuators on 12 joint(s)")

@@ -468,7 +468,8 @@ def _servos(model: mujoco.MjModel, final: Mapping[str, tuple[str, int]], doc: An
             source: str, urdf: UrdfRobot | None = None) -> tuple[dict[str, Any], dict[str, str]]:
     """A servo for every hinge joint but the free one: the file's own position actuator, else
     the group's default preset (for a URDF with its torque and speed from the joint's ``<limit
-    effort velocity>`` where stated), then the map's ``servo:`` fields on top."""
+    effort velocity>`` where stated), then the map's ``servo:`` fields on top. The sources say,
+    per group, where each field came from (the file, a preset and why, the URDF, the map)."""
     doc = doc or {}
     _require(isinstance(doc, Mapping), source, f"servo must be a mapping with keys {', '.join(GROUPS)}")
     if doc and set(doc) <= set(SERVO_FIELDS) | {"preset"}:
@@ -476,8 +477,12 @@ def _servos(model: mujoco.MjModel, final: Mapping[str, tuple[str, int]], doc: An
     for k in doc:
         _require(k in GROUPS, source, f"servo: unknown group {k!r} (allowed: {', '.join(GROUPS)})")
     ours_of = {theirs: ours for ours, (theirs, _) in final.items()}
-    servos, by_group = {}, {g: [] for g in GROUPS}
+    servos: dict[str, Any] = {}
+    # per group: joints whose gains came from the file; why the others took the preset; URDF limits used
+    from_file = {g: 0 for g in GROUPS}
+    why_preset: dict[str, dict[str, int]] = {g: {} for g in GROUPS}
     urdf_used = {g: {"torque": 0, "speed": 0} for g in GROUPS}
+    count = {g: 0 for g in GROUPS}
     for j in range(model.njnt):
         if model.jnt_type[j] != mujoco.mjtJoint.mjJNT_HINGE:
             continue
@@ -485,10 +490,15 @@ def _servos(model: mujoco.MjModel, final: Mapping[str, tuple[str, int]], doc: An
         _require(theirs is not None, source, f"joint #{j} of the MJCF has no name; every hinge needs one "
                  f"(the tool holds unmapped joints by name)")
         group = joint_group(ours_of.get(theirs))
+        count[group] += 1
         preset = SERVO_PRESETS[_DEFAULT_PRESET[group]]
         spec, why = servo_from_file(model, theirs, preset.speed)
         if spec is None:
             spec = preset
+            why = re.sub(r"^actuator '[^']*' ", "its actuator ", why)       # one reason per kind, not per joint
+            why_preset[group][why] = why_preset[group].get(why, 0) + 1
+        else:
+            from_file[group] += 1
         if urdf is not None:
             lim = {}
             effort, velocity = urdf.effort.get(theirs), urdf.velocity.get(theirs)
@@ -500,42 +510,44 @@ def _servos(model: mujoco.MjModel, final: Mapping[str, tuple[str, int]], doc: An
                 urdf_used[group]["speed"] += 1
             if lim:
                 spec = dataclasses.replace(spec, **lim)
-                why = "urdf"
         if group in doc:
             spec = servo_from_mapping(doc[group], f"servo.{group}", spec)
         servos[theirs] = spec
-        by_group[group].append((theirs, why if spec is not preset else None))
     sources = {}
-    for g, items in by_group.items():
-        if not items:
+    for g in GROUPS:
+        n = count[g]
+        if not n:
             continue
-        from_file = [n for n, why in items if why and why.startswith("actuator")]
+        entry = doc.get(g)
+        map_preset = entry if isinstance(entry, str) else (entry.get("preset") if isinstance(entry, Mapping) else None)
+        map_fields = sorted(k for k in entry if k != "preset") if isinstance(entry, Mapping) else []
         parts = []
-        if from_file:
-            parts.append(f"the file's actuators on {len(from_file)} joint(s)")
-        rest = len(items) - len(from_file)
-        if rest:
-            parts.append(f"preset {_DEFAULT_PRESET[g]} on {rest} joint(s) (no position actuator with a force "
-                         f"range in the file)")
-        map_sets = g in doc and isinstance(doc[g], Mapping)
-        if urdf is not None:
-            parts = [f"preset {_DEFAULT_PRESET[g]} on {len(items)} joint(s) (a URDF has no servo gains)"]
+        if map_preset is not None:
+            parts.append(f"preset {map_preset} from the map on {n} joint(s)")
+        else:
+            if from_file[g]:
+                parts.append(f"the file's actuators on {from_file[g]} joint(s)")
+            for why, k in why_preset[g].items():
+                what = "a URDF has no servo gains" if urdf is not None else why
+                parts.append(f"preset {_DEFAULT_PRESET[g]} on {k} joint(s) ({what})")
             n_t = urdf_used[g]["torque"]
-            if n_t and not (map_sets and "torque" in doc[g]):
-                parts.append(f"torque from the URDF's <limit effort> on {n_t} joint(s)" +
-                             (f", the preset's on {len(items) - n_t}" if n_t < len(items) else ""))
+            if urdf is not None and n_t and "torque" not in map_fields:
+                parts.append(f"torque from the URDF's <limit effort> on {n_t} joint(s)")
         n_v = urdf_used[g]["speed"]
-        if map_sets and "speed" in doc[g]:
+        if "speed" in map_fields:
             speed_src = "speed from the map"
+        elif map_preset is not None:
+            speed_src = f"speed {SERVO_PRESETS[map_preset].speed:g} rad/s from preset {map_preset}"
         elif urdf is not None and n_v:
             speed_src = f"speed from the URDF's <limit velocity> on {n_v} joint(s)" + \
                 (f", {SERVO_PRESETS[_DEFAULT_PRESET[g]].speed:g} rad/s from preset {_DEFAULT_PRESET[g]} on "
-                 f"{len(items) - n_v}" if n_v < len(items) else "")
+                 f"{n - n_v}" if n_v < n else "")
         else:
             speed_src = (f"speed {SERVO_PRESETS[_DEFAULT_PRESET[g]].speed:g} rad/s from preset "
                          f"{_DEFAULT_PRESET[g]} (a file states none)")
-        over = f"; map servo.{g} on top" if g in doc else ""
-        sources[f"servos.{g}"] = "; ".join(parts) + f"; {speed_src}{over}"
+        over = [f for f in map_fields if f != "speed"]
+        tail = f"; map servo.{g} sets {', '.join(over)}" if over else ""
+        sources[f"servos.{g}"] = "; ".join(parts) + f"; {speed_src}{tail}"
     return servos, sources
 
 
