@@ -307,3 +307,26 @@ def test_servo_sources_say_per_field_where_the_numbers_came_from(tmp_path, edit,
     assert r.servo_of("l_knee").kp == pytest.approx(40.0) and r.servo_of("l_knee").speed == pytest.approx(5.5)
     ok = load_robot(str(T.write(tmp_path / "ok", T.mjcf())))
     assert ok.sources["servos.legs"].startswith("the file's actuators on 12 joint(s)")
+
+
+def test_unequal_feet_each_keep_their_own_sole(tmp_path):
+    """The right foot shorter than the left: robot check prints each foot's size, the simulator's sole
+    corners (support, sensors) follow each foot, the gaits keep the larger apart, a note says so."""
+    from tuner.report.robot_check import robot_report
+    from tuner.sim.rollout import Simulator
+    from tuner.sim.surfaces import SURFACES
+    xml = T.mjcf()
+    for old, new in (("0.0635 0.028 0.004", "0.0535 0.028 0.004"), ("0.057 0.039 0.004", "0.047 0.039 0.004")):
+        k = xml.rindex(old)                                  # the right leg comes last
+        xml = xml[:k] + new + xml[k + len(old):]
+    r = load_robot(str(T.write(tmp_path, xml)))
+    (ll, lw), (rl, rw) = r.foot_size_of(0), r.foot_size_of(1)
+    assert ll == pytest.approx(0.127, abs=1e-6) and rl == pytest.approx(0.107, abs=1e-6) and lw == pytest.approx(rw)
+    assert r.foot_size == pytest.approx((0.127, lw))
+    assert any("the feet differ" in n for n in r.notes)
+    doc = robot_report(r, stand=True)
+    assert doc["soles"]["left"]["size_mm"][0] == pytest.approx(127.0) and doc["soles"]["right"]["size_mm"][0] == pytest.approx(107.0)
+    assert doc["stand"]["stays_up"]
+    sim = Simulator(r, SURFACES["rigid"])
+    span = sim._corners[:, :, 0].max(axis=1) - sim._corners[:, :, 0].min(axis=1)
+    assert span == pytest.approx([0.127, 0.107], abs=1e-6)

@@ -79,8 +79,9 @@ def robot_report(robot: RobotModel, *, stand: bool = True, duration: float = 2.0
         mujoco.MjModel.from_xml_string(robot.xml)
     L = robot.leg
     soles = {}
-    for side, fname, hull, centre in zip(("left", "right"), robot.feet, robot.sole_hulls, robot.soles):
-        length, width = robot.foot_size
+    for i, (side, fname, hull, centre) in enumerate(zip(("left", "right"), robot.feet, robot.sole_hulls,
+                                                        robot.soles)):
+        length, width = robot.foot_size_of(i)
         soles[side] = {"body": fname, "centre_mm": [round(1000 * c, 2) for c in centre],
                        "size_mm": [round(1000 * length, 1), round(1000 * width, 1)],
                        "hull_mm": [[round(1000 * x, 2), round(1000 * y, 2)] for x, y in hull],

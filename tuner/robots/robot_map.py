@@ -263,10 +263,16 @@ def load_map(path: Path) -> RobotModel:
         notes.append(f"the file's {model.nsensor} sensor(s) are left out of the simulation")
     if urdf_limits is not None:
         notes = list(urdf_limits.notes) + notes
+    bounding = (float(max(sizes[0][0], sizes[1][0])), float(max(sizes[0][1], sizes[1][1])))
+    if max(abs(sizes[0][0] - sizes[1][0]), abs(sizes[0][1] - sizes[1][1])) > 0.001:
+        notes.append(f"the feet differ: left sole {_mm(sizes[0][0])} x {_mm(sizes[0][1])}, right "
+                     f"{_mm(sizes[1][0])} x {_mm(sizes[1][1])}; each foot's sensors and support use its own, the "
+                     f"gaits keep the larger ({_mm(bounding[0])} x {_mm(bounding[1])}) apart")
     return RobotModel(name, xml, final, torso, (str(feet["left"]), str(feet["right"])),
-                      (soles[0], soles[1]), sizes[0], leg, servos, pose, tuple(hulls), sources,
+                      (soles[0], soles[1]), bounding, leg, servos, pose, tuple(hulls), sources,
                       tuple(notes), sim, None if is_urdf else str(mjcf), str(path.resolve()), tuple(axes),
-                      tuple(bodies), urdf_path=str(mjcf) if is_urdf else None, servo_units=units)
+                      tuple(bodies), urdf_path=str(mjcf) if is_urdf else None, servo_units=units,
+                      foot_sizes=(tuple(sizes[0]), tuple(sizes[1])))
 
 
 #: (model array, object kind, what the file calls it) checked for NaN and infinity before anything is derived

@@ -92,6 +92,13 @@ class RobotModel:
     sole_bodies: tuple[tuple[tuple[str, np.ndarray, np.ndarray], ...], ...] = ()
     urdf_path: str | None = None                  # a URDF robot's file (``xml`` is its MJCF, meshes absolute)
     servo_units: Mapping[str, Any] = field(default_factory=dict)   # file joint -> servo_table.ServoUnit
+    #: each foot's own sole bounding box (length, width) [m], left then right; empty: both ``foot_size``
+    #: (which, for unequal feet, is the larger of the two in each direction: what the planners keep apart)
+    foot_sizes: tuple[tuple[float, float], ...] = ()
+
+    def foot_size_of(self, side: int) -> tuple[float, float]:
+        """The sole bounding box (length, width) [m] of foot ``side`` (0 left, 1 right)."""
+        return tuple(self.foot_sizes[side]) if self.foot_sizes else tuple(self.foot_size)
 
     def joint_ranges(self, names) -> tuple[np.ndarray, np.ndarray]:
         """(low, high) [rad] of the file's joints ``names``; +-inf where a joint is not limited."""

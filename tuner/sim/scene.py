@@ -143,10 +143,10 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
         blades.rgba = [0.35, 0.85, 0.3, 0.22]
 
     spec.body(r.torso).add_site(default=gt, name=PREFIX + "imu", pos=list(IMU_SITE_POS))
-    fl, fw = r.foot_size
     depth = s.layer_height + 0.03
     pad = 0.005           # reach past the sole's edge so corner contacts are not lost
     for i, (side, fname) in enumerate(zip("lr", r.feet)):
+        fl, fw = r.foot_size_of(i)                # each foot's own sole
         foot = spec.body(fname)
         quat = np.zeros(4)
         mujoco.mju_mat2Quat(quat, np.ascontiguousarray(np.asarray(r.sole_axes[i]).T).ravel())
