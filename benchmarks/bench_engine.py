@@ -48,14 +48,15 @@ SETS = {"carpet4": ("kidsize-engine-carpet4", "kidsize-omni-carpet4", 0.3),
 
 
 def survival(rows) -> float:
-    return float(np.mean([not r["fell"] for r in rows])) if rows else float("nan")
+    """Completed walks only: a fall, a diverged or an impossible simulation is no survival."""
+    return float(np.mean([r["survived"] for r in rows])) if rows else float("nan")
 
 
 def tracking_shares(rows) -> tuple[float, float]:
     """Median measured/commanded along each moving segment's own axis, and its spread (IQR)."""
     shares = []
     for r in rows:
-        if r["fell"]:
+        if not r["survived"]:
             continue
         for seg in r.get("segments") or []:
             c, got = np.array(seg["command"]), seg["measured"]
@@ -126,7 +127,7 @@ def main() -> None:
             match = walks(label, surface, drive, n, args.workers, args.seed)
             steady = walks(label, surface, dataclasses.replace(drive, stream=sustained), n, args.workers, args.seed)
             share, iqr = tracking_shares(match)
-            vx = [r["tracking"]["vx_rmse_mps"] for r in match if not r["fell"] and r["tracking"]["vx_rmse_mps"] is not None]
+            vx = [r["tracking"]["vx_rmse_mps"] for r in match if r["survived"] and r["tracking"]["vx_rmse_mps"] is not None]
             print(f"{label:28s} {survival(match):8.0%} {survival(steady):9.0%} {share:10.0%} {iqr:6.0%} "
                   f"{np.median(vx) if vx else float('nan'):8.3f}   ({time.perf_counter() - t0:.0f} s; "
                   f"{'online engine' if gf.engine is not None else 'table planned per step'})", flush=True)

@@ -18,7 +18,7 @@ import yaml
 from .files import MAX_BYTES, read_bytes_checked, write_text_atomic
 from .engine import EngineParams
 from .imu_stabiliser import StabiliserParams, stabiliser_from_mapping
-from .params import GaitParams, ParamError, families, family_class, params_from_mapping
+from .params import GaitParams, ParamError, families, family_class, fields_from_mapping, params_from_mapping
 
 __all__ = ["GaitFile", "read_yaml", "load_gait_file", "save_gait_file", "engine_from_mapping"]
 
@@ -129,16 +129,8 @@ def load_gait_file(path: str | Path) -> GaitFile:
 
 def engine_from_mapping(doc: Any, source: str = "engine") -> EngineParams:
     """A validated :class:`EngineParams` from a YAML mapping (missing fields take their defaults)."""
-    if not isinstance(doc, Mapping):
-        raise ParamError(f"{source}: expected a mapping of the engine's fields (see gaits/engine.py)")
-    names = [f["name"] for f in EngineParams.field_table()]
-    for k in doc:
-        if k not in names:
-            raise ParamError(f"{source}: unknown field {k!r} (allowed: {', '.join(names)})")
-    try:
-        return EngineParams(**dict(doc))
-    except ParamError as exc:
-        raise ParamError(f"{source}: {exc}") from None
+    return fields_from_mapping(EngineParams, doc, source, tuple(f["name"] for f in EngineParams.field_table()),
+                               expected="the engine's fields (see gaits/engine.py)")
 
 
 def save_gait_file(path: str | Path, params: GaitParams, description: str = "",

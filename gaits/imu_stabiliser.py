@@ -27,11 +27,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
-from .params import ParamError
+from .params import ParamError, fields_from_mapping
 
 __all__ = ["StabiliserParams", "stabiliser_corrections", "stabiliser_from_mapping", "STABILISER_FIELDS"]
 
@@ -75,12 +75,7 @@ STABILISER_FIELDS = tuple(f.name for f in fields(StabiliserParams))
 
 def stabiliser_from_mapping(doc: Any, source: str = "stabiliser") -> StabiliserParams:
     """A validated stabiliser from a YAML mapping (missing fields take their defaults)."""
-    if not isinstance(doc, Mapping):
-        raise ParamError(f"{source}: expected a mapping of {', '.join(STABILISER_FIELDS)}")
-    for k in doc:
-        if k not in STABILISER_FIELDS:
-            raise ParamError(f"{source}: unknown field {k!r} (allowed: {', '.join(STABILISER_FIELDS)})")
-    return StabiliserParams(**dict(doc))
+    return fields_from_mapping(StabiliserParams, doc, source, STABILISER_FIELDS)
 
 
 def stabiliser_corrections(p: StabiliserParams, pitch: float, roll: float, pitch_rate: float,

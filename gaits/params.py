@@ -20,6 +20,7 @@ from dataclasses import dataclass, field, fields
 from typing import Any, ClassVar, Mapping
 
 __all__ = [
+    "fields_from_mapping",
     "ParamError",
     "GaitParams",
     "param",
@@ -146,6 +147,24 @@ def family_class(name: str) -> type[GaitParams]:
     except KeyError:
         raise ParamError(f"unknown gait family {name!r}: expected one of "
                          f"{', '.join(families())}") from None
+
+
+def fields_from_mapping(cls: type, doc: Any, source: str, allowed: tuple[str, ...] | None = None,
+                        error: type[Exception] = ParamError, expected: str = "") -> Any:
+    """``cls(**doc)`` for a YAML section of a dataclass's fields (missing ones take their defaults):
+    not a mapping, an unknown field (the allowed ones listed) or a value ``cls`` refuses is one
+    ``error`` prefixed with ``source``. ``allowed``: the field names (default: the dataclass's);
+    ``expected``: what the section is, said when it is not a mapping (default: the field list)."""
+    names = tuple(f.name for f in fields(cls)) if allowed is None else tuple(allowed)
+    if not isinstance(doc, Mapping):
+        raise error(f"{source}: expected a mapping of {expected or ', '.join(names)}")
+    for k in doc:
+        if k not in names:
+            raise error(f"{source}: unknown field {k!r} (allowed: {', '.join(names)})")
+    try:
+        return cls(**dict(doc))
+    except error as exc:
+        raise error(f"{source}: {exc}") from None
 
 
 def params_from_mapping(family: str, data: Mapping[str, Any] | None,

@@ -126,7 +126,7 @@ def write_joint_table(traj: "gaits.GaitTrajectory", robot, path: Path, joint_nam
     """The joint table of ``traj`` for ``robot`` as CSV, headed by a comment naming what it is for;
     ``table_format`` servo: in the map's servo units instead (``<name>.servo.csv``, checked)."""
     from .robots.joint_table import robot_joint_table
-    from .robots.servo_table import check_table, servo_columns, to_units
+    from .robots.servo_table import check_table, servo_columns, to_units, too_fast
     if clip and table_format != "servo":
         raise UserError("--clip applies to --format servo")
     if table_format == "servo" and joint_names != "robot":
@@ -134,10 +134,8 @@ def write_joint_table(traj: "gaits.GaitTrajectory", robot, path: Path, joint_nam
     table = robot_joint_table(traj, robot)
     names = tuple(table.joint_names)
     speed = np.array([robot.servos[n].speed for n in names])
-    lo, hi = robot.joint_ranges(names)
     if table_format == "csv":
-        rate = np.abs(np.diff(table.q_ref, axis=0)) / np.diff(table.t)[:, None]
-        over = rate > speed[None, :] * (1 + 1e-6)
+        rate, over = too_fast(table.q_ref, table.t, speed)
         if over.any():                       # said, as the simulator's servo limits it (never silently)
             j = int(np.argmax((rate / speed).max(axis=0)))
             click.echo(f"note: the table asks {names[j]} for up to {rate[:, j].max():.2f} rad/s where its servo "
@@ -149,6 +147,7 @@ def write_joint_table(traj: "gaits.GaitTrajectory", robot, path: Path, joint_nam
         return traj.to_csv(path, comment=f"gait-tuner joint table for robot {robot.name} "
                                          f"({joint_names} joint names and signs; angles in rad); {comment}")
     units = servo_columns(robot.servo_units, names)
+    lo, hi = robot.joint_ranges(names)
     q, notes = check_table(table.q_ref, table.t, names, speed, lo, hi, clip)
     for line in notes:
         click.echo(f"note: {line}", err=True)

@@ -139,7 +139,7 @@ def plot_robustness(report, out_dir: str | Path) -> Path:
     axes[1].set_xlabel("time of the fall [s]")
     axes[1].set_ylabel("rollouts")
     axes[1].set_title(f"time to fall ({len(falls)} of {len(report.rollouts)} fell)")
-    pitch = [r["pitch_rms_deg"] for r in report.rollouts if not r["fell"]]
+    pitch = [r["pitch_rms_deg"] for r in report.rollouts if r["survived"]]    # completed walks only
     if pitch:
         axes[2].hist(pitch, bins=20, color="tab:green")
     axes[2].set_xlabel("torso pitch RMS [deg]")

@@ -120,7 +120,6 @@ def load_map(path: Path) -> RobotModel:
         raise
     except Exception as exc:
         raise UserError(f"{source}: {mjcf.name} does not load in MuJoCo: {str(exc).splitlines()[0]}") from None
-    _check_finite(model, mjcf.name, source)
     name = doc.get("name", path.stem)
     _require(isinstance(name, str) and re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9._ -]{0,99}", name) is not None,
              source, f"name = {name!r}: expected letters, digits, '.', '_', '-' or spaces (at most 100, "
@@ -275,15 +274,6 @@ def load_map(path: Path) -> RobotModel:
                       foot_sizes=(tuple(sizes[0]), tuple(sizes[1])))
 
 
-#: (model array, object kind, what the file calls it) checked for NaN and infinity before anything is derived
-_FINITE = (("body_pos", mujoco.mjtObj.mjOBJ_BODY, "pos"), ("body_quat", mujoco.mjtObj.mjOBJ_BODY, "quat/euler"),
-           ("body_mass", mujoco.mjtObj.mjOBJ_BODY, "mass"), ("body_ipos", mujoco.mjtObj.mjOBJ_BODY, "inertial pos"),
-           ("body_inertia", mujoco.mjtObj.mjOBJ_BODY, "inertia"), ("jnt_pos", mujoco.mjtObj.mjOBJ_JOINT, "pos"),
-           ("jnt_axis", mujoco.mjtObj.mjOBJ_JOINT, "axis"), ("jnt_range", mujoco.mjtObj.mjOBJ_JOINT, "range"),
-           ("geom_pos", mujoco.mjtObj.mjOBJ_GEOM, "pos"), ("geom_size", mujoco.mjtObj.mjOBJ_GEOM, "size"),
-           ("geom_quat", mujoco.mjtObj.mjOBJ_GEOM, "quat/euler"))
-
-
 #: attributes that name things (a joint may be called "inf"), never checked as numbers
 _NAME_KEYS = frozenset({"name", "class", "childclass", "joint", "joint1", "joint2", "link", "body", "body1", "body2",
                         "site", "mesh", "material", "texture", "objname", "target", "file", "filename", "type",
@@ -310,20 +300,6 @@ def _xml_finite(raw: bytes, fname: str, source: str) -> None:
                 who = f"<{el.tag} name={el.get('name')!r}>" if el.get("name") else f"<{el.tag}>"
                 raise UserError(f"{source}: {fname}: {who} {key}={value!r}: NaN or infinity is not a number "
                                 f"a robot file can hold")
-
-
-def _check_finite(model: mujoco.MjModel, fname: str, source: str) -> None:
-    """NaN or infinity anywhere in the robot's geometry or masses is named as such (it used to surface
-    as a puzzling later check, e.g. feet swapped)."""
-    kinds = {mujoco.mjtObj.mjOBJ_BODY: "body", mujoco.mjtObj.mjOBJ_JOINT: "joint", mujoco.mjtObj.mjOBJ_GEOM: "geom"}
-    for attr, obj, what in _FINITE:
-        a = np.asarray(getattr(model, attr))
-        bad = ~np.isfinite(a.reshape(len(a), -1)).all(axis=1) if len(a) else np.zeros(0, bool)
-        if bad.any():
-            i = int(np.flatnonzero(bad)[0])
-            label = mujoco.mj_id2name(model, obj, i) or f"#{i}"
-            raise UserError(f"{source}: {kinds[obj]} {label!r} of {fname} has a non-finite {what} "
-                            f"({np.asarray(a[i]).tolist()}): NaN or infinity")
 
 
 def _check_crouch(model: mujoco.MjModel, leg: LegGeometry, final: Mapping[str, tuple[str, int]], source: str) -> None:

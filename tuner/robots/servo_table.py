@@ -23,7 +23,7 @@ import numpy as np
 
 from ..errors import UserError
 
-__all__ = ["ServoUnit", "read_servo_units", "to_units", "from_units", "check_table", "servo_columns",
+__all__ = ["ServoUnit", "read_servo_units", "to_units", "from_units", "check_table", "servo_columns", "too_fast",
            "SERVO_UNIT_FIELDS"]
 
 SERVO_UNIT_FIELDS = ("id", "ticks_per_turn", "units_per_rad", "centre", "direction", "offset")
@@ -111,6 +111,12 @@ def from_units(ticks: np.ndarray, u: ServoUnit) -> np.ndarray:
     return (np.asarray(ticks, float) - u.centre) / (u.direction * u.units_per_rad) - u.offset
 
 
+def too_fast(q: np.ndarray, t: np.ndarray, speed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(rate (N-1, J) [rad/s] of each move between rows, mask of the moves faster than ``speed``)."""
+    rate = np.abs(np.diff(np.asarray(q, dtype=float), axis=0)) / np.diff(t)[:, None]
+    return rate, rate > speed[None, :] * (1 + 1e-6) + 1e-9
+
+
 def check_table(q: np.ndarray, t: np.ndarray, names: tuple[str, ...], speed: np.ndarray, lo: np.ndarray,
                 hi: np.ndarray, clip: bool) -> tuple[np.ndarray, list[str]]:
     """A joint table (N, J) [rad] against each joint's servo speed [rad/s] and range [rad].
@@ -121,10 +127,8 @@ def check_table(q: np.ndarray, t: np.ndarray, names: tuple[str, ...], speed: np.
     the simulator's servo does, tuner/sim/rollout.py), and one line per joint it changed."""
     q = np.asarray(q, dtype=float)
     dt = np.diff(t)
-    tol = 1e-9
     if not clip:
-        rate = np.abs(np.diff(q, axis=0)) / dt[:, None]
-        over = rate > speed[None, :] * (1 + 1e-6) + tol
+        rate, over = too_fast(q, t, speed)
         out_lo, out_hi = q < lo - 1e-6, q > hi + 1e-6
         if over.any():
             i, j = (int(v[0]) for v in np.nonzero(over))

@@ -37,9 +37,11 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
+
+from gaits.params import fields_from_mapping
 
 from ..errors import UserError
 
@@ -117,15 +119,8 @@ def randomisation_from_mapping(doc: Any, source: str) -> Randomisation:
         return Randomisation()
     if doc == "none":
         return NONE
-    if not isinstance(doc, Mapping):
-        raise UserError(f"{source}: expected a mapping of {', '.join(_RANGES)} (or 'none')")
-    for k in doc:
-        if k not in _RANGES:
-            raise UserError(f"{source}: unknown field {k!r} (allowed: {', '.join(_RANGES)})")
-    try:
-        return Randomisation(**dict(doc))
-    except UserError as exc:
-        raise UserError(f"{source}: {exc}") from None
+    return fields_from_mapping(Randomisation, doc, source, tuple(_RANGES), UserError,
+                               expected=f"{', '.join(_RANGES)} (or 'none')")
 
 
 @dataclass(frozen=True)

@@ -187,10 +187,9 @@ class Simulator:
         self._q_hi = np.where(limited, jr[:, 1], np.inf)
         speeds = np.array([r.servos[t].speed for t in theirs])
         self._max_step = speeds * self.control_period
-        self._corners = np.stack([r.sole_points(i, np.array([[sx * r.foot_size_of(i)[0] / 2,
-                                                                sy * r.foot_size_of(i)[1] / 2, 0.0]
-                                                               for sx, sy in CORNERS]))
-                                  for i in range(2)])  # (2, 4, 3) in foot frame, each foot's own sole
+        half = [np.array(r.foot_size_of(i)) / 2 for i in range(2)]            # each foot's own sole
+        self._corners = np.stack([r.sole_points(i, [[sx * half[i][0], sy * half[i][1], 0.0] for sx, sy in CORNERS])
+                                  for i in range(2)])  # (2, 4, 3) in foot frame
         self._corners_T = np.ascontiguousarray(self._corners.transpose(0, 2, 1))  # (2, 3, 4)
         self._col_in_gait = np.array([JOINT_NAMES.index(j) for j in self.joint_names])
         self._touch_sum = np.zeros((len(lay.touch_quadrant), 8))

@@ -23,11 +23,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
 from gaits import CommandStream
+from gaits.params import fields_from_mapping
 
 from ..errors import UserError
 
@@ -83,15 +84,7 @@ SCENARIO_FIELDS = tuple(_RANGES)
 def scenario_from_mapping(doc: Any, source: str) -> Scenario:
     if doc is None:
         return Scenario()
-    if not isinstance(doc, Mapping):
-        raise UserError(f"{source}: expected a mapping of {', '.join(_RANGES)}")
-    for k in doc:
-        if k not in _RANGES:
-            raise UserError(f"{source}: unknown field {k!r} (allowed: {', '.join(_RANGES)})")
-    try:
-        return Scenario(**dict(doc))
-    except UserError as exc:
-        raise UserError(f"{source}: {exc}") from None
+    return fields_from_mapping(Scenario, doc, source, SCENARIO_FIELDS, UserError)
 
 
 def draw_scenario(s: Scenario, seed: int | tuple[int, ...], namespace: int) -> tuple[CommandStream, list]:
