@@ -17,6 +17,7 @@ from typing import Any
 
 from optuna.storages.journal import JournalFileBackend
 from optuna.storages.journal._file import BaseJournalFileLock  # the lock interface JournalFileBackend takes
+from optuna.trial import TrialState
 
 from ..errors import UserError
 
@@ -123,25 +124,56 @@ def repair_journal(path: Path) -> int:
     return cut
 
 
+#: Journal records that need not reach the disk at once: a running trial's parameters,
+#: attributes and intermediate values. They are written (the kernel holds them: a killed process
+#: loses nothing) and made durable by the next record that is not one of them; a trial's
+#: finishing record is never one of them, so a trial costs one fsync, not one per record.
+#: A power cut between two fsyncs loses the running trials' latest records only: such a trial is
+#: found dead at the next open and walked again.
+_DEFERRED_OPS = frozenset({5, 7, 8, 9})   # JournalOperation SET_TRIAL_PARAM, _INTERMEDIATE_VALUE,
+                                          # _USER_ATTR, _SYSTEM_ATTR
+_RUNNING = int(TrialState.RUNNING)        # a new trial, or one popped from the queue
+
+
+def _durable(logs: list[dict[str, Any]]) -> bool:
+    """Whether ``logs`` must be on the disk before the append returns (see _DEFERRED_OPS)."""
+    for log in logs:
+        op = log.get("op_code")
+        if op in _DEFERRED_OPS:
+            continue
+        if op == 6 and log.get("state") == _RUNNING:      # SET_TRIAL_STATE_VALUES to RUNNING
+            continue
+        if op == 4 and log.get("state", _RUNNING) == _RUNNING:   # CREATE_TRIAL of a new trial
+            continue
+        return True
+    return False
+
+
 class SafeJournalBackend(JournalFileBackend):
-    """Optuna's journal file with our lock, a torn-tail check before each append, and a failed
-    append rolled back to the size it had, so a full disk leaves the file whole."""
+    """Optuna's journal file with our lock, a torn-tail check before each append, a failed
+    append rolled back to the size it had (a full disk leaves the file whole), and one fsync per
+    trial (:data:`_DEFERRED_OPS`) instead of one per record."""
 
     def __init__(self, file_path: str | Path) -> None:
         path = Path(file_path).resolve()
         super().__init__(str(path), lock_obj=FlockLock(path))
         self._path = path
+        self.fsyncs = 0           # counted for the tests and the scale benchmark
 
     def append_logs(self, logs: list[dict[str, Any]]) -> None:
         data = ("\n".join(json.dumps(log, separators=(",", ":")) for log in logs) + "\n").encode()
+        durable = _durable(logs)
         with self._lock:
-            _cut_torn_tail(self._path)
             size = self._path.stat().st_size
+            if size:
+                size -= _cut_torn_tail_if_any(self._path, size)
             try:
                 with open(self._path, "ab") as f:
                     f.write(data)
                     f.flush()
-                    os.fsync(f.fileno())
+                    if durable:
+                        os.fsync(f.fileno())
+                        self.fsyncs += 1
             except OSError as exc:
                 with contextlib.suppress(OSError):
                     os.truncate(self._path, size)
@@ -150,3 +182,12 @@ class SafeJournalBackend(JournalFileBackend):
                                       f"the journal was left whole: free space and run the same "
                                       f"command to resume") from None
                 raise
+
+
+def _cut_torn_tail_if_any(path: Path, size: int) -> int:
+    """:func:`_cut_torn_tail` when the file does not end with a newline (one byte read otherwise)."""
+    with open(path, "rb") as f:
+        f.seek(size - 1)
+        if f.read(1) == b"\n":
+            return 0
+    return _cut_torn_tail(path)

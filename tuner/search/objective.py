@@ -53,7 +53,7 @@ from ..sim.randomisation import TUNE, draw
 from .study import OBJECTIVES, StudySpec
 
 __all__ = ["FALL_PENALTY_DEG", "PROGRESS_PENALTY_DEG", "MIN_PROGRESS", "TrialResult", "Evaluator", "rollout_score",
-           "record_constraint", "objective_for"]
+           "record_constraint", "suggest", "objective_for"]
 
 FALL_PENALTY_DEG = 100.0
 PROGRESS_PENALTY_DEG = 50.0     # per unit of the planned distance not covered
@@ -283,7 +283,9 @@ def record_constraint(trial: optuna.Trial, value: float) -> None:
     not the per-name keys of ``Trial.set_constraint``, so fallen trials show as infeasible there."""
     trial.storage.set_trial_system_attr(trial._trial_id, "constraints", [float(value)])
 
-def _suggest(trial: optuna.Trial, spec: StudySpec) -> dict[str, Any]:
+def suggest(trial: optuna.Trial, spec: StudySpec) -> dict[str, Any]:
+    """Sample (or, called again, read back) every parameter of the study's space for ``trial``,
+    by field name; the worker calls it outside the budget lock, the objective again."""
     out = {}
     for r in spec.space:
         if r.integer:
@@ -294,7 +296,7 @@ def _suggest(trial: optuna.Trial, spec: StudySpec) -> dict[str, Any]:
 
 def objective_for(spec: StudySpec, evaluator: Evaluator) -> Callable[[optuna.Trial], Any]:
     def objective(trial: optuna.Trial):
-        sampled = _suggest(trial, spec)
+        sampled = suggest(trial, spec)
         try:
             drive = spec.drive_for(sampled, source=f"trial {trial.number}")
         except ParamError as exc:

@@ -323,9 +323,10 @@ class StudyStore:
             if getattr(storage, "is_heartbeat_enabled", lambda: False)():
                 storage.record_heartbeat(trial_id)
 
-    def dead_trials(self, study: optuna.Study) -> list[optuna.trial.FrozenTrial]:
+    def dead_trials(self, study: optuna.Study, running: list | None = None) -> list[optuna.trial.FrozenTrial]:
         """RUNNING trials whose worker is gone (see the module docstring); under the budget lock."""
-        running = study.get_trials(deepcopy=False, states=(TrialState.RUNNING,))
+        if running is None:
+            running = study.get_trials(deepcopy=False, states=(TrialState.RUNNING,))
         if not running:
             return []
         stale_db: set[int] = set()
@@ -372,13 +373,15 @@ class StudyStore:
                 with contextlib.suppress(RuntimeError, optuna.exceptions.UpdateFinishedTrialError):
                     study._storage.set_trial_user_attr(t._trial_id, "died", how)
 
-    def reap(self, study: optuna.Study) -> list[str]:
+    def reap(self, study: optuna.Study, running: list | None = None, failed: list | None = None) -> list[str]:
         """Fail the study's dead trials; enqueue a retry of every trial failed so (now, or at an
         earlier open whose retry could not be stored: a full disk) unless its worker crashed by
         itself or the parameters have died :data:`MAX_RETRIES` times; remove dead workers'
-        heartbeat files. Call under the budget lock."""
+        heartbeat files. Call under the budget lock. ``running`` and ``failed``: the study's
+        RUNNING and FAIL trials when the caller knows them (a worker's :class:`TrialIndex`),
+        so that nothing here reads the whole study."""
         notes = []
-        for t in self.dead_trials(study):
+        for t in self.dead_trials(study, running):
             why = _not_retried(t)
             try:
                 if why:
@@ -389,19 +392,33 @@ class StudyStore:
                 continue          # finished meanwhile
             if why:
                 notes.append(why)
+            if failed is not None:
+                failed = [*failed, study._storage.get_trial(t._trial_id)]
             self._forget_worker(study.study_name, t.user_attrs.get("worker"))
-        notes += self._enqueue_retries(study)
+        notes += self._enqueue_retries(study, failed)
         self._sweep_heartbeats(study.study_name)
         return notes
 
-    def _enqueue_retries(self, study: optuna.Study) -> list[str]:
+    def _enqueue_retries(self, study: optuna.Study, failed: list | None = None) -> list[str]:
+        """Enqueue a retry of each failed trial whose worker died and that has none yet. The
+        study's ``retried`` attribute lists the trials retried already, so that this reads the
+        failed trials only, not the whole study; a study from before that attribute is scanned
+        once for its retries' ``retry_for`` and the attribute written."""
         notes = []
-        trials = study.get_trials(deepcopy=False)
-        retried = {t.user_attrs.get("retry_for", t.user_attrs.get("retry_of")) for t in trials}
-        for t in trials:
+        done = set(study.user_attrs.get("retried", ()))
+        if failed is None:
+            failed = study.get_trials(deepcopy=False, states=(TrialState.FAIL,))
+        todo = [t for t in failed
+                if t.user_attrs.get("failed") == WORKER_DIED and not t.user_attrs.get("not_retried")
+                and t.number not in done]
+        if not todo:
+            return notes
+        older = {t.user_attrs.get("retry_for", t.user_attrs.get("retry_of"))
+                 for t in study.get_trials(deepcopy=False) if t.number > min(u.number for u in todo)}
+        for t in todo:
             a = t.user_attrs
-            if t.state != TrialState.FAIL or a.get("failed") != WORKER_DIED or t.number in retried \
-                    or a.get("not_retried"):
+            done.add(t.number)
+            if t.number in older:
                 continue
             how = a.get("died")
             attrs = {k: v for k, v in a.items() if k not in ("worker", "result", "params", "died", "failed")}
@@ -409,6 +426,7 @@ class StudyStore:
             study.enqueue_trial(dict(t.params), user_attrs=attrs, skip_if_exists=False)
             notes.append(f"trial {t.number} died with its worker{f' ({how})' if how else ''}: "
                          f"failed, enqueued again")
+        study.set_user_attr("retried", sorted(done))
         return notes
 
     def _forget_worker(self, study_name: str, ident: dict[str, Any] | None) -> None:

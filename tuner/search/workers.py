@@ -31,11 +31,12 @@ from gaits import ParamError
 from ..errors import UserError
 from ..process_pool import mp_context
 from .liveness import Heartbeat, process_identity
-from .objective import Evaluator, objective_for, record_constraint
+from .history import TrialIndex, WindowedTPESampler
+from .objective import Evaluator, objective_for, record_constraint, suggest
 from .journal import StorageFull
 from .storage import StudyStore, storage_full
 from .study import CTRL_PREFIX, ENGINE_PREFIX, STAB_PREFIX, StudySpec
-from .trials import DONE_STATES, n_done, trial_result
+from .trials import n_done, trial_result
 
 __all__ = ["open_storage", "open_study", "load_tuned_study", "enqueue_starts", "trial_distributions",
            "WorkerStop", "WorkersDying", "work", "prepare_study", "run_study", "run_workers"]
@@ -45,9 +46,12 @@ def open_storage(spec: StudySpec, storage: str | None, runs_dir: Path) -> Any:
     """The study's Optuna storage: the journal ``runs/<name>.journal`` unless a URL is given."""
     return StudyStore.open(spec.name, storage, runs_dir).optuna_storage()
 
-def _sampler(spec: StudySpec, seed: int) -> optuna.samplers.BaseSampler:
-    # the fall constraint is stored on each trial (record_constraint); TPE reads it
-    return optuna.samplers.TPESampler(seed=seed, multivariate=True, n_startup_trials=8)
+def _sampler(spec: StudySpec, seed: int, index: TrialIndex | None = None) -> optuna.samplers.BaseSampler:
+    # the fall constraint is stored on each trial (record_constraint); TPE reads it. The constant
+    # liar: trials running in other workers count as bad ones, so workers that sample at the same
+    # time do not all propose the same set (sampling is outside the budget lock)
+    return WindowedTPESampler(trial_distributions(spec), index, seed=seed, n_startup_trials=8,
+                              constant_liar=True)
 
 def load_tuned_study(spec: StudySpec, storage: str | None, runs_dir: Path) -> optuna.Study:
     """A study that has been tuned, from its storage; a one-line :class:`UserError` if it has not."""
@@ -60,12 +64,13 @@ def load_tuned_study(spec: StudySpec, storage: str | None, runs_dir: Path) -> op
     except KeyError:
         raise UserError(f"storage holds no study named {spec.name!r}") from None
 
-def open_study(spec: StudySpec, storage: Any, seed: int | None = None) -> optuna.Study:
+def open_study(spec: StudySpec, storage: Any, seed: int | None = None,
+               index: TrialIndex | None = None) -> optuna.Study:
     pruner = (optuna.pruners.MedianPruner(n_startup_trials=6, n_warmup_steps=0)
               if len(spec.objectives) == 1 and len(spec.surfaces) > 1 else optuna.pruners.NopPruner())
     study = optuna.create_study(study_name=spec.name, storage=storage, load_if_exists=True,
                                 directions=spec.directions,
-                                sampler=_sampler(spec, spec.sampler_seed if seed is None else seed),
+                                sampler=_sampler(spec, spec.sampler_seed if seed is None else seed, index),
                                 pruner=pruner)
     if "spec" not in study.user_attrs:
         study.set_user_attr("spec", {"gait": spec.gait, "robot": spec.robot,
@@ -143,20 +148,6 @@ def trial_distributions(spec: StudySpec) -> dict[str, Any]:
             out[r.label] = FloatDistribution(r.low, r.high, log=r.log)
     return out
 
-def _counts(study: optuna.Study) -> tuple[int, int]:
-    trials = study.get_trials(deepcopy=False, states=DONE_STATES + (TrialState.RUNNING,))
-    done = sum(1 for t in trials if t.state in DONE_STATES)
-    return done, len(trials) - done
-
-def _duplicate_of(study: optuna.Study, trial: optuna.Trial) -> optuna.trial.FrozenTrial | None:
-    """A finished trial that walked exactly these parameters (a resumed sampler, or TPE on an
-    integer axis, can propose a set again); enqueued retries are never duplicates."""
-    params = trial.params
-    for t in study.get_trials(deepcopy=False, states=DONE_STATES):
-        if t.params == params and t.number != trial.number:
-            return t
-    return None
-
 def _tell_copy(study: optuna.Study, trial: optuna.Trial, source: optuna.trial.FrozenTrial) -> None:
     """Record ``source``'s result for ``trial`` without walking it again."""
     for key, value in source.user_attrs.items():
@@ -194,39 +185,49 @@ def work(spec: StudySpec, store: StudyStore, budget: int, seed: int,
          log: Callable[[str], None] | None = None, poll: float = 1.0) -> int:
     """One process's share of a study: trials until the study holds ``budget`` finished ones.
 
-    Each step runs under the store's budget lock: dead trials are failed and re-enqueued
-    (:meth:`StudyStore.reap`), the study's finished and running trials are counted, and a
-    trial is asked only while finished + running < budget. So any number of processes, on any
+    Under the store's budget lock, per trial: dead trials are failed and re-enqueued
+    (:meth:`StudyStore.reap`), the study's finished and running trials are counted (the
+    :class:`TrialIndex`, read incrementally), and a trial is reserved (created, or popped from
+    the queue) only while finished + running < budget. So any number of processes, on any
     number of machines, run exactly the budget; a process that finds the rest running waits
-    for them (one of them may die and need a retry). Returns the trials this process walked.
+    for them (one of them may die and need a retry). The parameters are sampled after the lock
+    is released, so the lock is held for constant work whatever the study's size. A set walked
+    before (a resumed sampler, or TPE on an integer axis, can propose one again) is not walked
+    again: its result is copied; enqueued retries are never such copies. Returns the trials
+    this process walked.
     """
     log = log or (lambda msg: print(f"gait-tuner: {msg}", file=sys.stderr, flush=True))
-    study = open_study(spec, store.optuna_storage(), seed)
+    index = TrialIndex()
+    study = open_study(spec, store.optuna_storage(), seed, index)
+    index.refresh(study)                            # the whole study, once, outside the lock
     objective = objective_for(spec, Evaluator(spec))
-    space = trial_distributions(spec)
     beat = Heartbeat(store, spec.name).start()
     ran = 0
     try:
         while True:
             with store.budget_lock(spec.name):
-                for note in store.reap(study):
+                index.refresh(study)
+                notes = store.reap(study, index.running, index.failed)
+                for note in notes:
                     log(note)
+                if notes:
+                    index.refresh(study)             # the trials reap failed or enqueued
                 budget = int(study.user_attrs.get("budget", budget))   # as another `tune --trials` set it
-                done, running = _counts(study)
-                if done >= budget:
+                if index.n_done >= budget:
                     return ran
                 trial = None
-                if done + running < budget:
+                if index.n_done + index.n_running < budget:
                     with warnings.catch_warnings():
                         # ours: heartbeats with ask/tell, on purpose (StudyStore.beat); not for users
                         warnings.filterwarnings("ignore", message="Heartbeat of storage is supposed")
-                        trial = study.ask(space)
+                        trial = index.reserve(study)
                     trial.set_user_attr("worker", process_identity())
             if trial is None:
                 time.sleep(poll)
                 continue
             beat.trial_id = trial._trial_id
-            source = None if trial.user_attrs.get("retry_of") is not None else _duplicate_of(study, trial)
+            suggest(trial, spec)
+            source = None if trial.user_attrs.get("retry_of") is not None else index.duplicate_of(trial)
             if source is not None:
                 _tell_copy(study, trial, source)
                 continue

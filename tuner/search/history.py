@@ -1,0 +1,241 @@
+"""What a worker knows of its study, kept up to date with constant work per trial.
+
+A worker used to scan every trial of the study several times per trial (the count under the
+budget lock, the duplicate check, the sampler's history), so a study cost O(n^2) and the shared
+lock was held longer as the study grew. :class:`TrialIndex` reads each trial once, when it
+first sees it finished, and keeps only what the worker needs of it:
+
+* counts of finished, running and failed trials (exact at each :meth:`TrialIndex.refresh`,
+  which the worker calls under the budget lock);
+* a key of every finished trial's parameters, to find a set walked before without a scan;
+* a bounded *window* for the sampler: the study's best ``n_best`` feasible trials (single
+  objective: by value; several objectives: the newest ``n_best`` of the non-dominated front),
+  the ``n_recent`` latest finished trials, and the running ones (for the constant liar).
+
+:class:`WindowedTPESampler` is Optuna's multivariate TPE given that window instead of every
+trial. Ours, and what it costs: TPE splits the trials into the best ``min(ceil(n/10), 25)`` and
+the rest; the window holds the study's best 25 and more, so the "good" density is the one the
+whole history gives, while the "rest" density is estimated from the latest trials instead of
+all of them. Up to ``n_best + n_recent`` trials the window *is* the history (identical
+samples); beyond it the sampler's cost stays flat. ``benchmarks/bench_scale.py`` measures the
+cost, and its ``--quality`` part the best found with and without the window.
+
+Reads go through Optuna's storage interface only (``get_n_trials``, ``get_trial``, trials by
+state), so the index works the same on the journal and on a database.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+from collections import deque
+from typing import Any, Sequence
+
+import optuna
+from optuna.distributions import BaseDistribution
+from optuna.storages import JournalStorage
+from optuna.study import StudyDirection
+from optuna.trial import FrozenTrial, TrialState
+
+from .trials import DONE_STATES
+
+__all__ = ["TrialIndex", "WindowedTPESampler", "params_key", "N_BEST", "N_RECENT"]
+
+#: The window's size (ours): the best trials kept, and the latest ones.
+N_BEST = 30
+N_RECENT = 90
+
+_UNFINISHED = (TrialState.RUNNING, TrialState.WAITING)
+
+
+def params_key(params: dict[str, Any]) -> int:
+    """A hash of a parameter set (candidates only: a match is confirmed on the trial itself)."""
+    return hash(tuple(sorted(params.items())))
+
+
+def _feasible(t: FrozenTrial) -> bool:
+    return all(c <= 0.0 for c in (t.system_attrs.get("constraints") or ()))
+
+
+def _dominates(a: Sequence[float], b: Sequence[float]) -> bool:
+    return all(x <= y for x, y in zip(a, b)) and any(x < y for x, y in zip(a, b))
+
+
+class TrialIndex:
+    """An incremental view of one study's trials in one process (see the module docstring)."""
+
+    def __init__(self, n_best: int = N_BEST, n_recent: int = N_RECENT) -> None:
+        self.n_best = n_best
+        self.n_recent = n_recent
+        self._storage: Any = None
+        self._study_id: int | None = None
+        self._signs: tuple[float, ...] = ()
+        self.seen = 0                                   # trials numbered below this were read
+        self._unfinished: dict[int, int] = {}           # number -> trial id, read while unfinished
+        self.n_done = 0                                 # finished as COMPLETE or PRUNED
+        self.n_finished = 0                             # finished in any state (FAIL too)
+        self.running: list[FrozenTrial] = []            # RUNNING at the last refresh
+        self.waiting: list[FrozenTrial] = []            # WAITING (enqueued) at the last refresh
+        self.failed: list[FrozenTrial] = []             # every FAIL trial read
+        self._by_params: dict[int, list[int]] = {}      # params_key -> ids of DONE trials
+        self._best: list[tuple[float, int, FrozenTrial]] = []   # single objective: a max-heap by -key
+        self._front: list[tuple[tuple[float, ...], FrozenTrial]] = []   # several: non-dominated
+        self._recent: deque[FrozenTrial] = deque(maxlen=n_recent)
+        self._tie = itertools.count()
+
+    def _bind(self, study: optuna.Study) -> None:
+        if self._storage is None:
+            self._storage = study._storage
+            self._study_id = study._study_id
+            self._signs = tuple(1.0 if d == StudyDirection.MINIMIZE else -1.0 for d in study.directions)
+
+    def refresh(self, study: optuna.Study) -> "TrialIndex":
+        """Read the trials created since the last refresh and those that finished since; the
+        counts are exact for the storage's state at this call. The first call reads the whole
+        study once (call it before taking the budget lock); later calls do constant work: new
+        trials are found by number, the unfinished ones re-read (by id from the journal, which
+        holds them in memory; in one query by state from a database, whose Optuna cache then
+        reads only the unfinished and newer rows), never the whole study."""
+        storage = self._storage
+        if storage is None:
+            self._bind(study)
+            storage = self._storage
+            for t in storage.get_all_trials(self._study_id, deepcopy=False):
+                if t.state.is_finished():
+                    self._absorb(t)
+                else:
+                    self._unfinished[t.number] = t._trial_id
+                self.seen = max(self.seen, t.number + 1)
+        sid = self._study_id
+        journal = isinstance(storage, JournalStorage)
+        # a database: this query also brings a trial popped from the queue into Optuna's cache,
+        # where it must be before this process writes to it
+        now = {} if journal else {t.number: t for t in
+                                  storage.get_all_trials(sid, deepcopy=False, states=_UNFINISHED)}
+        while True:
+            try:
+                tid = storage.get_trial_id_from_study_id_trial_number(sid, self.seen)
+            except KeyError:
+                break
+            self._unfinished[self.seen] = tid
+            self.seen += 1
+        for number, tid in list(self._unfinished.items()):
+            t = now.get(number)
+            if t is None:
+                t = storage.get_trial(tid)
+            if t.state.is_finished():
+                del self._unfinished[number]
+                now.pop(number, None)
+                self._absorb(t)
+            else:
+                now[number] = t
+        self.running = [t for t in now.values() if t.state == TrialState.RUNNING]
+        self.waiting = [t for t in now.values() if t.state == TrialState.WAITING]
+        return self
+
+    @property
+    def n_running(self) -> int:
+        return len(self.running)
+
+    def reserve(self, study: optuna.Study) -> optuna.Trial:
+        """A trial for this process: the oldest waiting one (an enqueued start or retry) if
+        another process has not taken it, else a new one; as ``Study.ask()`` does, but from the
+        index's waiting trials instead of a scan of the study. Sampling is left to the caller
+        (relative parameters are sampled at the first ``suggest``)."""
+        storage = self._storage
+        for t in sorted(self.waiting, key=lambda t: t.number):
+            try:
+                if storage.set_trial_state_values(t._trial_id, state=TrialState.RUNNING):
+                    return optuna.Trial(study, t._trial_id)
+            except optuna.exceptions.UpdateFinishedTrialError:
+                continue
+        return optuna.Trial(study, storage.create_new_trial(self._study_id))
+
+    def _absorb(self, t: FrozenTrial) -> None:
+        self.n_finished += 1
+        if t.state == TrialState.FAIL:
+            self.failed.append(t)
+        if t.state not in DONE_STATES:
+            return
+        self.n_done += 1
+        self._by_params.setdefault(params_key(t.params), []).append(t._trial_id)
+        self._recent.append(t)
+        if t.state != TrialState.COMPLETE or not _feasible(t) or t.values is None:
+            return
+        if len(self._signs) == 1:
+            key = self._signs[0] * t.values[0]
+            item = (-key, next(self._tie), t)
+            if len(self._best) < self.n_best:
+                heapq.heappush(self._best, item)
+            elif key < -self._best[0][0]:
+                heapq.heapreplace(self._best, item)
+            return
+        v = tuple(s * x for s, x in zip(self._signs, t.values))
+        if any(_dominates(w, v) or w == v for w, _ in self._front):
+            return
+        self._front = [(w, u) for w, u in self._front if not _dominates(v, w)] + [(v, t)]
+        if len(self._front) > self.n_best:
+            self._front.pop(0)                          # the oldest member leaves the window
+
+    def duplicate_of(self, trial: optuna.Trial) -> FrozenTrial | None:
+        """A finished trial (COMPLETE or PRUNED) that walked exactly ``trial``'s parameters."""
+        params = trial.params
+        for tid in self._by_params.get(params_key(params), ()):
+            t = self._storage.get_trial(tid)
+            if t.params == params and t.number != trial.number:
+                return t
+        return None
+
+    def window(self) -> list[FrozenTrial]:
+        """The sampler's trials: the best, the latest finished, the running; by number."""
+        best = [t for _, _, t in self._best] + [t for _, t in self._front]
+        out = {t.number: t for t in itertools.chain(best, self._recent, self.running)}
+        return [out[k] for k in sorted(out)]
+
+
+class _WindowStudy:
+    """The study as the sampler sees it: its trials are the index's window."""
+
+    def __init__(self, study: optuna.Study, trials: list[FrozenTrial]) -> None:
+        self._study = study
+        self._trials = trials
+
+    def _get_trials(self, deepcopy: bool = True, states: Any = None, use_cache: bool = False) -> list[FrozenTrial]:
+        return [t for t in self._trials if states is None or t.state in states]
+
+    def get_trials(self, deepcopy: bool = True, states: Any = None) -> list[FrozenTrial]:
+        return self._get_trials(deepcopy, states)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._study, name)
+
+
+class WindowedTPESampler(optuna.samplers.TPESampler):
+    """Multivariate TPE over a study's fixed space, reading the :class:`TrialIndex` window
+    (see the module docstring). ``index`` may be shared with the worker that refreshes it
+    under the budget lock; the sampler refreshes it once per trial itself as well, so that the
+    running trials it lies about (``constant_liar``) are the current ones."""
+
+    def __init__(self, space: dict[str, BaseDistribution], index: TrialIndex | None = None, **kw: Any) -> None:
+        kw.setdefault("multivariate", True)
+        super().__init__(**kw)
+        self._space = {k: d for k, d in space.items() if not d.single()}
+        self.index = index or TrialIndex()
+        self._fresh_for: int | None = None
+
+    def _view(self, study: optuna.Study, trial: FrozenTrial) -> _WindowStudy:
+        if self._fresh_for != trial.number:
+            self.index.refresh(study)
+            self._fresh_for = trial.number
+        return _WindowStudy(study, self.index.window())
+
+    def infer_relative_search_space(self, study: optuna.Study, trial: FrozenTrial) -> dict[str, BaseDistribution]:
+        return dict(self._space)
+
+    def sample_relative(self, study: optuna.Study, trial: FrozenTrial,
+                        search_space: dict[str, BaseDistribution]) -> dict[str, Any]:
+        return super().sample_relative(self._view(study, trial), trial, search_space)
+
+    def sample_independent(self, study: optuna.Study, trial: FrozenTrial, param_name: str,
+                           param_distribution: BaseDistribution) -> Any:
+        return super().sample_independent(self._view(study, trial), trial, param_name, param_distribution)
