@@ -44,6 +44,7 @@ def bowl(seed: int, arm: str, trials: int) -> float:
     from tuner.search.study import load_study
     from tuner.search.workers import trial_distributions
 
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
     spec = load_study("quickstart")
     space = trial_distributions(spec)
     sampler = (WindowedTPESampler(space, seed=seed, n_startup_trials=8, constant_liar=True) if arm == "window"

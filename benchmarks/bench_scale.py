@@ -90,7 +90,7 @@ def fill(args) -> None:
                                                   "params": {**walked, **sampled}, "result": res.stored()},
                                       system_attrs={"constraints": [-1.0]})
         study.add_trial(t)
-    study.set_user_attr("budget", args.size)
+    study.set_user_attr("budget", args.budget or args.size)       # part 2: the budget the processes share
 
 
 def _store(args):
@@ -188,7 +188,20 @@ def measure(args) -> None:
     rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     budget = n0 + args.trials
     if args.procs_mode:
+        from tuner.search.objective import record_constraint, suggest
+
+        def stub_objective_for(spec_, evaluator):
+            def objective(trial):                   # every trial walks: a sleep, then a canned result
+                sampled = suggest(trial, spec_)
+                time.sleep(args.walk_s)
+                record_constraint(trial, -1.0)
+                trial.set_user_attr("params", {**walked, **sampled})
+                trial.set_user_attr("result", res.stored())
+                return _score(spec_, sampled)
+            return objective
+        workers.objective_for = stub_objective_for
         barrier = Path(args.barrier)
+        Path(f"{barrier}.ready-{args.seed}").touch()
         while not barrier.exists():
             time.sleep(0.01)
     study.set_user_attr("budget", budget) if not args.procs_mode else None
@@ -285,13 +298,14 @@ def main() -> None:
                 base = None
                 for j, n in enumerate(counts):
                     name, url, runs = _place(pg, tmp, kind, "procs", j)
-                    _run("fill", name=name, url=url, runs=runs, size=0)
-                    barrier = Path(tmp) / f"go-{kind}-{j}"
                     budget = n * args.proc_trials
+                    _run("fill", name=name, url=url, runs=runs, size=0, budget=budget)
+                    barrier = Path(tmp) / f"go-{kind}-{j}"
                     kids = [_child("measure", name=name, url=url, runs=runs, trials=args.proc_trials,
                                    walk_s=args.walk_s, seed=k, budget=budget, barrier=barrier, procs_mode=1)
                             for k in range(n)]
-                    time.sleep(2.0 + 0.3 * n)        # let every child import and open the study
+                    while len(list(Path(tmp).glob(f"{barrier.name}.ready-*"))) < n:
+                        time.sleep(0.1)             # every child has imported and opened the study
                     t0 = time.perf_counter()
                     barrier.touch()
                     for k in kids:

@@ -1,13 +1,22 @@
-"""Rollout throughput: ``Simulator.rollout`` against a bare ``mj_step`` loop, side by side.
+"""Rollout cost: ``Simulator.rollout`` against the same walk's physics alone, side by side.
 
 Usage: ``python benchmarks/bench_simulate.py [--repeats 5]``
 
-For each surface, one model, one gait (TLIPFM Table 2, 10.96 s): the bare loop
-sets the same joint targets every 10 ms and calls ``mj_step(m, d, nstep=5)``,
-nothing else; ``simulate`` is the full rollout (rate limiter, drag, sensors
-copied every tick, fall and divergence checks, trace post-processing). Timings
-are interleaved and the best of ``--repeats`` is kept, on this machine, in
-one run. Also: real-time factor, and rollouts per hour with 1 and 2 processes.
+For each surface, one model, one gait (TLIPFM Table 2, 10.96 s). ``simulate`` is the full
+rollout (the table player, the rate limiter and joint ranges, the grass drag gate, sensors
+copied every tick, fall and divergence checks, trace post-processing). Its controls are recorded
+as MuJoCo applied them each tick (every actuator: the servos' rate-limited targets and the drag
+dampers' gate), with its initial state, and played again two ways, so that the physics compared
+is the same walk's:
+
+* ``replay``: a Python loop that sets those controls every 10 ms and calls
+  ``mj_step(m, d, nstep=5)``, nothing else;
+* ``native``: ``mujoco.rollout.rollout`` of the same controls (one control row per physics
+  step) from the same state, in C.
+
+Each row checks that both replays end in the rollout's final state (``same``: bit-identical
+qpos). Timings are interleaved and the best of ``--repeats`` is kept. Also: real-time factor,
+and rollouts per hour with 1 and 2 processes.
 """
 
 from __future__ import annotations
@@ -17,6 +26,7 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 
 import mujoco
+import mujoco.rollout
 import numpy as np
 
 import gaits
@@ -24,13 +34,41 @@ from tuner.robots import load_robot
 from tuner.sim.rollout import Simulator
 from tuner.sim.surfaces import SURFACES
 
+FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
-def bare_loop(sim: Simulator, q_ref: np.ndarray) -> None:
+
+def recorded(sim: Simulator, traj) -> tuple[np.ndarray, np.ndarray, np.ndarray, object]:
+    """The rollout's initial state, its controls per tick, its final qpos, and its trace."""
     m, d = sim.model, sim.data
-    sim._place(q_ref[0], np.zeros(2))
-    for k in range(1, len(q_ref)):
-        d.ctrl[:sim._n_servo] = q_ref[k]
+    state0 = np.empty(mujoco.mj_stateSize(m, FULL))
+    controls: list[np.ndarray] = []
+
+    def first(m_, d_):
+        mujoco.mj_getState(m_, d_, state0, FULL)
+
+    def tick(k, d_):
+        controls.append(d_.ctrl.copy())
+
+    trace = sim.run(gaits.control.TablePlayer(traj), hooks={0: first}, on_tick=tick)
+    return state0, np.array(controls), d.qpos.copy(), trace
+
+
+def replay(sim: Simulator, state0: np.ndarray, controls: np.ndarray) -> np.ndarray:
+    m, d = sim.model, sim.data
+    mujoco.mj_setState(m, d, state0, FULL)
+    for c in controls:
+        d.ctrl[:] = c
         mujoco.mj_step(m, d, nstep=sim.nstep)
+    return d.qpos.copy()
+
+
+def native(sim: Simulator, state0: np.ndarray, per_step: np.ndarray, data: mujoco.MjData) -> np.ndarray:
+    state, _ = mujoco.rollout.rollout(sim.model, data, state0[None], per_step[None])
+    qpos = np.empty(sim.model.nq)
+    d = mujoco.MjData(sim.model)
+    mujoco.mj_setState(sim.model, d, state[0, -1], FULL)
+    qpos[:] = d.qpos
+    return qpos
 
 
 def _one(args):
@@ -50,24 +88,32 @@ def main() -> None:
     ap.add_argument("--pool-rollouts", type=int, default=20)
     args = ap.parse_args()
     robot = load_robot("kidsize")
-    print(f"{'surface':8s} {'bare [s]':>9s} {'simulate [s]':>12s} {'ratio':>6s} {'RTF':>6s}  completed")
+    print(f"{'surface':8s} {'simulate':>9s} {'replay':>8s} {'native':>8s} {'sim/replay':>10s} {'sim/native':>10s}"
+          f" {'RTF':>6s}  same  completed")
     rigid_time = None
     for name in ("rigid", "carpet4", "grass10", "grass30", "grass50"):
         sim = Simulator(robot, SURFACES[name])
         traj = gaits.generate(gaits.load_baseline("tkux-table2").params, robot.leg, sim.control_period)
-        q_ref = traj.q_ref[:, sim._col_in_gait] * sim._sign
-        bare, full = [], []
+        state0, controls, q_end, trace = recorded(sim, traj)
+        per_step = np.repeat(controls, sim.nstep, axis=0)
+        data = mujoco.MjData(sim.model)
+        same = (np.array_equal(replay(sim, state0, controls), q_end)
+                and np.array_equal(native(sim, state0, per_step, data), q_end))
+        full, rep, nat = [], [], []
         for _ in range(args.repeats):
             t0 = time.perf_counter()
-            bare_loop(sim, q_ref)
-            bare.append(time.perf_counter() - t0)
-            t0 = time.perf_counter()
-            trace = sim.rollout(traj)
+            sim.rollout(traj)
             full.append(time.perf_counter() - t0)
-        b, f = min(bare), min(full)
+            t0 = time.perf_counter()
+            replay(sim, state0, controls)
+            rep.append(time.perf_counter() - t0)
+            t0 = time.perf_counter()
+            native(sim, state0, per_step, data)
+            nat.append(time.perf_counter() - t0)
+        f, r, n_ = min(full), min(rep), min(nat)
         rigid_time = rigid_time or f
-        print(f"{name:8s} {b:9.4f} {f:12.4f} {b / f:6.0%} {traj.duration / f:6.0f}x  {trace.completed}"
-              f"   (cost vs rigid simulate: {f / rigid_time:.2f}x)")
+        print(f"{name:8s} {f:8.4f}s {r:7.4f}s {n_:7.4f}s {f / r:9.2f}x {f / n_:9.2f}x {traj.duration / f:5.0f}x"
+              f"  {'yes' if same else 'NO':>4s}  {trace.completed}   (cost vs rigid simulate: {f / rigid_time:.2f}x)")
     n = args.pool_rollouts
     for workers in (1, 2):
         t0 = time.perf_counter()

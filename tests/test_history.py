@@ -246,3 +246,14 @@ def test_a_retry_is_enqueued_once_and_an_old_studys_retries_are_found(tmp_path):
 
 def replace_attrs(t, attrs):
     return optuna.trial.create_trial(state=t.state, params=t.params, distributions=t.distributions, user_attrs=attrs)
+
+
+def test_the_good_share_follows_the_studys_count_not_the_windows():
+    ix = TrialIndex()
+    one = WindowedTPESampler(SPACE, ix)
+    ix._signs, ix.n_done = (1.0,), 40
+    assert one._good(40) == 4                      # within the window: Optuna's own split
+    ix.n_done = 1000
+    assert one._good(200) == 25                    # beyond it: the study's 1000 trials say 25
+    ix._signs = (1.0, -1.0)
+    assert one._good(200) == 30                    # several objectives: 100, at most the best kept
