@@ -16,7 +16,9 @@ is the same walk's:
 
 Each row checks that both replays end in the rollout's final state (``same``: bit-identical
 qpos). Timings are interleaved and the best of ``--repeats`` is kept. Also: real-time factor,
-and rollouts per hour with 1 and 2 processes.
+rollouts per hour with 1 and 2 processes, and one robust trial (``kidsize-robust-grass50``'s
+set, K = 16 randomised walks per pedestal, no early stop) on 1 and 2 threads, its result checked
+identical.
 """
 
 from __future__ import annotations
@@ -122,6 +124,29 @@ def main() -> None:
         el = time.perf_counter() - t0
         print(f"{workers} process(es): {n} rollouts of 11 s on grass50 in {el:.2f} s -> "
               f"{n / el * 3600:,.0f} rollouts/hour")
+    robust_trial(max(1, args.repeats // 2))
+
+
+def robust_trial(repeats: int) -> None:
+    from dataclasses import replace
+
+    from tuner.search.objective import Evaluator
+    from tuner.search.study import load_study
+    spec = load_study("kidsize-robust-grass50")
+    spec = replace(spec, robust=replace(spec.robust, rollouts=16, min_survival=0.0))
+    drive = spec.drive_for({}, source="bench")
+    evs = {n: Evaluator(spec, threads=n) for n in (1, 2)}
+    times = {1: [], 2: []}
+    results = {}
+    for _ in range(repeats):
+        for n, ev in evs.items():
+            t0 = time.perf_counter()
+            results[n] = ev.evaluate(drive)
+            times[n].append(time.perf_counter() - t0)
+    t1, t2 = min(times[1]), min(times[2])
+    walks = 16 * len(spec.surfaces)
+    print(f"robust trial ({walks} walks): {t1:.2f} s on 1 thread, {t2:.2f} s on 2 ({t1 / t2:.2f}x), "
+          f"result identical: {'yes' if results[1] == results[2] else 'NO'}")
 
 
 if __name__ == "__main__":

@@ -198,3 +198,25 @@ def test_the_dashboard_shows_the_objectives_names(tmp_path):
         warnings.simplefilter("error")             # and without a warning shown
         study = open_study(spec, store.optuna_storage(), 0)
     assert study.metric_names == ["pitch score [deg]"]
+
+
+@pytest.mark.parametrize("study, min_survival", [("kidsize-robust-grass50", 0.0), ("kidsize-robust-grass50", 0.99),
+                                                  ("kidsize-engine-carpet4", 0.0), ("kidsize-omni-rigid", None)])
+def test_a_trial_on_two_threads_is_the_one_at_a_time_trial(study, min_survival):
+    """Threads change only when the walks run: every walk (robust, match, speed), the early stop
+    of a hopeless trial (min_survival 0.99 stops this set at its first fall) and the result are
+    the same."""
+    from dataclasses import replace
+
+    from tuner.search.objective import Evaluator
+    from tuner.search.study import load_study
+    spec = load_study(study)
+    if spec.robust is not None:
+        spec = replace(spec, robust=replace(spec.robust, rollouts=6, min_survival=min_survival))
+    if spec.scenario is not None:
+        spec = replace(spec, surfaces=spec.surfaces[:1], scenario=replace(spec.scenario, walks=3, min_survival=0.0))
+    drive = spec.drive_for({}, source="test")
+    one, two = (Evaluator(spec, threads=n).evaluate(drive) for n in (1, 2))
+    assert one == two
+    if min_survival is not None:
+        assert one.hopeless == (min_survival > 0)

@@ -182,7 +182,7 @@ class WorkerStop(UserError):
     """A worker met bad input or a full disk: the whole run stops with this one line."""
 
 def work(spec: StudySpec, store: StudyStore, budget: int, seed: int,
-         log: Callable[[str], None] | None = None, poll: float = 1.0) -> int:
+         log: Callable[[str], None] | None = None, poll: float = 1.0, threads: int = 1) -> int:
     """One process's share of a study: trials until the study holds ``budget`` finished ones.
 
     Under the store's budget lock, per trial: dead trials are failed and re-enqueued
@@ -193,14 +193,15 @@ def work(spec: StudySpec, store: StudyStore, budget: int, seed: int,
     for them (one of them may die and need a retry). The parameters are sampled after the lock
     is released, so the lock is held for constant work whatever the study's size. A set walked
     before (a resumed sampler, or TPE on an integer axis, can propose one again) is not walked
-    again: its result is copied; enqueued retries are never such copies. Returns the trials
+    again: its result is copied; enqueued retries are never such copies. ``threads``: a robust
+    trial's randomised walks run on this many threads (:class:`Evaluator`). Returns the trials
     this process walked.
     """
     log = log or (lambda msg: print(f"gait-tuner: {msg}", file=sys.stderr, flush=True))
     index = TrialIndex()
     study = open_study(spec, store.optuna_storage(), seed, index)
     index.refresh(study)                            # the whole study, once, outside the lock
-    objective = objective_for(spec, Evaluator(spec))
+    objective = objective_for(spec, Evaluator(spec, threads=threads))
     beat = Heartbeat(store, spec.name).start()
     ran = 0
     try:
@@ -264,7 +265,8 @@ def _die_with_parent(parent: int) -> None:
     if os.getppid() != parent:
         os._exit(1)
 
-def _worker(spec: StudySpec, store: StudyStore, budget: int, seed: int, parent: int, errors: Any) -> None:
+def _worker(spec: StudySpec, store: StudyStore, budget: int, seed: int, parent: int, errors: Any,
+            threads: int = 1) -> None:
     """A worker process: :func:`work`; bad input or a full disk goes back to the parent as one line."""
     _die_with_parent(parent)
     signal.signal(signal.SIGINT, signal.SIG_IGN)       # the parent decides what Ctrl-C stops
@@ -273,7 +275,7 @@ def _worker(spec: StudySpec, store: StudyStore, budget: int, seed: int, parent: 
     store = StudyStore(journal=store.journal, url=store.url, grace_s=store.grace_s,
                        interval_s=store.interval_s)                   # open afresh after fork
     try:
-        work(spec, store, budget, seed)
+        work(spec, store, budget, seed, threads=threads)
     except StorageFull as exc:
         errors.put(str(exc))
         sys.exit(3)
@@ -287,6 +289,13 @@ def _worker(spec: StudySpec, store: StudyStore, budget: int, seed: int, parent: 
         errors.put(f"disk full writing the study's storage {store.where} ({full}); free space and run "
                    f"the same command to resume")
         sys.exit(3)
+
+def cores() -> int:
+    """The cores this process may run on (its affinity, not the machine's count)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
 
 def _sampler_seed(seed: int, index: int, run: int) -> int:
     """Worker ``index`` of the study's ``run``-th start (counted in the storage under the budget
@@ -342,13 +351,15 @@ def run_workers(spec: StudySpec, store: StudyStore, study: optuna.Study, budget:
     errors = ctx.Queue()
     parent = os.getpid()
 
+    n = max(1, min(workers, budget - n_done(study)))
+    threads = max(1, cores() // n)           # cores the other workers leave to a robust trial's walks
+
     def spawn(index: int) -> Any:
         p = ctx.Process(target=_worker, args=(spec, store, budget, _sampler_seed(seed, index, run),
-                                              parent, errors), daemon=False)
+                                              parent, errors, threads), daemon=False)
         p.start()
         return p
 
-    n = max(1, min(workers, budget - n_done(study)))
     procs = {i: spawn(i) for i in range(n)}
     respawns, in_a_row, last_done = 0, 0, n_done(study)
     try:
