@@ -257,3 +257,24 @@ def test_the_good_share_follows_the_studys_count_not_the_windows():
     assert one._good(200) == 25                    # beyond it: the study's 1000 trials say 25
     ix._signs = (1.0, -1.0)
     assert one._good(200) == 30                    # several objectives: 100, at most the best kept
+
+
+def test_a_trial_whose_worker_died_before_sampling_is_failed_not_retried(tmp_path):
+    """A worker reserves a trial under the lock and samples after it: one killed in between
+    leaves a trial without parameters, which is failed with a note and not walked again."""
+    import socket
+    import subprocess
+
+    from tuner.search.storage import WORKER_DIED, StudyStore
+
+    gone = subprocess.Popen(["true"])
+    gone.wait()
+    store = StudyStore.open("pre", None, tmp_path / "runs")
+    study = optuna.create_study(storage=store.optuna_storage(), study_name="pre")
+    t = study.ask()
+    t.set_user_attr("worker", {"host": socket.gethostname(), "pid": gone.pid, "start": 0})
+    notes = store.reap(study)
+    assert notes == ["trial 0's worker died before it drew the trial's parameters: failed, nothing to walk again"]
+    [failed] = study.trials
+    assert failed.state == TrialState.FAIL and failed.user_attrs["failed"] == WORKER_DIED
+    assert store.reap(study) == [] and len(study.trials) == 1

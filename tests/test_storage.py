@@ -38,6 +38,7 @@ duration: 8.0
 enqueue: [casadi, baselines]
 sampler_seed: 5
 """
+SPACE_SIZE = 2                                     # the parameters of STUDY's space
 DONE = (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.PRUNED)
 
 
@@ -113,13 +114,14 @@ def kill_mid_trial(name, storage, runs, procs, sig=signal.SIGKILL) -> tuple[int,
             os.kill(pid, signal.SIGCONT)               # the study would wait for it; aim again
             continue
         trial = load(name, storage, runs).trials[number]
-        if trial.state == optuna.trial.TrialState.RUNNING:
+        if trial.state == optuna.trial.TrialState.RUNNING and len(trial.params) == SPACE_SIZE:
+            # walking: its parameters are drawn (a worker samples after reserving the trial)
             os.kill(pid, sig)
             if sig != signal.SIGKILL:
                 os.kill(pid, signal.SIGCONT)           # a stopped process takes other signals on waking
             wait_for(lambda: not alive(pid), timeout=60)   # dead before the next aim
             return number, pid
-        os.kill(pid, signal.SIGCONT)                   # it had just finished: aim again
+        os.kill(pid, signal.SIGCONT)                   # it had just finished, or not begun: aim again
 
 
 def stopped(pid: int) -> bool:

@@ -90,8 +90,12 @@ def _retries(t: optuna.trial.FrozenTrial) -> int:
 
 
 def _not_retried(t: optuna.trial.FrozenTrial) -> str | None:
-    """Why a trial whose worker died is not retried, or None: its worker crashed by itself, or
-    its parameters have died :data:`MAX_RETRIES` times."""
+    """Why a trial whose worker died is not retried, or None: it had no parameters yet (the
+    worker died between reserving it and sampling), its worker crashed by itself, or its
+    parameters have died :data:`MAX_RETRIES` times."""
+    if not t.params:        # reserved under the lock, its worker died before it sampled: nothing walked
+        return (f"trial {t.number}'s worker died before it drew the trial's parameters: failed, "
+                f"nothing to walk again")
     how = t.user_attrs.get("died")
     if how in CRASH_SIGNALS:
         return f"trial {t.number} crashed its worker ({how}): failed, not retried"
