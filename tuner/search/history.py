@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import heapq
 import itertools
-import random
 from collections import deque
 from typing import Any, Sequence
 
@@ -44,14 +43,13 @@ from optuna.trial import FrozenTrial, TrialState
 
 from .trials import DONE_STATES
 
-__all__ = ["TrialIndex", "WindowedTPESampler", "params_key", "N_BEST", "N_RECENT", "N_SAMPLE"]
+__all__ = ["TrialIndex", "WindowedTPESampler", "params_key", "N_BEST", "N_RECENT"]
 
-#: The window's size (ours): the best trials kept, the latest ones, and a uniform sample of all
-#: (off: on the bowl of ``benchmarks/bench_sampler_quality.py`` a sample of the whole history
-#: made the search worse than the latest trials alone, 0.0035 against 0.0024 at 30 + 90).
+#: The window's size (ours): the best trials kept, and the latest ones. (A uniform sample of
+#: the whole history in place of half the latest was tried and made the search worse on the bowl
+#: of ``benchmarks/bench_sampler_quality.py``: 0.0035 against 0.0024 at 30 + 90.)
 N_BEST = 30
 N_RECENT = 170
-N_SAMPLE = 0
 
 _UNFINISHED = (TrialState.RUNNING, TrialState.WAITING)
 
@@ -72,19 +70,15 @@ def _dominates(a: Sequence[float], b: Sequence[float]) -> bool:
 class TrialIndex:
     """An incremental view of one study's trials in one process (see the module docstring)."""
 
-    def __init__(self, n_best: int = N_BEST, n_recent: int = N_RECENT, n_sample: int = N_SAMPLE) -> None:
+    def __init__(self, n_best: int = N_BEST, n_recent: int = N_RECENT) -> None:
         self.n_best = n_best
         self.n_recent = n_recent
-        self.n_sample = n_sample
-        self._sample: list[FrozenTrial] = []            # a uniform sample of the finished (reservoir)
-        self._rng = random.Random(0)
         self._storage: Any = None
         self._study_id: int | None = None
         self._signs: tuple[float, ...] = ()
         self.seen = 0                                   # trials numbered below this were read
         self._unfinished: dict[int, int] = {}           # number -> trial id, read while unfinished
         self.n_done = 0                                 # finished as COMPLETE or PRUNED
-        self.n_finished = 0                             # finished in any state (FAIL too)
         self.running: list[FrozenTrial] = []            # RUNNING at the last refresh
         self.waiting: list[FrozenTrial] = []            # WAITING (enqueued) at the last refresh
         self.failed: list[FrozenTrial] = []             # every FAIL trial read
@@ -163,7 +157,6 @@ class TrialIndex:
         return optuna.Trial(study, storage.create_new_trial(self._study_id))
 
     def _absorb(self, t: FrozenTrial) -> None:
-        self.n_finished += 1
         if t.state == TrialState.FAIL:
             self.failed.append(t)
         if t.state not in DONE_STATES:
@@ -171,12 +164,6 @@ class TrialIndex:
         self.n_done += 1
         self._by_params.setdefault(params_key(t.params), []).append(t._trial_id)
         self._recent.append(t)
-        if len(self._sample) < self.n_sample:           # reservoir sampling (Vitter's algorithm R)
-            self._sample.append(t)
-        else:
-            j = self._rng.randrange(self.n_done)
-            if j < self.n_sample:
-                self._sample[j] = t
         if t.state != TrialState.COMPLETE or not _feasible(t) or t.values is None:
             return
         if len(self._signs) == 1:
@@ -206,7 +193,7 @@ class TrialIndex:
     def window(self) -> list[FrozenTrial]:
         """The sampler's trials: the best, the latest finished, the running; by number."""
         best = [t for _, _, t in self._best] + [t for _, t in self._front]
-        out = {t.number: t for t in itertools.chain(best, self._sample, self._recent, self.running)}
+        out = {t.number: t for t in itertools.chain(best, self._recent, self.running)}
         return [out[k] for k in sorted(out)]
 
 
