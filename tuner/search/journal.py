@@ -17,6 +17,7 @@ from typing import Any
 
 from optuna.storages.journal import JournalFileBackend
 from optuna.storages.journal._file import BaseJournalFileLock  # the lock interface JournalFileBackend takes
+from optuna.storages.journal._storage import JournalOperation as Op   # the records' op codes
 from optuna.trial import TrialState
 
 from ..errors import UserError
@@ -130,8 +131,8 @@ def repair_journal(path: Path) -> int:
 #: finishing record is never one of them, so a trial costs one fsync, not one per record.
 #: A power cut between two fsyncs loses the running trials' latest records only: such a trial is
 #: found dead at the next open and walked again.
-_DEFERRED_OPS = frozenset({5, 7, 8, 9})   # JournalOperation SET_TRIAL_PARAM, _INTERMEDIATE_VALUE,
-                                          # _USER_ATTR, _SYSTEM_ATTR
+_DEFERRED_OPS = frozenset({Op.SET_TRIAL_PARAM, Op.SET_TRIAL_INTERMEDIATE_VALUE, Op.SET_TRIAL_USER_ATTR,
+                           Op.SET_TRIAL_SYSTEM_ATTR})
 _RUNNING = int(TrialState.RUNNING)        # a new trial, or one popped from the queue
 
 
@@ -141,9 +142,9 @@ def _durable(logs: list[dict[str, Any]]) -> bool:
         op = log.get("op_code")
         if op in _DEFERRED_OPS:
             continue
-        if op == 6 and log.get("state") == _RUNNING:      # SET_TRIAL_STATE_VALUES to RUNNING
+        if op == Op.SET_TRIAL_STATE_VALUES and log.get("state") == _RUNNING:
             continue
-        if op == 4 and log.get("state", _RUNNING) == _RUNNING:   # CREATE_TRIAL of a new trial
+        if op == Op.CREATE_TRIAL and log.get("state", _RUNNING) == _RUNNING:   # not enqueued, not added
             continue
         return True
     return False
