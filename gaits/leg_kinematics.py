@@ -3,9 +3,10 @@
 Chain of one leg, from the pelvis frame (x forward, y left, z up; origin midway
 between the two hip-joint centres):
 
-    T_pelvis_sole = Trans(0, +-d_y1, -d_z1) Rz(q1) Rx(q2) Ry(q3) Trans(0, 0, -d_z3)
+    T_pelvis_sole = Trans(d_x1, +-d_y1, -d_z1) Rz(q1) Rx(q2) Ry(q3) Trans(0, 0, -d_z3)
                     Ry(q4) Trans(0, 0, -d_z4) Ry(q5) Rx(q6) Trans(0, 0, -d_z6)
 
+(d_x1 = ``hip_offset_x`` is ours, zero for EROS: a robot whose torso frame is not over its hips.)
 q1..q6 = hip yaw, hip roll, hip pitch, knee, ankle pitch, ankle roll. Angles obey
 the right-hand rule about the pelvis axes at the zero pose, so knee flexion is
 positive and a positive ankle pitch points the toe down.
@@ -91,9 +92,11 @@ class LegGeometry:
     com_lateral: float = 0.0       # [m] CoM left of the pelvis origin (ours)
     sole_forward: float = 0.0      # [m] sole centre ahead of the ankle axes (ours)
     sole_outward: float = 0.0      # [m] sole centre outboard of the ankle axes, mirrored per side (ours)
+    hip_offset_x: float = 0.0      # [m] hip-joint centres ahead of the pelvis origin (ours: a team robot's
+    #                                torso frame need not sit over its hips; EROS puts them under it)
 
     def __post_init__(self) -> None:
-        for name in ("com_forward", "com_lateral", "sole_forward", "sole_outward"):
+        for name in ("com_forward", "com_lateral", "sole_forward", "sole_outward", "hip_offset_x"):
             value = getattr(self, name)
             if not (-0.1 <= value <= 0.1):
                 raise ParamError(f"leg.{name} = {value!r} m is out of range [-0.1, 0.1] m")
@@ -111,7 +114,7 @@ class LegGeometry:
 
     def hip_in_pelvis(self, side: int) -> np.ndarray:
         """Hip-joint centre in the pelvis frame; side = +1 left, -1 right."""
-        return np.array([0.0, side * self.hip_offset_y, -self.hip_offset_z])
+        return np.array([self.hip_offset_x, side * self.hip_offset_y, -self.hip_offset_z])
 
     def sole_in_ankle(self, side: int) -> np.ndarray:
         """Sole centre relative to the point of the sole straight below the ankle [m] (3,)."""

@@ -88,3 +88,23 @@ def test_shape_errors_name_the_shapes():
 def test_ankle_above_hip_is_a_clear_error():
     with pytest.raises(UnreachableTargetError, match="above the hip centre"):
         leg_ik(np.array([0.15, 0.037, 0.05]), 0.0, LEG, "left")
+
+
+def test_hips_behind_the_pelvis_origin_shift_every_ik_by_that_offset():
+    """``hip_offset_x`` (ours, a team robot's torso frame not over its hips): the same joint angles
+    put the sole exactly that far further along x, and the IKs (flat foot, any pose) invert it."""
+    from gaits.leg_kinematics import leg_ik_pose
+    off = LegGeometry(hip_offset_x=-0.02)
+    rng = np.random.default_rng(3)
+    q = random_flat_foot_joints(rng, 200)
+    for side in ("left", "right"):
+        p0, R0 = leg_fk(q, LEG, side)
+        p1, R1 = leg_fk(q, off, side)
+        assert np.allclose(p1 - p0, [-0.02, 0.0, 0.0], atol=1e-15) and np.allclose(R1, R0, atol=0)
+        below = (p1[:, 2] + off.ankle_height) < -0.02
+        back = leg_ik(p1[below], q[below, 0], off, side)
+        assert np.max(np.abs(back - q[below])) < 1e-9
+        k = int(np.flatnonzero(below)[0])
+        assert np.allclose(leg_ik_pose(p1[k], R1[k], off, side), q[k], atol=1e-9)
+    with pytest.raises(Exception, match="hip_offset_x"):
+        LegGeometry(hip_offset_x=0.2)

@@ -91,7 +91,19 @@ def test_a_servo_table_through_the_cli_round_trips_and_refuses_a_too_fast_gait(t
     # a plain table of the same set says it is too fast for the servos (the simulator limits it)
     r = run(gait_tuner_cmd, ["trajectory", "--robot", path, "--params", "kidsize-omni-grass50", "--command", "0.2,0,0",
                              "--no-plot", "--out", tmp_path / "plain"], run_env)
-    assert r.returncode == 0 and "note: the table asks" in r.stderr, r.stderr
+    assert r.returncode == 0 and "note: the table asks" in r.stderr and "--clip writes" in r.stderr, r.stderr
+    # ... and with --clip a plain table is the one the servos play: no move beyond any servo's speed,
+    # each changed joint named, the header saying so
+    r = run(gait_tuner_cmd, ["trajectory", "--robot", path, "--params", "kidsize-omni-grass50", "--command", "0.2,0,0",
+                             "--no-plot", "--clip", "--out", tmp_path / "clipped"], run_env)
+    assert r.returncode == 0 and "note: clipped Knee_L" in r.stderr and "the table asks" not in r.stderr, r.stderr
+    text = (tmp_path / "clipped" / "joints.csv").read_text().splitlines()
+    assert "joint targets clipped to the servos' speed and range" in text[0]
+    cols = text[1].split(",")
+    data = np.array([[float(v) for v in ln.split(",")] for ln in text[2:]])
+    speed = np.array([robot.servos[n].speed for n in robot.servos])
+    q = data[:, [cols.index(f"{n}[rad]") for n in robot.servos]]
+    assert (np.abs(np.diff(q, axis=0)) / np.diff(data[:, 0])[:, None] <= speed * (1 + 1e-6) + 1e-6).all()
 
 
 @pytest.mark.parametrize("extra, needle", [
@@ -121,8 +133,8 @@ def test_a_servo_table_needs_an_id_for_every_column_and_clip_needs_it(tmp_path, 
                              "--format", "servo", "--no-plot"], run_env)
     assert r.returncode == 2 and "no id for joint(s) Knee_R" in r.stderr, r.stderr
     r = run(gait_tuner_cmd, ["trajectory", "--robot", path, "--gait", "tlipfm", "--out", tmp_path / "o",
-                             "--clip", "--no-plot"], run_env)
-    assert r.returncode == 2 and "--clip applies to --format servo" in r.stderr, r.stderr
+                             "--clip", "--joint-names", "ours", "--no-plot"], run_env)
+    assert r.returncode == 2 and "--clip writes the robot's own joints" in r.stderr, r.stderr
 
 
 def test_read_servo_units_defaults():

@@ -6,6 +6,7 @@ the same robot as the MJCF they were written from."""
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 from pathlib import Path
 
@@ -330,3 +331,85 @@ def test_unequal_feet_each_keep_their_own_sole(tmp_path):
     sim = Simulator(r, SURFACES["rigid"])
     span = sim._corners[:, :, 0].max(axis=1) - sim._corners[:, :, 0].min(axis=1)
     assert span == pytest.approx([0.127, 0.107], abs=1e-6)
+
+
+# --- what real team files hold (Darwin-OP's public URDF has each of these) -------------------
+
+@pytest.mark.parametrize("kind", ["mjcf", "urdf"])
+def test_an_inertia_no_rigid_body_has_is_named_or_balanced(tmp_path, gait_tuner_cmd, run_env, kind):
+    """Principal moments with A + B < C (MuJoCo refuses the file): one line naming the link or body,
+    the moments and the map key that lets MuJoCo balance them; with ``balance_inertia: true`` the
+    robot loads, a note names what was balanced, and it stands."""
+    if kind == "mjcf":
+        xml = T.mjcf().replace('mass="0.18" diaginertia="1.2e-4 1.1e-4 4.7e-5"',
+                               'mass="0.18" diaginertia="1e-5 1e-5 1e-3"', 1)
+        path = T.write(tmp_path, xml)
+        who = "body 'hip_roll_link_l' of robot.xml"
+    else:
+        text = T.urdf()
+        k = text.index('<link name="hip_roll_link_l">')
+        head, tail = text[:k], text[k:]
+        tail = re.sub(r'ixx="[^"]+" iyy="[^"]+" izz="[^"]+"', 'ixx="1e-05" iyy="1e-05" izz="0.001"', tail, count=1)
+        path = workspace(tmp_path, head + tail)
+        who = "link 'hip_roll_link_l' of robot.urdf"
+    line = one_line_exit_2(run(gait_tuner_cmd, ["robot", "check", path, "--no-stand"], run_env))
+    assert who in line and "A + B < C" in line and "balance_inertia: true" in line, line
+    path.write_text(path.read_text() + "balance_inertia: true\n")
+    r = run(gait_tuner_cmd, ["robot", "check", path, "--json"], run_env)
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(r.stdout)
+    assert any(n.startswith("balance_inertia: ") and "'hip_roll_link_l' balanced" in n for n in doc["notes"])
+    assert doc["stand"]["stays_up"]
+    path.write_text(path.read_text().replace("balance_inertia: true", "balance_inertia: sometimes"))
+    line = one_line_exit_2(run(gait_tuner_cmd, ["robot", "check", path, "--no-stand"], run_env))
+    assert "balance_inertia = 'sometimes': expected true or false" in line
+
+
+def test_shapes_that_interpenetrate_at_the_crouch_do_not_collide(tmp_path):
+    """A collision box on each hip-yaw link that reaches into the thigh below it (two bodies apart,
+    so MuJoCo's parent-child filter does not catch it), as meshes drawn overlapping at a joint do:
+    the pair is named in a note and excluded, so the simulated robot has no contact between them
+    and stands as the plain robot does; a robot without such shapes gets neither."""
+    from tuner.report.robot_check import robot_report
+    from tuner.robots.mjcf_geometry import self_overlaps
+    from tuner.sim.rollout import Simulator
+    from tuner.sim.surfaces import SURFACES
+    import mujoco
+    xml = T.mjcf()
+    for s in ("l", "r"):
+        anchor = f'<joint name="{T.joint_name("hip_yaw", s)}"'
+        xml = xml.replace(anchor, '<geom class="collision" type="box" pos="0 0 -0.04" size="0.02 0.02 0.02"/>\n      '
+                          + anchor)
+    r = load_robot(str(T.write(tmp_path, xml)))
+    assert r.exclude == (("hip_yaw_link_l", "thigh_l"), ("hip_yaw_link_r", "thigh_r"))
+    note = next(n for n in r.notes if n.startswith("self-collision: 2 pair(s)"))
+    assert "hip_yaw_link_l / thigh_l" in note and "mm deep" in note
+    sim = Simulator(r, SURFACES["rigid"])
+    assert self_overlaps(sim.model, [{}]) == []                       # excluded in the simulated model
+    assert self_overlaps(mujoco.MjModel.from_xml_string(xml), [{}])    # the file itself has them
+    assert robot_report(r, stand=True)["stand"]["stays_up"]
+    plain = load_robot(str(T.write(tmp_path / "plain", T.mjcf())))
+    assert plain.exclude == () and not any(n.startswith("self-collision") for n in plain.notes)
+
+
+def test_hips_behind_the_torso_origin_are_taken_into_the_leg(tmp_path, gait_tuner_cmd, run_env):
+    """A torso frame 20 mm ahead of the hips (as Darwin-OP's is, by 5 mm): the leg geometry carries
+    ``hip_offset_x`` = -19.9 mm (the robot's hips sat 0.1 mm ahead, within the tolerance), robot check prints it, the robot stands and walks the TLIPFM baseline;
+    hips more than 100 mm from it are one line."""
+    xml = T.mjcf()
+    for s, sg in (("l", 1), ("r", -1)):
+        xml = xml.replace(f'<body name="hip_yaw_link_{s}" pos="0 {sg * 0.035} 0">',
+                          f'<body name="hip_yaw_link_{s}" pos="-0.02 {sg * 0.035} 0">')
+    path = T.write(tmp_path, xml)
+    r = load_robot(str(path))
+    assert r.leg.hip_offset_x == pytest.approx(-0.02 + 0.0001, abs=1e-9)     # the robot's hips sit 0.1 mm ahead
+    out = run(gait_tuner_cmd, ["robot", "check", path], run_env)
+    assert out.returncode == 0, out.stderr
+    assert "hip ahead of torso origin -19.9 mm" in out.stdout and "stays up" in out.stdout, out.stdout
+    w = run(gait_tuner_cmd, ["simulate", "--robot", path, "--gait", "tlipfm", "--surface", "rigid", "--json"], run_env)
+    assert w.returncode == 0, w.stderr
+    m = json.loads(w.stdout)["metrics"]
+    assert m["outcome"] == "completed" and m["distance_m"] > 0.2, m
+    far = T.write(tmp_path / "far", xml.replace('pos="-0.02 ', 'pos="-0.12 '))
+    line = one_line_exit_2(run(gait_tuner_cmd, ["robot", "check", far, "--no-stand"], run_env))
+    assert "hip centre is -119.9 mm ahead of the torso origin" in line, line

@@ -6,6 +6,7 @@ Exit codes: 0 done; 1 internal error (a bug: please report it); 2 bad input
 
 from __future__ import annotations
 
+import dataclasses
 import errno
 import os
 import sys
@@ -117,8 +118,9 @@ FORMAT_OPTION = click.option(
          "(a target it cannot follow is an error unless --clip).")
 CLIP_OPTION = click.option(
     "--clip", is_flag=True,
-    help="With --format servo: write the table the servos can play (moves limited to each servo's "
-         "speed, targets clipped into the joint's range, as the simulated servo does) and say what changed.")
+    help="Write the table the servos can play (moves limited to each servo's speed, targets clipped "
+         "into the joint's range, as the simulated servo does) and say what changed; in the robot's "
+         "own joint names.")
 
 
 def write_joint_table(traj: "gaits.GaitTrajectory", robot, path: Path, joint_names: str, comment: str,
@@ -127,20 +129,27 @@ def write_joint_table(traj: "gaits.GaitTrajectory", robot, path: Path, joint_nam
     ``table_format`` servo: in the map's servo units instead (``<name>.servo.csv``, checked)."""
     from .robots.joint_table import robot_joint_table
     from .robots.servo_table import check_table, servo_columns, to_units, too_fast
-    if clip and table_format != "servo":
-        raise UserError("--clip applies to --format servo")
+    if clip and joint_names != "robot":
+        raise UserError("--clip writes the robot's own joints: leave out --joint-names ours")
     if table_format == "servo" and joint_names != "robot":
         raise UserError("--format servo writes the robot's own joints: leave out --joint-names ours")
     table = robot_joint_table(traj, robot)
     names = tuple(table.joint_names)
     speed = np.array([robot.servos[n].speed for n in names])
     if table_format == "csv":
+        if clip:                             # the table the servos play, as the simulator's servo does
+            lo, hi = robot.joint_ranges(names)
+            q, notes = check_table(table.q_ref, table.t, names, speed, lo, hi, True)
+            for line in notes:
+                click.echo(f"note: {line}", err=True)
+            table = dataclasses.replace(table, q_ref=q)
+            comment += "; joint targets clipped to the servos' speed and range (the references are the plan's)" if notes else ""
         rate, over = too_fast(table.q_ref, table.t, speed)
         if over.any():                       # said, as the simulator's servo limits it (never silently)
             j = int(np.argmax((rate / speed).max(axis=0)))
             click.echo(f"note: the table asks {names[j]} for up to {rate[:, j].max():.2f} rad/s where its servo "
                        f"gives {speed[j]:g} rad/s (the simulated servo moves at most that fast; {int(over.any(axis=1).sum())} "
-                       f"row(s) ask more of some servo): --format servo --clip writes what the servos can play",
+                       f"row(s) ask more of some servo): --clip writes what the servos can play",
                        err=True)
         if joint_names == "robot":
             traj = table
@@ -196,8 +205,8 @@ def trajectory(family: str | None, params_spec: str | None, robot_name: str, out
     """
     if not str(out_dir).strip() or str(out_dir) == ".":
         raise UserError("--out: give a folder for the joint table, e.g. --out runs/tk")
-    if clip and table_format != "servo":
-        raise UserError("--clip applies to --format servo")
+    if clip and joint_names != "robot":
+        raise UserError("--clip writes the robot's own joints: leave out --joint-names ours")
     from .robots import load_robot
 
     drive = resolve_drive(params_spec, family, command=_parse_command(command), commands_file=commands_file,
@@ -911,8 +920,8 @@ def export(study_file: str, storage: str | None, runs_dir: Path, number: int | N
 
     if number is not None and pareto_pick is not None:
         raise UserError("give --trial or --pareto-pick, not both")
-    if clip and table_format != "servo":
-        raise UserError("--clip applies to --format servo")
+    if clip and joint_names != "robot":
+        raise UserError("--clip writes the robot's own joints: leave out --joint-names ours")
     spec, study = _tuned_study(study_file, storage, runs_dir)
     if out is None:
         out = runs_dir / spec.name / "best.yaml"

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 from typing import Any
 
-import mujoco
 import numpy as np
 
 from gaits import GaitTrajectory, JOINT_NAMES
@@ -75,8 +74,7 @@ def _servo_groups(robot: RobotModel) -> dict[str, dict[str, Any]]:
 
 def robot_report(robot: RobotModel, *, stand: bool = True, duration: float = 2.0) -> dict[str, Any]:
     """Everything ``robot check`` shows, as plain data (strict-JSON friendly)."""
-    model = mujoco.MjModel.from_xml_path(robot.mjcf_path) if robot.mjcf_path else \
-        mujoco.MjModel.from_xml_string(robot.xml)
+    model = robot.model()
     L = robot.leg
     soles = {}
     for i, (side, fname, hull, centre) in enumerate(zip(("left", "right"), robot.feet, robot.sole_hulls,
@@ -92,8 +90,8 @@ def robot_report(robot: RobotModel, *, stand: bool = True, duration: float = 2.0
         "mjcf": robot.mjcf_path or ("built-in" if robot.urdf_path is None else None), "urdf": robot.urdf_path,
         "mass_kg": float(np.sum(model.body_mass)), "bodies": int(model.nbody - 1),
         "leg_mm": {k: round(1000 * getattr(L, k), 2) for k in
-                   ("hip_offset_y", "hip_offset_z", "thigh", "shank", "ankle_height", "sole_forward",
-                    "sole_outward")},
+                   ("hip_offset_x", "hip_offset_y", "hip_offset_z", "thigh", "shank", "ankle_height",
+                    "sole_forward", "sole_outward")},
         "straight_hip_height_mm": round(1000 * L.max_hip_height, 2),
         "com_mm": {"forward": round(1000 * L.com_forward, 2), "lateral": round(1000 * L.com_lateral, 2),
                    "above_pelvis": round(1000 * L.com_above_pelvis, 2),
@@ -125,7 +123,8 @@ def format_report(r: dict[str, Any]) -> str:
              (f"urdf {r['urdf']}, read into MJCF)" if r.get("urdf") else f"mjcf {r['mjcf']})"),
              f"  mass {r['mass_kg']:.3f} kg in {r['bodies']} bodies",
              f"leg geometry [{r['sources'].get('leg', '')}]",
-             f"  hip offset y {L['hip_offset_y']:.1f} mm, hip below torso origin {L['hip_offset_z']:.1f} mm, "
+             f"  hip offset y {L['hip_offset_y']:.1f} mm, hip below torso origin {L['hip_offset_z']:.1f} mm"
+             + (f", hip ahead of torso origin {L['hip_offset_x']:+.1f} mm" if L.get("hip_offset_x") else "") + ", "
              f"thigh {L['thigh']:.1f} mm, shank {L['shank']:.1f} mm, ankle height {L['ankle_height']:.1f} mm "
              f"(straight-leg hip height {r['straight_hip_height_mm']:.1f} mm)",
              f"  sole centre {L['sole_forward']:+.1f} mm ahead of / {L['sole_outward']:+.1f} mm outboard of the ankle",

@@ -212,3 +212,27 @@ def crouch_angles(leg, joint_map: Mapping[str, tuple[str, int]], crouch: float =
             theirs, sign = joint_map[prefix + name]
             out[theirs] = sign * float(value)
     return out
+
+
+def self_overlaps(model: mujoco.MjModel, poses: list[Mapping[str, float]],
+                  depth: float = 1e-4) -> list[tuple[str, str, float]]:
+    """Pairs of the robot's bodies whose collision geoms interpenetrate by more than ``depth`` [m]
+    in any of ``poses`` (MJCF joint name -> angle [rad], the others at zero), as the file's own
+    collision filters leave them: (body1, body2, deepest penetration [m]), sorted by name.
+
+    A real robot cannot stand with its parts inside each other, so such a pair is an artefact of
+    the file's shapes (a URDF's meshes are often drawn overlapping at the joints; ROS simulators
+    leave a robot's self-collision off by default), and the robot map excludes it (ours)."""
+    found: dict[tuple[str, str], float] = {}
+    for pose in poses:
+        d = mujoco.MjData(model)
+        for name, value in pose.items():
+            d.qpos[model.jnt_qposadr[model.joint(name).id]] = value
+        mujoco.mj_forward(model, d)
+        for c in d.contact[:d.ncon]:
+            b1, b2 = int(model.geom_bodyid[c.geom1]), int(model.geom_bodyid[c.geom2])
+            if b1 == 0 or b2 == 0 or c.dist > -depth:
+                continue
+            pair = tuple(sorted((model.body(b1).name, model.body(b2).name)))
+            found[pair] = max(found.get(pair, 0.0), -float(c.dist))
+    return [(a, b, v) for (a, b), v in sorted(found.items())]

@@ -6,6 +6,8 @@ Format (paths relative to the map file)::
                                   #   an mjcf: path ending in .urdf is read as a URDF)
     packages: {my_robot_description: ../src/my_robot_description}   # URDF only: package:// folders
     ranges: {HeadPan: [-2.5, 2.5]}  # URDF only: [rad] ranges of continuous joints (or over the file's)
+    balance_inertia: false        # optional: let MuJoCo raise principal moments that break A + B >= C
+                                  #   (else such a body is one line naming it; urdf.compile_checked)
     name: my_robot                # optional; default: the map file's stem
     torso: base_link              # the body with the free joint; its frame is the IK's pelvis frame
     feet: {left: l_foot, right: r_foot}
@@ -45,18 +47,18 @@ from gaits.files import MAX_BYTES, read_bytes_checked
 from ..errors import UserError
 from ..yaml_input import read_yaml_file
 from .mjcf_geometry import (CROUCH, axis_line_distance, body_chain, com_offset, crouch_angles, foot_geoms,
-                            sole_polygon)
+                            self_overlaps, sole_polygon)
 from .robot_model import GROUPS, RobotModel, SimOptions, joint_group
 from .servo import SERVO_FIELDS, SERVO_PRESETS, servo_from_file, servo_from_mapping
 from .servo_table import read_servo_units
-from .urdf import UrdfRobot, urdf_to_mjcf
+from .urdf import UrdfRobot, compile_checked, mujoco_message, urdf_to_mjcf
 
 __all__ = ["load_map", "LEG_AXES", "MAP_KEYS", "AXIS_TOLERANCE"]
 
 #: Expected joint axis of each leg joint in the torso frame at the zero pose.
 LEG_AXES = {"hip_yaw": (0, 0, 1), "hip_roll": (1, 0, 0), "hip_pitch": (0, 1, 0),
             "knee": (0, 1, 0), "ankle_pitch": (0, 1, 0), "ankle_roll": (1, 0, 0)}
-MAP_KEYS = ("mjcf", "urdf", "packages", "ranges", "name", "torso", "feet", "joints", "leg", "servo", "servos",
+MAP_KEYS = ("mjcf", "urdf", "packages", "ranges", "balance_inertia", "name", "torso", "feet", "joints", "leg", "servo", "servos",
             "pose", "sim")
 #: How far apart two axis lines that must meet may be, and how far the straight leg's
 #: centres may stray from a vertical line [m] (ours).
@@ -103,23 +105,32 @@ def load_map(path: Path) -> RobotModel:
         raise UserError(f"{source}: {key}: {exc}") from None
     mjcf = mjcf.resolve()
     _xml_finite(raw, mjcf.name, source)
+    balance = doc.get("balance_inertia", False)
+    _require(isinstance(balance, bool), source, f"balance_inertia = {balance!r}: expected true or false")
     urdf_limits = None
+    load_notes: list[str] = []
     try:
         xml = raw.decode("utf-8")
         if is_urdf:
             conv = urdf_to_mjcf(mjcf, raw, torso=doc["torso"] if isinstance(doc["torso"], str) else "",
                                 packages=_packages(doc.get("packages"), path.parent, source),
-                                ranges=_ranges(doc.get("ranges"), source), source=source)
+                                ranges=_ranges(doc.get("ranges"), source), source=source,
+                                balance_inertia=balance)
             xml, urdf_limits = conv.xml, conv
             model = mujoco.MjModel.from_xml_string(xml)
         else:
-            model = mujoco.MjModel.from_xml_path(str(mjcf))
+            try:
+                spec = mujoco.MjSpec.from_file(str(mjcf))
+            except Exception as exc:
+                raise UserError(f"{source}: {mjcf.name} does not load in MuJoCo: {mujoco_message(exc)}") from None
+            model = compile_checked(spec, balance_inertia=balance, kind="body", fname=mjcf.name, source=source,
+                                    notes=load_notes)
     except UnicodeDecodeError:
         raise UserError(f"{source}: {key} file {mjcf.name} is not UTF-8 text") from None
     except UserError:
         raise
     except Exception as exc:
-        raise UserError(f"{source}: {mjcf.name} does not load in MuJoCo: {str(exc).splitlines()[0]}") from None
+        raise UserError(f"{source}: {mjcf.name} does not load in MuJoCo: {mujoco_message(exc)}") from None
     name = doc.get("name", path.stem)
     _require(isinstance(name, str) and re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9._ -]{0,99}", name) is not None,
              source, f"name = {name!r}: expected letters, digits, '.', '_', '-' or spaces (at most 100, "
@@ -183,15 +194,17 @@ def load_map(path: Path) -> RobotModel:
             _require(abs(off[0]) < AXIS_TOLERANCE and abs(off[1]) < AXIS_TOLERANCE, source,
                      f"the {side} {what} is {_mm(off[0])} ahead of and {_mm(off[1])} left of the hip centre at "
                      f"the zero pose; the leg IK needs straight legs at the zero pose (allowed {_mm(AXIS_TOLERANCE)})")
-        _require(abs(hip[0]) < AXIS_TOLERANCE, source,
-                 f"the {side} hip centre is {_mm(hip[0])} ahead of the torso origin; the leg IK needs the hips "
-                 f"under the torso origin (allowed {_mm(AXIS_TOLERANCE)}): use a torso body whose origin lies "
-                 f"between the hips")
+        _require(abs(hip[0]) <= 0.1, source,
+                 f"the {side} hip centre is {_mm(hip[0])} ahead of the torso origin; the leg IK takes the hips "
+                 f"at most 100.0 mm ahead or behind it: use a torso body whose origin lies nearer the hips")
         fb = foot_ids[side]
         sole = sole_polygon(model, d, fb, R_t)
         _require(sole is not None, source, f"feet.{side}: body {feet[side]!r} has no collision geom")
         c = in_torso(d.xpos[fb]) + sole.centre_sole
-        geo[side] = {"hip_offset_y": float(s * hip[1]), "hip_offset_z": float(-hip[2]), "thigh": thigh,
+        # within the axis tolerance the hips count as under the torso origin, as the knee and ankle
+        # count as under the hips (ours: the figures of robots that passed the old check unchanged)
+        geo[side] = {"hip_offset_x": float(hip[0]) if abs(hip[0]) >= AXIS_TOLERANCE else 0.0, "hip_offset_y": float(s * hip[1]), "hip_offset_z": float(-hip[2]),
+                     "thigh": thigh,
                      "shank": shank, "ankle_height": float(ankle[2] - c[2]),
                      "sole_forward": float(c[0] - ankle[0]), "sole_outward": float(s * (c[1] - ankle[1]))}
         soles.append(tuple(float(v) for v in sole.centre))
@@ -230,6 +243,11 @@ def load_map(path: Path) -> RobotModel:
                                           zip(("com_forward", "com_lateral", "com_above_pelvis"), com)
                                           if k not in leg_over})
     _check_crouch(model, leg, final, source)
+    overlaps = self_overlaps(model, [{}, crouch_angles(leg, final)])
+    if overlaps:
+        notes.append(f"self-collision: {len(overlaps)} pair(s) of bodies interpenetrate at the zero pose or the "
+                     f"walking crouch, which the real robot cannot, so they do not collide with each other here: "
+                     + ", ".join(f"{a} / {b} ({1000 * v:.1f} mm deep)" for a, b, v in overlaps))
     sources["leg"] = "joint axis lines at the zero pose" + (f"; overridden: {', '.join(leg_over)}" if leg_over else "")
     sources["com"] = f"the model's masses, legs at the walking crouch ({CROUCH:g} x straight hip height)"
 
@@ -262,6 +280,7 @@ def load_map(path: Path) -> RobotModel:
         notes.append(f"the file's {model.nsensor} sensor(s) are left out of the simulation")
     if urdf_limits is not None:
         notes = list(urdf_limits.notes) + notes
+    notes = load_notes + notes
     bounding = (float(max(sizes[0][0], sizes[1][0])), float(max(sizes[0][1], sizes[1][1])))
     if max(abs(sizes[0][0] - sizes[1][0]), abs(sizes[0][1] - sizes[1][1])) > 0.001:
         notes.append(f"the feet differ: left sole {_mm(sizes[0][0])} x {_mm(sizes[0][1])}, right "
@@ -271,7 +290,8 @@ def load_map(path: Path) -> RobotModel:
                       (soles[0], soles[1]), bounding, leg, servos, pose, tuple(hulls), sources,
                       tuple(notes), sim, None if is_urdf else str(mjcf), str(path.resolve()), tuple(axes),
                       tuple(bodies), urdf_path=str(mjcf) if is_urdf else None, servo_units=units,
-                      foot_sizes=(tuple(sizes[0]), tuple(sizes[1])))
+                      foot_sizes=(tuple(sizes[0]), tuple(sizes[1])), balance_inertia=balance and not is_urdf,
+                      exclude=tuple((a, b) for a, b, _ in overlaps))
 
 
 #: attributes that name things (a joint may be called "inf"), never checked as numbers

@@ -95,6 +95,12 @@ class RobotModel:
     #: each foot's own sole bounding box (length, width) [m], left then right; empty: both ``foot_size``
     #: (which, for unequal feet, is the larger of the two in each direction: what the planners keep apart)
     foot_sizes: tuple[tuple[float, float], ...] = ()
+    #: an MJCF robot file read with MuJoCo's ``balanceinertia`` (a map's ``balance_inertia: true``;
+    #: a URDF robot's ``xml`` carries the compiler option itself)
+    balance_inertia: bool = False
+    #: body pairs that do not collide with each other (their shapes interpenetrate at the zero pose
+    #: or the walking crouch: ``mjcf_geometry.self_overlaps``), added to the file's own exclusions
+    exclude: tuple[tuple[str, str], ...] = ()
 
     def foot_size_of(self, side: int) -> tuple[float, float]:
         """The sole bounding box (length, width) [m] of foot ``side`` (0 left, 1 right)."""
@@ -102,8 +108,7 @@ class RobotModel:
 
     def joint_ranges(self, names) -> tuple[np.ndarray, np.ndarray]:
         """(low, high) [rad] of the file's joints ``names``; +-inf where a joint is not limited."""
-        model = mujoco.MjModel.from_xml_path(self.mjcf_path) if self.mjcf_path else \
-            mujoco.MjModel.from_xml_string(self.xml)
+        model = self.model()
         lo, hi = [], []
         for n in names:
             j = model.joint(n).id
@@ -127,10 +132,23 @@ class RobotModel:
         """A fresh, editable MjSpec of the robot as its file gives it."""
         try:
             if self.mjcf_path is not None:
-                return mujoco.MjSpec.from_file(self.mjcf_path)
-            return mujoco.MjSpec.from_string(self.xml)
+                spec = mujoco.MjSpec.from_file(self.mjcf_path)
+                if self.balance_inertia:
+                    spec.compiler.balanceinertia = True
+            else:
+                spec = mujoco.MjSpec.from_string(self.xml)
         except Exception as exc:  # mujoco raises ValueError with the parser's message
             raise UserError(f"robot {self.name!r}: MJCF does not load: {str(exc).splitlines()[0]}") from None
+        for a, b in self.exclude:
+            ex = spec.add_exclude()
+            ex.bodyname1, ex.bodyname2 = a, b
+        return spec
+
+    def model(self) -> mujoco.MjModel:
+        """The robot alone, compiled as its file gives it (no scene, no servos of ours)."""
+        if self.mjcf_path is not None and not self.balance_inertia and not self.exclude:
+            return mujoco.MjModel.from_xml_path(self.mjcf_path)
+        return self.spec().compile()
 
     def servo_of(self, ours: str) -> ServoSpec:
         """The servo of one of our (mapped) joint names."""

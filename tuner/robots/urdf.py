@@ -20,7 +20,11 @@ joint; here, on the other hand (our choices, each said by ``robot check``):
 * a ``continuous`` joint (no limits) needs a range in the map (``ranges: {JOINT: [low, high]}``
   [rad]); a ``<mimic>`` joint is refused by name (our servos drive joints one by one);
 * servo limits: ``<limit effort velocity>`` [N m, rad/s] of each joint, used where the map's
-  ``servo:`` section does not set the field (``robot_map._servos``).
+  ``servo:`` section does not set the field (``robot_map._servos``);
+* an inertia MuJoCo refuses (principal moments A + B < C, which no rigid body has: Darwin-OP's
+  public URDF has one at its neck) is one line naming the link, unless the map says
+  ``balance_inertia: true`` (MuJoCo's ``balanceinertia``: the moments are raised until they hold);
+  either way ``robot check`` names the links (:func:`unbalanced_bodies`).
 
 Nothing here runs physics; errors are :class:`tuner.errors.UserError`, one line.
 """
@@ -42,7 +46,7 @@ from gaits.files import MAX_BYTES, read_bytes_checked
 
 from ..errors import UserError
 
-__all__ = ["UrdfRobot", "urdf_to_mjcf", "resolve_package"]
+__all__ = ["UrdfRobot", "urdf_to_mjcf", "resolve_package", "unbalanced_bodies", "compile_checked"]
 
 #: The compiler settings injected into the URDF before MuJoCo reads it (see the module docstring).
 COMPILER = {"fusestatic": "false", "discardvisual": "true", "strippath": "false", "angle": "radian"}
@@ -107,6 +111,60 @@ def resolve_package(uri: str, urdf: Path, packages: Mapping[str, Path]) -> tuple
     return (p if os.path.lexists(p) else None), "relative to the URDF"
 
 
+def unbalanced_bodies(spec: mujoco.MjSpec) -> list[tuple[str, np.ndarray]]:
+    """Bodies of ``spec`` whose explicit inertia breaks the triangle inequality of principal moments
+    (A + B >= C, as MuJoCo's compiler checks it): (name, sorted principal moments [kg m^2])."""
+    out = []
+    for b in spec.bodies:
+        if not b.explicitinertial or b.mass <= 0:
+            continue
+        f = np.asarray(b.fullinertia, dtype=float)
+        if np.isnan(f[0]):
+            moments = np.sort(np.asarray(b.inertia, dtype=float))
+        else:                                    # (ixx, iyy, izz, ixy, ixz, iyz)
+            moments = np.linalg.eigvalsh(np.array([[f[0], f[3], f[4]], [f[3], f[1], f[5]], [f[4], f[5], f[2]]]))
+        if moments[0] + moments[1] < moments[2] * (1 - 1e-9):
+            out.append((b.name, moments))
+    return out
+
+
+def _moments(m: np.ndarray) -> str:
+    return ", ".join(f"{v:.3g}" for v in m) + " kg m^2"
+
+
+def compile_checked(spec: mujoco.MjSpec, *, balance_inertia: bool, kind: str, fname: str, source: str,
+                    notes: list[str]) -> mujoco.MjModel:
+    """Compile a robot file's spec: an inertia MuJoCo would refuse is one line naming the
+    ``kind`` (link or body) unless ``balance_inertia`` (then a note names what was balanced); any
+    other compiler error is one line with the element MuJoCo names."""
+    bad = unbalanced_bodies(spec)
+    if bad and not balance_inertia:
+        name, m = bad[0]
+        more = f" (and {len(bad) - 1} more: {', '.join(n for n, _ in bad[1:])})" if len(bad) > 1 else ""
+        raise UserError(f"{source}: {kind} {name!r} of {fname} has an inertia no rigid body has: principal moments "
+                        f"{_moments(m)}, A + B < C{more}; correct its <inertia>, or set balance_inertia: true in "
+                        f"the map to let MuJoCo raise the moments until A + B >= C (its balanceinertia)")
+    if balance_inertia:
+        spec.compiler.balanceinertia = True
+        notes.append("balance_inertia: " + ("; ".join(f"{kind} {n!r} balanced by MuJoCo (principal moments "
+                                                     f"{_moments(m)} in the file, A + B < C)" for n, m in bad)
+                                            if bad else "no inertia in the file needed balancing"))
+    try:
+        return spec.compile()
+    except Exception as exc:  # mujoco raises ValueError with the compiler's message
+        raise UserError(f"{source}: {fname} does not load in MuJoCo: {mujoco_message(exc)}") from None
+
+
+def mujoco_message(exc: BaseException) -> str:
+    """MuJoCo's error as one line: its first line, and the element it names if it names one."""
+    lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
+    if not lines:
+        return type(exc).__name__
+    head = lines[0]
+    element = next((ln for ln in lines[1:] if ln.startswith("Element name")), None)
+    return f"{head} ({element})" if element else head
+
+
 def _number(text: str | None, what: str, source: str) -> float | None:
     if text is None:
         return None
@@ -158,7 +216,8 @@ def _reroot(joints: list[ET.Element], root: str, torso: str, source: str, name: 
 
 
 def urdf_to_mjcf(path: Path, raw: bytes, *, torso: str, packages: Mapping[str, Path],
-                 ranges: Mapping[str, tuple[float, float]], source: str) -> UrdfRobot:
+                 ranges: Mapping[str, tuple[float, float]], source: str,
+                 balance_inertia: bool = False) -> UrdfRobot:
     """Read the URDF text ``raw`` (of ``path``) into MJCF (module docstring)."""
     name = path.name
     try:
@@ -250,8 +309,8 @@ def urdf_to_mjcf(path: Path, raw: bytes, *, torso: str, packages: Mapping[str, P
     try:
         spec = mujoco.MjSpec.from_string(text)
         spec.body(torso).add_freejoint()
-        spec.compile()
-        out.xml = spec.to_xml()
-    except Exception as exc:  # mujoco raises ValueError with the compiler's message
-        raise UserError(f"{source}: {name} does not load in MuJoCo: {str(exc).splitlines()[0]}") from None
+    except Exception as exc:  # mujoco raises ValueError with the parser's message
+        raise UserError(f"{source}: {name} does not load in MuJoCo: {mujoco_message(exc)}") from None
+    compile_checked(spec, balance_inertia=balance_inertia, kind="link", fname=name, source=source, notes=out.notes)
+    out.xml = spec.to_xml()
     return out
