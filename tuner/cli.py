@@ -1210,12 +1210,31 @@ def studies_cmd() -> None:
 
 
 @cli.command()
-def surfaces() -> None:
-    """List the built-in surfaces and their contact parameters."""
-    from .sim.surfaces import SURFACES
-    for s in SURFACES.values():
-        click.echo(f"{s.name:8s} layer {s.layer_height * 1000:4.0f} mm  drag {s.drag:5.1f} N s/m  "
-                   f"friction {s.friction:.2f}  {s.description}")
+@click.option("--test", "run_tests", is_flag=True,
+              help="Run the sports-turf test methods on each surface (the Artificial Athlete drop test: force "
+                   "reduction, vertical deformation, energy restitution; the rotational resistance test) beside "
+                   "the published bands and the Webots grass of the virtual league.")
+@click.option("--surface", "surface_names", multiple=True,
+              help="A built-in surface or a surface YAML (repeat; default: every built-in surface).")
+@JSON_OPTION
+def surfaces(run_tests: bool, surface_names: tuple[str, ...], as_json: bool) -> None:
+    """List the built-in surfaces and their contact parameters (--test: the turf test methods on them)."""
+    import json
+
+    from .sim.surfaces import SURFACES, load_surface
+    chosen = [load_surface(n) for n in surface_names] or list(SURFACES.values())
+    if not run_tests:
+        if as_json:
+            click.echo(json.dumps({s.name: s.to_mapping() for s in chosen}, indent=2, allow_nan=False))
+            return
+        for s in chosen:
+            click.echo(f"{s.name:8s} layer {s.layer_height * 1000:4.0f} mm  drag {s.drag:5.1f} N s/m  "
+                       f"friction {s.friction:.2f}  {s.description}")
+        return
+    from .report.surface_tests import surface_tests
+    from .report.tables import format_surface_tests
+    report = surface_tests(chosen)
+    click.echo(json.dumps(report, indent=2, allow_nan=False) if as_json else format_surface_tests(report))
 
 
 @cli.command()

@@ -40,7 +40,7 @@ from .centre_of_pressure import centre_of_pressure
 from .randomisation import Perturbation
 from .sensors import SensorReader, tilt_from_quat
 from ..robots import RobotModel, SimOptions
-from .scene import CORNERS, IMU_SITE_POS, PREFIX, add_pendulum, build_scene
+from .scene import CORNERS, IMU_SITE_POS, PREFIX, add_pendulum, build_scene, drag_gate
 from .surfaces import Surface
 
 __all__ = ["FallCriteria", "OUTCOMES", "Trace", "Simulator", "dead_band"]
@@ -266,7 +266,7 @@ class Simulator:
         d = self.data
         R = d.xmat[self._feet].reshape(2, 3, 3)
         pz = d.xpos[self._feet, 2:3] + (R @ self._corners_T)[:, 2, :]      # (2, 4) corner heights
-        inside = (pz < self._layer_h).astype(float).ravel()
+        inside = drag_gate(pz, self._layer_h).ravel()
         d.ctrl[self._n_act:] = np.repeat(inside, 2)                       # x and y per corner
 
     def n_random(self) -> tuple[int, int, int]:

@@ -33,7 +33,7 @@ from ..robots.robot_model import RobotModel
 from ..robots.solver import SOLVER_OPTIONS
 from .surfaces import Surface
 
-__all__ = ["PREFIX", "SceneLayout", "build_scene", "CORNERS", "IMU_SITE_POS"]
+__all__ = ["PREFIX", "SceneLayout", "build_scene", "add_ground", "add_drag", "drag_gate", "CORNERS", "IMU_SITE_POS"]
 
 PREFIX = "gt/"
 #: Sole corners and touch quadrants, (sign x, sign y): toe-left, toe-right, heel-left, heel-right.
@@ -84,23 +84,11 @@ def _nq(spec: mujoco.MjSpec) -> int:
     return sum(sizes[j.type] for j in spec.joints)
 
 
-def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, SceneLayout]:
-    """The editable model of ``robot`` on ``surface`` with our servos, sensors and drag."""
-    r, s = robot, surface
-    spec = r.spec()
-    _reset_solver(spec)
-    spec.option.timestep = r.sim.timestep
-    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-    nq = _nq(spec)
-    for g in list(spec.worldbody.geoms):           # the robot file's own floor, if any
-        if g.type == mujoco.mjtGeom.mjGEOM_PLANE:
-            spec.delete(g)
-    for a in list(spec.actuators):                 # our servo model replaces the file's actuators
-        spec.delete(a)
-    for sn in list(spec.sensors):
-        spec.delete(sn)
-    gt = _our_default(spec)
-
+def add_ground(spec: mujoco.MjSpec, s: Surface, gt: mujoco.MjsDefault) -> None:
+    """The surface ``s`` as MuJoCo geoms (``tuner/sim/surfaces.py`` says what each stands for): the
+    soil plane, and for a carpet or grass the layer plane whose margin is the blade height, plus
+    a drawn-only slab as tall as the blades. The robot's scene and the turf test rigs
+    (``turf_tests.py``) stand on the same ground."""
     soil = spec.worldbody.add_geom(default=gt, name=PREFIX + "soil", type=mujoco.mjtGeom.mjGEOM_PLANE,
                                    size=[0, 0, 0.05])
     soil.friction = [s.soil_friction, 0.005, 0.0001]
@@ -142,6 +130,49 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
         blades.group = 1
         blades.rgba = [0.35, 0.85, 0.3, 0.22]
 
+
+def add_drag(spec: mujoco.MjSpec, s: Surface, gt: mujoco.MjsDefault, site: str, label: str) -> int:
+    """The layer's drag on one point (``site``): a damper along world x and one along y (site
+    transmission, a world reference site): force = -drag * v * ctrl, computed by MuJoCo every
+    physics step and integrated implicitly (implicitfast), so it is stable at any drag; ctrl
+    gates it per tick to the points inside the layer (:func:`drag_gate`). Returns the number of
+    actuators added (2)."""
+    if PREFIX + "drag_ref" not in {x.name for x in spec.sites}:
+        spec.worldbody.add_site(default=gt, name=PREFIX + "drag_ref", pos=[0, 0, 0])
+    for axis, gear in (("x", [1, 0, 0, 0, 0, 0]), ("y", [0, 1, 0, 0, 0, 0])):
+        act = spec.add_actuator(default=gt, name=f"{PREFIX}drag/{label}_{axis}", target=site,
+                                refsite=PREFIX + "drag_ref", trntype=mujoco.mjtTrn.mjTRN_SITE)
+        act.set_to_damper(kv=s.drag)
+        act.gear = gear
+        act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+        act.ctrlrange = [0.0, 1.0]
+    return 2
+
+
+def drag_gate(z: np.ndarray, layer_height: float) -> np.ndarray:
+    """The drag dampers' ctrl of points at heights ``z`` [m] above the soil: 1 inside the layer."""
+    return (z < layer_height).astype(float)
+
+
+def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, SceneLayout]:
+    """The editable model of ``robot`` on ``surface`` with our servos, sensors and drag."""
+    r, s = robot, surface
+    spec = r.spec()
+    _reset_solver(spec)
+    spec.option.timestep = r.sim.timestep
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    nq = _nq(spec)
+    for g in list(spec.worldbody.geoms):           # the robot file's own floor, if any
+        if g.type == mujoco.mjtGeom.mjGEOM_PLANE:
+            spec.delete(g)
+    for a in list(spec.actuators):                 # our servo model replaces the file's actuators
+        spec.delete(a)
+    for sn in list(spec.sensors):
+        spec.delete(sn)
+    gt = _our_default(spec)
+
+    add_ground(spec, s, gt)
+
     spec.body(r.torso).add_site(default=gt, name=PREFIX + "imu", pos=list(IMU_SITE_POS))
     depth = s.layer_height + 0.03
     pad = 0.005           # reach past the sole's edge so corner contacts are not lost
@@ -178,27 +209,17 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
         act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
         act.forcerange = [-servo.torque, servo.torque]
 
-    # in-layer drag: per sole corner, a damper along world x and y (site transmission with a
-    # world reference site): force = -drag * v * ctrl, computed by MuJoCo every physics step and
-    # integrated implicitly (implicitfast), so it is stable at any drag; ctrl gates it per tick
-    # to the corners that are inside the layer (tuner.simulate).
+    # in-layer drag on each sole corner (add_drag)
     n_drag = 0
     if s.drag > 0.0:
-        spec.worldbody.add_site(default=gt, name=PREFIX + "drag_ref", pos=[0, 0, 0])
         for i, (side, fname) in enumerate(zip("lr", r.feet)):
             foot = spec.body(fname)
+            fl, fw = r.foot_size_of(i)            # each foot's own sole (the simulator's gate uses it)
             for k, (sx, sy) in enumerate(CORNERS):
                 site = f"{PREFIX}{side}_corner{k}"
                 foot.add_site(default=gt, name=site, pos=list(r.sole_points(i, [[sx * fl / 2, sy * fw / 2, 0.0]])[0]),
                               group=4)
-                for axis, gear in (("x", [1, 0, 0, 0, 0, 0]), ("y", [0, 1, 0, 0, 0, 0])):
-                    act = spec.add_actuator(default=gt, name=f"{PREFIX}drag/{side}{k}_{axis}", target=site,
-                                            refsite=PREFIX + "drag_ref", trntype=mujoco.mjtTrn.mjTRN_SITE)
-                    act.set_to_damper(kv=s.drag)
-                    act.gear = gear
-                    act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
-                    act.ctrlrange = [0.0, 1.0]
-                    n_drag += 1
+                n_drag += add_drag(spec, s, gt, site, f"{side}{k}")
 
     # sensors, in this order
     S, O = mujoco.mjtSensor, mujoco.mjtObj
