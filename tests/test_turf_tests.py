@@ -101,3 +101,69 @@ def test_surfaces_test_through_the_cli(gait_tuner_cmd, run_env, tmp_path):
     bad = subprocess.run(gait_tuner_cmd + ["surfaces", "--test", "--surface", "moon"], capture_output=True,
                          text=True, env=run_env, timeout=600)
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1 and "moon" in bad.stderr
+
+
+# --- the layer's behaviours at a robot's scale ---------------------------------------------
+
+def test_a_sole_at_rest_settles_at_its_stated_depth():
+    """A 4.95 kg robot's 10 x 6 cm sole at rest (the README's table): 2.3 mm into grass50's 50 mm
+    blades, under 0.1 mm into the others (MuJoCo's layers stiffen from their tips down)."""
+    from tuner.sim.turf_tests import sole_sink
+    assert sole_sink(SURFACES["grass50"]) == pytest.approx(2.30, abs=0.1)
+    for name in ("rigid", "carpet4", "grass10", "grass30"):
+        assert 0.0 < sole_sink(SURFACES[name]) < 0.1, name
+
+
+def test_a_sole_dragged_sideways_meets_more_resistance_deeper_in_the_blades():
+    """Held 2, 10 and 20 mm below grass50's tips and moved sideways at 0.1 m/s: the resistance
+    grows with depth; with ``drag_depth`` (ours) the blades' own share starts near zero at the
+    tips and reaches the full drag at that depth."""
+    from tuner.sim.turf_tests import sole_resistance
+    g = SURFACES["grass50"]
+    plain = [sole_resistance(g, depth=x) for x in (0.002, 0.01, 0.02)]
+    assert plain[0] < plain[1] < plain[2]
+    graded = g.replace(drag_depth=0.02)
+    no_drag = g.replace(drag=0.0)
+    share = [sole_resistance(graded, depth=x) - sole_resistance(no_drag, depth=x) for x in (0.002, 0.01, 0.02)]
+    full = sole_resistance(g, depth=0.02) - sole_resistance(no_drag, depth=0.02)
+    assert share[0] < 0.2 * full and share[0] < share[1] < share[2]
+    assert share[2] == pytest.approx(full, rel=0.05)      # the held sole rides a little above its target
+
+
+def test_a_turned_sole_meets_the_torque_of_its_corners_drag():
+    """Turned at 1 rad/s in grass50's blades, the sole meets its contacts' friction torque plus the
+    corners' drag, drag x sum(r_i^2) x w = 80 x 4 x (0.05^2 + 0.03^2) x 1 = 1.088 N m (hand
+    calculation, within 2 %)."""
+    from tuner.sim.turf_tests import sole_resistance
+    g = SURFACES["grass50"]
+    with_drag = sole_resistance(g, depth=0.01, motion="turn", speed=1.0)
+    without = sole_resistance(g.replace(drag=0.0), depth=0.01, motion="turn", speed=1.0)
+    assert without > 0.0
+    assert with_drag - without == pytest.approx(80.0 * 4 * (0.05 ** 2 + 0.03 ** 2), rel=0.02)
+
+
+def test_drag_depth_is_a_surface_field_with_a_unit_and_a_bound(tmp_path):
+    from tuner.errors import UserError
+    from tuner.sim.surfaces import load_surface
+    f = tmp_path / "deep.yaml"
+    f.write_text("layer_height: 0.03\ndrag: 100\ndrag_depth: 0.01\n")
+    assert load_surface(str(f)).drag_depth == 0.01
+    f.write_text("layer_height: 0.03\ndrag: 100\ndrag_depth: 0.05\n")
+    with pytest.raises(UserError, match="drag_depth = 0.05 m must not exceed layer_height = 0.03 m"):
+        load_surface(str(f))
+    old = tmp_path / "old.yaml"                  # a surface file written before the field existed
+    old.write_text("layer_height: 0.02\nlayer_timeconst: 0.02\ndrag: 50\n")
+    assert load_surface(str(old)).drag_depth == 0.0
+
+
+def test_one_sole_on_grass50_is_held_against_rolling_barely_above_what_the_robot_needs():
+    """The roll stiffness of one sole carrying the robot: tens of times the robot's m g h on every
+    layer that carries the full-lift EROS walk, under twice it on grass50, the one soft enough to
+    catch a toe (why no single contact layer does both: README)."""
+    from tuner.sim.turf_tests import sole_roll_stiffness
+    need = 4.95 * 9.81 * 0.22
+    roll = {n: sole_roll_stiffness(s) for n, s in SURFACES.items()}
+    assert need < roll["grass50"] < 2 * need
+    assert all(roll[n] > 50 * need for n in ("rigid", "carpet4", "grass10", "grass30"))
+    walkable = SURFACES["grass50"].replace(layer_timeconst=0.015, layer_dmin=0.7, drag=200.0)
+    assert sole_roll_stiffness(walkable) > 50 * need

@@ -11,7 +11,7 @@ from typing import Any, Iterable
 
 from ..sim.surfaces import Surface
 from ..sim.turf_tests import (BANDS, WEBOTS_GRASS, DropTest, RotationTest, SpringGround, drop_test, rotation_test,
-                              sole_sink)
+                              sole_roll_stiffness, sole_sink)
 
 __all__ = ["surface_tests", "FIGURES"]
 
@@ -46,17 +46,21 @@ def _one(ground: Surface | SpringGround, robot_mass: float, sole: tuple[float, f
     if isinstance(ground, Surface):
         row["layer_mm"] = round(ground.layer_height * 1000.0, 3)
         row["robot_sole_sink_mm"] = _finite(sole_sink(ground, mass=robot_mass, sole=sole))
+        row["robot_sole_roll_Nm_per_rad"] = _finite(sole_roll_stiffness(ground, mass=robot_mass, sole=sole))
         row["description"] = ground.description
     else:
         row["layer_mm"] = None
         row["robot_sole_sink_mm"] = _finite(1000.0 * robot_mass * 9.81 / (4 * ground.stiffness))
+        # four springs at the sole's corners: 4 k (w/2)^2
+        row["robot_sole_roll_Nm_per_rad"] = _finite(4 * ground.stiffness * (sole[1] / 2) ** 2)
         row["description"] = ground.description
     row["in_bands"] = {key: _in_bands(key, row[key]) for key, _, _ in FIGURES}
     return row
 
 
 def surface_tests(surfaces: Iterable[Surface], *, robot_mass: float = 4.95,
-                  sole: tuple[float, float] = (0.10, 0.06), webots: bool = True) -> dict[str, Any]:
+                  sole: tuple[float, float] = (0.10, 0.06), robot_com_height: float = 0.22,
+                  webots: bool = True) -> dict[str, Any]:
     """Every figure of every surface (and the Webots grass unless ``webots`` is off), the bands, the
     methods' numbers and the two scales (drop test vs a robot's sole at rest)."""
     t, rt = DropTest(), RotationTest()
@@ -78,6 +82,8 @@ def surface_tests(surfaces: Iterable[Surface], *, robot_mass: float = 4.95,
                      "turn_deg": round(math.degrees(rt.turn), 3)},
     }
     out["scale"] = {"drop_test_static_kPa": round(drop_kpa, 2), "robot_sole_kPa": round(robot_kpa, 2),
+                    "robot_topple_Nm_per_rad": round(robot_mass * g * robot_com_height, 2),
+                    "robot_com_height_m": robot_com_height,
                     "robot_mass_kg": robot_mass, "robot_sole_m": list(sole),
                     "drop_test_peak_kPa": round(t.reference_force / (math.pi * (t.foot_diameter / 2) ** 2) / 1000.0, 1)}
     return out

@@ -34,7 +34,8 @@ def format_surface_tests(report: Mapping) -> str:
         b = bands.get(key) or {}
         lines.append(f"  {what} [{unit}]: " + (", ".join(f"{m} {lo:g}-{hi:g}" for m, (lo, hi) in b.items())
                                               or "no published band in our sources"))
-    head = f"{'surface':14s}{'layer':>7s}{'FR %':>8s}{'VD mm':>8s}{'ER %':>8s}{'RR N m':>8s}{'sole mm':>9s}  in bands"
+    head = (f"{'surface':14s}{'layer':>7s}{'FR %':>8s}{'VD mm':>8s}{'ER %':>8s}{'RR N m':>8s}{'sole mm':>9s}"
+            f"{'roll':>8s}  in bands")
     lines += ["", head, "-" * len(head)]
     for name, row in report["surfaces"].items():
         cells = [format_value(row[k]) if row[k] is None else f"{row[k]:.1f}" for k, _, _ in FIGURES]
@@ -42,11 +43,16 @@ def format_surface_tests(report: Mapping) -> str:
         layer = "-" if row["layer_mm"] is None else f"{row['layer_mm']:g}"
         sink = format_value(row["robot_sole_sink_mm"]) if row["robot_sole_sink_mm"] is None else \
             f"{row['robot_sole_sink_mm']:.2f}"
-        lines.append(f"{name:14s}{layer:>7s}" + "".join(f"{c:>8s}" for c in cells) + f"{sink:>9s}  {inb}")
+        roll = row.get("robot_sole_roll_Nm_per_rad")
+        roll = "-" if roll is None else f"{roll:.0f}"
+        lines.append(f"{name:14s}{layer:>7s}" + "".join(f"{c:>8s}" for c in cells) + f"{sink:>9s}{roll:>8s}  {inb}")
     sc = report["scale"]
     lines += ["", f"FR force reduction, VD vertical deformation, ER energy restitution (drop test); RR rotational "
                   f"resistance; sole: depth a {sc['robot_mass_kg']:g} kg robot's {sc['robot_sole_m'][0] * 100:g} x "
-                  f"{sc['robot_sole_m'][1] * 100:g} cm sole settles at, at rest",
+                  f"{sc['robot_sole_m'][1] * 100:g} cm sole settles at, at rest; roll: how stiffly that sole, "
+              f"carrying the robot, is held against rolling [N m/rad] (below m g h = "
+              f"{sc['robot_topple_Nm_per_rad']:g} N m/rad, at a {sc['robot_com_height_m']:g} m CoM, a robot with still "
+              f"ankles topples sideways on one foot)",
               f"scale: the drop test presses its foot with {sc['drop_test_static_kPa']:g} kPa at rest and "
               f"~{sc['drop_test_peak_kPa']:g} kPa at its peak on concrete; the robot's sole presses "
               f"{sc['robot_sole_kPa']:g} kPa standing on it"]

@@ -266,7 +266,7 @@ class Simulator:
         d = self.data
         R = d.xmat[self._feet].reshape(2, 3, 3)
         pz = d.xpos[self._feet, 2:3] + (R @ self._corners_T)[:, 2, :]      # (2, 4) corner heights
-        inside = drag_gate(pz, self._layer_h).ravel()
+        inside = drag_gate(pz, self._layer_h, self.surface.drag_depth).ravel()
         d.ctrl[self._n_act:] = np.repeat(inside, 2)                       # x and y per corner
 
     def n_random(self) -> tuple[int, int, int]:

@@ -149,9 +149,13 @@ def add_drag(spec: mujoco.MjSpec, s: Surface, gt: mujoco.MjsDefault, site: str, 
     return 2
 
 
-def drag_gate(z: np.ndarray, layer_height: float) -> np.ndarray:
-    """The drag dampers' ctrl of points at heights ``z`` [m] above the soil: 1 inside the layer."""
-    return (z < layer_height).astype(float)
+def drag_gate(z: np.ndarray, layer_height: float, drag_depth: float = 0.0) -> np.ndarray:
+    """The drag dampers' ctrl of points at heights ``z`` [m] above the soil: inside the layer 1, or
+    with ``drag_depth`` > 0 the depth below the blade tips over ``drag_depth``, at most 1."""
+    inside = z < layer_height
+    if drag_depth <= 0.0:
+        return inside.astype(float)
+    return np.where(inside, np.minimum(1.0, (layer_height - z) / drag_depth), 0.0)
 
 
 def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, SceneLayout]:

@@ -5,7 +5,10 @@ the same height whose contact *margin* is the blade height: a sole point less
 than ``layer_height`` above the soil is in contact with the layer, whose
 support is soft (MuJoCo ``solref``/``solimp``: weak at the blade tips, stiffer
 deeper in). Blades also hold a foot that moves sideways inside them: every sole
-corner inside the layer feels a horizontal drag ``-drag * v``. Each corner has
+corner inside the layer feels a horizontal drag ``-drag * v`` (with ``drag_depth`` > 0, ours:
+``-drag * min(1, depth / drag_depth) * v``, growing with how deep the corner is below the blade
+tips; a sole turning in the layer meets a torque ``drag * sum(r_i^2) * w`` from its corners'
+drag, r_i their distances from its centre). Each corner has
 two MuJoCo damper actuators (site transmission along world x and y), so the
 force is computed by MuJoCo at every physics step and integrated implicitly
 (``implicitfast``): stable at any drag, with no per-step Python callback. Once
@@ -55,6 +58,8 @@ class Surface(GaitParams):
     layer_dmax: float = param(0.95, "-", 0.0001, 0.9999, "constraint impedance at the soil (solimp[1])")
     friction: float = param(0.9, "-", 0.05, 3.0, "sliding friction of the layer (or the rigid floor)")
     drag: float = param(0.0, "N s/m", 0.0, 5000.0, "horizontal drag on each sole corner inside the layer")
+    drag_depth: float = param(0.0, "m", 0.0, 0.10, "depth below the blade tips over which the drag grows "
+                              "linearly to its full value (0: full as soon as a corner is inside; ours)")
     soil_friction: float = param(0.9, "-", 0.05, 3.0, "sliding friction of the soil below the layer")
     description: str = param("", "-", doc="where the numbers come from")
 
@@ -62,6 +67,9 @@ class Surface(GaitParams):
         if self.layer_dmin > self.layer_dmax:
             raise ParamError(f"surface {self.name!r}: layer_dmin = {self.layer_dmin:g} must not exceed "
                              f"layer_dmax = {self.layer_dmax:g}")
+        if self.drag_depth > self.layer_height:
+            raise ParamError(f"surface {self.name!r}: drag_depth = {self.drag_depth:g} m must not exceed "
+                             f"layer_height = {self.layer_height:g} m")
         if self.layer_height == 0.0 and self.drag > 0.0:
             raise ParamError(f"surface {self.name!r}: drag = {self.drag:g} N s/m needs a layer "
                              f"(layer_height > 0)")

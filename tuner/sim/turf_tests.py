@@ -37,8 +37,10 @@ turn is a velocity servo; the drag of the layer acts on each stud's tip as on a 
 
 **Scale** (why the test cannot tell all about a robot foot): the drop test presses its 70 mm
 foot with 196 N at rest, ~51 kPa, and peaks near 6.8 kN; a 5 kg kid-size robot presses one 10 x 6
-cm sole with ~49 N, ~8 kPa. :func:`sole_sink` is the robot-scale figure: the depth a robot's
-sole settles at, at rest, under its weight.
+cm sole with ~49 N, ~8 kPa. The robot-scale figures: :func:`sole_sink` (the depth a robot's sole
+settles at, at rest, under its weight), :func:`sole_resistance` (a sole held in the blades and
+slid or turned) and :func:`sole_roll_stiffness` (how stiffly one sole carrying the robot is held
+against rolling: below m g h a robot with still ankles topples sideways in single support).
 
 MuJoCo's soft contact sets an *acceleration* stiffness (``solref``), so a heavier body sinks as
 far as a light one: the layers' drop-test figures describe them under 20 kg, not a robot's foot;
@@ -62,7 +64,8 @@ from .scene import PREFIX, add_drag, add_ground, drag_gate
 from .surfaces import Surface
 
 __all__ = ["DropTest", "RotationTest", "SpringGround", "DropResult", "RotationResult", "drop_test",
-           "rotation_test", "sole_sink", "rigid_peak_force", "BANDS", "WEBOTS_GRASS", "webots_ground"]
+           "rotation_test", "sole_sink", "sole_resistance", "sole_roll_stiffness", "rigid_peak_force", "BANDS",
+           "WEBOTS_GRASS", "webots_ground"]
 
 GRAVITY = 9.81
 
@@ -309,7 +312,7 @@ def rotation_test(ground: Surface | SpringGround, t: RotationTest = RotationTest
     sink = 0.0
     for n in range(n_settle + n_turn):
         if n % nstep == 0 and len(site_ids):
-            d.ctrl[1:] = np.repeat(drag_gate(d.site_xpos[site_ids, 2], ground.layer_height), 2)
+            d.ctrl[1:] = np.repeat(drag_gate(d.site_xpos[site_ids, 2], ground.layer_height, ground.drag_depth), 2)
         if n == n_settle:
             sink = 1000.0 * (h - float(np.mean(d.site_xpos[stud_ids, 2])))
         d.ctrl[0] = t.speed * min(1.0, (n - n_settle) * t.timestep / 0.05) if n >= n_settle else 0.0
@@ -341,3 +344,83 @@ def sole_sink(ground: Surface, *, mass: float = 4.95, sole: tuple[float, float] 
     for _ in range(int(round(settle / timestep))):
         mujoco.mj_step(m, d)
     return 1000.0 * (h - float(d.xpos[m.body(PREFIX + "sole").id, 2]))
+
+
+def sole_resistance(ground: Surface, *, depth: float, motion: str = "slide", speed: float = 0.1,
+                    sole: tuple[float, float] = (0.10, 0.06), timestep: float = 0.002,
+                    duration: float = 0.3) -> float:
+    """Robot scale: a 10 x 6 cm sole held ``depth`` [m] below the blade tips and moved through the
+    layer, sideways at ``speed`` [m/s] (``motion`` "slide") or turned about its centre at ``speed``
+    [rad/s] ("turn"): the mean resistance over the last half of the move, [N] or [N m]. The
+    layer's drag acts on the sole's four corners as on the robot's (``scene.add_drag``); the sole
+    is held by stiff position servos, so this is the blades' and the contacts' share alone."""
+    spec, gt = _base_spec(timestep)
+    h = ground.layer_height
+    body = spec.worldbody.add_body(name=PREFIX + "sole", pos=[0, 0, 0])
+    joints = {}
+    for name, kind, axis in (("x", mujoco.mjtJoint.mjJNT_SLIDE, [1, 0, 0]), ("y", mujoco.mjtJoint.mjJNT_SLIDE, [0, 1, 0]),
+                             ("z", mujoco.mjtJoint.mjJNT_SLIDE, [0, 0, 1]), ("yaw", mujoco.mjtJoint.mjJNT_HINGE, [0, 0, 1])):
+        joints[name] = body.add_joint(name=f"{PREFIX}{name}", type=kind, axis=axis)
+    body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[sole[0] / 2, sole[1] / 2, 0.004], pos=[0, 0, 0.004], mass=1.0)
+    moving = "y" if motion == "slide" else "yaw"
+    for name in joints:
+        act = spec.add_actuator(name=f"{PREFIX}hold_{name}", target=f"{PREFIX}{name}", trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        if name == moving:
+            act.set_to_velocity(kv=5000.0)
+        else:
+            act.set_to_position(kp=1e5, kv=2000.0)
+    sites = []
+    for k, (sx, sy) in enumerate(((1, 1), (1, -1), (-1, 1), (-1, -1))):
+        sites.append(f"{PREFIX}corner{k}")
+        body.add_site(name=sites[-1], pos=[sx * sole[0] / 2, sy * sole[1] / 2, 0.0])
+    add_ground(spec, ground, gt)
+    n_drag = 0
+    if ground.drag > 0.0:
+        for k, s in enumerate(sites):
+            n_drag += add_drag(spec, ground, gt, s, f"corner{k}")
+    m = spec.compile()
+    d = mujoco.MjData(m)
+    order = list(joints)
+    z = h - depth
+    d.qpos[m.joint(PREFIX + "z").qposadr[0]] = z
+    ctrl = np.zeros(m.nu)
+    ctrl[order.index("z")] = z
+    ctrl[order.index(moving)] = speed
+    dof = m.joint(PREFIX + moving).dofadr[0]
+    site_ids = np.array([m.site(s).id for s in sites], dtype=int)
+    n = int(round(duration / timestep))
+    out = []
+    for i in range(n):
+        mujoco.mj_kinematics(m, d)
+        if n_drag:
+            ctrl[len(order):] = np.repeat(drag_gate(d.site_xpos[site_ids, 2], h, ground.drag_depth), 2)
+        d.ctrl[:] = ctrl
+        mujoco.mj_step(m, d)
+        if i >= n // 2:            # the layer's force on the moving joint: contacts and drag
+            drag_part = float(d.qfrc_actuator[dof] - d.actuator_force[order.index(moving)])
+            out.append(-(float(d.qfrc_constraint[dof]) + drag_part))
+    return float(np.mean(out))
+
+
+def sole_roll_stiffness(ground: Surface, *, mass: float = 4.95, torque: float = 0.5,
+                        sole: tuple[float, float] = (0.10, 0.06), timestep: float = 0.002) -> float:
+    """Robot scale: how stiffly the layer holds one sole against rolling [N m/rad], the sole carrying
+    ``mass`` [kg] (the whole robot, as in single support) and rolled by a small ``torque`` [N m].
+    A robot whose ankles hold still topples sideways on one foot when this is below m g h (its
+    weight times its CoM height: 10.7 N m/rad for the built-in robot at 0.22 m)."""
+    spec, gt = _base_spec(timestep)
+    body = spec.worldbody.add_body(name=PREFIX + "sole", pos=[0, 0, ground.layer_height + 0.001])
+    body.add_joint(name=PREFIX + "z", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, 0, 1])
+    roll = body.add_joint(name=PREFIX + "roll", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[1, 0, 0])
+    roll.damping = [1.0, 0.0, 0.0]
+    body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[sole[0] / 2, sole[1] / 2, 0.004], pos=[0, 0, 0.004],
+                  mass=mass)
+    spec.add_actuator(name=PREFIX + "roll", target=PREFIX + "roll", trntype=mujoco.mjtTrn.mjTRN_JOINT)
+    add_ground(spec, ground, gt)
+    m = spec.compile()
+    d = mujoco.MjData(m)
+    n_settle, n = int(round(1.0 / timestep)), int(round(3.0 / timestep))
+    for i in range(n):
+        d.ctrl[0] = torque if i >= n_settle else 0.0
+        mujoco.mj_step(m, d)
+    return torque / float(d.qpos[m.joint(PREFIX + "roll").qposadr[0]])
