@@ -13,6 +13,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
 
+import re
+
 import yaml
 
 from .files import MAX_BYTES, read_bytes_checked, write_text_atomic
@@ -68,6 +70,18 @@ class _StrictLoader(yaml.SafeLoader):
             except TypeError:
                 pass
         return super().construct_mapping(node, deep=deep)
+
+
+# YAML 1.1 (PyYAML) reads 2.2e7 or 1e-3 as strings: a float needs a dot there. Physical numbers are
+# written so (a stiffness of 2.2e7 N/m^3), so ours reads them as YAML 1.2 does: as numbers.
+_StrictLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+                 |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+                 |\.[0-9_]+(?:[eE][-+]?[0-9]+)?
+                 |[-+]?\.(?:inf|Inf|INF)
+                 |\.(?:nan|NaN|NAN))$""", re.X),
+    list("-+0123456789."))
 
 
 def read_yaml(path: str | Path, what: str, error: type[Exception] = ParamError) -> Any:

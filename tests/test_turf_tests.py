@@ -127,7 +127,7 @@ def test_a_sole_dragged_sideways_meets_more_resistance_deeper_in_the_blades():
     share = [sole_resistance(graded, depth=x) - sole_resistance(no_drag, depth=x) for x in (0.002, 0.01, 0.02)]
     full = sole_resistance(g, depth=0.02) - sole_resistance(no_drag, depth=0.02)
     assert share[0] < 0.2 * full and share[0] < share[1] < share[2]
-    assert share[2] == pytest.approx(full, rel=0.05)      # the held sole rides a little above its target
+    assert share[2] == pytest.approx(full, rel=0.05)
 
 
 def test_a_turned_sole_meets_the_torque_of_its_corners_drag():

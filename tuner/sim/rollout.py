@@ -40,6 +40,7 @@ from .centre_of_pressure import centre_of_pressure
 from .randomisation import Perturbation
 from .sensors import SensorReader, tilt_from_quat
 from ..robots import RobotModel, SimOptions
+from .blades import BladeLayer
 from .scene import CORNERS, IMU_SITE_POS, PREFIX, add_pendulum, build_scene, drag_gate
 from .surfaces import Surface
 
@@ -156,8 +157,13 @@ class Simulator:
                          ("body_mass", "body_subtreemass", "body_inertia", "body_ipos", "actuator_gainprm", "actuator_biasprm",
                           "actuator_forcerange", "geom_friction", "geom_margin", "geom_solref", "geom_solimp")}
         self._nominal_gravity = m.opt.gravity.copy()
-        self._ground = [m.geom(PREFIX + "soil").id] + ([m.geom(PREFIX + "layer").id] if not surface.rigid else [])
-        self._layer = m.geom(PREFIX + "layer").id if not surface.rigid else None
+        contact_layer = not surface.rigid and not surface.blades
+        self._ground = [m.geom(PREFIX + "soil").id] + ([m.geom(PREFIX + "layer").id] if contact_layer else [])
+        self._layer = m.geom(PREFIX + "layer").id if contact_layer else None
+        if surface.blades:                     # each sole corner stands for a quarter of its sole
+            area = np.repeat([robot.foot_size_of(i)[0] * robot.foot_size_of(i)[1] / 4 for i in range(2)], 4)
+            self._blade = BladeLayer(surface, area, self._n_act)
+            self._mu_blade = surface.friction
 
     def _index(self) -> None:
         m, r, lay = self.model, self.robot, self.layout
@@ -260,6 +266,13 @@ class Simulator:
             mujoco.mj_forward(m, d)
         return self.run(HoldPose(q0, self.control_period), duration=duration, start=release, height_check=False)
 
+    def _blades(self) -> None:
+        """The blade layer's tick (``blades.py``): the sole corners' places handed to it."""
+        d = self.data
+        R = d.xmat[self._feet].reshape(2, 3, 3)
+        p = (d.xpos[self._feet][:, :, None] + R @ self._corners_T).transpose(0, 2, 1).reshape(8, 3)
+        self._blade.update(self.model, d, p, self._layer_h, self._mu_blade)
+
     def _drag(self) -> None:
         """Switch on the drag dampers of the sole corners that are inside the layer (module
         ``tuner.surfaces``); MuJoCo applies -drag * v at each of them every physics step."""
@@ -299,6 +312,10 @@ class Simulator:
             m.geom_solref[g, 0] = nom["geom_solref"][g, 0] * p.layer_timeconst
         drag = slice(self._n_act, m.nu)
         m.actuator_gainprm[drag, 2] = nom["actuator_gainprm"][drag, 2] * p.drag
+        if self.surface.blades:                 # the blades' height, friction and drag as the layer's
+            self._layer_h = self.surface.layer_height * p.layer_height
+            self._mu_blade = self.surface.friction * p.friction
+            self._blade.drag_scale = p.drag
         m.opt.gravity[:] = np.linalg.norm(self._nominal_gravity) * p.gravity_dir
 
     def _restore(self) -> None:
@@ -307,6 +324,9 @@ class Simulator:
             getattr(m, name)[:] = value
         m.opt.gravity[:] = self._nominal_gravity
         self._layer_h = self.surface.layer_height
+        if self.surface.blades:
+            self._mu_blade = self.surface.friction
+            self._blade.drag_scale = 1.0
 
     def rollout(self, traj: GaitTrajectory, *, duration: float | None = None, perturb: Perturbation | None = None,
                 stabiliser: StabiliserParams | None = None, record_qpos: bool = False) -> Trace:
@@ -402,7 +422,10 @@ class Simulator:
         max_speed2, max_spin2, max_height = self.fall.max_speed ** 2, self.fall.max_spin ** 2, self.fall.max_height
         qvel = d.qvel
         z_min = self.fall.min_height_ratio * z0 if height_check else -math.inf
-        drag = self.surface.drag > 0.0
+        drag = self.surface.drag > 0.0 and not self.surface.blades
+        blades = self.surface.blades
+        if blades:
+            self._blade.reset()
         warn = d.warning[mujoco.mjtWarning.mjWARN_BADQACC]
         reason, k_end = "completed", n_ticks
         torso = self._torso
@@ -434,6 +457,8 @@ class Simulator:
             sent_log[k] = out
             if drag:
                 self._drag()
+            elif blades:
+                self._blades()
             kick = kicks.get(k - 1)
             if kick is not None:
                 d.xfrc_applied[torso, :3] = kick

@@ -31,6 +31,7 @@ from gaits import JOINT_NAMES
 
 from ..robots.robot_model import RobotModel
 from ..robots.solver import SOLVER_OPTIONS
+from .blades import REF_SITE, add_blades
 from .surfaces import Surface
 
 __all__ = ["PREFIX", "SceneLayout", "build_scene", "add_ground", "add_drag", "drag_gate", "CORNERS", "IMU_SITE_POS"]
@@ -109,7 +110,7 @@ def add_ground(spec: mujoco.MjSpec, s: Surface, gt: mujoco.MjsDefault) -> None:
     sun = spec.worldbody.add_light(name=PREFIX + "sun", pos=[0, 0, 3], dir=[0.2, 0.3, -1],
                                    diffuse=[0.8, 0.8, 0.8], specular=[0.2, 0.2, 0.2])
     sun.castshadow = False
-    if not s.rigid:
+    if not s.rigid and not s.blades:
         layer = spec.worldbody.add_geom(default=gt, name=PREFIX + "layer", type=mujoco.mjtGeom.mjGEOM_PLANE,
                                         size=[0, 0, 0.05])
         layer.margin = s.layer_height
@@ -121,6 +122,7 @@ def add_ground(spec: mujoco.MjSpec, s: Surface, gt: mujoco.MjsDefault) -> None:
         layer.conaffinity = 1
         layer.group = 1
         layer.rgba = [0.2, 0.6, 0.2, 0.0]     # invisible: at the soil's height it would z-fight; the slab shows it
+    if not s.rigid:
         # drawn only: a translucent slab as tall as the blades, so a video shows how deep the
         # feet sink (no contact, no mass: the physics is the plane's margin above)
         blades = spec.worldbody.add_geom(default=gt, name=PREFIX + "blades", type=mujoco.mjtGeom.mjGEOM_BOX,
@@ -137,11 +139,11 @@ def add_drag(spec: mujoco.MjSpec, s: Surface, gt: mujoco.MjsDefault, site: str, 
     physics step and integrated implicitly (implicitfast), so it is stable at any drag; ctrl
     gates it per tick to the points inside the layer (:func:`drag_gate`). Returns the number of
     actuators added (2)."""
-    if PREFIX + "drag_ref" not in {x.name for x in spec.sites}:
-        spec.worldbody.add_site(default=gt, name=PREFIX + "drag_ref", pos=[0, 0, 0])
+    if REF_SITE not in {x.name for x in spec.sites}:
+        spec.worldbody.add_site(default=gt, name=REF_SITE, pos=[0, 0, 0])
     for axis, gear in (("x", [1, 0, 0, 0, 0, 0]), ("y", [0, 1, 0, 0, 0, 0])):
         act = spec.add_actuator(default=gt, name=f"{PREFIX}drag/{label}_{axis}", target=site,
-                                refsite=PREFIX + "drag_ref", trntype=mujoco.mjtTrn.mjTRN_SITE)
+                                refsite=REF_SITE, trntype=mujoco.mjtTrn.mjTRN_SITE)
         act.set_to_damper(kv=s.drag)
         act.gear = gear
         act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
@@ -215,7 +217,7 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
 
     # in-layer drag on each sole corner (add_drag)
     n_drag = 0
-    if s.drag > 0.0:
+    if s.drag > 0.0 or s.blades:
         for i, (side, fname) in enumerate(zip("lr", r.feet)):
             foot = spec.body(fname)
             fl, fw = r.foot_size_of(i)            # each foot's own sole (the simulator's gate uses it)
@@ -223,7 +225,10 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
                 site = f"{PREFIX}{side}_corner{k}"
                 foot.add_site(default=gt, name=site, pos=list(r.sole_points(i, [[sx * fl / 2, sy * fw / 2, 0.0]])[0]),
                               group=4)
-                n_drag += add_drag(spec, s, gt, site, f"{side}{k}")
+                if s.blades:                      # each corner stands for a quarter of its sole (blades.py)
+                    n_drag += add_blades(spec, s, gt, site, f"{side}{k}")
+                else:
+                    n_drag += add_drag(spec, s, gt, site, f"{side}{k}")
 
     # sensors, in this order
     S, O = mujoco.mjtSensor, mujoco.mjtObj
@@ -248,6 +253,11 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
             for j in range(len(r.touch_bodies(i))):
                 sensor("touch", 1, name=f"{PREFIX}{side}_touch{k}_{j}", type=S.mjSENS_TOUCH, objtype=O.mjOBJ_SITE,
                        objname=f"{PREFIX}{side}_touch{k}_{j}")
+                touch_quadrant.append(4 * i + k)
+            if s.blades:                          # the blades carry the sole without a contact: the
+                # quadrant's force sensor reads its corner's support (a real sole's sensor would)
+                sensor("touch", 1, name=f"{PREFIX}{side}_blades{k}", type=S.mjSENS_ACTUATORFRC,
+                       objtype=O.mjOBJ_ACTUATOR, objname=f"{PREFIX}blades/{side}{k}_z")
                 touch_quadrant.append(4 * i + k)
     for side in "lr":
         for k in range(4):

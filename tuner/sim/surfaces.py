@@ -22,6 +22,12 @@ it pitched forward (toe held) while on carpet it rocks back. That comes from
 the soft, deep layer; a stronger drag plants the whole sole and *reduces* the
 pitch (e.g. 6.1 deg at drag 0, 5.5 at 300, 3.5 at 3000 N s/m in an ad-hoc run).
 
+A surface with ``blade_modulus`` > 0 is the **blade layer** instead (ours, ``blades.py``): no
+contact layer; springs under each sole corner by pressure, in two stages (flexible tips over a
+stiff base), blades that hold a corner where it entered until friction lets go, and the drag. The
+built-in pedestals keep the contact layer (their calibration); ``examples/surfaces`` has blade
+layers of grass50's height.
+
 The four built-in surfaces mirror the EROS paper's pedestals (Sec. 5, Figs
 20-23): grass50 (50 mm blades, sparse, irregular), grass30 (30 mm, dense,
 smooth), grass10 (10 mm, dense, rough) and carpet4 (4 mm carpet); ``rigid`` is
@@ -61,6 +67,17 @@ class Surface(GaitParams):
     drag_depth: float = param(0.0, "m", 0.0, 0.10, "depth below the blade tips over which the drag grows "
                               "linearly to its full value (0: full as soon as a corner is inside; ours)")
     soil_friction: float = param(0.9, "-", 0.05, 3.0, "sliding friction of the soil below the layer")
+    blade_modulus: float = param(0.0, "N/m^3", 0.0, 1.0e9, "blade layer (ours): vertical support per sole "
+                                 "area per depth below the tips (0: the soft contact layer instead)")
+    blade_damping: float = param(0.0, "N s/m^3", 0.0, 1.0e8, "blade layer: vertical damping per sole area")
+    blade_shear: float = param(0.0, "N/m^3", 0.0, 1.0e9, "blade layer: how stiffly the blades hold a sole "
+                               "point where it entered, per sole area, until friction x its load lets go")
+    blade_tip_depth: float = param(0.0, "m", 0.0, 0.10, "blade layer: depth of the flexible tips, above the "
+                                   "stiff base of blades and infill (0: the whole layer is one)")
+    blade_tip_modulus: float = param(0.0, "N/m^3", 0.0, 1.0e9, "blade layer: vertical support of the flexible "
+                                     "tips, per sole area per depth")
+    blade_tip_damping: float = param(0.0, "N s/m^3", 0.0, 1.0e8, "blade layer: vertical damping of the flexible "
+                                     "tips, per sole area")
     description: str = param("", "-", doc="where the numbers come from")
 
     def check_consistency(self) -> None:
@@ -70,6 +87,12 @@ class Surface(GaitParams):
         if self.drag_depth > self.layer_height:
             raise ParamError(f"surface {self.name!r}: drag_depth = {self.drag_depth:g} m must not exceed "
                              f"layer_height = {self.layer_height:g} m")
+        if self.layer_height == 0.0 and self.blade_modulus > 0.0:
+            raise ParamError(f"surface {self.name!r}: blade_modulus = {self.blade_modulus:g} N/m^3 needs a "
+                             f"layer (layer_height > 0)")
+        if self.blade_tip_depth > self.layer_height:
+            raise ParamError(f"surface {self.name!r}: blade_tip_depth = {self.blade_tip_depth:g} m must not exceed "
+                             f"layer_height = {self.layer_height:g} m")
         if self.layer_height == 0.0 and self.drag > 0.0:
             raise ParamError(f"surface {self.name!r}: drag = {self.drag:g} N s/m needs a layer "
                              f"(layer_height > 0)")
@@ -77,6 +100,11 @@ class Surface(GaitParams):
     @property
     def rigid(self) -> bool:
         return self.layer_height == 0.0
+
+    @property
+    def blades(self) -> bool:
+        """The blade layer (ours: springs per sole point, by pressure) instead of the contact layer."""
+        return self.blade_modulus > 0.0
 
 
 SURFACES: dict[str, Surface] = {

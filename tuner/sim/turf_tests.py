@@ -60,6 +60,7 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
+from .blades import BladeLayer, add_blades
 from .scene import PREFIX, add_drag, add_ground, drag_gate
 from .surfaces import Surface
 
@@ -172,6 +173,41 @@ def _base_spec(timestep: float) -> tuple[mujoco.MjSpec, mujoco.MjsDefault]:
     return spec, spec.default
 
 
+class _Points:
+    """The ground's per-point part on a rig, as on the robot's soles: a contact layer's drag, or the
+    blade layer (``blades.py``), on the given sites, each standing for its ``area`` of sole. Call
+    :meth:`tick` every 2 ms (the rigs' choice; the robot's simulation does it every 10 ms tick)."""
+
+    def __init__(self, spec: mujoco.MjSpec, ground: Surface | SpringGround, gt, sites: list[str],
+                 areas: list[float]) -> None:
+        self.ground, self.sites = ground, sites
+        self.kind = None
+        if isinstance(ground, Surface) and ground.blades:
+            self.kind = "blades"
+        elif isinstance(ground, Surface) and ground.drag > 0.0:
+            self.kind = "drag"
+        self.first = len(spec.actuators)
+        for i, site in enumerate(sites):
+            if self.kind == "blades":
+                add_blades(spec, ground, gt, site, f"p{i}")
+            elif self.kind == "drag":
+                add_drag(spec, ground, gt, site, f"p{i}")
+        self.blades = BladeLayer(ground, np.asarray(areas), self.first) if self.kind == "blades" else None
+        self.ids = None
+
+    def tick(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
+        if self.kind is None:
+            return
+        if self.ids is None:
+            self.ids = np.array([m.site(s).id for s in self.sites], dtype=int)
+        g = self.ground
+        if self.kind == "blades":
+            self.blades.update(m, d, d.site_xpos[self.ids], g.layer_height, g.friction)
+        else:
+            gate = drag_gate(d.site_xpos[self.ids, 2], g.layer_height, g.drag_depth)
+            d.ctrl[self.first:self.first + 2 * len(self.ids)] = np.repeat(gate, 2)
+
+
 def _foot_on(ground: Surface | SpringGround, spec: mujoco.MjSpec, gt, foot: mujoco.MjsBody) -> None:
     """Put the ground under ``foot`` (a body with a vertical slide joint named ``gt/foot_z``)."""
     if isinstance(ground, SpringGround):
@@ -182,7 +218,7 @@ def _foot_on(ground: Surface | SpringGround, spec: mujoco.MjSpec, gt, foot: mujo
     add_ground(spec, ground, gt)
 
 
-def _drop_rig(ground: Surface | SpringGround, t: DropTest, with_mass: bool) -> mujoco.MjModel:
+def _drop_rig(ground: Surface | SpringGround, t: DropTest, with_mass: bool) -> tuple[mujoco.MjModel, _Points]:
     """The rig: the test foot on a vertical slide joint (``gt/foot_z``: on a spring ground its rest
     length is z = 0), and with ``with_mass`` the falling mass on a slide joint inside it
     (``gt/spring``, the spring's compression, stiffness the test's) carrying the accelerometer."""
@@ -196,6 +232,7 @@ def _drop_rig(ground: Surface | SpringGround, t: DropTest, with_mass: bool) -> m
     if spring_ground:
         g.contype = 0
         g.conaffinity = 0
+    foot.add_site(name=PREFIX + "foot_point", pos=[0, 0, 0])
     if with_mass:
         mass = foot.add_body(name=PREFIX + "mass", pos=[0, 0, 0.05])
         spring = mass.add_joint(name=PREFIX + "spring", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, 0, 1])
@@ -208,7 +245,8 @@ def _drop_rig(ground: Surface | SpringGround, t: DropTest, with_mass: bool) -> m
         spec.add_sensor(name=PREFIX + "accel", type=mujoco.mjtSensor.mjSENS_ACCELEROMETER,
                         objtype=mujoco.mjtObj.mjOBJ_SITE, objname=PREFIX + "accel")
     _foot_on(ground, spec, gt, foot)
-    return spec.compile()
+    points = _Points(spec, ground, gt, [PREFIX + "foot_point"], [math.pi * r * r])
+    return spec.compile(), points
 
 
 def drop_test(ground: Surface | SpringGround, t: DropTest = DropTest()) -> DropResult:
@@ -217,11 +255,17 @@ def drop_test(ground: Surface | SpringGround, t: DropTest = DropTest()) -> DropR
     The foot first settles alone (the mass off the spring, as the apparatus holds it before the
     release); then the mass touches the unloaded spring at the impact speed; the run ends when the
     spring is unloaded again."""
-    alone = _drop_rig(ground, t, with_mass=False)
+    tick = max(1, int(round(0.002 / t.timestep)))
+    alone, pts0 = _drop_rig(ground, t, with_mass=False)
     d0 = mujoco.MjData(alone)
-    for _ in range(int(round(t.settle / t.timestep))):
+    for n in range(int(round(t.settle / t.timestep))):
+        if n % tick == 0:
+            mujoco.mj_kinematics(alone, d0)
+            pts0.tick(alone, d0)
         mujoco.mj_step(alone, d0)
-    m = _drop_rig(ground, t, with_mass=True)
+    m, pts = _drop_rig(ground, t, with_mass=True)
+    if pts.blades is not None:                 # the blades under the foot as the settling left them
+        pts.blades.inside[:], pts.blades.anchor[:] = pts0.blades.inside, pts0.blades.anchor
     d = mujoco.MjData(m)
     jf, js = m.joint(PREFIX + "foot_z").qposadr[0], m.joint(PREFIX + "spring").qposadr[0]
     vf, vs = m.joint(PREFIX + "foot_z").dofadr[0], m.joint(PREFIX + "spring").dofadr[0]
@@ -232,6 +276,8 @@ def drop_test(ground: Surface | SpringGround, t: DropTest = DropTest()) -> DropR
     ts, fs, zs = [0.0], [0.0], [0.0]
     z0 = float(d.qpos[jf])
     for n in range(1, int(round(3.0 / t.timestep))):        # at most 3 s (the softest ground: ~1 s)
+        if (n - 1) % tick == 0:
+            pts.tick(m, d)
         mujoco.mj_step(m, d)
         ts.append(n * t.timestep)
         fs.append(t.mass * float(d.sensordata[2]))   # the accelerometer's specific force along z
@@ -294,25 +340,20 @@ def rotation_test(ground: Surface | SpringGround, t: RotationTest = RotationTest
         disc.add_site(name=sites[-1], pos=[x, y, -t.stud_length])
     turn = spec.add_actuator(name=PREFIX + "turn", target=PREFIX + "turn", trntype=mujoco.mjtTrn.mjTRN_JOINT)
     turn.set_to_velocity(kv=2000.0)
-    drag = []
     add_ground(spec, ground, gt)
-    if ground.drag > 0.0:
-        for i, s in enumerate(sites):
-            add_drag(spec, ground, gt, s, f"stud{i}")
-            drag.append(s)
+    pts = _Points(spec, ground, gt, sites, [math.pi * (t.disc_diameter / 2) ** 2 / t.studs] * t.studs)
     m = spec.compile()
     d = mujoco.MjData(m)
     dof = m.joint(PREFIX + "turn").dofadr[0]
-    site_ids = np.array([m.site(s).id for s in drag], dtype=int)
     stud_ids = np.array([m.site(s).id for s in sites], dtype=int)
-    nstep = int(round(0.002 / t.timestep))             # the drag gate's tick, as the robot's 2 ms step
+    nstep = max(1, int(round(0.002 / t.timestep)))     # the ground's tick (_Points)
     n_settle = int(round(t.settle / t.timestep))
     n_turn = int(round(t.turn / t.speed / t.timestep))
     torque = []
     sink = 0.0
     for n in range(n_settle + n_turn):
-        if n % nstep == 0 and len(site_ids):
-            d.ctrl[1:] = np.repeat(drag_gate(d.site_xpos[site_ids, 2], ground.layer_height, ground.drag_depth), 2)
+        if n % nstep == 0:
+            pts.tick(m, d)
         if n == n_settle:
             sink = 1000.0 * (h - float(np.mean(d.site_xpos[stud_ids, 2])))
         d.ctrl[0] = t.speed * min(1.0, (n - n_settle) * t.timestep / 0.05) if n >= n_settle else 0.0
@@ -327,22 +368,66 @@ def rotation_test(ground: Surface | SpringGround, t: RotationTest = RotationTest
     return RotationResult(ground.name, float(avg.max()) if len(avg) else 0.0, sink)
 
 
+_SLIDE, _HINGE = mujoco.mjtJoint.mjJNT_SLIDE, mujoco.mjtJoint.mjJNT_HINGE
+_AXES = {"x": (_SLIDE, [1, 0, 0]), "y": (_SLIDE, [0, 1, 0]), "z": (_SLIDE, [0, 0, 1]),
+         "roll": (_HINGE, [1, 0, 0]), "yaw": (_HINGE, [0, 0, 1])}
+
+
+def _sole_rig(ground: Surface, joints: tuple[str, ...], mass: float, sole: tuple[float, float], z0: float,
+              timestep: float, actuated: dict | None = None) -> tuple[mujoco.MjModel, mujoco.MjData, _Points]:
+    """A flat sole (a box ``sole`` [m] long and wide, ``mass`` [kg]) on ``joints`` (names of
+    :data:`_AXES`, ``gt/<name>``), its bottom ``z0`` [m] above the soil, its four corners standing
+    each for a quarter of it, as the robot's (the layer's drag or the blades act there); with
+    ``actuated``: {joint: "velocity" | "position" | "motor"} servos on those joints, in that order."""
+    spec, gt = _base_spec(timestep)
+    body = spec.worldbody.add_body(name=PREFIX + "sole", pos=[0, 0, z0])
+    for name in joints:
+        kind, axis = _AXES[name]
+        j = body.add_joint(name=f"{PREFIX}{name}", type=kind, axis=axis)
+        if name == "roll":
+            j.damping = [1.0, 0.0, 0.0]
+    body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[sole[0] / 2, sole[1] / 2, 0.004], pos=[0, 0, 0.004],
+                  mass=mass)
+    for name, kind in (actuated or {}).items():
+        act = spec.add_actuator(name=f"{PREFIX}{name}", target=f"{PREFIX}{name}", trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        if kind == "velocity":
+            act.set_to_velocity(kv=5000.0)
+        elif kind == "position":
+            act.set_to_position(kp=1e5, kv=2000.0)
+    sites = []
+    for k, (sx, sy) in enumerate(((1, 1), (1, -1), (-1, 1), (-1, -1))):
+        sites.append(f"{PREFIX}corner{k}")
+        body.add_site(name=sites[-1], pos=[sx * sole[0] / 2, sy * sole[1] / 2, 0.0])
+    add_ground(spec, ground, gt)
+    pts = _Points(spec, ground, gt, sites, [sole[0] * sole[1] / 4] * 4)
+    m = spec.compile()
+    return m, mujoco.MjData(m), pts
+
+
+def _run(m: mujoco.MjModel, d: mujoco.MjData, pts: _Points, n: int, ctrl=None, after=None) -> None:
+    """Step the rig ``n`` times, the ground ticking every 2 ms; ``ctrl(i)`` gives the actuators'
+    controls before step i, ``after(i)`` reads after it."""
+    tick = max(1, int(round(0.002 / m.opt.timestep)))
+    for i in range(n):
+        if i % tick == 0:
+            mujoco.mj_kinematics(m, d)
+            pts.tick(m, d)
+        if ctrl is not None:
+            k = pts.first if pts.kind is not None else m.nu
+            d.ctrl[:k] = ctrl(i)
+        mujoco.mj_step(m, d)
+        if after is not None:
+            after(i)
+
+
 def sole_sink(ground: Surface, *, mass: float = 4.95, sole: tuple[float, float] = (0.10, 0.06),
               timestep: float = 0.002, settle: float = 1.0) -> float:
     """Robot scale: the depth [mm] below the blade tips at which a flat sole of ``sole`` (length,
     width) [m] carrying ``mass`` [kg] (the built-in robot's weight on one foot) settles at rest,
     on the robot's own 2 ms step."""
-    spec, gt = _base_spec(timestep)
     h = ground.layer_height
-    foot = spec.worldbody.add_body(name=PREFIX + "sole", pos=[0, 0, h + 0.004 + 0.002])
-    foot.add_joint(name=PREFIX + "foot_z", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, 0, 1])
-    foot.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[sole[0] / 2, sole[1] / 2, 0.004], pos=[0, 0, 0.004],
-                  mass=mass)
-    add_ground(spec, ground, gt)
-    m = spec.compile()
-    d = mujoco.MjData(m)
-    for _ in range(int(round(settle / timestep))):
-        mujoco.mj_step(m, d)
+    m, d, pts = _sole_rig(ground, ("z",), mass, sole, h + 0.002, timestep)
+    _run(m, d, pts, int(round(settle / timestep)))
     return 1000.0 * (h - float(d.xpos[m.body(PREFIX + "sole").id, 2]))
 
 
@@ -352,53 +437,25 @@ def sole_resistance(ground: Surface, *, depth: float, motion: str = "slide", spe
     """Robot scale: a 10 x 6 cm sole held ``depth`` [m] below the blade tips and moved through the
     layer, sideways at ``speed`` [m/s] (``motion`` "slide") or turned about its centre at ``speed``
     [rad/s] ("turn"): the mean resistance over the last half of the move, [N] or [N m]. The
-    layer's drag acts on the sole's four corners as on the robot's (``scene.add_drag``); the sole
-    is held by stiff position servos, so this is the blades' and the contacts' share alone."""
-    spec, gt = _base_spec(timestep)
+    layer's drag (or its blades) act on the sole's four corners as on the robot's; the sole has no
+    vertical freedom (it sits exactly at that depth) and stiff position servos hold its other
+    axes, so this is the layer's share alone."""
     h = ground.layer_height
-    body = spec.worldbody.add_body(name=PREFIX + "sole", pos=[0, 0, 0])
-    joints = {}
-    for name, kind, axis in (("x", mujoco.mjtJoint.mjJNT_SLIDE, [1, 0, 0]), ("y", mujoco.mjtJoint.mjJNT_SLIDE, [0, 1, 0]),
-                             ("z", mujoco.mjtJoint.mjJNT_SLIDE, [0, 0, 1]), ("yaw", mujoco.mjtJoint.mjJNT_HINGE, [0, 0, 1])):
-        joints[name] = body.add_joint(name=f"{PREFIX}{name}", type=kind, axis=axis)
-    body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[sole[0] / 2, sole[1] / 2, 0.004], pos=[0, 0, 0.004], mass=1.0)
     moving = "y" if motion == "slide" else "yaw"
-    for name in joints:
-        act = spec.add_actuator(name=f"{PREFIX}hold_{name}", target=f"{PREFIX}{name}", trntype=mujoco.mjtTrn.mjTRN_JOINT)
-        if name == moving:
-            act.set_to_velocity(kv=5000.0)
-        else:
-            act.set_to_position(kp=1e5, kv=2000.0)
-    sites = []
-    for k, (sx, sy) in enumerate(((1, 1), (1, -1), (-1, 1), (-1, -1))):
-        sites.append(f"{PREFIX}corner{k}")
-        body.add_site(name=sites[-1], pos=[sx * sole[0] / 2, sy * sole[1] / 2, 0.0])
-    add_ground(spec, ground, gt)
-    n_drag = 0
-    if ground.drag > 0.0:
-        for k, s in enumerate(sites):
-            n_drag += add_drag(spec, ground, gt, s, f"corner{k}")
-    m = spec.compile()
-    d = mujoco.MjData(m)
-    order = list(joints)
-    z = h - depth
-    d.qpos[m.joint(PREFIX + "z").qposadr[0]] = z
-    ctrl = np.zeros(m.nu)
-    ctrl[order.index("z")] = z
-    ctrl[order.index(moving)] = speed
-    dof = m.joint(PREFIX + moving).dofadr[0]
-    site_ids = np.array([m.site(s).id for s in sites], dtype=int)
+    joints = ("x", "y", "yaw")
+    servos = {j: ("velocity" if j == moving else "position") for j in joints}
+    m, d, pts = _sole_rig(ground, joints, 1.0, sole, h - depth, timestep, servos)
+    target = np.zeros(len(joints))
+    target[joints.index(moving)] = speed
+    dof, act = m.joint(PREFIX + moving).dofadr[0], joints.index(moving)
     n = int(round(duration / timestep))
-    out = []
-    for i in range(n):
-        mujoco.mj_kinematics(m, d)
-        if n_drag:
-            ctrl[len(order):] = np.repeat(drag_gate(d.site_xpos[site_ids, 2], h, ground.drag_depth), 2)
-        d.ctrl[:] = ctrl
-        mujoco.mj_step(m, d)
-        if i >= n // 2:            # the layer's force on the moving joint: contacts and drag
-            drag_part = float(d.qfrc_actuator[dof] - d.actuator_force[order.index(moving)])
-            out.append(-(float(d.qfrc_constraint[dof]) + drag_part))
+    out: list[float] = []
+
+    def read(i: int) -> None:
+        if i >= n // 2:            # the layer's force on the moving joint: contacts, drag or blades
+            layer_act = float(d.qfrc_actuator[dof] - d.actuator_force[act])
+            out.append(-(float(d.qfrc_constraint[dof]) + layer_act))
+    _run(m, d, pts, n, ctrl=lambda i: target, after=read)
     return float(np.mean(out))
 
 
@@ -408,19 +465,8 @@ def sole_roll_stiffness(ground: Surface, *, mass: float = 4.95, torque: float = 
     ``mass`` [kg] (the whole robot, as in single support) and rolled by a small ``torque`` [N m].
     A robot whose ankles hold still topples sideways on one foot when this is below m g h (its
     weight times its CoM height: 10.7 N m/rad for the built-in robot at 0.22 m)."""
-    spec, gt = _base_spec(timestep)
-    body = spec.worldbody.add_body(name=PREFIX + "sole", pos=[0, 0, ground.layer_height + 0.001])
-    body.add_joint(name=PREFIX + "z", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, 0, 1])
-    roll = body.add_joint(name=PREFIX + "roll", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[1, 0, 0])
-    roll.damping = [1.0, 0.0, 0.0]
-    body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[sole[0] / 2, sole[1] / 2, 0.004], pos=[0, 0, 0.004],
-                  mass=mass)
-    spec.add_actuator(name=PREFIX + "roll", target=PREFIX + "roll", trntype=mujoco.mjtTrn.mjTRN_JOINT)
-    add_ground(spec, ground, gt)
-    m = spec.compile()
-    d = mujoco.MjData(m)
+    m, d, pts = _sole_rig(ground, ("z", "roll"), mass, sole, ground.layer_height + 0.001, timestep,
+                          {"roll": "motor"})
     n_settle, n = int(round(1.0 / timestep)), int(round(3.0 / timestep))
-    for i in range(n):
-        d.ctrl[0] = torque if i >= n_settle else 0.0
-        mujoco.mj_step(m, d)
+    _run(m, d, pts, n, ctrl=lambda i: [torque if i >= n_settle else 0.0])
     return torque / float(d.qpos[m.joint(PREFIX + "roll").qposadr[0]])

@@ -1,0 +1,128 @@
+"""The blade layer (ours): artificial grass as springs under each sole point, by pressure, in two
+stages, with blades that hold a point where it entered until friction lets go.
+
+Why (measured, README "The turf test methods, simulated"): MuJoCo's soft contact, the
+pedestals' layer, sets an *acceleration* stiffness, so a toe and a flat sole sink alike and a
+layer soft enough to catch a toe holds one sole against rolling at under twice the robot's
+m g h (19 N m/rad against 10.7): the full-lift EROS walk falls at its first step there. Turf
+sinks by pressure, and its flexible blade tips stand over a stiff base of blades and infill: a
+toe edge, carrying a landing on a fraction of the sole, goes through the tips to the base while
+the heel still rides on them, and a flat stance sole, its weight shared, rests on the base.
+
+The model, per sole point standing for ``area`` [m^2] of sole, with d its depth below the blade
+tips (``layer_height`` above the soil) and v its velocity:
+
+* support: F_z = k1 d while d < d1 (the tips: ``blade_tip_modulus`` x area, ``blade_tip_depth``),
+  k1 d1 + k2 (d - d1) below (the base: ``blade_modulus`` x area), minus c v_z
+  (``blade_damping`` x area); nothing above the tips; the soil (a MuJoCo contact) below;
+* hold: where a point enters the blades it is held by a spring k_h (``blade_shear`` x area) to
+  that place, its anchor, and damped by ``drag``; when the spring pulls harder than the layer's
+  ``friction`` x the point's support, the anchor slides along (a bristle model of friction);
+* a sole turning in the blades meets its points' holds and drag: a torque, as turf resists a
+  turning boot.
+
+Each point has three site-transmission actuators with affine gains (``add_blades``): MuJoCo
+computes the forces every physics step, the damping implicitly (``implicitfast``); once per
+control tick :class:`BladeLayer` switches on the points inside the layer, picks each point's
+spring stage and moves the anchors (a few vector operations: no per-step Python). The surface
+fields, units and bounds are in ``surfaces.py``; ``blade_modulus`` = 0 keeps the contact layer.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from .surfaces import Surface
+
+__all__ = ["add_blades", "BladeLayer", "BLADE_ACTUATORS", "REF_SITE"]
+
+#: actuators per sole point: the support, then the hold along world x and along y
+BLADE_ACTUATORS = 3
+#: the world reference site of every site-transmission actuator of the ground (blades and drag)
+REF_SITE = "gt/drag_ref"
+
+
+def add_blades(spec: mujoco.MjSpec, s: Surface, gt: mujoco.MjsDefault, site: str, label: str) -> int:
+    """The blade layer's three actuators on one sole point (``site``), in the order
+    :class:`BladeLayer` drives them (gains set per tick); returns how many were added."""
+    if REF_SITE not in {x.name for x in spec.sites}:
+        spec.worldbody.add_site(default=gt, name=REF_SITE, pos=[0, 0, 0])
+    for axis, gear in (("z", [0, 0, 1, 0, 0, 0]), ("x", [1, 0, 0, 0, 0, 0]), ("y", [0, 1, 0, 0, 0, 0])):
+        act = spec.add_actuator(default=gt, name=f"gt/blades/{label}_{axis}", target=site, refsite=REF_SITE,
+                                trntype=mujoco.mjtTrn.mjTRN_SITE)
+        act.gear = gear
+        act.gaintype = mujoco.mjtGain.mjGAIN_AFFINE
+        act.gainprm[:3] = [0.0, 0.0, 0.0]
+        act.biastype = mujoco.mjtBias.mjBIAS_NONE
+        act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+        act.ctrlrange = [0.0, 1.0]
+    return BLADE_ACTUATORS
+
+
+class BladeLayer:
+    """The per-tick state of the blade layer on N sole points (module docstring).
+
+    ``areas`` (N,) [m^2]: the sole each point stands for; ``first`` the index of the first point's
+    first actuator (each point's three follow in :func:`add_blades`' order)."""
+
+    def __init__(self, surface: Surface, areas: np.ndarray, first: int) -> None:
+        a = np.asarray(areas, dtype=float)
+        self.k_base = surface.blade_modulus * a
+        self.k_tip = surface.blade_tip_modulus * a if surface.blade_tip_depth > 0.0 else self.k_base
+        self.d_tip = surface.blade_tip_depth
+        self.c = surface.blade_damping * a
+        self.c_tip = surface.blade_tip_damping * a if surface.blade_tip_depth > 0.0 else self.c
+        self.k_hold = surface.blade_shear * a
+        self.drag = surface.drag
+        self.drag_scale = 1.0                  # a randomised rollout's drag factor
+        self.first = first
+        self.n = len(a)
+        self.anchor = np.zeros((self.n, 2))
+        self.inside = np.zeros(self.n, dtype=bool)
+        self._f0_base = (self.k_tip - self.k_base) * self.d_tip
+        self._k_hold2 = self.k_hold * self.k_hold
+        self._rows = slice(first, first + BLADE_ACTUATORS * self.n)
+        self._block = np.zeros((self.n, BLADE_ACTUATORS, 3))     # each point's three gain rows
+        self._block[:, 1:, 1] = -self.k_hold[:, None]
+
+    def reset(self) -> None:
+        """A new walk: no point is in the blades."""
+        self.inside[:] = False
+
+    def update(self, model: mujoco.MjModel, data: mujoco.MjData, p_world: np.ndarray, layer_height: float,
+               friction: float) -> np.ndarray:
+        """One control tick: the points at ``p_world`` (N, 3) [m], the layer ``layer_height`` [m]
+        tall and ``friction`` strong. Sets the actuators' ctrl and gains; returns each point's
+        support [N] (zero outside the layer)."""
+        h = layer_height
+        z = p_world[:, 2]
+        xy = p_world[:, :2]
+        now = z < h
+        entered = now & ~self.inside
+        if entered.any():
+            self.anchor[entered] = xy[entered]
+        depth = h - z
+        base = depth > self.d_tip
+        k = np.where(base, self.k_base, self.k_tip)
+        f0 = np.where(base, self._f0_base, 0.0)
+        load = (f0 + k * depth) * now
+        np.maximum(load, 0.0, out=load)
+        d = self.anchor - xy
+        pull2 = (d * d).sum(axis=1) * self._k_hold2
+        limit = friction * load
+        slip = now & (pull2 > limit * limit)
+        if slip.any():                    # the anchor slides to where the hold is friction x load
+            scale = limit[slip] / np.sqrt(pull2[slip])
+            self.anchor[slip] = xy[slip] + d[slip] * scale[:, None]
+        self.inside = now
+        # support F = f0 + k (h - z) - c v_z; hold F = k_h (anchor - x) - drag v_x (gains, ctrl)
+        blk = self._block
+        blk[:, 0, 0] = f0 + k * h
+        blk[:, 0, 1] = -k
+        blk[:, 0, 2] = np.where(base, -self.c, -self.c_tip)
+        blk[:, 1:, 0] = self.k_hold[:, None] * self.anchor
+        blk[:, 1:, 2] = -self.drag * self.drag_scale
+        model.actuator_gainprm[self._rows, :3] = blk.reshape(-1, 3)
+        data.ctrl[self._rows] = np.repeat(now, BLADE_ACTUATORS)
+        return load
