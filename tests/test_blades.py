@@ -140,3 +140,24 @@ def test_randomised_walks_run_on_the_blade_layer(gait_tuner_cmd, run_env):
     assert r.returncode == 0, r.stderr
     doc = json.loads(r.stdout)
     assert doc["rollouts"] == 3 and sum(doc["outcomes"].values()) == 3 and doc["outcomes"]["diverged"] == 0
+
+
+def test_the_eros_experiment_walks_a_pedestal_on_a_surface_file(gait_tuner_cmd, run_env):
+    """`experiment eros --pedestal 1=FILE`: pedestal 1's cells walk on that surface (the JSON says which),
+    the others on the built-in pedestals; a bad pedestal is one line, exit 2."""
+    import json
+    import subprocess
+    r = subprocess.run(gait_tuner_cmd + ["experiment", "eros", "--pedestal", f"1={EXAMPLES / 'grass50-blades.yaml'}",
+                                         "--json", "--steps", "2"], capture_output=True, text=True, env=run_env,
+                       timeout=900)
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(r.stdout)
+    assert doc["surfaces"] == {"grass50": "grass50-blades", "grass30": "grass30", "grass10": "grass10",
+                               "carpet4": "carpet4"}
+    assert {c["surface"] for c in doc["cells"]} == {"grass50-blades", "grass30", "grass10", "carpet4"}
+    assert doc["stability"]["with"]["grass50"] >= 0.6                      # measured 0.7 (the contact layer: 0)
+    for bad, words in (("5=grass30", "N one of 1, 2, 3, 4"), ("1=nowhere", "'nowhere' is not a built-in surface"),
+                       ("grass30", "expected N=SURFACE")):
+        r = subprocess.run(gait_tuner_cmd + ["experiment", "eros", "--pedestal", bad], capture_output=True, text=True,
+                           env=run_env, timeout=300)
+        assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and words in r.stderr, r.stderr

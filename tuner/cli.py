@@ -544,11 +544,15 @@ def simulate(robot_name: str, surface_name: str, family: str | None, params_spec
 @click.option("--tuned", "tuned_spec", metavar="PARAMS",
               help="eros only: also walk Table 8's cells with this EROS set's heel gain, C_DC, n and "
                    "double-support share (e.g. the export of the eros-paper study).")
+@click.option("--pedestal", "pedestal_specs", multiple=True, metavar="N=SURFACE",
+              help="eros only: walk pedestal N (1-4: grass50, grass30, grass10, carpet4) on another surface, a "
+                   "built-in name or a surface YAML (repeat), e.g. 1=examples/surfaces/grass50-blades.yaml.")
 @JSON_OPTION
 @click.option("--out", "out_dir", type=OutPath(file_okay=False),
               help="Also write the report as Markdown (report.md) here.")
 def experiment(paper: str, robot_name: str, surface_name: str, lift_scale: float, double_support: float | None,
-               long_steps: int, workers: int, tuned_spec: str | None, as_json: bool, out_dir: Path | None) -> None:
+               long_steps: int, workers: int, tuned_spec: str | None, pedestal_specs: tuple[str, ...], as_json: bool,
+               out_dir: Path | None) -> None:
     """Run a paper's experiment in simulation and print it beside the paper's numbers.
 
     eros: the stability matrix of Tables 7-8 (4 pedestals x 10 step settings,
@@ -565,12 +569,23 @@ def experiment(paper: str, robot_name: str, surface_name: str, lift_scale: float
     from .robots import load_robot
     from .sim.surfaces import SURFACES, load_surface
 
-    if paper != "eros" and (as_json or tuned_spec):
-        raise UserError(f"{'--json' if as_json else '--tuned'}: only the eros experiment takes it")
+    if paper != "eros" and (as_json or tuned_spec or pedestal_specs):
+        raise UserError(f"{'--json' if as_json else '--tuned' if tuned_spec else '--pedestal'}: only the eros "
+                        f"experiment takes it")
     tuned = None if tuned_spec is None else resolve_params(tuned_spec, "eros").params
     robot = load_robot(robot_name)
     if paper == "eros":
         surfaces = {p: SURFACES[name] for p, name in ex.PEDESTALS.items()}
+        for spec in pedestal_specs:
+            num, sep, name = spec.partition("=")
+            if not sep or num.strip() not in {str(p) for p in ex.PEDESTALS} or not name.strip():
+                raise UserError(f"--pedestal {spec!r}: expected N=SURFACE with N one of "
+                                f"{', '.join(map(str, ex.PEDESTALS))} (e.g. 1=grass30)")
+            name = name.strip()
+            if name not in SURFACES and not os.path.lexists(name):
+                raise UserError(f"--pedestal {spec!r}: {name!r} is not a built-in surface ({', '.join(SURFACES)}) "
+                                f"and no such file")
+            surfaces[int(num)] = load_surface(name)
         ds = ex.eros_params(8, False).double_support if double_support is None else double_support
         n = (2 + (tuned is not None)) * len(surfaces) * sum(len(v) for v in ex.EROS_STEPS_MM.values())
         with tqdm(total=n, desc="EROS matrix", unit="walk", **_bar_options()) as bar:
@@ -584,6 +599,7 @@ def experiment(paper: str, robot_name: str, surface_name: str, lift_scale: float
             if tuned is not None:
                 report["tuned"]["params"] = {k: getattr(tuned, k) for k in ex.TUNED_KNOBS}
                 report["tuned"]["source"] = tuned_spec
+            report["surfaces"] = {ex.PEDESTALS[p]: surfaces[p].name for p in sorted(surfaces)}
             click.echo(json.dumps({"robot": robot.name, **report}, allow_nan=False))
             return
         text = (f"robot {robot.name}; foot lift: the paper's Z x {lift_scale:g}; double support "
