@@ -179,6 +179,14 @@ def measure(args) -> None:
             with build_t.held():                  # the first read of the whole study: resume time
                 return super().refresh(study)
     workers.TrialIndex = TimedIndex
+    freeze = workers._freeze_history
+
+    def timed_freeze(n_done, frozen_at):           # the first: part of resuming, as the first read
+        if frozen_at >= 0:
+            return freeze(n_done, frozen_at)
+        with build_t.held():
+            return freeze(n_done, frozen_at)
+    workers._freeze_history = timed_freeze
 
     t0 = time.perf_counter()
     store = _store(args)

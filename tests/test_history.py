@@ -278,3 +278,35 @@ def test_a_trial_whose_worker_died_before_sampling_is_failed_not_retried(tmp_pat
     [failed] = study.trials
     assert failed.state == TrialState.FAIL and failed.user_attrs["failed"] == WORKER_DIED
     assert store.reap(study) == [] and len(study.trials) == 1
+
+
+def test_scipy_log_ndtr_stands_in_for_optunas_own():
+    """TPE's truncated normals use SciPy's log Phi in C in place of Optuna 5's element-by-element Python
+    (tuner/search/history.py): the same function to 1e-12 of its size (at least 1) over the left tail,
+    the centre and the right, where Optuna's series switches branches (-20, 6), and Optuna's sampler
+    module uses it."""
+    import numpy as np
+    from optuna.samplers._tpe import _truncnorm
+    from scipy.special import log_ndtr
+
+    from tuner.search import history
+    assert history.SCIPY_LOG_NDTR and _truncnorm._log_ndtr is log_ndtr
+    x = np.concatenate([np.linspace(-60.0, 12.0, 3001), [-20.0, -20.0 - 1e-9, 6.0, 6.0 + 1e-9, 0.0]])
+    ours = history.OPTUNA_LOG_NDTR(x)
+    assert np.all(np.abs(ours - log_ndtr(x)) <= 1e-12 * np.maximum(1.0, np.abs(ours)))
+
+
+def test_a_worker_freezes_what_it_has_read_once_and_every_thousand_trials():
+    """The garbage collector would walk the replayed study in every full collection: a worker
+    freezes it once read (its first call always does) and again each 1000 trials read since."""
+    import gc
+
+    from tuner.search.workers import FREEZE_EVERY, _freeze_history
+    try:
+        at = _freeze_history(0, -FREEZE_EVERY)                 # the worker's first call
+        assert at == 0 and gc.get_freeze_count() > 0
+        gc.unfreeze()
+        assert _freeze_history(FREEZE_EVERY - 1, at) == at and gc.get_freeze_count() == 0
+        assert _freeze_history(FREEZE_EVERY + 5, at) == FREEZE_EVERY + 5 and gc.get_freeze_count() > 0
+    finally:
+        gc.unfreeze()

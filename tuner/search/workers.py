@@ -13,6 +13,7 @@ its full parameter set (SI), so it is reproducible: the simulation is determinis
 from __future__ import annotations
 
 import contextlib
+import gc
 import math
 import os
 import signal
@@ -181,6 +182,24 @@ def _signal_name(number: int) -> str:
 class WorkerStop(UserError):
     """A worker met bad input or a full disk: the whole run stops with this one line."""
 
+#: How many finished trials a worker reads between two freezes of its memory (:func:`_freeze_history`).
+FREEZE_EVERY = 1000
+
+
+def _freeze_history(n_done: int, frozen_at: int) -> int:
+    """Python's garbage collector walks every object it tracks in its oldest generation, and a
+    worker holds the whole study Optuna replayed (10k trials: a full collection took ~50 ms, falling
+    on whichever trial allocated at that moment, and the overhead per trial grew with the study).
+    Ours: once the study is read, and again every :data:`FREEZE_EVERY` trials read since, collect
+    and then freeze what is left (``gc.freeze``: those objects are never walked again; they live as
+    long as the study's replay holds them anyway). Returns the count it froze at."""
+    if n_done - frozen_at < FREEZE_EVERY:
+        return frozen_at
+    gc.collect()
+    gc.freeze()
+    return n_done
+
+
 def work(spec: StudySpec, store: StudyStore, budget: int, seed: int,
          log: Callable[[str], None] | None = None, poll: float = 1.0, threads: int = 1) -> int:
     """One process's share of a study: trials until the study holds ``budget`` finished ones.
@@ -201,11 +220,13 @@ def work(spec: StudySpec, store: StudyStore, budget: int, seed: int,
     index = TrialIndex()
     study = open_study(spec, store.optuna_storage(), seed, index)
     index.refresh(study)                            # the whole study, once, outside the lock
+    frozen = _freeze_history(index.n_done, -FREEZE_EVERY)
     objective = objective_for(spec, Evaluator(spec, threads=threads))
     beat = Heartbeat(store, spec.name).start()
     ran = 0
     try:
         while True:
+            frozen = _freeze_history(index.n_done, frozen)
             with store.budget_lock(spec.name):
                 index.refresh(study)
                 notes = store.reap(study, index.running, index.failed)
