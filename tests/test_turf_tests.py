@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from tuner.sim.surfaces import SURFACES
-from tuner.sim.turf_tests import (BANDS, WEBOTS_GRASS, DropTest, RotationTest, SpringGround, drop_test,
+from tuner.sim.turf_tests import (BANDS, WEBOTS_GRASS, RotationTest, SpringGround, drop_test,
                                   rigid_peak_force, rotation_test, sole_sink, webots_ground)
 
 

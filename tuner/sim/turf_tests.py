@@ -1,6 +1,7 @@
 """The sports-turf test methods, simulated on our surfaces: the (Advanced) Artificial Athlete drop
 test and the rotational resistance test, each on the same ground the robot walks on
-(``scene.add_ground`` and ``scene.add_drag``), so a team can hold our layers against what turf
+(``scene.add_ground``; the layer's drag, ``scene.add_drag``, or the blade layer, ``blades.py``, on
+the test foot's points as on a sole's corners), so a team can hold our layers against what turf
 makers and test houses publish.
 
 **Drop test** (EN 14808 / FIFA Test Method 04a and 05a, the Advanced Artificial Athlete, as we
@@ -24,16 +25,19 @@ leaves it). Ours, where the methods leave it to the apparatus: the test foot is 
 disc of 0.1 kg (the real foot's base is a 500 mm sphere cap; its mass is not in our sources),
 guided vertically; the accelerometer's signal is low-passed at 250 Hz (2nd-order Butterworth,
 run both ways), which removes the foot's ringing on the stiff spring and keeps the mass's
-bounce (the concrete reference comes out within 0.5 %: tested); the rig steps at 0.1 ms (the robot's simulation at 2 ms; the surface's
-contact numbers are the same at both: none of our time constants is near MuJoCo's 2-step floor).
+bounce (the concrete reference comes out within 0.5 %: tested); the rig steps at 0.1 ms (the
+robot's simulation at 2 ms; the surface's contact numbers are the same at both: none of our time
+constants is near MuJoCo's 2-step floor).
 
 **Rotational resistance** (EN 15301-1 / FIFA Test Method 06, as we read them): a studded test
 disc of 150 mm, six studs on a 46 mm circle, loaded to 46 kg in all, set onto the surface from
 60 mm, then turned at 12 rev/min (72 deg/s) through 45 deg or more; the peak torque [N m]. Our
 studs: cylinders 13 mm across and 13 mm long with a rounded tip that makes the contact (the
 stud's size is not in our sources; ours: flat cylinder ends chatter on MuJoCo's planes, and the
-torque followed the time step); the
-turn is a velocity servo; the drag of the layer acts on each stud's tip as on a sole corner.
+torque followed the time step); the layer acts on each stud's tip as on a sole corner; the turn
+is a velocity servo reaching 72 deg/s in 50 ms, and the torque reported is the surface's on the
+disc (its contacts' and its layer's generalised force on the turn, not the servo's, which also
+accelerates the disc), averaged over 50 ms as a wrench's needle shows it.
 
 **Scale** (why the test cannot tell all about a robot foot): the drop test presses its 70 mm
 foot with 196 N at rest, ~51 kPa, and peaks near 6.8 kN; a 5 kg kid-size robot presses one 10 x 6
