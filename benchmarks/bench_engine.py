@@ -11,7 +11,8 @@ open-loop set of the same surface (``kidsize-omni-<surface>``, a table planned p
 * survival of randomised sustained walks (0.3 m/s on carpet4, 0.2 on grass50, 8 s);
 * velocity tracking in the steady segments of the match stream: per moving segment, the measured
   velocity over its steps from the second on, as a share of the command (median over the walks
-  that stayed up), and the RMS errors;
+  that stayed up, and per kind of segment: forward, backward, sideways, turning), and the RMS
+  errors;
 * the push-recovery challenge (``gait-tuner challenge push``) on carpet4 and grass30: the largest
   fully successful D and the bottle's momentum at impact, engine vs open-loop;
 * the engine's cost per tick in Python (median, 99th percentile) beside one tick of physics;
@@ -52,9 +53,9 @@ def survival(rows) -> float:
     return float(np.mean([r["survived"] for r in rows])) if rows else float("nan")
 
 
-def tracking_shares(rows) -> tuple[float, float]:
-    """Median measured/commanded along each moving segment's own axis, and its spread (IQR)."""
-    shares = []
+def _segment_shares(rows):
+    """(command, dominant axis, measured/commanded along it) of every moving segment of the walks
+    that stayed up."""
     for r in rows:
         if not r["survived"]:
             continue
@@ -64,11 +65,29 @@ def tracking_shares(rows) -> tuple[float, float]:
                 continue
             axis = int(np.argmax(np.abs(c) * [1, 1, 0.1]))
             if abs(c[axis]) > 1e-9:
-                shares.append(got[axis] / c[axis])
+                yield c, axis, got[axis] / c[axis]
+
+
+def tracking_shares(rows) -> tuple[float, float]:
+    """Median measured/commanded along each moving segment's own axis, and its spread (IQR)."""
+    shares = [share for _, _, share in _segment_shares(rows)]
     if not shares:
         return float("nan"), float("nan")
     q = np.percentile(shares, [25, 50, 75])
     return float(q[1]), float(q[2] - q[0])
+
+
+AXES = ("forward", "backward", "sideways", "turning")
+
+
+def tracking_by_axis(rows) -> dict[str, float]:
+    """The median measured/commanded per kind of segment (forward, backward, sideways, turning: the
+    segment's dominant axis): where the shares of :func:`tracking_shares` come from."""
+    out: dict[str, list[float]] = {a: [] for a in AXES}
+    for c, axis, share in _segment_shares(rows):
+        kind = ("forward" if c[0] > 0 else "backward") if axis == 0 else ("sideways" if axis == 1 else "turning")
+        out[kind].append(share)
+    return {k: float(np.median(v)) if v else float("nan") for k, v in out.items()}
 
 
 def walks(name: str, surface: str, drive: gaits.Drive, n: int, workers: int, seed: int):
@@ -107,6 +126,9 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--quick", action="store_true", help="20 walks, no challenge on grass30")
+    ap.add_argument("--yaw-feedback", type=float, default=None, metavar="GAIN",
+                    help="walk the engine sets with this gyro turn feedback (engine yaw_feedback [1/s]; "
+                         "default: the sets' own, 0)")
     ap.add_argument("--parts", default="walks,challenge,cost,limits",
                     help="which parts to run, comma-separated (walks, challenge, cost, limits); the tick "
                          "cost is best measured alone on an idle machine: --parts cost")
@@ -122,6 +144,8 @@ def main() -> None:
         print(f"{'set':28s} {'match %':>8s} {f'{top:g} m/s %':>9s} {'tracking':>10s} {'IQR':>6s} {'vx rmse':>8s}")
         for label in (engine_set, table_set):
             gf = resolve_params(label, None)
+            if gf.engine is not None and args.yaw_feedback is not None:
+                gf = dataclasses.replace(gf, engine=gf.engine.replace(yaw_feedback=args.yaw_feedback))
             drive = gaits.Drive.of(gf, source=label, stream=stream)
             t0 = time.perf_counter()
             match = walks(label, surface, drive, n, args.workers, args.seed)
@@ -131,6 +155,8 @@ def main() -> None:
             print(f"{label:28s} {survival(match):8.0%} {survival(steady):9.0%} {share:10.0%} {iqr:6.0%} "
                   f"{np.median(vx) if vx else float('nan'):8.3f}   ({time.perf_counter() - t0:.0f} s; "
                   f"{'online engine' if gf.engine is not None else 'table planned per step'})", flush=True)
+            by = tracking_by_axis(match)
+            print(f"{'':28s} tracking by segment: " + ", ".join(f"{k} {v:.0%}" for k, v in by.items()), flush=True)
     if "challenge" in parts:
         print("\npush-recovery challenge (rope 1.5 m, seed 0): best D [m] / momentum at impact [N s]")
     for surface in (("carpet4",) + (() if args.quick else ("grass30",))) if "challenge" in parts else ():

@@ -166,14 +166,15 @@ def test_a_pushed_step_moves_toward_the_capture_point_within_the_limits(push):
 
 # --- the engine as a controller --------------------------------------------------------------
 
-def test_a_command_changed_at_tick_k_changes_no_target_before_it():
+@pytest.mark.parametrize("yaw_feedback", [0.0, 3.0])
+def test_a_command_changed_at_tick_k_changes_no_target_before_it(yaw_feedback):
     """Two walks fed the same measurements, their commands equal until tick k: equal targets up to
-    tick k - 1 (the engine knows no future command)."""
+    tick k - 1 (the engine knows no future command; the gyro's turn feedback neither)."""
     m0 = Measurement(0.0)
     k = 180
 
     def walk(change: np.ndarray) -> np.ndarray:
-        e = engine()
+        e = engine(yaw_feedback=yaw_feedback)
         e.start_pose()
         e.reset(m0)
         out = []
@@ -283,3 +284,26 @@ def test_live_walk_steers_from_the_keyboard_and_ends_when_the_window_closes():
     assert trace.reason == "stopped" and len(trace.t) == 602          # 600 ticks shown, the 601st finds it closed
     assert trace.p_torso[440, 0] - trace.p_torso[150, 0] > 0.2
     assert keyboard.at(0.0).tolist() == [0.0, 0.0, 0.0]
+
+
+def test_the_gyro_makes_up_a_turning_shortfall_within_bounds():
+    """Asked 0.6 rad/s while the gyro reads 80 % of it, the engine plans a faster turn once the asked
+    turn is reached and three steps have passed (at most 30 % more); it turns as asked when the gyro
+    agrees (within 0.03 rad/s: the filter's last lag); without feedback (the default) the planned
+    turn is the asked one; at a zero command the correction decays."""
+    def walk(gain: float, seen: float, ticks: int = 400, then_stop: bool = False) -> WalkEngine:
+        e = engine(yaw_feedback=gain)
+        e.start_pose()
+        e.reset(Measurement(0.0))
+        for i in range(ticks):
+            c = np.array([0.0, 0.0, 0.6])
+            if then_stop and i >= ticks - 100:
+                c = np.zeros(3)
+            e.step(Measurement(i * 0.01, gyro=np.array([0.0, 0.0, seen * float(e.command[2] - e._wz_extra)])), c)
+        return e
+    short = walk(3.0, 0.8)
+    assert 0.6 < short.command[2] <= 0.6 * 1.3 + 1e-9
+    assert walk(3.0, 1.0).command[2] == pytest.approx(0.6, abs=0.03)
+    assert walk(0.0, 0.8).command[2] == pytest.approx(0.6, abs=1e-12)
+    stopped = walk(3.0, 0.8, ticks=500, then_stop=True)
+    assert abs(stopped._wz_extra) < 0.5 * abs(short._wz_extra)
