@@ -58,8 +58,8 @@ __all__ = ["load_map", "LEG_AXES", "MAP_KEYS", "AXIS_TOLERANCE"]
 #: Expected joint axis of each leg joint in the torso frame at the zero pose.
 LEG_AXES = {"hip_yaw": (0, 0, 1), "hip_roll": (1, 0, 0), "hip_pitch": (0, 1, 0),
             "knee": (0, 1, 0), "ankle_pitch": (0, 1, 0), "ankle_roll": (1, 0, 0)}
-MAP_KEYS = ("mjcf", "urdf", "packages", "ranges", "balance_inertia", "name", "torso", "feet", "joints", "leg", "servo", "servos",
-            "pose", "sim")
+MAP_KEYS = ("mjcf", "urdf", "packages", "ranges", "balance_inertia", "name", "torso", "feet", "joints", "leg",
+            "servo", "servos", "pose", "sim")
 #: How far apart two axis lines that must meet may be, and how far the straight leg's
 #: centres may stray from a vertical line [m] (ours).
 AXIS_TOLERANCE = 0.005
@@ -203,8 +203,8 @@ def load_map(path: Path) -> RobotModel:
         c = in_torso(d.xpos[fb]) + sole.centre_sole
         # within the axis tolerance the hips count as under the torso origin, as the knee and ankle
         # count as under the hips (ours: the figures of robots that passed the old check unchanged)
-        geo[side] = {"hip_offset_x": float(hip[0]) if abs(hip[0]) >= AXIS_TOLERANCE else 0.0, "hip_offset_y": float(s * hip[1]), "hip_offset_z": float(-hip[2]),
-                     "thigh": thigh,
+        geo[side] = {"hip_offset_x": float(hip[0]) if abs(hip[0]) >= AXIS_TOLERANCE else 0.0,
+                     "hip_offset_y": float(s * hip[1]), "hip_offset_z": float(-hip[2]), "thigh": thigh,
                      "shank": shank, "ankle_height": float(ankle[2] - c[2]),
                      "sole_forward": float(c[0] - ankle[0]), "sole_outward": float(s * (c[1] - ankle[1]))}
         soles.append(tuple(float(v) for v in sole.centre))

@@ -87,9 +87,10 @@ def _nq(spec: mujoco.MjSpec) -> int:
 
 def add_ground(spec: mujoco.MjSpec, s: Surface, gt: mujoco.MjsDefault) -> None:
     """The surface ``s`` as MuJoCo geoms (``tuner/sim/surfaces.py`` says what each stands for): the
-    soil plane, and for a carpet or grass the layer plane whose margin is the blade height, plus
-    a drawn-only slab as tall as the blades. The robot's scene and the turf test rigs
-    (``turf_tests.py``) stand on the same ground."""
+    soil plane, and for a carpet or grass the layer plane whose margin is the blade height (a blade
+    layer has none: its springs are actuators on the soles, ``blades.py``), plus a drawn-only slab
+    as tall as the blades. The robot's scene and the turf test rigs (``turf_tests.py``) stand on
+    the same ground."""
     soil = spec.worldbody.add_geom(default=gt, name=PREFIX + "soil", type=mujoco.mjtGeom.mjGEOM_PLANE,
                                    size=[0, 0, 0.05])
     soil.friction = [s.soil_friction, 0.005, 0.0001]
@@ -124,7 +125,8 @@ def add_ground(spec: mujoco.MjSpec, s: Surface, gt: mujoco.MjsDefault) -> None:
         layer.rgba = [0.2, 0.6, 0.2, 0.0]     # invisible: at the soil's height it would z-fight; the slab shows it
     if not s.rigid:
         # drawn only: a translucent slab as tall as the blades, so a video shows how deep the
-        # feet sink (no contact, no mass: the physics is the plane's margin above)
+        # feet sink (no contact, no mass: the physics is the layer plane's margin above, or the
+        # blade layer's springs)
         blades = spec.worldbody.add_geom(default=gt, name=PREFIX + "blades", type=mujoco.mjtGeom.mjGEOM_BOX,
                                          size=[4.0, 4.0, s.layer_height / 2], pos=[0, 0, s.layer_height / 2])
         blades.contype = 0
