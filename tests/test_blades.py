@@ -95,7 +95,10 @@ def test_creeping_tips_catch_a_toe_first_landing_and_the_full_lift_walk_takes_it
     two_steps = p.t_start + 2 * gaits.step_period(p)                       # 0.5 + 2 x 0.76 s
     for surface, stands in ((CREEP, True), (SURFACES["grass50"], False)):
         cells = eros_matrix(ROBOT, {1: surface}, optimised=False)
-        t_fall = [c.metrics.t_fall_s if c.metrics.t_fall_s is not None else math.inf for c in cells]
+        # every walk completed or fell: none diverged or reached an impossible state (which would
+        # have no fall time and would read here as standing)
+        assert {c.metrics.outcome for c in cells} <= {"completed", "fell"}, (surface.name, cells)
+        t_fall = [c.metrics.t_fall_s if c.metrics.outcome == "fell" else math.inf for c in cells]
         assert (min(t_fall) > two_steps) == stands, (surface.name, t_fall)
 
 

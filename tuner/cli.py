@@ -144,8 +144,9 @@ def write_joint_table(traj: "gaits.GaitTrajectory", robot, path: Path, joint_nam
                 click.echo(f"note: {line}", err=True)
             table = dataclasses.replace(table, q_ref=q)
             comment += "; joint targets clipped to the servos' speed and range (the references are the plan's)" if notes else ""
-        rate, over = too_fast(table.q_ref, table.t, speed)
-        if over.any():                       # said, as the simulator's servo limits it (never silently)
+        else:
+            rate, over = too_fast(table.q_ref, table.t, speed)
+        if not clip and over.any():          # said, as the simulator's servo limits it (never silently)
             j = int(np.argmax((rate / speed).max(axis=0)))
             click.echo(f"note: the table asks {names[j]} for up to {rate[:, j].max():.2f} rad/s where its servo "
                        f"gives {speed[j]:g} rad/s (the simulated servo moves at most that fast; {int(over.any(axis=1).sum())} "

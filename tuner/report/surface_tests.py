@@ -9,6 +9,8 @@ from __future__ import annotations
 import math
 from typing import Any, Iterable
 
+from gaits.trajectory import GRAVITY
+
 from ..sim.surfaces import Surface
 from ..sim.turf_tests import (BANDS, WEBOTS_GRASS, DropTest, RotationTest, SpringGround, drop_test, rotation_test,
                               sole_roll_stiffness, sole_sink)
@@ -50,7 +52,7 @@ def _one(ground: Surface | SpringGround, robot_mass: float, sole: tuple[float, f
         row["description"] = ground.description
     else:
         row["layer_mm"] = None
-        row["robot_sole_sink_mm"] = _finite(1000.0 * robot_mass * 9.81 / (4 * ground.stiffness))
+        row["robot_sole_sink_mm"] = _finite(1000.0 * robot_mass * GRAVITY / (4 * ground.stiffness))
         # four springs at the sole's corners: 4 k (w/2)^2
         row["robot_sole_roll_Nm_per_rad"] = _finite(4 * ground.stiffness * (sole[1] / 2) ** 2)
         row["description"] = ground.description
@@ -64,7 +66,7 @@ def surface_tests(surfaces: Iterable[Surface], *, robot_mass: float = 4.95,
     """Every figure of every surface (and the Webots grass unless ``webots`` is off), the bands, the
     methods' numbers and the two scales (drop test vs a robot's sole at rest)."""
     t, rt = DropTest(), RotationTest()
-    g = 9.81
+    g = GRAVITY
     drop_kpa = (t.mass + t.foot_mass) * g / (math.pi * (t.foot_diameter / 2) ** 2) / 1000.0
     robot_kpa = robot_mass * g / (sole[0] * sole[1]) / 1000.0
     out: dict[str, Any] = {"surfaces": {s.name: _one(s, robot_mass, sole) for s in surfaces}}

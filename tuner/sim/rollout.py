@@ -160,6 +160,7 @@ class Simulator:
         contact_layer = not surface.rigid and not surface.blades
         self._ground = [m.geom(PREFIX + "soil").id] + ([m.geom(PREFIX + "layer").id] if contact_layer else [])
         self._layer = m.geom(PREFIX + "layer").id if contact_layer else None
+        self._blade = None
         if surface.blades:                     # each sole corner stands for a quarter of its sole
             area = np.repeat([robot.foot_size_of(i)[0] * robot.foot_size_of(i)[1] / 4 for i in range(2)], 4)
             self._blade = BladeLayer(surface, area, self._n_act)
@@ -266,21 +267,20 @@ class Simulator:
             mujoco.mj_forward(m, d)
         return self.run(HoldPose(q0, self.control_period), duration=duration, start=release, height_check=False)
 
-    def _blades(self) -> None:
-        """The blade layer's tick (``blades.py``): the sole corners' places handed to it."""
+    def _ground_tick(self) -> None:
+        """The ground's per-tick part at the sole corners: the contact layer's drag dampers switched
+        on where a corner is inside the layer (module ``tuner.surfaces``; MuJoCo applies -drag * v
+        every physics step), or the blade layer's stages and holds (``blades.py``)."""
         d = self.data
         R = d.xmat[self._feet].reshape(2, 3, 3)
-        p = (d.xpos[self._feet][:, :, None] + R @ self._corners_T).transpose(0, 2, 1).reshape(8, 3)
-        self._blade.update(self.model, d, p, self._layer_h, self._mu_blade)
-
-    def _drag(self) -> None:
-        """Switch on the drag dampers of the sole corners that are inside the layer (module
-        ``tuner.surfaces``); MuJoCo applies -drag * v at each of them every physics step."""
-        d = self.data
-        R = d.xmat[self._feet].reshape(2, 3, 3)
-        pz = d.xpos[self._feet, 2:3] + (R @ self._corners_T)[:, 2, :]      # (2, 4) corner heights
-        inside = drag_gate(pz, self._layer_h, self.surface.drag_depth).ravel()
-        d.ctrl[self._n_act:] = np.repeat(inside, 2)                       # x and y per corner
+        off = R @ self._corners_T                                           # (2, 3, 4) corners from the feet
+        if self._blade is None:
+            pz = d.xpos[self._feet, 2:3] + off[:, 2, :]                     # (2, 4) corner heights
+            inside = drag_gate(pz, self._layer_h, self.surface.drag_depth).ravel()
+            d.ctrl[self._n_act:] = np.repeat(inside, 2)                     # x and y per corner
+        else:
+            p = (d.xpos[self._feet][:, :, None] + off).transpose(0, 2, 1).reshape(8, 3)
+            self._blade.update(self.model, d, p, self._layer_h, self._mu_blade)
 
     def n_random(self) -> tuple[int, int, int]:
         """(bodies, servo actuators incl. held joints, mapped servos): the sizes a perturbation draws."""
@@ -422,9 +422,8 @@ class Simulator:
         max_speed2, max_spin2, max_height = self.fall.max_speed ** 2, self.fall.max_spin ** 2, self.fall.max_height
         qvel = d.qvel
         z_min = self.fall.min_height_ratio * z0 if height_check else -math.inf
-        drag = self.surface.drag > 0.0 and not self.surface.blades
-        blades = self.surface.blades
-        if blades:
+        ground = self.surface.drag > 0.0 or self.surface.blades     # a per-tick part of the ground
+        if self._blade is not None:
             self._blade.reset()
         warn = d.warning[mujoco.mjtWarning.mjWARN_BADQACC]
         reason, k_end = "completed", n_ticks
@@ -455,10 +454,8 @@ class Simulator:
                 out = dead_band(out, d.qpos[self._qadr], backlash)
             ctrl[:n_servo] = out
             sent_log[k] = out
-            if drag:
-                self._drag()
-            elif blades:
-                self._blades()
+            if ground:
+                self._ground_tick()
             kick = kicks.get(k - 1)
             if kick is not None:
                 d.xfrc_applied[torso, :3] = kick

@@ -84,18 +84,14 @@ class Surface(GaitParams):
         if self.layer_dmin > self.layer_dmax:
             raise ParamError(f"surface {self.name!r}: layer_dmin = {self.layer_dmin:g} must not exceed "
                              f"layer_dmax = {self.layer_dmax:g}")
-        if self.drag_depth > self.layer_height:
-            raise ParamError(f"surface {self.name!r}: drag_depth = {self.drag_depth:g} m must not exceed "
-                             f"layer_height = {self.layer_height:g} m")
-        if self.layer_height == 0.0 and self.blade_modulus > 0.0:
-            raise ParamError(f"surface {self.name!r}: blade_modulus = {self.blade_modulus:g} N/m^3 needs a "
-                             f"layer (layer_height > 0)")
-        if self.blade_tip_depth > self.layer_height:
-            raise ParamError(f"surface {self.name!r}: blade_tip_depth = {self.blade_tip_depth:g} m must not exceed "
-                             f"layer_height = {self.layer_height:g} m")
-        if self.layer_height == 0.0 and self.drag > 0.0:
-            raise ParamError(f"surface {self.name!r}: drag = {self.drag:g} N s/m needs a layer "
-                             f"(layer_height > 0)")
+        for name in ("drag_depth", "blade_tip_depth"):          # depths within the layer
+            if getattr(self, name) > self.layer_height:
+                raise ParamError(f"surface {self.name!r}: {name} = {getattr(self, name):g} m must not exceed "
+                                 f"layer_height = {self.layer_height:g} m")
+        for name, value, unit in (("blade_modulus", self.blade_modulus, "N/m^3"), ("drag", self.drag, "N s/m")):
+            if self.layer_height == 0.0 and value > 0.0:         # what acts in a layer needs one
+                raise ParamError(f"surface {self.name!r}: {name} = {value:g} {unit} needs a layer "
+                                 f"(layer_height > 0)")
 
     @property
     def rigid(self) -> bool:

@@ -64,6 +64,8 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
+from gaits.trajectory import GRAVITY
+
 from .blades import BladeLayer, add_blades
 from .scene import PREFIX, add_drag, add_ground, drag_gate
 from .surfaces import Surface
@@ -72,7 +74,6 @@ __all__ = ["DropTest", "RotationTest", "SpringGround", "DropResult", "RotationRe
            "rotation_test", "sole_sink", "sole_resistance", "sole_roll_stiffness", "rigid_peak_force", "BANDS",
            "WEBOTS_GRASS", "webots_ground"]
 
-GRAVITY = 9.81
 
 #: Published bands for football turf, (low, high): FIFA's two marks (FIFA Quality / Quality Pro,
 #: formerly one and two stars). Energy restitution: no band found in the sources we could read.
