@@ -18,7 +18,9 @@ Per step (ours unless named):
   duration (its single support scaled by lambda in [``min_ssp_scale``, 1]) are chosen so that the
   capture point (DCM) at the step's end is the one the following steps need:
   r(u, lambda) = xi_end(u, lambda) - xi_req(u) is affine in u (both sides are closed-form LIPM
-  passes, evaluated at three u), so for each of five lambdas the engine solves the box QP
+  passes: xi_end's columns are the pass's linear weights, ``lipm.dcm_forward_weights``; xi_req's
+  need one more backward pass, since moving the footstep moves every later ZMP point with it but
+  one), so for each of five lambdas the engine solves the box QP
   min |r|^2 + ``step_weight`` |u - u_nominal|^2 over the reach box (forward, backward, outward
   reach; the inward bound keeps the soles ``min_gap`` apart) exactly (``lipm.solve_box_qp``),
   drops lambdas whose re-targeted swing would exceed ``foot_speed`` (the servos' speed), and
@@ -55,7 +57,7 @@ import numpy as np
 from .control import READINGS, Measurement, PlanRecord, StartPose
 from .footstep_planner import StepLimits, compose, relative, swing_fraction
 from .leg_kinematics import LegGeometry, leg_ik_pose
-from .lipm import dcm_backward, dcm_forward, propagate, solve_box_qp, zmp_at
+from .lipm import dcm_backward, dcm_forward, dcm_forward_weights, propagate, solve_box_qp, zmp_at
 from .params import GaitParams, ParamError, param
 from .tlipfm import TlipfmParams, pendulum_constants
 from .trajectory import GRAVITY, JOINT_NAMES
@@ -294,7 +296,7 @@ def adjust_step(gait: _Gait, step: Step, tau: float, xi: np.ndarray, command: np
 
     Variables z = (du, dp): the footstep's move from the planner's and the ZMP's move on the sole,
     both in the support foot's frame. The DCM mismatch at the step's end, r = xi_end - xi_req, is
-    affine in z (closed-form LIPM passes, evaluated at z = 0 and one unit step per variable); the
+    affine in z (a closed-form LIPM pass at z = 0, and the pass's linear weights for the columns); the
     engine minimises |r|^2 + ``step_weight`` |du|^2 + ``zmp_weight`` |dp|^2 over the reach box and the
     sole (``lipm.solve_box_qp``) for each of five lambdas, drops those whose swing would exceed
     ``foot_speed``, and keeps the lambda of least cost + ``timing_weight`` (1 - lambda)^2.
@@ -316,27 +318,35 @@ def adjust_step(gait: _Gait, step: Step, tau: float, xi: np.ndarray, command: np
     tail = p.period - p.t2
     n_var = 2 if fixed_target else 4
 
-    required: dict[tuple, np.ndarray] = {}       # the next steps' DCM depends on the footstep alone
-
-    def residual(z: np.ndarray, t2: float, T: float) -> np.ndarray:
-        u = u_nom if fixed_target else u_nom + z[2:]
+    # the mismatch r(z) = r0 + M z: r0 from one closed-form pass per timing; M's columns from the
+    # pass's weights (lipm.dcm_forward_weights: the ZMP's two sole points move with dp, the boundary
+    # with du through the knots' rho and 1/2) less the next steps' required DCM, which depends on the
+    # footstep alone (affine; two more passes once, not per timing)
+    def required(u: np.ndarray, boundary: np.ndarray) -> np.ndarray:
         B_xy = step.support[:2] + Rot @ u
-        B = np.array([B_xy[0], B_xy[1], nominal[2]])
-        kt, kp, sh = gait.knots(step.support, step.p0, B, step.t1, t2, T, offset=z[:2])
-        xi_end = dcm_forward(xi, tau, T, kt, kp, sh, gait.Tc)
-        if n_preview == 0:                       # a stop: at rest between the feet when this step ends
-            return xi_end - kp[-1]
-        key = (float(B_xy[0]), float(B_xy[1]))
-        if key not in required:
-            required[key] = gait.required_dcm(B, -step.side, kp[-1], command, n_preview)
-        return xi_end - required[key]
+        return gait.required_dcm(np.array([B_xy[0], B_xy[1], nominal[2]]), -step.side, boundary, command, n_preview)
+
+    B0 = np.array([*(step.support[:2] + Rot @ u_nom), nominal[2]])
+    D = Rot * np.array([gait.rho, 0.5])             # d boundary / du
+    _, kp0, sh = gait.knots(step.support, step.p0, B0, step.t1, p.t2, p.period)   # the points at z = 0
+    if n_preview == 0:                              # a stop: at rest between the feet when this step ends
+        req0, J_req = kp0[-1], D
+    else:
+        req0 = required(u_nom, kp0[-1])
+        # moving the footstep by Rot d moves every later point by the same, so the required DCM
+        # too, except through the step's boundary (the next step's first ZMP point), which moves
+        # by D d; the LIPM being isotropic, that point's weight is one number
+        w_b = float(required(u_nom, kp0[-1] + np.array([0.01, 0.0]))[0] - req0[0]) / 0.01
+        J_req = Rot + w_b * (D - Rot)
 
     weights = np.array([params.zmp_weight] * 2 + [params.step_weight] * 2)[:n_var]
+    W = np.diag(weights)
     lo = np.concatenate([lo_p, lo_u - u_nom])[:n_var]
     hi = np.concatenate([hi_p, hi_u - u_nom])[:n_var]
     # the nominal timing first: when it leaves no mismatch (undisturbed walking) no shorter swing
     # can cost less, and the other timings are not tried
-    lams = [(step.t2 - p.t1) / ssp] if fixed_target else [1.0] + list(np.linspace(params.min_ssp_scale, 1.0, 5)[:-1])
+    m = params.min_ssp_scale
+    lams = [(step.t2 - p.t1) / ssp] if fixed_target else [1.0] + [m + (1.0 - m) * k / 4 for k in range(4)]
     best = None
     dropped = False
     for lam in lams:
@@ -346,10 +356,12 @@ def adjust_step(gait: _Gait, step: Step, tau: float, xi: np.ndarray, command: np
         if not fixed_target and t2 < tau + 2 * dt - 1e-12:
             continue                             # the swing cannot land sooner than that
         T = t2 + tail if not fixed_target else step.T
-        z0 = np.zeros(n_var)
-        r0 = residual(z0, t2, T)
-        M = np.column_stack([residual(np.eye(n_var)[i] * 0.01, t2, T) - r0 for i in range(n_var)]) / 0.01
-        H = 2.0 * (M.T @ M + np.diag(weights))
+        a, w, ws = dcm_forward_weights(tau, T, (0.0, step.t1, t2, T), gait.Tc)
+        r0 = a * xi + w @ kp0 + ws * sh - req0
+        M = (w[1] + w[2]) * Rot
+        if not fixed_target:
+            M = np.hstack([M, w[3] * D - J_req])
+        H = 2.0 * (M.T @ M + W)
         g = 2.0 * (M.T @ r0)
         z = solve_box_qp(H, g, lo, hi)
         r = M @ z + r0

@@ -26,7 +26,7 @@ import math
 
 import numpy as np
 
-__all__ = ["propagate", "dcm_forward", "dcm_backward", "zmp_at", "solve_box_qp"]
+__all__ = ["propagate", "dcm_forward", "dcm_forward_weights", "dcm_backward", "zmp_at", "solve_box_qp"]
 
 _KKT_TOL = 1e-10
 
@@ -53,10 +53,9 @@ def _slope(knot_t: np.ndarray, knot_p: np.ndarray, i: int) -> np.ndarray:
     return (knot_p[i + 1] - knot_p[i]) / dt if dt > 0 else np.zeros(2)
 
 
-def _segments(knot_t: np.ndarray, knot_p: np.ndarray, t0: float, t1: float):
-    """(start, end, p at start (x, y), slope (x, y)) of every piece of [t0, t1] (floats)."""
-    kt = knot_t.tolist() if hasattr(knot_t, "tolist") else list(knot_t)
-    kp = knot_p.tolist() if hasattr(knot_p, "tolist") else [list(v) for v in knot_p]
+def _pieces(kt: list, t0: float, t1: float):
+    """(start, end, i) of every piece of [t0, t1] (floats): i the knot segment it lies in, or -1
+    past the last knot (the ZMP held there). Before the first knot the first segment extends."""
     m = len(kt)
     t = t0
     i = 0
@@ -64,18 +63,29 @@ def _segments(knot_t: np.ndarray, knot_p: np.ndarray, t0: float, t1: float):
         i += 1
     while t < t1 - 1e-12:
         if t >= kt[-1]:
-            yield t, t1, kp[-1][0], kp[-1][1], 0.0, 0.0
+            yield t, t1, -1
             return
         while i < m - 2 and kt[i + 1] <= t:
             i += 1
-        dt = kt[i + 1] - kt[i]
-        kx = (kp[i + 1][0] - kp[i][0]) / dt if dt > 0 else 0.0
-        ky = (kp[i + 1][1] - kp[i][1]) / dt if dt > 0 else 0.0
         end = min(t1, kt[i + 1])
-        yield t, end, kp[i][0] + kx * (t - kt[i]), kp[i][1] + ky * (t - kt[i]), kx, ky
+        yield t, end, i
         t = end
         if end >= kt[i + 1] and i < m - 2:
             i += 1
+
+
+def _segments(knot_t: np.ndarray, knot_p: np.ndarray, t0: float, t1: float):
+    """(start, end, p at start (x, y), slope (x, y)) of every piece of [t0, t1] (floats)."""
+    kt = knot_t.tolist() if hasattr(knot_t, "tolist") else list(knot_t)
+    kp = knot_p.tolist() if hasattr(knot_p, "tolist") else [list(v) for v in knot_p]
+    for t, end, i in _pieces(kt, t0, t1):
+        if i < 0:
+            yield t, end, kp[-1][0], kp[-1][1], 0.0, 0.0
+            continue
+        dt = kt[i + 1] - kt[i]
+        kx = (kp[i + 1][0] - kp[i][0]) / dt if dt > 0 else 0.0
+        ky = (kp[i + 1][1] - kp[i][1]) / dt if dt > 0 else 0.0
+        yield t, end, kp[i][0] + kx * (t - kt[i]), kp[i][1] + ky * (t - kt[i]), kx, ky
 
 
 def propagate(x: np.ndarray, v: np.ndarray, t0: float, t1: float, knot_t: np.ndarray, knot_p: np.ndarray,
@@ -105,6 +115,32 @@ def dcm_forward(xi: np.ndarray, t0: float, t1: float, knot_t: np.ndarray, knot_p
         ex = px + kx * d + sx + Tc * kx + (ex - px - sx - Tc * kx) * e
         ey = py + ky * d + sy + Tc * ky + (ey - py - sy - Tc * ky) * e
     return np.array([ex, ey])
+
+
+def dcm_forward_weights(t0: float, t1: float, knot_t: np.ndarray, Tc: float) -> tuple[float, np.ndarray, float]:
+    """(a, w (m,), w_s): :func:`dcm_forward` as the linear map it is,
+    xi(t1) = a xi(t0) + sum_i w_i p_i + w_s s, for the profile's knot times and any points p_i
+    and shift s (the same weights on both axes: the LIPM is isotropic). Per piece of length d
+    starting where the ZMP is p_a with slope k, xi <- e xi + (1 - e)(p_a + s + T_c k) + k d,
+    e = e^{d / T_c}; p_a and k are linear in the piece's two knots. The step adjustment uses it
+    for the columns of its affine DCM mismatch (ours)."""
+    kt = knot_t.tolist() if hasattr(knot_t, "tolist") else list(knot_t)
+    a, ws = 1.0, 0.0
+    w = [0.0] * len(kt)
+    for t, end, i in _pieces(kt, t0, t1):
+        d = end - t
+        e = math.exp(d / Tc)
+        a, ws = a * e, ws * e + (1.0 - e)
+        w = [wi * e for wi in w]
+        dt = kt[i + 1] - kt[i] if i >= 0 else 0.0
+        if dt > 0:
+            f = (t - kt[i]) / dt
+            c_k = ((1.0 - e) * Tc + d) / dt
+            w[i] += (1.0 - e) * (1.0 - f) - c_k
+            w[i + 1] += (1.0 - e) * f + c_k
+        else:                                    # a held point: past the end, or a zero-length segment
+            w[i] += 1.0 - e
+    return a, np.array(w), ws
 
 
 def dcm_backward(xi_end: np.ndarray, knot_t: np.ndarray, knot_p: np.ndarray, shift: np.ndarray,
@@ -141,6 +177,9 @@ def solve_box_qp(H: np.ndarray, g: np.ndarray, lo: np.ndarray, hi: np.ndarray, i
     lo = np.asarray(lo, dtype=float)
     hi = np.asarray(hi, dtype=float)
     n = len(g)
+    u = np.linalg.solve(H, -g)                   # the unconstrained minimiser: the answer when feasible
+    if np.all(u >= lo) and np.all(u <= hi):
+        return u
     u = np.clip(np.zeros(n), lo, hi)
     held = np.zeros(n, dtype=bool)
     at_hi = np.zeros(n, dtype=bool)

@@ -13,7 +13,7 @@ import gaits
 from gaits import CommandStream, EngineParams, WalkEngine
 from gaits.control import READINGS, Measurement, TablePlayer
 from gaits.engine import Step, _Gait, adjust_step
-from gaits.lipm import dcm_forward, propagate, solve_box_qp, zmp_at
+from gaits.lipm import dcm_forward, dcm_forward_weights, propagate, solve_box_qp, zmp_at
 from tuner.params_io import resolve_params
 from tuner.robots import load_robot
 from tuner.sim.cache import simulator
@@ -75,6 +75,24 @@ def test_closed_forms_match_a_numerical_integration():
         assert np.allclose(dcm_forward(x0 + Tc * v0, t0, t1, kt, kp, shift, Tc), x + Tc * v, atol=1e-12)
 
 
+def test_the_dcm_pass_is_the_linear_map_its_weights_say():
+    """``dcm_forward_weights`` against ``dcm_forward`` on random profiles: starts before, inside and
+    after the knots, zero-length segments, any points and shift."""
+    rng = np.random.default_rng(3)
+    for _ in range(500):
+        m = int(rng.integers(2, 6))
+        kt = np.sort(rng.uniform(0.0, 1.0, m))
+        if rng.random() < 0.2:
+            kt[1] = kt[0]
+        kp, s, xi = rng.normal(size=(m, 2)), rng.normal(size=2), rng.normal(size=2)
+        Tc = float(rng.uniform(0.05, 0.4))
+        t0 = float(rng.uniform(-0.2, 1.1))
+        t1 = t0 + float(rng.uniform(0.0, 1.2))
+        a, w, ws = dcm_forward_weights(t0, t1, kt, Tc)
+        ref = dcm_forward(xi, t0, t1, kt, kp, s, Tc)
+        assert np.allclose(a * xi + w @ kp + ws * s, ref, rtol=1e-12, atol=1e-12)
+
+
 def test_the_box_qp_is_exact():
     rng = np.random.default_rng(1)
     for _ in range(200):
@@ -130,20 +148,35 @@ def test_the_limits_a_step_sits_on_are_named():
     assert ("timing" in big["binds"]) == (lam < 1.0)
 
 
-@pytest.mark.parametrize("push", [(0.06, 0.0), (0.0, -0.05), (-0.04, 0.02), (0.12, -0.08)])
-def test_a_pushed_step_moves_toward_the_capture_point_within_the_limits(push):
+def _turned(g, st, heading: float, wz: float):
+    """The same step on a support foot turned by ``heading``, for a command that also turns."""
+    cmd = np.array([0.2, 0.0, wz])
+    st.support = np.array([st.support[0], st.support[1], heading])
+    st.target = st.support.copy()
+    st.command = cmd
+    return cmd
+
+
+@pytest.mark.parametrize("push,heading,wz,tau", [((0.06, 0.0), 0.0, 0.0, 0.0), ((0.0, -0.05), 0.0, 0.0, 0.0),
+                                                 ((-0.04, 0.02), 0.0, 0.0, 0.0), ((0.12, -0.08), 0.0, 0.0, 0.0),
+                                                 ((0.05, 0.03), 0.7, 0.5, 0.0), ((-0.03, 0.06), -1.2, -0.4, 0.05)])
+def test_a_pushed_step_moves_toward_the_capture_point_within_the_limits(push, heading, wz, tau):
     """A capture-point error (a push) moves the footstep toward it, keeps the reach box and the sole,
-    and the QP's answer for the chosen timing is the numerical optimum of the same cost."""
+    and the QP's answer for the chosen timing is the numerical optimum of the same cost (on a
+    support foot turned any way, for a turning command, at a step's start or inside it)."""
     g, st, cmd = _step_on_the_left()
+    cmd = _turned(g, st, heading, wz)
     params = EngineParams(step_weight=0.05, zmp_weight=0.05)
     nominal = g.nominal_target(st.support, st.side, cmd)
+    c, s = np.cos(heading), np.sin(heading)
+    Rot = np.array([[c, -s], [s, c]])
     xi0 = g.required_dcm(st.support, st.side, st.p0, cmd, 4)
-    xi = xi0 + np.array(push)
-    B, lam, dp, info = adjust_step(g, st, 0.0, xi, cmd, 3, None, params, 0.01)
+    xi = dcm_forward(xi0, 0.0, tau, *g.knots(st.support, st.p0, nominal, st.t1, st.t2, st.T), g.Tc) + np.array(push)
+    B, lam, dp, info = adjust_step(g, st, tau, xi, cmd, 3, None, params, 0.01)
     moved = B[:2] - nominal[:2]
     assert moved @ np.array(push) > 0                                     # toward the capture point
-    lo, hi = g.box(st.side, 0.0)
-    u = B[:2] - st.support[:2]
+    lo, hi = g.box(st.side, nominal[2] - heading)
+    u = Rot.T @ (B[:2] - st.support[:2])
     assert np.all(u >= lo - 1e-9) and np.all(u <= hi + 1e-9)             # reach and sole gap
     plo, phi = g.zmp_box(params.zmp_margin)
     assert np.all(dp >= plo - 1e-9) and np.all(dp <= phi + 1e-9)         # the ZMP stays on the sole
@@ -151,17 +184,58 @@ def test_a_pushed_step_moves_toward_the_capture_point_within_the_limits(push):
     T = t2 + FAST.period - FAST.t2
 
     def cost(z):
-        Bz = np.array([st.support[0] + z[2], st.support[1] + z[3], nominal[2]])
+        Bz = np.r_[st.support[:2] + Rot @ z[2:], nominal[2]]
         kt, kp, sh = g.knots(st.support, st.p0, Bz, st.t1, t2, T, offset=z[:2])
-        r = dcm_forward(xi, 0.0, T, kt, kp, sh, g.Tc) - g.required_dcm(Bz, -st.side, kp[-1], cmd, 3)
-        du = z[2:] - (nominal[:2] - st.support[:2])
+        r = dcm_forward(xi, tau, T, kt, kp, sh, g.Tc) - g.required_dcm(Bz, -st.side, kp[-1], cmd, 3)
+        du = z[2:] - Rot.T @ (nominal[:2] - st.support[:2])
         return float(r @ r + params.step_weight * du @ du + params.zmp_weight * z[:2] @ z[:2])
-    u_nom = nominal[:2] - st.support[:2]
+    u_nom = np.clip(Rot.T @ (nominal[:2] - st.support[:2]), lo, hi)
     bounds = list(zip(plo, phi)) + list(zip(lo, hi))
     best = min((minimize(cost, np.r_[0, 0, x0], bounds=bounds, method="L-BFGS-B",
                          options=dict(ftol=1e-14, gtol=1e-12)) for x0 in (u_nom, (lo + hi) / 2)),
                key=lambda r: r.fun)
     assert cost(np.r_[dp, u]) <= best.fun + 1e-7
+
+
+def test_a_stopping_step_and_a_landed_foot_are_solved_exactly():
+    """The two other forms of the mismatch: a stop (no preview: the DCM at rest on the step's last
+    ZMP point) and a landed foot (only the ZMP offset free): the answer is the numerical optimum."""
+    g, st, _ = _step_on_the_left()
+    cmd = _turned(g, st, 0.4, 0.3)
+    params = EngineParams(step_weight=0.05, zmp_weight=0.05)
+    nominal = g.nominal_target(st.support, st.side, cmd)
+    xi = g.required_dcm(st.support, st.side, st.p0, cmd, 1) + np.array([0.02, -0.01])
+    c, s = np.cos(0.4), np.sin(0.4)
+    Rot = np.array([[c, -s], [s, c]])
+    lo, hi = g.box(st.side, nominal[2] - 0.4)
+    plo, phi = g.zmp_box(params.zmp_margin)
+    B, lam, dp, _ = adjust_step(g, st, 0.0, xi, cmd, 0, None, params, 0.01)
+    t2 = FAST.t1 + lam * (FAST.t2 - FAST.t1)
+    T = t2 + FAST.period - FAST.t2
+    u_nom = np.clip(Rot.T @ (nominal[:2] - st.support[:2]), lo, hi)
+
+    def stop_cost(z):
+        Bz = np.r_[st.support[:2] + Rot @ z[2:], nominal[2]]
+        kt, kp, sh = g.knots(st.support, st.p0, Bz, st.t1, t2, T, offset=z[:2])
+        r = dcm_forward(xi, 0.0, T, kt, kp, sh, g.Tc) - kp[-1]
+        return float(r @ r + params.step_weight * (z[2:] - u_nom) @ (z[2:] - u_nom) + params.zmp_weight * z[:2] @ z[:2])
+    ref = minimize(stop_cost, np.r_[0, 0, u_nom], bounds=list(zip(plo, phi)) + list(zip(lo, hi)),
+                   method="L-BFGS-B", options=dict(ftol=1e-14, gtol=1e-12))
+    assert stop_cost(np.r_[dp, Rot.T @ (B[:2] - st.support[:2])]) <= ref.fun + 1e-7
+
+    st.target = nominal.copy()                                           # landed where planned
+    st.landed = True
+    tau = 0.5 * (st.t1 + st.t2)
+    B, lam, dp, _ = adjust_step(g, st, tau, xi, cmd, 3, None, params, 0.01, fixed_target=True)
+    assert np.allclose(B, nominal) and lam == 1.0
+
+    def landed_cost(o):
+        kt, kp, sh = g.knots(st.support, st.p0, nominal, st.t1, st.t2, st.T, offset=o)
+        r = dcm_forward(xi, tau, st.T, kt, kp, sh, g.Tc) - g.required_dcm(nominal, -st.side, kp[-1], cmd, 3)
+        return float(r @ r + params.zmp_weight * o @ o)
+    ref = minimize(landed_cost, np.zeros(2), bounds=list(zip(plo, phi)), method="L-BFGS-B",
+                   options=dict(ftol=1e-14, gtol=1e-12))
+    assert landed_cost(dp) <= ref.fun + 1e-7
 
 
 # --- the engine as a controller --------------------------------------------------------------
