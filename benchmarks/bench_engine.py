@@ -1,6 +1,6 @@
 """The online walk engine beside the best open-loop set, measured in one run (issue 21's benchmark).
 
-Usage: ``python benchmarks/bench_engine.py [--walks 100] [--workers 2] [--quick]``
+Usage: ``python benchmarks/bench_engine.py [--walks 100] [--workers 2] [--quick] [--also SURFACE=PARAMS]``
 
 For carpet4 and grass50, each figure for the engine set (``kidsize-engine-<surface>``) and the best
 open-loop set of the same surface (``kidsize-omni-<surface>``, a table planned per step):
@@ -129,6 +129,9 @@ def main() -> None:
     ap.add_argument("--yaw-feedback", type=float, default=None, metavar="GAIN",
                     help="walk the engine sets with this gyro turn feedback (engine yaw_feedback [1/s]; "
                          "default: the sets' own, 0)")
+    ap.add_argument("--also", action="append", default=[], metavar="SURFACE=PARAMS",
+                    help="walk this set too, beside the shipped two, on that surface's walks (carpet4 or "
+                         "grass50; a carpet4 set also takes the challenge); repeatable")
     ap.add_argument("--parts", default="walks,challenge,cost,limits",
                     help="which parts to run, comma-separated (walks, challenge, cost, limits); the tick "
                          "cost is best measured alone on an idle machine: --parts cost")
@@ -137,12 +140,18 @@ def main() -> None:
     if not parts <= {"walks", "challenge", "cost", "limits"}:
         ap.error(f"--parts: {args.parts!r}: the parts are walks, challenge, cost, limits")
     n = 20 if args.quick else args.walks
+    also: dict[str, list[str]] = {k: [] for k in SETS}
+    for item in args.also:
+        surface, _, spec = item.partition("=")
+        if surface not in SETS or not spec:
+            ap.error(f"--also: {item!r}: expected SURFACE=PARAMS with SURFACE one of {', '.join(SETS)}")
+        also[surface].append(spec)
     for surface, (engine_set, table_set, top) in (SETS.items() if "walks" in parts else ()):
         stream = load_stream(ROOT / "examples" / "streams" / f"match-{surface}.csv")
         sustained = gaits.CommandStream([0.0, 8.0], [[top, 0, 0], [0, 0, 0]], tail=2.0)
         print(f"\n{surface}: {n} randomised walks each (evaluation seed {args.seed})")
         print(f"{'set':28s} {'match %':>8s} {f'{top:g} m/s %':>9s} {'tracking':>10s} {'IQR':>6s} {'vx rmse':>8s}")
-        for label in (engine_set, table_set):
+        for label in (engine_set, table_set, *also[surface]):
             gf = resolve_params(label, None)
             if gf.engine is not None and args.yaw_feedback is not None:
                 gf = dataclasses.replace(gf, engine=gf.engine.replace(yaw_feedback=args.yaw_feedback))
@@ -163,7 +172,7 @@ def main() -> None:
         robot = load_robot("kidsize")
         sim = Simulator(robot, load_surface(surface), pendulum=1.5)
         cells = []
-        for label in ("kidsize-engine-carpet4", "kidsize-omni-carpet4"):
+        for label in ("kidsize-engine-carpet4", "kidsize-omni-carpet4", *also["carpet4"]):
             r = challenge(sim, gaits.Drive.of(resolve_params(label, None), source=label))
             cells.append(f"{label} {r['best_distance_m'] or 0:.2f} / {r['momentum_Ns'] or 0:.2f}")
         print(f"  {surface:8s} " + "   ".join(cells), flush=True)

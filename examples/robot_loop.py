@@ -24,7 +24,7 @@ import time
 import numpy as np
 
 import gaits
-from gaits.control import Measurement
+from gaits.control import Measurement, Stabilised
 
 #: our joint name -> (servo id, sign, zero offset [rad]) of your robot (an example layout)
 JOINTS = {name: (i + 1, 1, 0.0) for i, name in enumerate(gaits.JOINT_NAMES)}
@@ -75,6 +75,16 @@ def behaviour(t: float) -> np.ndarray:
     return np.zeros(3)
 
 
+def controller(gait: gaits.GaitFile, geometry: RobotGeometry, dt: float):
+    """(the engine, what the loop calls): the engine, with the set's IMU stabiliser around it when
+    the set has one (its corrections added to the engine's targets, as in the simulator)."""
+    limits = gaits.family("tlipfm").step_limits(gait.params, geometry)
+    engine = gaits.WalkEngine(gait.params, gait.engine, geometry, dt, limits)
+    if gait.stabiliser is not None and gait.stabiliser.enabled:
+        return engine, Stabilised(engine, gait.stabiliser)
+    return engine, engine
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("gait", help="a gait file with an engine: section (e.g. studies/results/kidsize-engine-carpet4.yaml)")
@@ -88,27 +98,26 @@ def main() -> None:
         raise SystemExit("connect your robot's driver in place of StandIn, then drop --dry-run")
     robot = StandIn()
     geometry = RobotGeometry(gaits.LegGeometry(), (0.10, 0.055))
-    limits = gaits.family("tlipfm").step_limits(gait.params, geometry)
-    engine = gaits.WalkEngine(gait.params, gait.engine, geometry, 0.01, limits)
-    robot.write_targets(engine.start_pose().q)
+    engine, walk = controller(gait, geometry, 0.01)
+    robot.write_targets(walk.start_pose().q)
     overruns, t, costs = 0, 0.0, []
 
     def measure(t: float) -> Measurement:
         q, dq = robot.read_encoders()
         rpy, gyro, accel = robot.read_imu()
         return Measurement(t, q=q, dq=dq, imu_rpy=rpy, gyro=gyro, accel=accel, foot_force=robot.read_soles())
-    engine.reset(measure(0.0))
+    walk.reset(measure(0.0))
     while t < args.seconds:
         m = measure(t)
         t0 = time.perf_counter()
-        q = engine.step(m, behaviour(t))
+        q = walk.step(m, behaviour(t))
         cost = time.perf_counter() - t0
         costs.append(cost)
         overruns += cost > engine.dt
         robot.write_targets(q)          # on a robot: convert to servo units with JOINTS and send
         t += engine.dt
     c = np.array(costs) * 1000
-    print(f"{len(c)} ticks: {engine.steps_taken} steps, ended {engine.mode}; engine median {np.median(c):.2f} ms, "
+    print(f"{len(c)} ticks: {engine.steps_taken} steps, ended {engine.mode}; controller median {np.median(c):.2f} ms, "
           f"p99 {np.percentile(c, 99):.2f} ms, {overruns} tick(s) over {engine.dt * 1000:.0f} ms")
 
 

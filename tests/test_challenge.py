@@ -120,10 +120,10 @@ def test_the_engine_says_which_limits_its_re_plans_sat_on():
 def test_an_engine_walks_a_stream_beyond_its_envelope_clipped_and_says_so(gait_tuner_cmd, run_env):
     """robustness --commands used to plan the engine set's stream as a table first and refuse it
     (the footstep planner's step limits), although the engine clips a command to its envelope."""
-    r = run(gait_tuner_cmd, ["robustness", "--params", "kidsize-engine-match", "--surface", "grass50", "--commands",
+    r = run(gait_tuner_cmd, ["robustness", "--params", "kidsize-engine-grass50", "--surface", "grass50", "--commands",
                              ROOT / "examples" / "streams" / "match-grass50.csv", "--rollouts", 1, "--workers", 1,
                              "--pushes", "", "--json"], run_env)
     assert r.returncode == 0, r.stderr
     notes = [ln for ln in r.stderr.splitlines() if "clipped to its envelope" in ln]
-    assert len(notes) == 1 and "turn_left 0.6 rad/s (envelope 0.591)" in notes[0], r.stderr
+    assert len(notes) == 1 and "left 0.06 m/s (envelope 0.0543)" in notes[0], r.stderr
     assert json.loads(r.stdout)["rollouts"] == 1

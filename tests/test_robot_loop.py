@@ -1,0 +1,62 @@
+"""examples/robot_loop.py, the loop a team runs on its robot: it walks the stand-in robot with an
+engine set with and without an IMU stabiliser, and imports neither the simulator nor the search."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+_RUN = """
+import runpy, sys
+sys.argv = ["robot_loop.py", {gait!r}, "--dry-run", "--seconds", "3"]
+runpy.run_path({loop!r}, run_name="__main__")
+heavy = sorted(m for m in ("mujoco", "optuna", "casadi", "scipy", "tuner") if m in sys.modules)
+print("imported:", heavy)
+"""
+
+
+@pytest.mark.parametrize("name", ["kidsize-engine-grass50", "kidsize-engine-carpet4"])
+def test_the_robot_loop_walks_the_stand_in_and_needs_only_numpy_and_the_engine(name):
+    gait = ROOT / "studies" / "results" / f"{name}.yaml"
+    code = _RUN.format(gait=str(gait), loop=str(ROOT / "examples" / "robot_loop.py"))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert "imported: []" in out.stdout
+    first = out.stdout.splitlines()[0]
+    assert "301 ticks" in first and "ended" in first
+
+
+def test_the_stabiliser_of_a_set_is_in_the_robot_loop():
+    """A set with an IMU stabiliser walks with it on the robot as in the simulator: the loop's
+    targets are the engine's plus the stabiliser's corrections of the measured tilt."""
+    import runpy
+
+    import numpy as np
+
+    import gaits
+    from gaits.control import Measurement
+    loop = runpy.run_path(str(ROOT / "examples" / "robot_loop.py"))
+    geometry = loop["RobotGeometry"](gaits.LegGeometry(), (0.10, 0.055))
+    for name, stabilised in (("kidsize-engine-grass50", True), ("kidsize-engine-carpet4", False)):
+        gait = gaits.load_gait_file(ROOT / "studies" / "results" / f"{name}.yaml")
+        engine, walk = loop["controller"](gait, geometry, 0.01)
+        assert (walk is not engine) == stabilised
+        pose = walk.start_pose().q
+        n = len(gaits.JOINT_NAMES)
+        m = Measurement(0.0, q=pose, dq=np.zeros(n), imu_rpy=np.array([0.0, 0.05, 0.0]), gyro=np.zeros(3),
+                        accel=np.array([0.0, 0.0, 9.81]), foot_force=np.full(8, 6.0))
+        walk.reset(m)
+        q = walk.step(m, np.zeros(3))
+        bare, _ = loop["controller"](gait, geometry, 0.01)
+        bare.reset(m)
+        q0 = bare.step(m, np.zeros(3))
+        moved = np.abs(q - q0) > 1e-9
+        assert moved.any() == stabilised
+        if stabilised:       # only the ankles and hips: pitch by the 0.05 rad tilt
+            assert {gaits.JOINT_NAMES[i] for i in np.flatnonzero(moved)} <= {
+                f"{s}_{j}" for s in "lr" for j in ("ankle_pitch", "hip_pitch", "ankle_roll", "hip_roll")}
