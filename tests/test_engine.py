@@ -148,7 +148,7 @@ def test_the_limits_a_step_sits_on_are_named():
     assert ("timing" in big["binds"]) == (lam < 1.0)
 
 
-def _turned(g, st, heading: float, wz: float):
+def _turned(st, heading: float, wz: float):
     """The same step on a support foot turned by ``heading``, for a command that also turns."""
     cmd = np.array([0.2, 0.0, wz])
     st.support = np.array([st.support[0], st.support[1], heading])
@@ -165,7 +165,7 @@ def test_a_pushed_step_moves_toward_the_capture_point_within_the_limits(push, he
     and the QP's answer for the chosen timing is the numerical optimum of the same cost (on a
     support foot turned any way, for a turning command, at a step's start or inside it)."""
     g, st, cmd = _step_on_the_left()
-    cmd = _turned(g, st, heading, wz)
+    cmd = _turned(st, heading, wz)
     params = EngineParams(step_weight=0.05, zmp_weight=0.05)
     nominal = g.nominal_target(st.support, st.side, cmd)
     c, s = np.cos(heading), np.sin(heading)
@@ -201,7 +201,7 @@ def test_a_stopping_step_and_a_landed_foot_are_solved_exactly():
     """The two other forms of the mismatch: a stop (no preview: the DCM at rest on the step's last
     ZMP point) and a landed foot (only the ZMP offset free): the answer is the numerical optimum."""
     g, st, _ = _step_on_the_left()
-    cmd = _turned(g, st, 0.4, 0.3)
+    cmd = _turned(st, 0.4, 0.3)
     params = EngineParams(step_weight=0.05, zmp_weight=0.05)
     nominal = g.nominal_target(st.support, st.side, cmd)
     xi = g.required_dcm(st.support, st.side, st.p0, cmd, 1) + np.array([0.02, -0.01])
