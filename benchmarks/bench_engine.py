@@ -12,7 +12,9 @@ open-loop set of the same surface (``kidsize-omni-<surface>``, a table planned p
 * velocity tracking in the steady segments of the match stream: per moving segment, the measured
   velocity over its steps from the second on, as a share of the command (median over the walks
   that stayed up, and per kind of segment: forward, backward, sideways, turning), and the RMS
-  errors;
+  errors; and the same over the steady steps only (those that start once the engine set's
+  rate-limited command, ``accel_*``, has reached the segment's: a 0.45 m/s change at 0.5 m/s^2
+  takes 0.9 s of a 2 s segment), for the table too (the same steps, side by side);
 * the push-recovery challenge (``gait-tuner challenge push``) on carpet4 and grass30: the largest
   fully successful D and the bottle's momentum at impact, engine vs open-loop;
 * the engine's cost per tick in Python (median, 99th percentile) beside one tick of physics;
@@ -66,6 +68,34 @@ def _segment_shares(rows):
             axis = int(np.argmax(np.abs(c) * [1, 1, 0.1]))
             if abs(c[axis]) > 1e-9:
                 yield c, axis, got[axis] / c[axis]
+
+
+def settled_after(stream, accel: np.ndarray, t_start: float, dt: float = 1e-3) -> list[float]:
+    """Per segment of ``stream``, the time [s] the engine's rate-limited command (``accel_*``,
+    ramping from zero at ``t_start``, its first step) reaches the segment's command: the steps that
+    start from then on are the segment's steady part."""
+    out, r = [], np.zeros(3)
+    for a, b, cmd in stream.segments():
+        c, t = np.asarray(cmd, dtype=float), max(a, t_start)
+        while np.any(np.abs(c - r) > 1e-9) and t < b:
+            r = r + np.clip(c - r, -accel * dt, accel * dt)
+            t += dt
+        out.append(t if not np.any(np.abs(c - r) > 1e-9) else float("inf"))
+    return out
+
+
+def steady_rows(rows, settled: list[float]):
+    """``rows`` with each segment's measured velocity the mean of its steady steps only (those that
+    start once the command ramp has settled; a segment with none is left out)."""
+    out = []
+    for r in rows:
+        segs = []
+        for seg, t_set in zip(r.get("segments") or [], settled):
+            steps = [v[1:] for v in seg.get("step_velocities", []) if v[0] >= t_set - 1e-9]
+            segs.append(dict(seg, measured=[float(x) for x in np.mean(steps, axis=0)] if steps else None,
+                             steps=len(steps)))
+        out.append(dict(r, segments=segs))
+    return out
 
 
 def tracking_shares(rows) -> tuple[float, float]:
@@ -132,6 +162,7 @@ def main() -> None:
     ap.add_argument("--also", action="append", default=[], metavar="SURFACE=PARAMS",
                     help="walk this set too, beside the shipped two, on that surface's walks (carpet4 or "
                          "grass50; a carpet4 set also takes the challenge); repeatable")
+    ap.add_argument("--surfaces", default="carpet4,grass50", help="the walks' surfaces, comma-separated")
     ap.add_argument("--parts", default="walks,challenge,cost,limits",
                     help="which parts to run, comma-separated (walks, challenge, cost, limits); the tick "
                          "cost is best measured alone on an idle machine: --parts cost")
@@ -146,11 +177,16 @@ def main() -> None:
         if surface not in SETS or not spec:
             ap.error(f"--also: {item!r}: expected SURFACE=PARAMS with SURFACE one of {', '.join(SETS)}")
         also[surface].append(spec)
-    for surface, (engine_set, table_set, top) in (SETS.items() if "walks" in parts else ()):
+    if not set(args.surfaces.split(",")) <= set(SETS):
+        ap.error(f"--surfaces: {args.surfaces!r}: the surfaces are {', '.join(SETS)}")
+    chosen = {k: v for k, v in SETS.items() if k in args.surfaces.split(",")}
+    for surface, (engine_set, table_set, top) in (chosen.items() if "walks" in parts else ()):
         stream = load_stream(ROOT / "examples" / "streams" / f"match-{surface}.csv")
         sustained = gaits.CommandStream([0.0, 8.0], [[top, 0, 0], [0, 0, 0]], tail=2.0)
         print(f"\n{surface}: {n} randomised walks each (evaluation seed {args.seed})")
-        print(f"{'set':28s} {'match %':>8s} {f'{top:g} m/s %':>9s} {'tracking':>10s} {'IQR':>6s} {'vx rmse':>8s}")
+        e0 = resolve_params(engine_set, None).engine
+        accel, t_start = np.array([e0.accel_vx, e0.accel_vy, e0.accel_wz]), e0.t_stand
+        print(f"{'set':28s} {'match %':>8s} {f'{top:g} m/s %':>9s} {'tracking':>10s} {'IQR':>6s} {'vx rmse':>8s} {'wz rmse':>8s}")
         for label in (engine_set, table_set, *also[surface]):
             gf = resolve_params(label, None)
             if gf.engine is not None and args.yaw_feedback is not None:
@@ -160,12 +196,19 @@ def main() -> None:
             match = walks(label, surface, drive, n, args.workers, args.seed)
             steady = walks(label, surface, dataclasses.replace(drive, stream=sustained), n, args.workers, args.seed)
             share, iqr = tracking_shares(match)
-            vx = [r["tracking"]["vx_rmse_mps"] for r in match if r["survived"] and r["tracking"]["vx_rmse_mps"] is not None]
+            rmse = {k: [r["tracking"][k] for r in match if r["survived"] and r["tracking"][k] is not None]
+                    for k in ("vx_rmse_mps", "wz_rmse_radps")}
+            vx, wz = (np.median(v) if v else float("nan") for v in rmse.values())
             print(f"{label:28s} {survival(match):8.0%} {survival(steady):9.0%} {share:10.0%} {iqr:6.0%} "
-                  f"{np.median(vx) if vx else float('nan'):8.3f}   ({time.perf_counter() - t0:.0f} s; "
+                  f"{vx:8.3f} {wz:8.3f}   ({time.perf_counter() - t0:.0f} s; "
                   f"{'online engine' if gf.engine is not None else 'table planned per step'})", flush=True)
             by = tracking_by_axis(match)
             print(f"{'':28s} tracking by segment: " + ", ".join(f"{k} {v:.0%}" for k, v in by.items()), flush=True)
+            settled = steady_rows(match, settled_after(stream, accel, t_start))
+            s_share, s_iqr = tracking_shares(settled)
+            by = tracking_by_axis(settled)
+            print(f"{'':28s} steady steps only: {s_share:.0%} (IQR {s_iqr:.0%}); " +
+                  ", ".join(f"{k} {v:.0%}" for k, v in by.items()), flush=True)
     if "challenge" in parts:
         print("\npush-recovery challenge (rope 1.5 m, seed 0): best D [m] / momentum at impact [N s]")
     for surface in (("carpet4",) + (() if args.quick else ("grass30",))) if "challenge" in parts else ():

@@ -103,6 +103,13 @@ class EngineParams(GaitParams):
     tilt_filter: float = param(0.03, "s", 0.0, 1.0, "time constant of the tilt the IK uses")
     yaw_feedback: float = param(0.0, "1/s", 0.0, 20.0, "how fast the planned turn makes up the gyro's "
                                 "measured shortfall of the commanded turning rate (ours; 0: none)")
+    yaw_hold: float = param(0.0, "rad/s", 0.0, 1.0, "with yaw_feedback: the largest turn its correction may "
+                            "plan while walking with no turn asked, holding the heading (ours; 0: none)")
+    stride_forward: float = param(1.0, "-", 0.5, 1.5, "the steps are planned for the forward command times "
+                                  "this (ours: the walk's odometry calibrated per surface; < 1 where the "
+                                  "feet slide on, > 1 where the walk falls short)")
+    stride_backward: float = param(1.0, "-", 0.5, 1.5, "the same for a backward command")
+    stride_sideways: float = param(1.0, "-", 0.5, 1.5, "the same for a sideways command")
     idle: str = param("stand", "-", doc="at a zero command: stand, or step in place",
                       choices=("stand", "step"))
     stop_error: float = param(0.005, "m", 0.0005, 0.05, "the plan stops stepping when its capture point is "
@@ -415,10 +422,12 @@ class WalkEngine:
 
     # --- what the engine offers ------------------------------------------------------------
     def envelope(self) -> dict[str, float]:
-        """The largest command per direction its step limits and period allow [m/s, rad/s]."""
-        lim, T = self.gait.limits, self.gait.p.period
-        return {"forward": lim.max_forward / T, "backward": lim.max_backward / T,
-                "left": lim.max_outward / (2 * T), "right": lim.max_outward / (2 * T),
+        """The largest command per direction its step limits and period allow [m/s, rad/s] (a
+        command the ``stride_*`` calibration plans shorter steps for may be that much larger)."""
+        lim, T, e = self.gait.limits, self.gait.p.period, self.params
+        side = lim.max_outward / (2 * T * e.stride_sideways)
+        return {"forward": lim.max_forward / (T * e.stride_forward),
+                "backward": lim.max_backward / (T * e.stride_backward), "left": side, "right": side,
                 "turn_left": lim.max_turn / (2 * T), "turn_right": lim.max_turn / (2 * T)}
 
     def _clip_command(self, c: np.ndarray) -> np.ndarray:
@@ -509,7 +518,7 @@ class WalkEngine:
         """The command the steps are planned for: the asked one clipped to the envelope and
         rate-limited by ``accel_*`` (``ramp``); the ramp starts with the first step (standing, the
         engine keeps zero), as a table's ramp does; with ``yaw_feedback``, its turn corrected by
-        the gyro (:meth:`_turn_feedback`)."""
+        the gyro (:meth:`_turn_feedback`); its speeds scaled by the ``stride_*`` calibration."""
         target = self._clip_command(np.zeros(3) if command is None else np.asarray(command, dtype=float))
         self.asked = target
         if self.mode != WALK:
@@ -518,27 +527,50 @@ class WalkEngine:
         e = self.params
         lim = np.array([e.accel_vx, e.accel_vy, e.accel_wz]) * self.dt
         self.ramp = self.ramp + np.clip(target - self.ramp, -lim, lim)
-        self.command = self._turn_feedback() if e.yaw_feedback > 0.0 else self.ramp
+        c = self._turn_feedback() if e.yaw_feedback > 0.0 else self.ramp
+        self.command = self._stride(c)
+
+    def _stride(self, c: np.ndarray) -> np.ndarray:
+        """The command the steps are planned for: (vx, vy) times the ``stride_*`` calibration (ours).
+        On a surface where the feet slide on after landing (which no encoder sees) the walk goes
+        faster than its steps, where the servos cannot carry the swing it falls short; a team
+        calibrates its walk's odometry per field for that, and these are the same numbers, measured
+        per surface in simulation (the engine sets' files say how). At 1 (the default) the command
+        is planned as asked."""
+        e = self.params
+        if e.stride_forward == e.stride_backward == e.stride_sideways == 1.0:
+            return c
+        out = np.array(c, dtype=float)
+        out[0] *= e.stride_forward if out[0] > 0 else e.stride_backward
+        out[1] *= e.stride_sideways
+        return out
 
     def _turn_feedback(self) -> np.ndarray:
         """Turning by the gyro (ours): the yaw rate the robot measured, filtered over a step,
         against the ramp's; once the asked turn has been reached for three steps (the filter has
         caught up), the shortfall integrated at ``yaw_feedback`` is added to the turn the steps
         are planned for, at most 30 % of it either way and within the envelope; a zero turn leaves
-        the correction to decay. Measured (``benchmarks/bench_engine.py --walks 100 --parts walks
-        --yaw-feedback 6``): on carpet4 the match stream's turning segments go from 80 % to 94 % of
-        the command, survival unchanged."""
+        the correction to decay (a zero command ends it: a correction that only decays never
+        reaches zero, and the walk would not stop), or with ``yaw_hold`` holds the heading while walking (the measured
+        drift integrated the same way, the planned turn at most ``yaw_hold``). Measured
+        (``benchmarks/bench_engine.py --walks 100 --parts walks --yaw-feedback 6``): on carpet4 the
+        match stream's turning segments go from 80 % to 94 % of the command, survival unchanged."""
         e, dt = self.params, self.dt
         wanted = float(self.ramp[2])
         a = dt / (self.gait.p.period + dt)
         self._wz_measured += a * (self._gyro_z - self._wz_measured)
         steady = abs(self.asked[2] - wanted) < 1e-9      # not ramping: the asked turn is reached
         self._wz_steady = self._wz_steady + dt if steady else 0.0
-        if abs(wanted) > 1e-6 and self._wz_steady > 3 * self.gait.p.period:   # the filter has caught up
+        turning = abs(wanted) > 1e-6
+        holding = (not turning and e.yaw_hold > 0.0 and self.mode == WALK
+                   and bool(np.any(np.abs(self.asked[:2]) > 1e-6)))      # walking, not stopping
+        if (turning or holding) and self._wz_steady > 3 * self.gait.p.period:   # the filter has caught up
             self._wz_extra += e.yaw_feedback * dt * (wanted - self._wz_measured)
-            bound = 0.3 * abs(wanted)              # at most 30 % of the command either way
+            bound = 0.3 * abs(wanted) if turning else e.yaw_hold   # at most 30 % of the command either way
             self._wz_extra = min(max(self._wz_extra, -bound), bound)
-        elif abs(wanted) <= 1e-6:
+        elif not np.any(np.abs(self.asked) > 1e-6):
+            self._wz_extra = 0.0                   # asked to stop: no turn to correct, and the stop may stop
+        elif not turning:
             self._wz_extra *= 1.0 - a
         c = self.ramp.copy()
         c[2] = wanted + self._wz_extra

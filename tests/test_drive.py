@@ -103,6 +103,12 @@ def test_simulate_a_stream_reports_its_tracking(gait_tuner_cmd, run_env, tmp_pat
     assert {"vx_rmse_mps", "vy_rmse_mps", "wz_rmse_radps"} <= set(tr) and tr["steps"] > 5
     assert [seg["command"] for seg in tr["segments"]] == [[0.1, 0, 0], [0, 0, 0.4], [0, 0, 0]]
     assert all(v is None or v >= 0 for v in (tr["vx_rmse_mps"], tr["vy_rmse_mps"], tr["wz_rmse_radps"]))
+    for seg in tr["segments"]:                 # each measured step: its start inside the segment, the mean
+        steps = seg["step_velocities"]
+        assert len(steps) == seg["steps"]
+        assert all(seg["t0_s"] <= row[0] <= seg["t1_s"] for row in steps)
+        if steps:
+            assert np.allclose(np.mean([row[1:] for row in steps], axis=0), seg["measured"], atol=1e-12)
     text = run(gait_tuner_cmd, ["simulate", "--params", "kidsize-omni-carpet4", "--surface", "carpet4",
                                 "--commands", f], run_env)
     assert text.returncode == 0 and "tracking over" in text.stdout

@@ -360,11 +360,56 @@ def test_live_walk_steers_from_the_keyboard_and_ends_when_the_window_closes():
     assert keyboard.at(0.0).tolist() == [0.0, 0.0, 0.0]
 
 
+def test_the_gyro_holds_the_heading_within_yaw_hold_and_the_walk_still_stops():
+    """Walking sideways with no turn asked while the gyro reads a steady drift of 0.1 rad/s: with
+    yaw_hold the engine plans a turn against the drift, at most yaw_hold; without it (the
+    default) no turn; asked to stop, it comes to stand within 3 s."""
+    def walk(hold: float, ticks: int = 500, stop_after: int | None = None) -> WalkEngine:
+        e = engine(yaw_feedback=3.0, yaw_hold=hold)
+        e.start_pose()
+        e.reset(Measurement(0.0))
+        for i in range(ticks):
+            stopped = stop_after is not None and i >= stop_after
+            c = np.zeros(3) if stopped else np.array([0.0, 0.05, 0.0])
+            drift = 0.0 if stopped else 0.1
+            e.step(Measurement(i * 0.01, gyro=np.array([0.0, 0.0, drift])), c)
+        return e
+    held = walk(0.06)
+    assert held.command[2] == pytest.approx(-0.06, abs=1e-12)        # at the bound, against the drift
+    assert walk(0.5).command[2] < -0.06                              # a wider bound: more
+    assert walk(0.0).command[2] == 0.0
+    assert walk(0.06, ticks=800, stop_after=500).mode == "stand"
+
+
+def test_the_stride_calibration_plans_the_scaled_command_and_widens_the_envelope():
+    """stride_backward 1.2 and stride_sideways 0.8: asked (-0.1, 0.05) the engine plans exactly the
+    steps an uncalibrated engine plans when asked (-0.12, 0.04); forward is left as asked; the
+    envelope grows where the calibration plans shorter steps and shrinks where longer."""
+    def walk(e: WalkEngine, c, ticks: int = 300) -> WalkEngine:
+        e.start_pose()
+        e.reset(Measurement(0.0))
+        for i in range(ticks):
+            e.step(Measurement(i * 0.01), np.array(c, dtype=float))
+        return e
+    cal = walk(engine(stride_backward=1.2, stride_sideways=0.8, stride_forward=0.7), (-0.1, 0.05, 0.0))
+    plain = walk(engine(), (-0.12, 0.04, 0.0))
+    assert np.allclose(cal.command, [-0.12, 0.04, 0.0], atol=1e-12)
+    assert cal.steps_taken == plain.steps_taken > 5
+    assert np.allclose(cal.cur.target, plain.cur.target, atol=1e-12)
+    assert np.allclose(cal.feet[1], plain.feet[1], atol=1e-12) and np.allclose(cal.feet[-1], plain.feet[-1], atol=1e-12)
+    assert np.allclose(walk(engine(stride_forward=0.7, stride_backward=1.2), (0.1, 0.0, 0.0), 200).command,
+                       [0.07, 0.0, 0.0], atol=1e-12)
+    assert np.allclose(walk(engine(), (-0.1, 0.05, 0.0), 200).command, [-0.1, 0.05, 0.0], atol=1e-12)
+    e0, e1 = engine().envelope(), engine(stride_sideways=0.8, stride_backward=1.25).envelope()
+    assert e1["left"] == pytest.approx(e0["left"] / 0.8) and e1["right"] == pytest.approx(e0["right"] / 0.8)
+    assert e1["backward"] == pytest.approx(e0["backward"] / 1.25) and e1["forward"] == pytest.approx(e0["forward"])
+
+
 def test_the_gyro_makes_up_a_turning_shortfall_within_bounds():
     """Asked 0.6 rad/s while the gyro reads 80 % of it, the engine plans a faster turn once the asked
     turn is reached and three steps have passed (at most 30 % more); it turns as asked when the gyro
     agrees (within 0.03 rad/s: the filter's last lag); without feedback (the default) the planned
-    turn is the asked one; at a zero command the correction decays."""
+    turn is the asked one; at a zero command the correction decays and the engine stops."""
     def walk(gain: float, seen: float, ticks: int = 400, then_stop: bool = False) -> WalkEngine:
         e = engine(yaw_feedback=gain)
         e.start_pose()
@@ -379,5 +424,6 @@ def test_the_gyro_makes_up_a_turning_shortfall_within_bounds():
     assert 0.6 < short.command[2] <= 0.6 * 1.3 + 1e-9
     assert walk(3.0, 1.0).command[2] == pytest.approx(0.6, abs=0.03)
     assert walk(0.0, 0.8).command[2] == pytest.approx(0.6, abs=1e-12)
-    stopped = walk(3.0, 0.8, ticks=500, then_stop=True)
+    stopped = walk(3.0, 0.8, ticks=600, then_stop=True)
     assert abs(stopped._wz_extra) < 0.5 * abs(short._wz_extra)
+    assert stopped.mode == "stand"                 # the decayed correction ends: asked to stop, it stops

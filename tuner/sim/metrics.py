@@ -184,23 +184,27 @@ def tracking(trace: Trace, stream, step_starts: np.ndarray) -> dict:
     velocity in its heading frame (:func:`heading_velocity`) is compared with the segment's
     command. Returns the RMS errors ``vx_rmse_mps``, ``vy_rmse_mps``, ``wz_rmse_radps`` over those
     steps (null when no step qualifies, e.g. after an early fall), how many steps were measured,
-    and per segment its command, measured mean velocity and number of steps.
+    and per segment its command, measured mean velocity, number of steps and each measured step
+    (``step_velocities``: its start [s] and velocity (vx, vy, wz), for a reader that wants only
+    some of them, e.g. the steps after a controller's command ramp has settled).
     """
     starts = np.asarray(step_starts, dtype=float)
     t_end = float(trace.t[-1])
     errors, segments = [], []
     for a, b, cmd in stream.segments():
         inside = starts[(starts >= a - 1e-9) & (starts <= b + 1e-9)]
-        got = []
+        got, rows = [], []
         for w0, w1 in zip(inside[1:-1], inside[2:]):       # the segment's first step is left out
             if w1 > t_end + 1e-9 or (trace.fell and trace.t_fall is not None and w1 > trace.t_fall):
                 break
             v = heading_velocity(trace.t, trace.p_torso, trace.yaw, float(w0), float(w1))
             if np.all(np.isfinite(v)):
                 got.append(v)
+                rows.append([float(w0)] + [float(x) for x in v])
                 errors.append(v - cmd)
         segments.append({"t0_s": a, "t1_s": b, "command": [float(x) for x in cmd], "steps": len(got),
-                         "measured": None if not got else [float(x) for x in np.mean(got, axis=0)]})
+                         "measured": None if not got else [float(x) for x in np.mean(got, axis=0)],
+                         "step_velocities": rows})
     e = np.array(errors).reshape(-1, 3)
     rmse = [None if not len(e) else float(np.sqrt(np.mean(e[:, i] ** 2))) for i in range(3)]
     return {"vx_rmse_mps": rmse[0], "vy_rmse_mps": rmse[1], "wz_rmse_radps": rmse[2], "steps": int(len(e)),
