@@ -15,8 +15,9 @@ open-loop set of the same surface (``kidsize-omni-<surface>``, a table planned p
   errors; and the same over the steady steps only (those that start once the engine set's
   rate-limited command, ``accel_*``, has reached the segment's: a 0.45 m/s change at 0.5 m/s^2
   takes 0.9 s of a 2 s segment), for the table too (the same steps, side by side);
-* the push-recovery challenge (``gait-tuner challenge push``) on carpet4 and grass30: the largest
-  fully successful D and the bottle's momentum at impact, engine vs open-loop;
+* the push-recovery challenge (``gait-tuner challenge push``) on carpet4 and grass30, push seeds
+  0, 1, 2: the largest fully successful D and the bottle's momentum at impact per seed and the
+  median momentum, engine vs open-loop;
 * the engine's cost per tick in Python (median, 99th percentile) beside one tick of physics;
 * which limit binds (``--parts limits``): the engine set's first failing challenge trial on carpet4
   and grass30 walked again, its re-plans counted by the limit their step sat on (reach, the sole's
@@ -163,6 +164,8 @@ def main() -> None:
                     help="walk this set too, beside the shipped two, on that surface's walks (carpet4 or "
                          "grass50; a carpet4 set also takes the challenge); repeatable")
     ap.add_argument("--surfaces", default="carpet4,grass50", help="the walks' surfaces, comma-separated")
+    ap.add_argument("--challenge-seeds", default="0,1,2", metavar="K,K,...",
+                    help="the challenge's push-direction seeds (one seed's three pushes per D say little)")
     ap.add_argument("--parts", default="walks,challenge,cost,limits",
                     help="which parts to run, comma-separated (walks, challenge, cost, limits); the tick "
                          "cost is best measured alone on an idle machine: --parts cost")
@@ -209,16 +212,18 @@ def main() -> None:
             by = tracking_by_axis(settled)
             print(f"{'':28s} steady steps only: {s_share:.0%} (IQR {s_iqr:.0%}); " +
                   ", ".join(f"{k} {v:.0%}" for k, v in by.items()), flush=True)
+    seeds = [int(x) for x in args.challenge_seeds.split(",")]
     if "challenge" in parts:
-        print("\npush-recovery challenge (rope 1.5 m, seed 0): best D [m] / momentum at impact [N s]")
+        print(f"\npush-recovery challenge (rope 1.5 m, push seeds {args.challenge_seeds}): best D [m] / momentum "
+              f"at impact [N s] per seed, and the median momentum")
     for surface in (("carpet4",) + (() if args.quick else ("grass30",))) if "challenge" in parts else ():
         robot = load_robot("kidsize")
         sim = Simulator(robot, load_surface(surface), pendulum=1.5)
-        cells = []
         for label in ("kidsize-engine-carpet4", "kidsize-omni-carpet4", *also["carpet4"]):
-            r = challenge(sim, gaits.Drive.of(resolve_params(label, None), source=label))
-            cells.append(f"{label} {r['best_distance_m'] or 0:.2f} / {r['momentum_Ns'] or 0:.2f}")
-        print(f"  {surface:8s} " + "   ".join(cells), flush=True)
+            runs = [challenge(sim, gaits.Drive.of(resolve_params(label, None), source=label), seed=k) for k in seeds]
+            cells = [f"{r['best_distance_m'] or 0:.2f} / {r['momentum_Ns'] or 0:.2f}" for r in runs]
+            med = float(np.median([r["momentum_Ns"] or 0.0 for r in runs]))
+            print(f"  {surface:8s} {label:28s} " + ",  ".join(cells) + f"   median {med:.2f} N s", flush=True)
     if "cost" in parts:
         print("\nthe engine's cost per tick, in Python on this machine (a 20 s match walk)")
     for surface, (engine_set, _, _) in (SETS.items() if "cost" in parts else ()):

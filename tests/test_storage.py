@@ -419,6 +419,34 @@ def test_postgres_two_workers_and_a_tune_share_one_budget(postgres, gait_tuner_c
     assert sorted(starts) == sorted(set(starts))                  # seed and baselines once
 
 
+def test_postgres_budget_lock_excludes_another_process_and_is_released_on_error(postgres, tmp_path):
+    """The budget lock (a session advisory lock on a kept connection): while one store holds it
+    another session cannot take it; after the block, and after a block that raised, it can; the
+    same store takes it again on its kept connection (no lock left behind in the pool)."""
+    import sqlalchemy
+    url = postgres.create_database("lock")
+    a = StudyStore.open("lock", normalise_url(url), tmp_path / "runs")
+    other = sqlalchemy.create_engine(normalise_url(url), poolclass=sqlalchemy.pool.NullPool)
+    import hashlib
+    k = int.from_bytes(hashlib.sha1(b"budget-lock").digest()[:8], "big", signed=True)
+
+    def free() -> bool:
+        with other.connect() as conn:
+            got = conn.execute(sqlalchemy.text("SELECT pg_try_advisory_lock(:k)"), {"k": k}).scalar()
+            if got:
+                conn.execute(sqlalchemy.text("SELECT pg_advisory_unlock(:k)"), {"k": k})
+            return bool(got)
+    for _ in range(2):
+        with a.budget_lock("lock"):
+            assert not free()
+        assert free()
+    with pytest.raises(RuntimeError):
+        with a.budget_lock("lock"):
+            raise RuntimeError("a worker's error inside the lock")
+    assert free()
+    other.dispose()
+
+
 def test_postgres_killed_worker_trial_is_failed_and_retried(postgres, gait_tuner_cmd, run_env, tmp_path):
     url = postgres.create_database("retry")
     study = write_study(tmp_path, "retry", trials=10, surfaces=LONG)
