@@ -110,6 +110,7 @@ class EngineParams(GaitParams):
                                   "feet slide on, > 1 where the walk falls short)")
     stride_backward: float = param(1.0, "-", 0.5, 1.5, "the same for a backward command")
     stride_sideways: float = param(1.0, "-", 0.5, 1.5, "the same for a sideways command")
+    stride_turn: float = param(1.0, "-", 0.5, 1.5, "the same for a turning command")
     idle: str = param("stand", "-", doc="at a zero command: stand, or step in place",
                       choices=("stand", "step"))
     stop_error: float = param(0.005, "m", 0.0005, 0.05, "the plan stops stepping when its capture point is "
@@ -426,9 +427,10 @@ class WalkEngine:
         command the ``stride_*`` calibration plans shorter steps for may be that much larger)."""
         lim, T, e = self.gait.limits, self.gait.p.period, self.params
         side = lim.max_outward / (2 * T * e.stride_sideways)
+        turn = lim.max_turn / (2 * T * e.stride_turn)
         return {"forward": lim.max_forward / (T * e.stride_forward),
                 "backward": lim.max_backward / (T * e.stride_backward), "left": side, "right": side,
-                "turn_left": lim.max_turn / (2 * T), "turn_right": lim.max_turn / (2 * T)}
+                "turn_left": turn, "turn_right": turn}
 
     def _clip_command(self, c: np.ndarray) -> np.ndarray:
         e = self.envelope()
@@ -531,18 +533,19 @@ class WalkEngine:
         self.command = self._stride(c)
 
     def _stride(self, c: np.ndarray) -> np.ndarray:
-        """The command the steps are planned for: (vx, vy) times the ``stride_*`` calibration (ours).
+        """The command the steps are planned for: (vx, vy, wz) times the ``stride_*`` calibration (ours).
         On a surface where the feet slide on after landing (which no encoder sees) the walk goes
         faster than its steps, where the servos cannot carry the swing it falls short; a team
         calibrates its walk's odometry per field for that, and these are the same numbers, measured
         per surface in simulation (the engine sets' files say how). At 1 (the default) the command
         is planned as asked."""
         e = self.params
-        if e.stride_forward == e.stride_backward == e.stride_sideways == 1.0:
+        if e.stride_forward == e.stride_backward == e.stride_sideways == e.stride_turn == 1.0:
             return c
         out = np.array(c, dtype=float)
         out[0] *= e.stride_forward if out[0] > 0 else e.stride_backward
         out[1] *= e.stride_sideways
+        out[2] *= e.stride_turn
         return out
 
     def _turn_feedback(self) -> np.ndarray:

@@ -382,25 +382,27 @@ def test_the_gyro_holds_the_heading_within_yaw_hold_and_the_walk_still_stops():
 
 
 def test_the_stride_calibration_plans_the_scaled_command_and_widens_the_envelope():
-    """stride_backward 1.2 and stride_sideways 0.8: asked (-0.1, 0.05) the engine plans exactly the
-    steps an uncalibrated engine plans when asked (-0.12, 0.04); forward is left as asked; the
-    envelope grows where the calibration plans shorter steps and shrinks where longer."""
+    """stride_backward 1.2, stride_sideways 0.8, stride_turn 1.1: asked (-0.1, 0.05, 0.2) the
+    engine plans exactly the steps an uncalibrated engine plans asked (-0.12, 0.04, 0.22); forward
+    as asked; the envelope grows where the calibration plans shorter steps and shrinks where longer."""
     def walk(e: WalkEngine, c, ticks: int = 300) -> WalkEngine:
         e.start_pose()
         e.reset(Measurement(0.0))
         for i in range(ticks):
             e.step(Measurement(i * 0.01), np.array(c, dtype=float))
         return e
-    cal = walk(engine(stride_backward=1.2, stride_sideways=0.8, stride_forward=0.7), (-0.1, 0.05, 0.0))
-    plain = walk(engine(), (-0.12, 0.04, 0.0))
-    assert np.allclose(cal.command, [-0.12, 0.04, 0.0], atol=1e-12)
+    cal = walk(engine(stride_backward=1.2, stride_sideways=0.8, stride_forward=0.7, stride_turn=1.1),
+               (-0.1, 0.05, 0.2))
+    plain = walk(engine(), (-0.12, 0.04, 0.22))
+    assert np.allclose(cal.command, [-0.12, 0.04, 0.22], atol=1e-12)
     assert cal.steps_taken == plain.steps_taken > 5
     assert np.allclose(cal.cur.target, plain.cur.target, atol=1e-12)
     assert np.allclose(cal.feet[1], plain.feet[1], atol=1e-12) and np.allclose(cal.feet[-1], plain.feet[-1], atol=1e-12)
     assert np.allclose(walk(engine(stride_forward=0.7, stride_backward=1.2), (0.1, 0.0, 0.0), 200).command,
                        [0.07, 0.0, 0.0], atol=1e-12)
     assert np.allclose(walk(engine(), (-0.1, 0.05, 0.0), 200).command, [-0.1, 0.05, 0.0], atol=1e-12)
-    e0, e1 = engine().envelope(), engine(stride_sideways=0.8, stride_backward=1.25).envelope()
+    e0, e1 = engine().envelope(), engine(stride_sideways=0.8, stride_backward=1.25, stride_turn=1.1).envelope()
+    assert e1["turn_left"] == pytest.approx(e0["turn_left"] / 1.1)
     assert e1["left"] == pytest.approx(e0["left"] / 0.8) and e1["right"] == pytest.approx(e0["right"] / 0.8)
     assert e1["backward"] == pytest.approx(e0["backward"] / 1.25) and e1["forward"] == pytest.approx(e0["forward"])
 
