@@ -189,7 +189,8 @@ def main() -> None:
         print(f"\n{surface}: {n} randomised walks each (evaluation seed {args.seed})")
         e0 = resolve_params(engine_set, None).engine
         accel, t_start = np.array([e0.accel_vx, e0.accel_vy, e0.accel_wz]), e0.t_stand
-        print(f"{'set':28s} {'match %':>8s} {f'{top:g} m/s %':>9s} {'tracking':>10s} {'IQR':>6s} {'vx rmse':>8s} {'wz rmse':>8s}")
+        print(f"{'set':28s} {'match %':>8s} {f'{top:g} m/s %':>9s} {'tracking':>10s} {'IQR':>6s} "
+              f"{'vx rmse':>8s} {'wz rmse':>8s}")
         for label in (engine_set, table_set, *also[surface]):
             gf = resolve_params(label, None)
             if gf.engine is not None and args.yaw_feedback is not None:

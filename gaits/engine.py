@@ -554,8 +554,9 @@ class WalkEngine:
         caught up), the shortfall integrated at ``yaw_feedback`` is added to the turn the steps
         are planned for, at most 30 % of it either way and within the envelope; a zero turn leaves
         the correction to decay (a zero command ends it: a correction that only decays never
-        reaches zero, and the walk would not stop), or with ``yaw_hold`` holds the heading while walking (the measured
-        drift integrated the same way, the planned turn at most ``yaw_hold``). Measured
+        reaches zero, and the walk would not stop), or with ``yaw_hold`` holds the heading while
+        walking (the measured drift integrated the same way, the planned turn at most
+        ``yaw_hold``). Measured
         (``benchmarks/bench_engine.py --walks 100 --parts walks --yaw-feedback 6``): on carpet4 the
         match stream's turning segments go from 80 % to 94 % of the command, survival unchanged."""
         e, dt = self.params, self.dt
@@ -569,7 +570,7 @@ class WalkEngine:
                    and bool(np.any(np.abs(self.asked[:2]) > 1e-6)))      # walking, not stopping
         if (turning or holding) and self._wz_steady > 3 * self.gait.p.period:   # the filter has caught up
             self._wz_extra += e.yaw_feedback * dt * (wanted - self._wz_measured)
-            bound = 0.3 * abs(wanted) if turning else e.yaw_hold   # at most 30 % of the command either way
+            bound = 0.3 * abs(wanted) if turning else e.yaw_hold   # 30 % of the command, or the hold's
             self._wz_extra = min(max(self._wz_extra, -bound), bound)
         elif not np.any(np.abs(self.asked) > 1e-6):
             self._wz_extra = 0.0                   # asked to stop: no turn to correct, and the stop may stop

@@ -420,14 +420,15 @@ def test_postgres_two_workers_and_a_tune_share_one_budget(postgres, gait_tuner_c
 
 
 def test_postgres_budget_lock_excludes_another_process_and_is_released_on_error(postgres, tmp_path):
-    """The budget lock (a session advisory lock on a kept connection): while one store holds it
-    another session cannot take it; after the block, and after a block that raised, it can; the
-    same store takes it again on its kept connection (no lock left behind in the pool)."""
+    """The budget lock (a session advisory lock, keyed as ``StudyStore._pg_lock`` keys it): while
+    one store holds it another session cannot take it; after the block, and after a block that
+    raised, it can; the same store takes it again (nothing left held)."""
+    import hashlib
+
     import sqlalchemy
     url = postgres.create_database("lock")
     a = StudyStore.open("lock", normalise_url(url), tmp_path / "runs")
     other = sqlalchemy.create_engine(normalise_url(url), poolclass=sqlalchemy.pool.NullPool)
-    import hashlib
     k = int.from_bytes(hashlib.sha1(b"budget-lock").digest()[:8], "big", signed=True)
 
     def free() -> bool:
