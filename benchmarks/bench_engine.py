@@ -41,6 +41,8 @@ sys.path.insert(0, str(ROOT))
 import gaits  # noqa: E402
 from tuner.params_io import resolve_params  # noqa: E402
 from tuner.sim.challenge import challenge  # noqa: E402
+from tuner.sim.metrics import (settled_after, steady_rows, tracking_by_axis,  # noqa: E402
+                               tracking_shares)
 from tuner.sim.robustness import evaluate  # noqa: E402
 from tuner.sim.rollout import Simulator  # noqa: E402
 from tuner.sim.surfaces import load_surface  # noqa: E402
@@ -54,71 +56,6 @@ SETS = {"carpet4": ("kidsize-engine-carpet4", "kidsize-omni-carpet4", 0.3),
 def survival(rows) -> float:
     """Completed walks only: a fall, a diverged or an impossible simulation is no survival."""
     return float(np.mean([r["survived"] for r in rows])) if rows else float("nan")
-
-
-def _segment_shares(rows):
-    """(command, dominant axis, measured/commanded along it) of every moving segment of the walks
-    that stayed up."""
-    for r in rows:
-        if not r["survived"]:
-            continue
-        for seg in r.get("segments") or []:
-            c, got = np.array(seg["command"]), seg["measured"]
-            if got is None or not np.any(c):
-                continue
-            axis = int(np.argmax(np.abs(c) * [1, 1, 0.1]))
-            if abs(c[axis]) > 1e-9:
-                yield c, axis, got[axis] / c[axis]
-
-
-def settled_after(stream, accel: np.ndarray, t_start: float, dt: float = 1e-3) -> list[float]:
-    """Per segment of ``stream``, the time [s] the engine's rate-limited command (``accel_*``,
-    ramping from zero at ``t_start``, its first step) reaches the segment's command: the steps that
-    start from then on are the segment's steady part."""
-    out, r = [], np.zeros(3)
-    for a, b, cmd in stream.segments():
-        c, t = np.asarray(cmd, dtype=float), max(a, t_start)
-        while np.any(np.abs(c - r) > 1e-9) and t < b:
-            r = r + np.clip(c - r, -accel * dt, accel * dt)
-            t += dt
-        out.append(t if not np.any(np.abs(c - r) > 1e-9) else float("inf"))
-    return out
-
-
-def steady_rows(rows, settled: list[float]):
-    """``rows`` with each segment's measured velocity the mean of its steady steps only (those that
-    start once the command ramp has settled; a segment with none is left out)."""
-    out = []
-    for r in rows:
-        segs = []
-        for seg, t_set in zip(r.get("segments") or [], settled):
-            steps = [v[1:] for v in seg.get("step_velocities", []) if v[0] >= t_set - 1e-9]
-            segs.append(dict(seg, measured=[float(x) for x in np.mean(steps, axis=0)] if steps else None,
-                             steps=len(steps)))
-        out.append(dict(r, segments=segs))
-    return out
-
-
-def tracking_shares(rows) -> tuple[float, float]:
-    """Median measured/commanded along each moving segment's own axis, and its spread (IQR)."""
-    shares = [share for _, _, share in _segment_shares(rows)]
-    if not shares:
-        return float("nan"), float("nan")
-    q = np.percentile(shares, [25, 50, 75])
-    return float(q[1]), float(q[2] - q[0])
-
-
-AXES = ("forward", "backward", "sideways", "turning")
-
-
-def tracking_by_axis(rows) -> dict[str, float]:
-    """The median measured/commanded per kind of segment (forward, backward, sideways, turning: the
-    segment's dominant axis): where the shares of :func:`tracking_shares` come from."""
-    out: dict[str, list[float]] = {a: [] for a in AXES}
-    for c, axis, share in _segment_shares(rows):
-        kind = ("forward" if c[0] > 0 else "backward") if axis == 0 else ("sideways" if axis == 1 else "turning")
-        out[kind].append(share)
-    return {k: float(np.median(v)) if v else float("nan") for k, v in out.items()}
 
 
 def walks(name: str, surface: str, drive: gaits.Drive, n: int, workers: int, seed: int):

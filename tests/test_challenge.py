@@ -126,4 +126,8 @@ def test_an_engine_walks_a_stream_beyond_its_envelope_clipped_and_says_so(gait_t
     assert r.returncode == 0, r.stderr
     notes = [ln for ln in r.stderr.splitlines() if "clipped to its envelope" in ln]
     assert len(notes) == 1 and "left 0.06 m/s (envelope 0.0543)" in notes[0], r.stderr
-    assert json.loads(r.stdout)["rollouts"] == 1
+    out = json.loads(r.stdout)
+    assert out["rollouts"] == 1
+    tk = out["tracking_steady"]                     # the stream's steady-step tracking, per kind of segment
+    assert tk is None or set(tk) == {"median", "iqr", "forward", "backward", "sideways", "turning"}
+    assert (tk is not None) == (out["survival"] > 0)

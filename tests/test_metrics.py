@@ -42,3 +42,31 @@ def test_zmp_error_ignores_unloaded_samples():
     zmp = np.array([[0.01, 0.0], [np.nan, np.nan], [0.0, -0.02]])
     ref = np.zeros((3, 2))
     assert zmp_error(zmp, ref) == pytest.approx((0.005, 0.01))
+
+
+def test_steady_tracking_counts_the_steps_after_the_engines_ramp_and_a_tables_from_the_second():
+    """Forward 0.2 m/s from 0 s and a 1 rad/s turn from 2 s; the engine's first step at 1 s, its
+    ramps 0.5 m/s^2 and 2 rad/s^2: the forward command settles at 1.4 s, the turn at 2.5 s (0.2 m/s
+    down at 0.5 and 1 rad/s up at 2 take 0.4 and 0.5 s). Steps that start before are left out; a
+    walk that fell is left out; without an engine every listed step counts."""
+    from gaits import CommandStream
+    from tuner.sim.metrics import settled_after, steady_tracking
+
+    class Engine:
+        accel_vx, accel_vy, accel_wz, t_stand = 0.5, 0.4, 2.0, 1.0
+    stream = CommandStream([0.0, 2.0], [[0.2, 0.0, 0.0], [0.0, 0.0, 1.0]], tail=2.0)
+    assert settled_after(stream, np.array([0.5, 0.4, 2.0]), 1.0) == pytest.approx([1.4, 2.5], abs=2e-3)
+    walked = {"survived": True, "segments": [
+        {"command": [0.2, 0.0, 0.0], "measured": None,
+         "step_velocities": [[1.2, 0.1, 0, 0], [1.5, 0.2, 0, 0], [1.7, 0.18, 0, 0]]},
+        {"command": [0.0, 0.0, 1.0], "measured": None,
+         "step_velocities": [[2.3, 0, 0, 0.5], [2.6, 0, 0, 0.9], [2.8, 0, 0, 1.1]]}]}
+    fell = {"survived": False, "segments": [dict(s, step_velocities=[[1.9, 5.0, 0, 0], [2.9, 0, 0, 5.0]])
+                                            for s in walked["segments"]]}
+    tk = steady_tracking([walked, fell], stream, Engine())
+    assert tk["forward"] == pytest.approx(0.95) and tk["turning"] == pytest.approx(1.0)
+    assert tk["backward"] is None and tk["sideways"] is None
+    assert tk["median"] == pytest.approx(0.975) and tk["iqr"] == pytest.approx(0.025)
+    table = steady_tracking([walked], stream)
+    assert table["forward"] == pytest.approx(0.8) and table["turning"] == pytest.approx(2.5 / 3)
+    assert steady_tracking([fell], stream, Engine()) is None

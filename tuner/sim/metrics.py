@@ -209,3 +209,92 @@ def tracking(trace: Trace, stream, step_starts: np.ndarray) -> dict:
     rmse = [None if not len(e) else float(np.sqrt(np.mean(e[:, i] ** 2))) for i in range(3)]
     return {"vx_rmse_mps": rmse[0], "vy_rmse_mps": rmse[1], "wz_rmse_radps": rmse[2], "steps": int(len(e)),
             "segments": segments}
+
+
+# --- tracking over many walks (robustness rows: ``survived`` and ``segments`` per walk) ----------
+
+def _segment_shares(rows):
+    """(command, dominant axis, measured/commanded along it) of every moving segment of the walks
+    that stayed up."""
+    for r in rows:
+        if not r["survived"]:
+            continue
+        for seg in r.get("segments") or []:
+            c, got = np.array(seg["command"]), seg["measured"]
+            if got is None or not np.any(c):
+                continue
+            axis = int(np.argmax(np.abs(c) * [1, 1, 0.1]))
+            if abs(c[axis]) > 1e-9:
+                yield c, axis, got[axis] / c[axis]
+
+
+def settled_after(stream, accel: np.ndarray, t_start: float, dt: float = 1e-3) -> list[float]:
+    """Per segment of ``stream``, the time [s] the engine's rate-limited command (``accel_*``,
+    ramping from zero at ``t_start``, its first step) reaches the segment's command: the steps that
+    start from then on are the segment's steady part."""
+    out, r = [], np.zeros(3)
+    for a, b, cmd in stream.segments():
+        c, t = np.asarray(cmd, dtype=float), max(a, t_start)
+        while np.any(np.abs(c - r) > 1e-9) and t < b:
+            r = r + np.clip(c - r, -accel * dt, accel * dt)
+            t += dt
+        out.append(t if not np.any(np.abs(c - r) > 1e-9) else float("inf"))
+    return out
+
+
+def steady_rows(rows, settled: list[float]):
+    """``rows`` with each segment's measured velocity the mean of its steady steps only (those that
+    start once the command ramp has settled; a segment with none is left out)."""
+    out = []
+    for r in rows:
+        segs = []
+        for seg, t_set in zip(r.get("segments") or [], settled):
+            steps = [v[1:] for v in seg.get("step_velocities", []) if v[0] >= t_set - 1e-9]
+            segs.append(dict(seg, measured=[float(x) for x in np.mean(steps, axis=0)] if steps else None,
+                             steps=len(steps)))
+        out.append(dict(r, segments=segs))
+    return out
+
+
+def tracking_shares(rows) -> tuple[float, float]:
+    """Median measured/commanded along each moving segment's own axis, and its spread (IQR)."""
+    shares = [share for _, _, share in _segment_shares(rows)]
+    if not shares:
+        return float("nan"), float("nan")
+    q = np.percentile(shares, [25, 50, 75])
+    return float(q[1]), float(q[2] - q[0])
+
+
+AXES = ("forward", "backward", "sideways", "turning")
+
+
+def tracking_by_axis(rows) -> dict[str, float]:
+    """The median measured/commanded per kind of segment (forward, backward, sideways, turning: the
+    segment's dominant axis): where the shares of :func:`tracking_shares` come from."""
+    out: dict[str, list[float]] = {a: [] for a in AXES}
+    for c, axis, share in _segment_shares(rows):
+        kind = ("forward" if c[0] > 0 else "backward") if axis == 0 else ("sideways" if axis == 1 else "turning")
+        out[kind].append(share)
+    return {k: float(np.median(v)) if v else float("nan") for k, v in out.items()}
+
+
+def steady_tracking(rows, stream, engine=None) -> dict | None:
+    """How much of its command a set walked over many walks of ``stream``, in steady steps: per
+    moving segment the mean of its steps that start once the command has settled (an online
+    engine's ``accel_*`` ramp, from its first step at ``t_stand``; a table planned per step has
+    no ramp: every step from the segment's second), as a share of the command along the
+    segment's own axis; the median over the segments of the walks that stayed up, its IQR, and
+    the median per kind of segment (forward, backward, sideways, turning; null where none).
+    These shares are what a stride calibration inverts (``EngineParams.stride_*``). None when no
+    segment was measured."""
+    if engine is not None:
+        settled = settled_after(stream, np.array([engine.accel_vx, engine.accel_vy, engine.accel_wz]),
+                                engine.t_stand)
+    else:
+        settled = [a for a, _, _ in stream.segments()]
+    rows = steady_rows(rows, settled)
+    median, iqr = tracking_shares(rows)
+    if not np.isfinite(median):
+        return None
+    by = tracking_by_axis(rows)
+    return {"median": median, "iqr": iqr, **{k: (v if np.isfinite(v) else None) for k, v in by.items()}}

@@ -42,6 +42,11 @@ DEFINITIONS = {
     "push_survival": "per push impulse [N s]: fraction of rollouts with one push of that size that did not fall",
     "largest_push_ns": f"largest push impulse survived in >= {PUSH_SURVIVAL:.0%} of its rollouts, and so "
                        f"every smaller one [N s] (null: not even the smallest)",
+    "tracking_steady": "with --commands or --command: measured / commanded velocity along each moving segment's "
+                       "own axis over its steady steps (those starting once an engine's accel_* ramp has reached "
+                       "the command; a table's from the segment's second step), the median over the segments of "
+                       "the walks that stayed up, its IQR, and the median per kind of segment; what the engine's "
+                       "stride_* calibration inverts (null: no stream, or nothing measured)",
 }
 
 _TABLES: dict = {}
@@ -85,6 +90,7 @@ class RobustnessReport:
     rollouts: list[dict[str, Any]]
     pushes: dict[float, list[dict[str, Any]]]
     drive: str = ""                   # how the set was driven and what it walked
+    tracking: dict[str, Any] | None = None   # a stream's steady-step tracking (metrics.steady_tracking)
 
     @property
     def survival(self) -> float:
@@ -117,7 +123,8 @@ class RobustnessReport:
                 "t_fall_s": [float(v) for v in np.percentile(falls, [25, 50, 75])] if falls else None,
                 "pitch_rms_deg": self._pct("pitch_rms_deg"), "speed_mps": self._pct("speed_mps"),
                 "push_survival": {f"{k:g}": v for k, v in self.push_survival.items()},
-                "largest_push_ns": self.largest_push, "definitions": DEFINITIONS}
+                "largest_push_ns": self.largest_push, "tracking_steady": self.tracking,
+                "definitions": DEFINITIONS}
 
     def format(self) -> str:
         d = self.to_dict()
@@ -133,6 +140,12 @@ class RobustnessReport:
                  f"  time to fall    {pct(d['t_fall_s'], '.2f')} s (quartiles of those that fell)",
                  f"  pitch RMS       {pct(d['pitch_rms_deg'], '.2f')} deg (10/50/90th pct, stayed up)",
                  f"  speed           {pct(d['speed_mps'], '.3f')} m/s (10/50/90th pct, stayed up)"]
+        tk = self.tracking
+        if tk is not None:
+            kinds = ", ".join(f"{k} {tk[k]:.0%}" for k in ("forward", "backward", "sideways", "turning")
+                              if tk[k] is not None)
+            lines.append(f"  tracking        {tk['median']:.0%} of the command in steady steps (IQR "
+                         f"{tk['iqr']:.0%}; stayed up): {kinds}")
         if self.pushes:
             n = len(next(iter(self.pushes.values())))
             row = ", ".join(f"{k} N s {v:.0%}" for k, v in d["push_survival"].items())
@@ -158,8 +171,13 @@ def evaluate(robot: str, surface: str, drive: gaits.Drive, *, rollouts: int, see
     by_push: dict[float, list] = {}
     for r in rows[rollouts:]:
         by_push.setdefault(r["push"], []).append(r)
+    tracking = None
+    if drive.stream is not None:
+        from .metrics import steady_tracking
+        ramped = drive.engine is not None and gaits.family_of(drive.params).engine == "feedback"
+        tracking = steady_tracking(plain, drive.stream, drive.engine if ramped else None)
     return RobustnessReport(load_robot(robot).name, surface, drive.source, drive.closed_loop, plain, by_push,
-                            drive.describe())
+                            drive.describe(), tracking)
 
 
 def walk_scenario(sim: Simulator, drive: gaits.Drive, stream, pushes, perturb) -> dict[str, Any]:
