@@ -420,16 +420,16 @@ def test_postgres_two_workers_and_a_tune_share_one_budget(postgres, gait_tuner_c
 
 
 def test_postgres_budget_lock_excludes_another_process_and_is_released_on_error(postgres, tmp_path):
-    """The budget lock (a session advisory lock, keyed as ``StudyStore._pg_lock`` keys it): while
-    one store holds it another session cannot take it; after the block, and after a block that
-    raised, it can; the same store takes it again (nothing left held)."""
-    import hashlib
-
+    """The budget lock (a session advisory lock, ``advisory_key``): while one store holds it
+    another session cannot take it; after the block, and after a block that raised, it can; the
+    same store takes it again (nothing left held)."""
     import sqlalchemy
+
+    from tuner.search.storage import advisory_key
     url = postgres.create_database("lock")
     a = StudyStore.open("lock", normalise_url(url), tmp_path / "runs")
     other = sqlalchemy.create_engine(normalise_url(url), poolclass=sqlalchemy.pool.NullPool)
-    k = int.from_bytes(hashlib.sha1(b"budget-lock").digest()[:8], "big", signed=True)
+    k = advisory_key("budget-lock")
 
     def free() -> bool:
         with other.connect() as conn:

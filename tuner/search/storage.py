@@ -160,6 +160,11 @@ def normalise_url(url: str) -> str:
 
 
 
+def advisory_key(name: str) -> int:
+    """The PostgreSQL advisory-lock key of a named lock (``StudyStore._pg_lock``): 64 bits of its SHA-1."""
+    return int.from_bytes(hashlib.sha1(name.encode()).digest()[:8], "big", signed=True)
+
+
 @dataclass
 class StudyStore:
     """A study's storage, opened the same way in the parent and in every worker.
@@ -273,7 +278,7 @@ class StudyStore:
     def _pg_lock(self, key: str) -> Iterator[None]:
         import sqlalchemy
         from sqlalchemy.exc import OperationalError
-        k = int.from_bytes(hashlib.sha1(key.encode()).digest()[:8], "big", signed=True)
+        k = advisory_key(key)
         try:
             conn = self._sa_engine().connect()
         except OperationalError as exc:

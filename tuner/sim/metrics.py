@@ -228,17 +228,21 @@ def _segment_shares(rows):
                 yield c, axis, got[axis] / c[axis]
 
 
-def settled_after(stream, accel: np.ndarray, t_start: float, dt: float = 1e-3) -> list[float]:
+def settled_after(stream, accel: np.ndarray, t_start: float) -> list[float]:
     """Per segment of ``stream``, the time [s] the engine's rate-limited command (``accel_*``,
-    ramping from zero at ``t_start``, its first step) reaches the segment's command: the steps that
-    start from then on are the segment's steady part."""
+    ramping from zero at ``t_start``, its first step) reaches the segment's command (inf when the
+    segment ends first): the steps that start from then on are the segment's steady part. Each
+    axis ramps on its own at its limit, so the command is reached when the slowest axis is."""
     out, r = [], np.zeros(3)
     for a, b, cmd in stream.segments():
-        c, t = np.asarray(cmd, dtype=float), max(a, t_start)
-        while np.any(np.abs(c - r) > 1e-9) and t < b:
-            r = r + np.clip(c - r, -accel * dt, accel * dt)
-            t += dt
-        out.append(t if not np.any(np.abs(c - r) > 1e-9) else float("inf"))
+        c, t0 = np.asarray(cmd, dtype=float), max(a, t_start)
+        need, span = float(np.max(np.abs(c - r) / accel)), max(b - t0, 0.0)
+        if need <= span:
+            out.append(t0 + need)
+            r = c
+        else:
+            out.append(float("inf"))
+            r = r + np.clip(c - r, -accel * span, accel * span)
     return out
 
 

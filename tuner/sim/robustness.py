@@ -23,7 +23,7 @@ import numpy as np
 
 import gaits
 from .cache import simulator
-from .metrics import summarize
+from .metrics import steady_tracking, summarize
 from ..process_pool import map_in_order
 from .randomisation import DEFAULT_PUSHES, EVALUATE, Randomisation, draw
 from ..robots import load_robot
@@ -173,7 +173,6 @@ def evaluate(robot: str, surface: str, drive: gaits.Drive, *, rollouts: int, see
         by_push.setdefault(r["push"], []).append(r)
     tracking = None
     if drive.stream is not None:
-        from .metrics import steady_tracking
         ramped = drive.engine is not None and gaits.family_of(drive.params).engine == "feedback"
         tracking = steady_tracking(plain, drive.stream, drive.engine if ramped else None)
     return RobustnessReport(load_robot(robot).name, surface, drive.source, drive.closed_loop, plain, by_push,
