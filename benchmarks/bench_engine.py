@@ -19,6 +19,9 @@ open-loop set of the same surface (``kidsize-omni-<surface>``, a table planned p
   0, 1, 2: the largest fully successful D and the bottle's momentum at impact per seed and the
   median momentum, engine vs open-loop;
 * the engine's cost per tick in Python (median, 99th percentile) beside one tick of physics;
+* single pushes by direction (``--parts directions``, not in the default run): the largest D each
+  of eight directions survives at two points of a step, engine vs open-loop (which direction binds
+  the rules' trial, whose three directions are random);
 * which limit binds (``--parts limits``): the engine set's first failing challenge trial on carpet4
   and grass30 walked again, its re-plans counted by the limit their step sat on (reach, the sole's
   edge for the ZMP, a shorter swing, the swing foot's speed) and, per push, the servos at their
@@ -104,12 +107,13 @@ def main() -> None:
     ap.add_argument("--challenge-seeds", default="0,1,2", metavar="K,K,...",
                     help="the challenge's push-direction seeds (one seed's three pushes per D say little)")
     ap.add_argument("--parts", default="walks,challenge,cost,limits",
-                    help="which parts to run, comma-separated (walks, challenge, cost, limits); the tick "
-                         "cost is best measured alone on an idle machine: --parts cost")
+                    help="which parts to run, comma-separated (walks, challenge, cost, limits, directions; "
+                         "directions is not in the default: ~10 min); the tick cost is best measured "
+                         "alone on an idle machine: --parts cost")
     args = ap.parse_args()
     parts = set(args.parts.split(","))
-    if not parts <= {"walks", "challenge", "cost", "limits"}:
-        ap.error(f"--parts: {args.parts!r}: the parts are walks, challenge, cost, limits")
+    if not parts <= {"walks", "challenge", "cost", "limits", "directions"}:
+        ap.error(f"--parts: {args.parts!r}: the parts are walks, challenge, cost, limits, directions")
     n = 20 if args.quick else args.walks
     also: dict[str, list[str]] = {k: [] for k in SETS}
     for item in args.also:
@@ -168,10 +172,28 @@ def main() -> None:
         med, p99, phys = cost_per_tick(engine_set, surface)
         print(f"  {engine_set:28s} median {med:.3f} ms, p99 {p99:.3f} ms; the rest of the tick (physics, "
               f"sensors, plant) {phys:.3f} ms")
+    if "directions" in parts:
+        print("\nsingle pushes by direction (ours, not the rules' trial; 0 deg: the bottle moving the way the robot "
+              "faces, 90: to its left), each at 3.0 and 3.1 s (two points of a step); the largest D [m] both "
+              "survived / momentum [N s], D raised by 0.1 m from 0.4")
+        for surface in ("carpet4",) + (() if args.quick else ("grass30",)):
+            directions(surface, ("kidsize-engine-carpet4", "kidsize-omni-carpet4", *also["carpet4"]))
     if "limits" in parts:
         print("\nwhich limit binds: kidsize-engine-carpet4's challenge trials walked again (rope 1.5 m, seed 0)")
         for surface in ("carpet4", "grass30"):
             limits(surface)
+
+
+def directions(surface: str, labels) -> None:
+    """Print, per set, the largest single push per direction (``challenge.push_by_direction``)."""
+    from tuner.sim.challenge import push_by_direction
+    sim = Simulator(load_robot("kidsize"), load_surface(surface), pendulum=1.5)
+    for label in labels:
+        rows = push_by_direction(sim, gaits.Drive.of(resolve_params(label, None), source=label))
+        cells = [f"{r['direction_deg']:.0f}: {r['best_distance_m'] or 0:.1f}/{r['momentum_Ns'] or 0:.2f}" for r in rows]
+        worst = min(rows, key=lambda r: r["best_distance_m"] or 0.0)
+        print(f"  {surface:8s} {label:24s} " + "  ".join(cells) + f"   worst {worst['direction_deg']:.0f} deg",
+              flush=True)
 
 
 def limits(surface: str) -> None:

@@ -131,3 +131,64 @@ def test_an_engine_walks_a_stream_beyond_its_envelope_clipped_and_says_so(gait_t
     tk = out["tracking_steady"]                     # the stream's steady-step tracking, per kind of segment
     assert tk is None or set(tk) == {"median", "iqr", "forward", "backward", "sideways", "turning"}
     assert (tk is not None) == (out["survival"] > 0)
+
+
+def test_an_explicit_push_comes_from_the_direction_asked():
+    """``push_trial(pushes=...)`` (ours, for analysis): one push, 90 deg against the heading, moves the
+    robot to its left; its record says the direction and the momentum sqrt(2 g H) the drop gives."""
+    sim = Simulator(load_robot("kidsize"), SURFACES["rigid"], pendulum=1.5)
+    drive = gaits.Drive.of(resolve_params("kidsize-omni-carpet4", None))
+    r = push_trial(sim, drive, 0.4, 0, keep_trace=True, pushes=[(3.0, 90.0)])
+    tr = r["trace"]
+    assert [p["direction_deg"] for p in r["pushes"]] == [pytest.approx(90.0)]
+    assert r["pushes"][0]["measured_Ns"] == pytest.approx(BOTTLE_MASS * math.sqrt(2 * 9.81 * drop_height(1.5, 0.4)),
+                                                          rel=0.04)
+    assert tr.t[-1] == pytest.approx(6.0, abs=0.02)           # 3 s after the last push
+    k0, k1 = (int(round(t / sim.control_period)) for t in (2.95, 3.15))
+    moved = tr.p_torso[k1, :2] - tr.p_torso[k0, :2]
+    left = [-math.sin(tr.yaw[k0]), math.cos(tr.yaw[k0])]
+    heading = [math.cos(tr.yaw[k0]), math.sin(tr.yaw[k0])]
+    assert moved @ left > 0.01 and abs(moved @ heading) < moved @ left
+    with pytest.raises(ValueError, match="4 s or more"):
+        push_trial(sim, drive, 0.4, 0, pushes=[(3.0, 0.0), (5.0, 90.0)])
+
+
+def test_push_by_direction_raises_d_until_a_push_time_fails(monkeypatch):
+    """Per direction, D grows by the step until one of the push times fails; the best is the last D
+    every push time survived (a stand-in trial that fails beyond a known D per direction)."""
+    import tuner.sim.challenge as ch
+    limit = {0.0: 0.75, 90.0: 0.45, 180.0: 0.35}
+    calls = []
+
+    class Fell:
+        fell, t_fall = True, 4.2
+
+    def fake(sim, drive, distance, seed, keep_trace=False, pushes=None):
+        (t, d), = pushes
+        calls.append((d, distance, t))
+        ok = distance <= limit[d] + (0.1 if t == 3.0 else 0.0)     # the later push time binds
+        return {"success": ok, "reason": "completed" if ok else "fell at 4.2 s", "trace": Fell()}
+    monkeypatch.setattr(ch, "push_trial", fake)
+    sim = type("S", (), {"rope": 1.5})()
+    rows = ch.push_by_direction(sim, None, directions=(0.0, 90.0, 180.0), push_times=(3.0, 3.1), start=0.4, step=0.1)
+    assert [r["best_distance_m"] for r in rows] == [0.7, 0.4, None]
+    assert [r["first_failure"]["distance_m"] for r in rows] == [0.8, 0.5, 0.4]
+    assert [r["first_failure"]["push_s"] for r in rows] == [3.1, 3.1, 3.1]
+    assert rows[0]["momentum_Ns"] == pytest.approx(BOTTLE_MASS * math.sqrt(2 * 9.81 * drop_height(1.5, 0.7)))
+    assert rows[2]["momentum_Ns"] is None
+    assert (0.0, 0.8, 3.0) in calls and (0.0, 0.9, 3.0) not in calls    # stops at the first failure
+
+
+def test_challenge_by_direction_through_the_cli(gait_tuner_cmd, run_env):
+    r = run(gait_tuner_cmd, ["challenge", "push", "--params", "kidsize-omni-carpet4", "--surface", "rigid",
+                             "--by-direction", "--directions", "90", "--step", "0.5", "--json"], run_env)
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    (row,) = out["by_direction"]
+    assert row["direction_deg"] == 90.0 and out["rope_m"] == 1.5
+    assert row["best_distance_m"] in (None, 0.4, 0.9, 1.4)
+    if row["first_failure"] is not None:
+        assert row["first_failure"]["distance_m"] == pytest.approx((row["best_distance_m"] or -0.1) + 0.5)
+    bad = run(gait_tuner_cmd, ["challenge", "push", "--params", "kidsize-omni-carpet4", "--by-direction",
+                               "--directions", "left"], run_env)
+    assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1 and "--directions" in bad.stderr

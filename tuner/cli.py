@@ -1145,10 +1145,18 @@ def challenge() -> None:
               help="Seed of the push directions.")
 @click.option("--step", default=0.05, show_default=True, type=click.FloatRange(0.01, 0.5),
               help="How much D [m] grows from trial to trial.")
+@click.option("--by-direction", is_flag=True,
+              help="Not the rules' trial: single pushes per direction (--directions), each at 3.0 and 3.1 s, "
+                   "D raised from 0.4 m by --step (0.1 with this flag unless given) until one fails: which "
+                   "direction binds the rules' random three.")
+@click.option("--directions", default="0,45,90,135,180,225,270,315", show_default=True, metavar="DEG,DEG,...",
+              help="With --by-direction: the bottle's direction of travel against the robot's heading [deg] "
+                   "(0 the way it faces, 90 to its left).")
 @STABILISER_OPTION
 @JSON_OPTION
 def challenge_push(params_spec: str | None, controller_file: Path | None, robot_name: str, surface_name: str,
-                   rope: float, seed: int, step: float, stabiliser: bool | None, as_json: bool) -> None:
+                   rope: float, seed: int, step: float, by_direction: bool, directions: str, stabiliser: bool | None,
+                   as_json: bool) -> None:
     """The push-recovery challenge: a 1 kg pendulum released from a growing distance D.
 
     The robot walks in place; a trial is three pushes from random directions, fully successful
@@ -1173,6 +1181,9 @@ def challenge_push(params_spec: str | None, controller_file: Path | None, robot_
             J = [p["measured_Ns"] for p in trial["pushes"]]
             click.echo(f"  D {trial['distance_m']:.2f} m: {'fully successful' if trial['success'] else trial['reason']}"
                        f" (pushes {', '.join('-' if j is None else f'{j:.2f}' for j in J)} N s measured)")
+    if by_direction:
+        _challenge_by_direction(sim, drive, directions, step, as_json)
+        return
     if not as_json:
         click.echo(f"push-recovery challenge: {drive.describe()} on {sim.robot.name} / {sim.surface.name}, rope {rope:g} m")
     report = run_challenge(sim, drive, seed=seed, step=step, progress=shown)
@@ -1186,6 +1197,41 @@ def challenge_push(params_spec: str | None, controller_file: Path | None, robot_
         click.echo(f"best D {report['best_distance_m']:.2f} m: H {report['drop_m'] * 1000:.0f} mm, momentum "
                    f"{report['momentum_Ns']:.2f} N s at impact, rank {report['rank']:.3f} "
                    f"(robot {report['robot_mass_kg']:.2f} kg, CoM {report['com_height_m']:.3f} m)")
+
+
+def _challenge_by_direction(sim, drive, directions: str, step: float, as_json: bool) -> None:
+    """``challenge push --by-direction``: single pushes per direction (``challenge.push_by_direction``)."""
+    import json
+
+    from .sim.challenge import push_by_direction
+
+    try:
+        dirs = tuple(float(v) for v in directions.split(",") if v.strip())
+    except ValueError:
+        raise UserError(f"--directions {directions!r}: expected comma-separated angles in degrees, e.g. 90,270") from None
+    if not dirs or not all(-360.0 <= d <= 360.0 for d in dirs):
+        raise UserError(f"--directions {directions!r}: give one or more angles in [-360, 360] deg")
+    step = step if click.get_current_context().get_parameter_source("step").name != "DEFAULT" else 0.1
+
+    def shown(row: dict) -> None:
+        if not as_json:
+            f = row["first_failure"]
+            best = "none" if row["best_distance_m"] is None else \
+                f"{row['best_distance_m']:.2f} m ({row['momentum_Ns']:.2f} N s)"
+            click.echo(f"  {row['direction_deg']:5.0f} deg: best D {best}" +
+                       (f"; fails at {f['distance_m']:.2f} m pushed at {f['push_s']:.1f} s: {f['reason']}" if f else ""))
+    if not as_json:
+        click.echo(f"single pushes by direction (not the rules' trial): {drive.describe()} on {sim.robot.name} / "
+                   f"{sim.surface.name}, rope {sim.rope:g} m")
+    rows = push_by_direction(sim, drive, directions=dirs, step=step, progress=shown)
+    if as_json:
+        click.echo(json.dumps({"robot": sim.robot.name, "surface": sim.surface.name, "params": drive.source,
+                               "drive": drive.describe(), "rope_m": sim.rope, "by_direction": rows},
+                              indent=2, allow_nan=False))
+        return
+    worst = min(rows, key=lambda r: r["best_distance_m"] or 0.0)
+    click.echo(f"worst direction {worst['direction_deg']:.0f} deg: best D "
+               + ("none" if worst["best_distance_m"] is None else f"{worst['best_distance_m']:.2f} m"))
 
 
 @cli.group()

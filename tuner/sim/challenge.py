@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
 
 import mujoco
 import numpy as np
@@ -33,7 +33,7 @@ from gaits import CommandStream
 from .rollout import Simulator
 from .scene import BOTTLE_LENGTH, BOTTLE_MASS, BOTTLE_RADIUS, PREFIX
 
-__all__ = ["challenge", "push_trial", "drop_height", "rank", "PUSH_TIMES_S", "TRIAL_S"]
+__all__ = ["challenge", "push_trial", "push_by_direction", "drop_height", "rank", "PUSH_TIMES_S", "TRIAL_S"]
 
 PUSH_TIMES_S = (3.0, 7.0, 11.0)   # [s] when the three pushes meet the robot
 TRIAL_S = 14.0                     # [s] one trial
@@ -74,13 +74,32 @@ def _reach(m: mujoco.MjModel, d: mujoco.MjData, sim: Simulator, u: np.ndarray, z
     return best
 
 
-def push_trial(sim: Simulator, drive: gaits.Drive, distance: float, seed: int, keep_trace: bool = False) -> dict[str, Any]:
+def push_trial(sim: Simulator, drive: gaits.Drive, distance: float, seed: int, keep_trace: bool = False,
+               pushes: Sequence[tuple[float, float]] | None = None) -> dict[str, Any]:
     """One trial of three pushes at ``distance`` [m]; returns success and each push's record
-    (``keep_trace``: and the walk's trace, under ``trace``)."""
+    (``keep_trace``: and the walk's trace, under ``trace``).
+
+    ``pushes`` (ours, for analysis; not the rules' trial): the pushes as (time [s], direction [deg]
+    against the robot's heading, 0 the bottle moving the way the robot faces, 90 to its left)
+    instead of the rules' three random ones (``seed`` then unused); the walk lasts until 3 s after
+    the last."""
     m = sim.model
     rope = sim.rope
-    rng = np.random.default_rng(np.random.SeedSequence([0xC4A1, int(seed), int(round(distance * 1000))]))
-    rel = rng.uniform(0.0, 2 * math.pi, len(PUSH_TIMES_S))
+    if pushes is None:
+        rng = np.random.default_rng(np.random.SeedSequence([0xC4A1, int(seed), int(round(distance * 1000))]))
+        times = PUSH_TIMES_S
+        rel = rng.uniform(0.0, 2 * math.pi, len(PUSH_TIMES_S))
+        duration = TRIAL_S
+    else:
+        if not pushes:
+            raise ValueError("push_trial: pushes, when given, needs at least one (time, direction)")
+        times = tuple(float(t) for t, _ in pushes)
+        if any(b - a < 4.0 - 1e-9 for a, b in zip(times, times[1:])) or times[0] < PUSH_TIMES_S[0] - 1e-9:
+            raise ValueError(f"push_trial: pushes at {times} s: the first at {PUSH_TIMES_S[0]:g} s or later "
+                             f"(stepping in place by then), each 4 s or more after the one before (the "
+                             f"bottle swings in and is parked 1.5 s after its push), as the rules' trial")
+        rel = np.radians([float(d) for _, d in pushes])
+        duration = times[-1] + 3.0
     angle0 = math.asin(min(distance / rope, 1.0))
     quarter = _quarter_period(rope, angle0)
     jnt = m.joint(PREFIX + "rope").id
@@ -104,7 +123,7 @@ def push_trial(sim: Simulator, drive: gaits.Drive, distance: float, seed: int, k
             axis = np.array([-u[1], u[0], 0.0])                     # z x u: the bottle swings back along -u
             data.qpos[qadr:qadr + 4] = [math.cos(angle0 / 2), *(axis * math.sin(angle0 / 2))]
             data.qvel[vadr:vadr + 3] = 0.0
-            records.append({"t_s": float(PUSH_TIMES_S[i]), "direction_deg": float(math.degrees(rel[i]) % 360),
+            records.append({"t_s": float(times[i]), "direction_deg": float(math.degrees(rel[i]) % 360),
                             "release_tick": None, "pivot": data.mocap_pos[mocap].copy()})
         return fn
 
@@ -116,17 +135,17 @@ def push_trial(sim: Simulator, drive: gaits.Drive, distance: float, seed: int, k
         state["com_height"] = float(data.subtree_com[sim._torso][2])
 
     hooks = {0: measure_com}
-    for i, t in enumerate(PUSH_TIMES_S):
+    for i, t in enumerate(times):
         k = int(round((t - quarter) / dt))
         hooks[k] = release(i)
         hooks[int(round((t + 1.5) / dt))] = park
-    walk = _in_place(drive)
+    walk = _in_place(drive, duration)
     controller = walk.controller(sim.robot, dt)
-    trace = sim.run(controller, hooks=hooks, record_qpos=True, **{**walk.run_options(), "duration": TRIAL_S})
+    trace = sim.run(controller, hooks=hooks, record_qpos=True, **{**walk.run_options(), "duration": duration})
     # the bottle's speed before it met the robot: its fastest over the swing (the drop's energy, less
     # nothing until contact), from the recorded joint angle about the known pivot
     for i, rec in enumerate(records):
-        k0 = int(round((PUSH_TIMES_S[i] - quarter) / dt)) + 2       # the rows after the release
+        k0 = int(round((times[i] - quarter) / dt)) + 2       # the rows after the release
         k1 = min(len(trace.t), k0 + int(round(1.6 * quarter / dt)))
         if k1 - k0 < 3:
             rec["measured_Ns"] = None
@@ -150,10 +169,10 @@ def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     return out
 
 
-def _in_place(drive: gaits.Drive) -> gaits.Drive:
-    """The drive walking in place for the trial: the engine steps at a zero command, others walk a
-    zero command stream."""
-    still = CommandStream(np.array([0.0]), np.zeros((1, 3)), tail=TRIAL_S)
+def _in_place(drive: gaits.Drive, duration: float = TRIAL_S) -> gaits.Drive:
+    """The drive walking in place for ``duration`` [s]: the engine steps at a zero command, others
+    walk a zero command stream."""
+    still = CommandStream(np.array([0.0]), np.zeros((1, 3)), tail=duration)
     if drive.engine is not None:
         return dataclasses.replace(drive, engine=dataclasses.replace(drive.engine, idle="step"), stream=still,
                                    command=None)
@@ -185,3 +204,36 @@ def challenge(sim: Simulator, drive: gaits.Drive, *, seed: int = 0, start: float
             "drop_m": H if best is not None else None,
             "rank": rank(rope, best, robot_mass, com_height) if best is not None else None,
             "robot_mass_kg": robot_mass, "com_height_m": com_height, "trials": trials}
+
+
+def push_by_direction(sim: Simulator, drive: gaits.Drive, *, directions: Sequence[float] = tuple(range(0, 360, 45)),
+                      push_times: Sequence[float] = (3.0, 3.1), start: float = 0.4, step: float = 0.1,
+                      progress: Callable[[dict], None] | None = None) -> list[dict[str, Any]]:
+    """Ours, for analysis (not the rules' trial): per direction [deg] against the robot's heading,
+    single pushes at each of ``push_times`` [s] (a push meets a walk at a different point of its
+    step at each), D raised from ``start`` by ``step`` [m] until one of them fails; returns per
+    direction the largest D every push time survived, its momentum, and the first failure's time.
+    The rules' trial takes the worst of three random directions, so this says which one binds."""
+    rope = sim.rope
+    rows = []
+    for direction in directions:
+        best, failed = None, None
+        distance = start
+        while distance < 0.95 * rope + 1e-9 and failed is None:
+            for t in push_times:
+                trial = push_trial(sim, drive, round(distance, 4), 0, keep_trace=True, pushes=[(t, direction)])
+                if not trial["success"]:
+                    failed = {"distance_m": round(distance, 4), "push_s": float(t),
+                              "fell_s": float(trial["trace"].t_fall) if trial["trace"].fell else None,
+                              "reason": trial["reason"]}
+                    break
+            else:
+                best = round(distance, 4)
+                distance += step
+        row = {"direction_deg": float(direction) % 360, "best_distance_m": best,
+               "momentum_Ns": BOTTLE_MASS * math.sqrt(2 * GRAVITY * drop_height(rope, best)) if best is not None else None,
+               "first_failure": failed}
+        rows.append(row)
+        if progress is not None:
+            progress(row)
+    return rows
