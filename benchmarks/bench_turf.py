@@ -2,7 +2,7 @@
 EROS tables on the first pedestal, and the turf test methods.
 
     python benchmarks/bench_turf.py [--repeats 5] [--surfaces rigid,grass50,examples/surfaces/grass50-blades.yaml,...]
-                                    [--parts table,foot,variants]
+                                    [--parts table,foot,variants,distance]
 
 Cost: the same TLIPFM walk (tkux-table2, 10 s) on each surface, the surfaces interleaved in every
 repeat (this machine is noisy), the minimum of the repeats, as a ratio to the rigid floor's.
@@ -14,6 +14,14 @@ beside carpet4's. Tables: the EROS experiment's Tables 7 and 8 on the surface as
 apparatus' foot mass is not in our sources: how much the figures hang on it). ``variants``: the
 blade layer's example file with one number changed at a time (by a fifth or more), its landing
 and Tables 7 and 8 on pedestal 1: how much its figures hang on its numbers.
+
+``distance`` (not in the default run): why walks cover more than their plan. Three straight table
+walks (the TLIPFM paper's Table 2, EROS x16 with its optimisation, ``kidsize-omni-carpet4``'s own
+walk) on each surface: the torso's distance as a share of the plan's pelvis, split by
+``metrics.distance_budget`` into loaded soles sliding, unloaded soles skidding on the ground, feet
+carried through the air, and the torso's sway against the feet; and at each touch-down (a sole's
+load rising past 15 % of the weight, after the first steps) the step from the stance foot, real
+against planned, and how far the CoM is ahead of its planned place over the stance foot.
 """
 
 from __future__ import annotations
@@ -47,8 +55,8 @@ def main() -> None:
     ap.add_argument("--parts", default="table,foot,variants")
     a = ap.parse_args()
     parts = set(a.parts.split(","))
-    if not parts <= {"table", "foot", "variants"}:
-        ap.error(f"--parts {a.parts!r}: the parts are table, foot, variants")
+    if not parts <= {"table", "foot", "variants", "distance"}:
+        ap.error(f"--parts {a.parts!r}: the parts are table, foot, variants, distance")
     robot = load_robot("kidsize")
     surfaces = [load_surface(s) for s in a.surfaces.split(",")]
     if "table" in parts:
@@ -61,6 +69,57 @@ def main() -> None:
                                               for fm, c in zip((0.1, 1.0, 3.0), cells)))
     if "variants" in parts:
         variants(robot)
+    if "distance" in parts:
+        distance(surfaces)
+
+
+def distance(surfaces) -> None:
+    """The ``distance`` part (module docstring)."""
+    from tuner.params_io import resolve_params
+    from tuner.sim.cache import simulator
+    from tuner.sim.metrics import distance_budget
+    print("\nwhere the distance comes from, % of the plan: covered = slide + skid + air + sway; at the touch-downs "
+          "(medians): step real / planned [mm], CoM ahead of its plan over the stance foot [mm], torso pitch [deg]")
+    sets = (("paper:tkux-table2", gaits.load_baseline("tkux-table2")),
+            ("paper:eros-x16-with", gaits.load_baseline("eros-x16-with")),
+            ("kidsize-omni-carpet4", resolve_params("kidsize-omni-carpet4", None)))
+    for label, params in sets:
+        drive = gaits.Drive.of(params, source=label)
+        for s in surfaces:
+            sim = simulator("kidsize", s)
+            traj = drive.table(sim.robot, sim.control_period)
+            plan = float(traj.p_world_pelvis[-1, 0] - traj.p_world_pelvis[0, 0])
+            tr = sim.run(drive.controller(sim.robot, sim.control_period, table=traj))
+            b = distance_budget(tr)
+            share = {k: 100 * b[k] / plan for k in ("torso_m", "slide_m", "skid_m", "air_m", "sway_m")}
+            td = touchdowns(tr, traj)
+            print(f"  {label:22s} {s.name:22s} {'up  ' if tr.survived else 'FELL'} covered {share['torso_m']:4.0f}% = "
+                  f"slide {share['slide_m']:+3.0f} skid {share['skid_m']:+3.0f} air {share['air_m']:4.0f} "
+                  f"sway {share['sway_m']:+3.0f}" + (f";  steps {td[0]:.1f} / {td[1]:.1f} mm, CoM ahead "
+                                                     f"{td[2]:+.1f} mm, pitch {td[3]:+.1f} deg ({td[4]} touch-downs)"
+                                                     if td else ""), flush=True)
+
+
+def touchdowns(tr, traj):
+    """Medians over the touch-downs after the first 0.3 s of walking: (real step, planned step [mm],
+    CoM ahead of plan over the stance foot [mm], torso pitch [deg], count), or None."""
+    weight = float(np.mean(tr.force[tr.t <= tr.t[0] + 0.2].sum(axis=1)))
+    feet = {1: (tr.p_sole_l, tr.force[:, :4], traj.p_world_foot_l),
+            -1: (tr.p_sole_r, tr.force[:, 4:], traj.p_world_foot_r)}
+    rows = []
+    for side, (p, f, planned) in feet.items():
+        loaded = f.sum(axis=1) > 0.15 * weight
+        q, _, q_planned = feet[-side]
+        for k in np.flatnonzero(~loaded[:-1] & loaded[1:]) + 1:
+            if k >= len(planned) or tr.t[k] < tr.walk_start + 0.3:
+                continue
+            step, step_plan = p[k, 0] - q[k, 0], planned[k, 0] - q_planned[k, 0]
+            if abs(step_plan) > 0.005:
+                ahead = (tr.p_com[k, 0] - q[k, 0]) - (traj.p_world_com[k, 0] - q_planned[k, 0])
+                rows.append((1000 * step, 1000 * step_plan, 1000 * ahead, math.degrees(tr.pitch[k])))
+    if not rows:
+        return None
+    return (*np.median(np.array(rows), axis=0), len(rows))
 
 
 VARIANTS = ({}, {"blade_modulus": 1.8e7}, {"blade_modulus": 2.6e7}, {"blade_tip_depth": 0.01},

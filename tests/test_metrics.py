@@ -70,3 +70,36 @@ def test_steady_tracking_counts_the_steps_after_the_engines_ramp_and_a_tables_fr
     table = steady_tracking([walked], stream)
     assert table["forward"] == pytest.approx(0.8) and table["turning"] == pytest.approx(2.5 / 3)
     assert steady_tracking([fell], stream, Engine()) is None
+
+
+def test_distance_budget_splits_a_walk_into_slide_skid_air_and_sway():
+    """A made-up walk of known parts: the left foot loaded throughout slides 10 mm; the right foot
+    skids 4 mm unloaded on the ground, is carried 60 mm through the air and lands; the torso ends
+    5 mm further ahead of the feet's midpoint than it began."""
+    from types import SimpleNamespace
+
+    from tuner.sim.metrics import distance_budget
+    n = 100
+    t = np.arange(n) * 0.01
+    force = np.zeros((n, 8))
+    force[:, :4] = 10.0                       # the left foot carries 40 N throughout
+    force[:30, 4:] = 10.0                     # the right foot carries 40 N, then lifts
+    force[80:, 4:] = 10.0                     # and lands
+    left = np.zeros((n, 3))
+    left[:, 0] = np.linspace(0.0, 0.010, n)  # loaded: a slide of 10 mm
+    right = np.zeros((n, 3))
+    right[30:40, 0] = np.linspace(0.0, 0.004, 10)             # unloaded, on the ground: 4 mm
+    right[40:, 0] = 0.004
+    right[40:70, 2] = 0.02                                    # lifted 20 mm
+    right[41:70, 0] = np.linspace(0.004, 0.064, 29)           # carried 60 mm
+    right[70:, 0] = 0.064
+    torso = np.zeros((n, 3))
+    torso[:, 0] = np.linspace(0.0, (0.010 + 0.064) / 2 + 0.005, n)
+    trace = SimpleNamespace(t=t, force=force, p_sole_l=left, p_sole_r=right, p_torso=torso)
+    b = distance_budget(trace)
+    assert b["slide_m"] == pytest.approx(0.005)          # half of each foot's: the midpoint's share
+    assert b["skid_m"] == pytest.approx(0.002)
+    assert b["air_m"] == pytest.approx(0.030)
+    assert b["feet_m"] == pytest.approx(0.037)
+    assert b["sway_m"] == pytest.approx(0.005)
+    assert b["torso_m"] == pytest.approx(b["feet_m"] + b["sway_m"])

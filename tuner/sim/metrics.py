@@ -40,8 +40,8 @@ import numpy as np
 from .centre_of_pressure import centre_of_pressure
 from .rollout import Trace
 
-__all__ = ["Metrics", "DEFINITIONS", "heading_velocity", "pitch_rms", "pitch_pm", "centre_of_pressure", "zmp_error",
-           "summarize", "tracking"]
+__all__ = ["Metrics", "DEFINITIONS", "distance_budget", "heading_velocity", "pitch_rms", "pitch_pm",
+           "centre_of_pressure", "zmp_error", "summarize", "tracking"]
 
 DEFINITIONS = {
     "pitch_rms_deg": "RMS of torso pitch about its mean over the walk [deg]",
@@ -302,3 +302,37 @@ def steady_tracking(rows, stream, engine=None) -> dict | None:
         return None
     by = tracking_by_axis(rows)
     return {"median": median, "iqr": iqr, **{k: (v if np.isfinite(v) else None) for k, v in by.items()}}
+
+
+def distance_budget(trace: Trace, load_share: float = 0.15, ground: float = 0.003) -> dict[str, float]:
+    """Where a straight walk's forward distance comes from (ours; issue 25 asks whether walks that
+    cover more than their plan do it by sliding soles or by the torso swaying beyond the plan).
+
+    Along the world's x axis (a walk planned straight ahead from the start pose), from the trace's
+    first tick to its last (or the fall), each sole's displacement per tick is put in one of three
+    parts: a **slide** when the sole is loaded at both ends of the tick (its four sensors carrying
+    more than ``load_share`` of the standing weight, the mean total force over the first 0.2 s); a
+    **skid** when it is not, but stays within ``ground`` [m] of its lowest height (a foot dragged
+    or sliding on the surface as it lands or lifts); **air** otherwise (where the foot was carried
+    and put down). Half the sum over both feet is exactly the feet's midpoint displacement, and the
+    torso's is that plus the **sway** (the torso's move relative to the feet's midpoint, which does
+    not grow with the walk). Returns metres: ``torso_m``, ``feet_m``, ``slide_m``, ``skid_m``,
+    ``air_m``, ``sway_m`` (``feet_m = slide_m + skid_m + air_m``, ``torso_m = feet_m + sway_m``)."""
+    keys = ("torso_m", "feet_m", "slide_m", "skid_m", "air_m", "sway_m")
+    if len(trace.t) < 2:
+        return dict.fromkeys(keys, 0.0)
+    first = trace.t <= trace.t[0] + 0.2
+    weight = float(np.mean(trace.force[first].sum(axis=1)))
+    parts = dict.fromkeys(("slide_m", "skid_m", "air_m"), 0.0)
+    for p, f in ((trace.p_sole_l, trace.force[:, :4]), (trace.p_sole_r, trace.force[:, 4:])):
+        loaded = f.sum(axis=1) > load_share * weight
+        low = p[:, 2] < float(np.min(p[:, 2])) + ground
+        both = loaded[:-1] & loaded[1:]
+        skid = ~both & low[:-1] & low[1:]
+        dx = np.diff(p[:, 0])
+        parts["slide_m"] += 0.5 * float(dx[both].sum())
+        parts["skid_m"] += 0.5 * float(dx[skid].sum())
+        parts["air_m"] += 0.5 * float(dx[~both & ~skid].sum())
+    torso = float(trace.p_torso[-1, 0] - trace.p_torso[0, 0])
+    feet = sum(parts.values())
+    return {"torso_m": torso, "feet_m": feet, **parts, "sway_m": torso - feet}
