@@ -1173,6 +1173,8 @@ def challenge_push(params_spec: str | None, controller_file: Path | None, robot_
 
     if params_spec is None and controller_file is None:
         raise UserError("give --params (a gait set) or --controller (your own)")
+    if not by_direction and click.get_current_context().get_parameter_source("directions").name != "DEFAULT":
+        raise UserError("--directions is for --by-direction (the rules' trial draws its directions from --seed)")
     drive = resolve_drive(params_spec, None, stabiliser=stabiliser, controller=controller_file)
     sim = Simulator(load_robot(robot_name), load_surface(surface_name), pendulum=rope)
 
