@@ -44,8 +44,7 @@ sys.path.insert(0, str(ROOT))
 import gaits  # noqa: E402
 from tuner.params_io import resolve_params  # noqa: E402
 from tuner.sim.challenge import challenge  # noqa: E402
-from tuner.sim.metrics import (settled_after, steady_rows, tracking_by_axis,  # noqa: E402
-                               tracking_shares)
+from tuner.sim.metrics import AXES, steady_tracking, tracking_by_axis, tracking_shares  # noqa: E402
 from tuner.sim.robustness import evaluate  # noqa: E402
 from tuner.sim.rollout import Simulator  # noqa: E402
 from tuner.sim.surfaces import load_surface  # noqa: E402
@@ -129,7 +128,6 @@ def main() -> None:
         sustained = gaits.CommandStream([0.0, 8.0], [[top, 0, 0], [0, 0, 0]], tail=2.0)
         print(f"\n{surface}: {n} randomised walks each (evaluation seed {args.seed})")
         e0 = resolve_params(engine_set, None).engine
-        accel, t_start = np.array([e0.accel_vx, e0.accel_vy, e0.accel_wz]), e0.t_stand
         print(f"{'set':28s} {'match %':>8s} {f'{top:g} m/s %':>9s} {'tracking':>10s} {'IQR':>6s} "
               f"{'vx rmse':>8s} {'wz rmse':>8s}")
         for label in (engine_set, table_set, *also[surface]):
@@ -149,11 +147,10 @@ def main() -> None:
                   f"{'online engine' if gf.engine is not None else 'table planned per step'})", flush=True)
             by = tracking_by_axis(match)
             print(f"{'':28s} tracking by segment: " + ", ".join(f"{k} {v:.0%}" for k, v in by.items()), flush=True)
-            settled = steady_rows(match, settled_after(stream, accel, t_start))
-            s_share, s_iqr = tracking_shares(settled)
-            by = tracking_by_axis(settled)
-            print(f"{'':28s} steady steps only: {s_share:.0%} (IQR {s_iqr:.0%}); " +
-                  ", ".join(f"{k} {v:.0%}" for k, v in by.items()), flush=True)
+            st = steady_tracking(match, stream, e0)     # the engine set's settling, for the table too
+            print(f"{'':28s} steady steps only: " + ("none measured" if st is None else
+                  f"{st['median']:.0%} (IQR {st['iqr']:.0%}); " + ", ".join(
+                      f"{k} {'-' if st[k] is None else format(st[k], '.0%')}" for k in AXES)), flush=True)
     seeds = [int(x) for x in args.challenge_seeds.split(",")]
     if "challenge" in parts:
         print(f"\npush-recovery challenge (rope 1.5 m, push seeds {args.challenge_seeds}): best D [m] / momentum "

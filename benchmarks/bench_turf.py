@@ -103,12 +103,11 @@ def distance(surfaces) -> None:
 def touchdowns(tr, traj):
     """Medians over the touch-downs after the first 0.3 s of walking: (real step, planned step [mm],
     CoM ahead of plan over the stance foot [mm], torso pitch [deg], count), or None."""
-    weight = float(np.mean(tr.force[tr.t <= tr.t[0] + 0.2].sum(axis=1)))
-    feet = {1: (tr.p_sole_l, tr.force[:, :4], traj.p_world_foot_l),
-            -1: (tr.p_sole_r, tr.force[:, 4:], traj.p_world_foot_r)}
+    from tuner.sim.metrics import loaded_soles
+    load_l, load_r = loaded_soles(tr)
+    feet = {1: (tr.p_sole_l, load_l, traj.p_world_foot_l), -1: (tr.p_sole_r, load_r, traj.p_world_foot_r)}
     rows = []
-    for side, (p, f, planned) in feet.items():
-        loaded = f.sum(axis=1) > 0.15 * weight
+    for side, (p, loaded, planned) in feet.items():
         q, _, q_planned = feet[-side]
         for k in np.flatnonzero(~loaded[:-1] & loaded[1:]) + 1:
             if k >= len(planned) or tr.t[k] < tr.walk_start + 0.3:

@@ -40,7 +40,7 @@ import numpy as np
 from .centre_of_pressure import centre_of_pressure
 from .rollout import Trace
 
-__all__ = ["Metrics", "DEFINITIONS", "distance_budget", "heading_velocity", "pitch_rms", "pitch_pm",
+__all__ = ["Metrics", "DEFINITIONS", "distance_budget", "loaded_soles", "heading_velocity", "pitch_rms", "pitch_pm",
            "centre_of_pressure", "zmp_error", "summarize", "tracking"]
 
 DEFINITIONS = {
@@ -304,6 +304,14 @@ def steady_tracking(rows, stream, engine=None) -> dict | None:
     return {"median": median, "iqr": iqr, **{k: (v if np.isfinite(v) else None) for k, v in by.items()}}
 
 
+def loaded_soles(trace: Trace, load_share: float = 0.15) -> tuple[np.ndarray, np.ndarray]:
+    """(left, right) (K,) bool: the sole's four sensors carry more than ``load_share`` of the
+    standing weight (the mean total force over the trace's first 0.2 s)."""
+    weight = float(np.mean(trace.force[trace.t <= trace.t[0] + 0.2].sum(axis=1)))
+    return (trace.force[:, :4].sum(axis=1) > load_share * weight,
+            trace.force[:, 4:].sum(axis=1) > load_share * weight)
+
+
 def distance_budget(trace: Trace, load_share: float = 0.15, ground: float = 0.003) -> dict[str, float]:
     """Where a straight walk's forward distance comes from (ours; issue 25 asks whether walks that
     cover more than their plan do it by sliding soles or by the torso swaying beyond the plan).
@@ -311,7 +319,7 @@ def distance_budget(trace: Trace, load_share: float = 0.15, ground: float = 0.00
     Along the world's x axis (a walk planned straight ahead from the start pose), from the trace's
     first tick to its last (or the fall), each sole's displacement per tick is put in one of three
     parts: a **slide** when the sole is loaded at both ends of the tick (its four sensors carrying
-    more than ``load_share`` of the standing weight, the mean total force over the first 0.2 s); a
+    more than ``load_share`` of the standing weight: :func:`loaded_soles`); a
     **skid** when it is not, but stays within ``ground`` [m] of its lowest height (a foot dragged
     or sliding on the surface as it lands or lifts); **air** otherwise (where the foot was carried
     and put down). Half the sum over both feet is exactly the feet's midpoint displacement, and the
@@ -321,11 +329,8 @@ def distance_budget(trace: Trace, load_share: float = 0.15, ground: float = 0.00
     keys = ("torso_m", "feet_m", "slide_m", "skid_m", "air_m", "sway_m")
     if len(trace.t) < 2:
         return dict.fromkeys(keys, 0.0)
-    first = trace.t <= trace.t[0] + 0.2
-    weight = float(np.mean(trace.force[first].sum(axis=1)))
     parts = dict.fromkeys(("slide_m", "skid_m", "air_m"), 0.0)
-    for p, f in ((trace.p_sole_l, trace.force[:, :4]), (trace.p_sole_r, trace.force[:, 4:])):
-        loaded = f.sum(axis=1) > load_share * weight
+    for p, loaded in zip((trace.p_sole_l, trace.p_sole_r), loaded_soles(trace, load_share)):
         low = p[:, 2] < float(np.min(p[:, 2])) + ground
         both = loaded[:-1] & loaded[1:]
         skid = ~both & low[:-1] & low[1:]
