@@ -29,6 +29,7 @@ state), so the index works the same on the journal and on a database.
 
 from __future__ import annotations
 
+import datetime
 import heapq
 import itertools
 from collections import deque
@@ -41,6 +42,7 @@ from optuna.study import StudyDirection
 from optuna.samplers._tpe.sampler import default_gamma, default_gamma_multiobjective
 from optuna.trial import FrozenTrial, TrialState
 
+from .rdb import lean
 from .trials import DONE_STATES
 
 __all__ = ["TrialIndex", "WindowedTPESampler", "params_key", "N_BEST", "N_RECENT"]
@@ -114,6 +116,7 @@ class TrialIndex:
         self._front: list[tuple[tuple[float, ...], FrozenTrial]] = []   # several: non-dominated
         self._recent: deque[FrozenTrial] = deque(maxlen=n_recent)
         self._tie = itertools.count()
+        self._pending_done = 0                          # finished at the last recount, not yet read
 
     def _bind(self, study: optuna.Study) -> None:
         if self._storage is None:
@@ -163,25 +166,68 @@ class TrialIndex:
                 now[number] = t
         self.running = [t for t in now.values() if t.state == TrialState.RUNNING]
         self.waiting = [t for t in now.values() if t.state == TrialState.WAITING]
+        self._pending_done = 0
         return self
+
+    def recount(self, study: optuna.Study, attr: str = "budget") -> Any:
+        """The counts exact for the storage's state at this call, for the budget lock; returns
+        the study's user attribute ``attr``. On a database (:class:`~tuner.search.rdb.LeanRDBStorage`)
+        one statement reads the states of the trials created or unfinished since the last
+        :meth:`refresh` (which the worker makes before taking the lock) and the attribute:
+        ``n_done``, ``running`` and ``waiting`` are set from them, the trials themselves are read
+        at the next refresh (``running`` then holds the running trials read at the last refresh
+        plus any found running now, as ids only). The journal holds the study in memory: a
+        :meth:`refresh`."""
+        rdb = lean(self._storage) if self._storage is not None else None
+        if rdb is None:
+            self.refresh(study)
+            return study.user_attrs.get(attr)
+        rows, value = rdb.trial_states(self._study_id, self.seen, self._unfinished.values(), attr)
+        known = {t.number: t for t in self.running}
+        self._pending_done = sum(1 for _, _, st in rows if st in DONE_STATES)
+        self.running = [known.get(n) or _Stub(tid, n, st) for tid, n, st in rows if st == TrialState.RUNNING]
+        self.waiting = [_Stub(tid, n, st) for tid, n, st in rows if st == TrialState.WAITING]
+        return value
+
+    @property
+    def n_done_now(self) -> int:
+        """Finished trials at the last :meth:`recount` (or :meth:`refresh`)."""
+        return self.n_done + self._pending_done
 
     @property
     def n_running(self) -> int:
         return len(self.running)
 
-    def reserve(self, study: optuna.Study) -> optuna.Trial:
+    @property
+    def running_read(self) -> list[FrozenTrial]:
+        """The running trials read whole (a recount's new ones are known by id only)."""
+        return [t for t in self.running if not isinstance(t, _Stub)]
+
+    def reserve(self, study: optuna.Study, user_attrs: dict[str, Any] | None = None) -> optuna.Trial:
         """A trial for this process: the oldest waiting one (an enqueued start or retry) if
         another process has not taken it, else a new one; as ``Study.ask()`` does, but from the
-        index's waiting trials instead of a scan of the study. Sampling is left to the caller
-        (relative parameters are sampled at the first ``suggest``)."""
+        index's waiting trials instead of a scan of the study. ``user_attrs`` are stored with it
+        (a new trial: in the write that creates it). Sampling is left to the caller (relative
+        parameters are sampled at the first ``suggest``)."""
         storage = self._storage
+        attrs = dict(user_attrs or {})
         for t in sorted(self.waiting, key=lambda t: t.number):
             try:
                 if storage.set_trial_state_values(t._trial_id, state=TrialState.RUNNING):
+                    if isinstance(t, _Stub):           # found by a recount: into Optuna's cache
+                        storage.get_all_trials(self._study_id, deepcopy=False, states=_UNFINISHED)
+                    for k, v in attrs.items():
+                        storage.set_trial_user_attr(t._trial_id, k, v)
                     return optuna.Trial(study, t._trial_id)
             except optuna.exceptions.UpdateFinishedTrialError:
                 continue
-        return optuna.Trial(study, storage.create_new_trial(self._study_id))
+        template = None
+        if attrs:
+            template = FrozenTrial(number=-1, state=TrialState.RUNNING, value=None, values=None,
+                                   datetime_start=datetime.datetime.now(), datetime_complete=None,
+                                   params={}, distributions={}, user_attrs=attrs, system_attrs={},
+                                   intermediate_values={}, trial_id=-1)
+        return optuna.Trial(study, storage.create_new_trial(self._study_id, template))
 
     def _absorb(self, t: FrozenTrial) -> None:
         if t.state == TrialState.FAIL:
@@ -220,8 +266,18 @@ class TrialIndex:
     def window(self) -> list[FrozenTrial]:
         """The sampler's trials: the best, the latest finished, the running; by number."""
         best = [t for _, _, t in self._best] + [t for _, t in self._front]
-        out = {t.number: t for t in itertools.chain(best, self._recent, self.running)}
+        out = {t.number: t for t in itertools.chain(best, self._recent, self.running_read)}
         return [out[k] for k in sorted(out)]
+
+
+class _Stub:
+    """A trial a :meth:`TrialIndex.recount` found, known by its id, number and state only (the
+    reaper and the reservation need no more; the next refresh reads it whole)."""
+
+    def __init__(self, trial_id: int, number: int, state: TrialState) -> None:
+        self._trial_id, self.number, self.state = trial_id, number, state
+        self.user_attrs: dict[str, Any] = {}
+        self.datetime_start = None
 
 
 class _WindowStudy:
@@ -264,6 +320,13 @@ class WindowedTPESampler(optuna.samplers.TPESampler):
         ix = self.index
         full = (default_gamma if len(ix._signs) <= 1 else default_gamma_multiobjective)(ix.n_done)
         return min(full, n) if ix.n_done <= n else min(full, n, ix.n_best)
+
+    def mark_fresh(self, number: int) -> None:
+        """The index was refreshed for trial ``number`` (the worker's refresh under the budget
+        lock, just before it reserved the trial): sampling it reads no more of the storage. A
+        trial another worker reserves in between is not lied about; TPE leaves the trial being
+        sampled out of its own history, so one worker's draws are the same either way."""
+        self._fresh_for = number
 
     def _view(self, study: optuna.Study, trial: FrozenTrial) -> _WindowStudy:
         if self._fresh_for != trial.number:

@@ -241,16 +241,17 @@ class StudyStore:
                     raise StorageFull(f"disk full opening {self.journal}") from None
                 raise UserError(f"journal {self.journal}: {exc.strerror}") from None
             return self._storage
-        from optuna.storages import RDBStorage
         from sqlalchemy.exc import SQLAlchemyError
+
+        from .rdb import LeanRDBStorage
         last: Exception | None = None
         for attempt in range(6):
             try:
                 with self._schema_lock(), warnings.catch_warnings():
                     warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
-                    self._storage = RDBStorage(self.url, heartbeat_interval=int(self.interval_s),
-                                               grace_period=int(self.grace_s),
-                                               engine_kwargs=self._engine_kwargs())
+                    self._storage = LeanRDBStorage(self.url, heartbeat_interval=int(self.interval_s),
+                                                   grace_period=int(self.grace_s),
+                                                   engine_kwargs=self._engine_kwargs())
                 return self._storage
             except UserError:
                 raise
@@ -268,28 +269,45 @@ class StudyStore:
         return {}
 
     def _sa_engine(self) -> Any:
-        if self._engine is None:
+        """This process's engine for the advisory locks. Its connections are kept between locks
+        (a new connection per lock cost ~2 ms, most of a trial's time under the budget lock);
+        without a ping per checkout (a dead kept connection fails the lock's statement, which
+        :meth:`_pg_lock` retries once on a fresh one). A forked child makes its own: the
+        parent's sockets are never used from two processes."""
+        if self._engine is None or self._engine[0] != os.getpid():
             import sqlalchemy
-            self._engine = sqlalchemy.create_engine(self.url, poolclass=sqlalchemy.pool.NullPool,
-                                                    **self._engine_kwargs())
-        return self._engine
+            kwargs = {k: v for k, v in self._engine_kwargs().items() if k != "pool_pre_ping"}
+            self._engine = (os.getpid(), sqlalchemy.create_engine(self.url, pool_size=2, **kwargs))
+        return self._engine[1]
 
     @contextlib.contextmanager
     def _pg_lock(self, key: str) -> Iterator[None]:
         import sqlalchemy
-        from sqlalchemy.exc import OperationalError
+        from sqlalchemy.exc import DBAPIError, OperationalError
         k = advisory_key(key)
+        for attempt in (0, 1):
+            try:
+                conn = self._sa_engine().connect()
+            except OperationalError as exc:
+                msg = str(exc.orig).strip().splitlines()[0] if exc.orig else str(exc)
+                raise UserError(f"--storage {self.where}: cannot connect ({msg})") from None
+            try:
+                conn.execute(sqlalchemy.text("SELECT pg_advisory_lock(:k)"), {"k": k})
+                break
+            except DBAPIError:
+                conn.invalidate()                # a kept connection the server closed: a fresh one
+                conn.close()
+                if attempt:
+                    raise
         try:
-            conn = self._sa_engine().connect()
-        except OperationalError as exc:
-            msg = str(exc.orig).strip().splitlines()[0] if exc.orig else str(exc)
-            raise UserError(f"--storage {self.where}: cannot connect ({msg})") from None
-        try:
-            conn.execute(sqlalchemy.text("SELECT pg_advisory_lock(:k)"), {"k": k})
             yield
         finally:
-            with contextlib.suppress(Exception):
+            try:
                 conn.execute(sqlalchemy.text("SELECT pg_advisory_unlock(:k)"), {"k": k})
+                conn.commit()
+            except Exception:  # noqa: BLE001 - the lock must not outlive this block: close its session
+                with contextlib.suppress(Exception):
+                    conn.invalidate()
             conn.close()
 
     @contextlib.contextmanager
@@ -414,12 +432,14 @@ class StudyStore:
         failed trials only, not the whole study; a study from before that attribute is scanned
         once for its retries' ``retry_for`` and the attribute written."""
         notes = []
-        done = set(study.user_attrs.get("retried", ()))
         if failed is None:
             failed = study.get_trials(deepcopy=False, states=(TrialState.FAIL,))
-        todo = [t for t in failed
-                if t.user_attrs.get("failed") == WORKER_DIED and not t.user_attrs.get("not_retried")
-                and t.number not in done]
+        died = [t for t in failed
+                if t.user_attrs.get("failed") == WORKER_DIED and not t.user_attrs.get("not_retried")]
+        if not died:
+            return notes                    # the common case: no read of the study's attributes
+        done = set(study.user_attrs.get("retried", ()))
+        todo = [t for t in died if t.number not in done]
         if not todo:
             return notes
         older = {t.user_attrs.get("retry_for", t.user_attrs.get("retry_of"))

@@ -35,6 +35,7 @@ from .liveness import Heartbeat, process_identity
 from .history import TrialIndex, WindowedTPESampler
 from .objective import Evaluator, objective_for, record_constraint, suggest
 from .journal import StorageFull
+from .rdb import lean
 from .storage import StudyStore, storage_full
 from .study import CTRL_PREFIX, ENGINE_PREFIX, STAB_PREFIX, StudySpec
 from .trials import n_done, trial_result
@@ -206,8 +207,9 @@ def work(spec: StudySpec, store: StudyStore, budget: int, seed: int,
 
     Under the store's budget lock, per trial: dead trials are failed and re-enqueued
     (:meth:`StudyStore.reap`), the study's finished and running trials are counted (the
-    :class:`TrialIndex`, read incrementally), and a trial is reserved (created, or popped from
-    the queue) only while finished + running < budget. So any number of processes, on any
+    :class:`TrialIndex`, read incrementally before the lock and recounted under it: on a
+    database one statement), and a trial is reserved (created, or popped from the queue, with
+    the worker's identity in the same write) only while finished + running < budget. So any number of processes, on any
     number of machines, run exactly the budget; a process that finds the rest running waits
     for them (one of them may die and need a retry). The parameters are sampled after the lock
     is released, so the lock is held for constant work whatever the study's size. A set walked
@@ -222,33 +224,42 @@ def work(spec: StudySpec, store: StudyStore, budget: int, seed: int,
     index.refresh(study)                            # the whole study, once, outside the lock
     frozen = _freeze_history(index.n_done, -FREEZE_EVERY)
     objective = objective_for(spec, Evaluator(spec, threads=threads))
+    rdb = lean(study._storage)
     beat = Heartbeat(store, spec.name).start()
     ran = 0
     try:
         while True:
             frozen = _freeze_history(index.n_done, frozen)
+            index.refresh(study)                    # the new trials read whole, outside the lock
             with store.budget_lock(spec.name):
-                index.refresh(study)
-                notes = store.reap(study, index.running, index.failed)
+                stored = index.recount(study, "budget")      # exact counts: constant work
+                notes = store.reap(study, index.running_read, index.failed)
                 for note in notes:
                     log(note)
                 if notes:
                     index.refresh(study)             # the trials reap failed or enqueued
-                budget = int(study.user_attrs.get("budget", budget))   # as another `tune --trials` set it
-                if index.n_done >= budget:
+                    stored = study.user_attrs.get("budget")
+                budget = int(stored if stored is not None else budget)   # as another `tune --trials` set it
+                if index.n_done_now >= budget:
                     return ran
                 trial = None
-                if index.n_done + index.n_running < budget:
+                if index.n_done_now + index.n_running < budget:
                     with warnings.catch_warnings():
                         # ours: heartbeats with ask/tell, on purpose (StudyStore.beat); not for users
                         warnings.filterwarnings("ignore", message="Heartbeat of storage is supposed")
-                        trial = index.reserve(study)
-                    trial.set_user_attr("worker", process_identity())
+                        trial = index.reserve(study, {"worker": process_identity()})
             if trial is None:
                 time.sleep(poll)
                 continue
             beat.trial_id = trial._trial_id
+            if isinstance(study.sampler, WindowedTPESampler):
+                study.sampler.mark_fresh(trial.number)
+            if rdb is not None:
+                # a database: the trial's writes in two transactions, not one per write (rdb.py)
+                rdb.defer(trial._trial_id)
             suggest(trial, spec)
+            if rdb is not None:
+                rdb.flush(trial._trial_id)       # its parameters, for the other workers' liar
             source = None if trial.user_attrs.get("retry_of") is not None else index.duplicate_of(trial)
             if source is not None:
                 _tell_copy(study, trial, source)

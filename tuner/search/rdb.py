@@ -1,0 +1,505 @@
+"""Optuna's RDB storage with a worker's hot path in few statements (PostgreSQL, SQLite).
+
+Optuna's :class:`~optuna.storages.RDBStorage` runs every call through its ORM, one transaction
+each: a trial of eight parameters made ~22 commits and ~75 statements through the worker loop,
+~1.2 ms for each parameter and ~2.7 ms to read one running trial, so the search overhead of a
+trial on PostgreSQL was 50-90 ms where the journal's is a few (``benchmarks/bench_scale.py``).
+Ours: a subclass that keeps Optuna's schema, its cache (``_CachedStorage`` still wraps it) and
+every other method, and changes only the calls a worker makes for every trial:
+
+* **deferred writes** (:meth:`LeanRDBStorage.defer`): a worker's own running trial buffers its
+  parameters and attributes in memory; :meth:`LeanRDBStorage.flush` writes them in one
+  transaction (the worker flushes after sampling, so that other workers see the parameters for
+  their constant liar and duplicate check), and ``set_trial_state_values`` (``tell``) writes the
+  rest together with the values and the state. A reader in this process sees the buffered
+  writes; a worker that dies loses only what was not flushed (its trial is failed by the reaper
+  and retried from its flushed parameters, as before);
+* **reads** of trials (``_get_trials``, which Optuna's cache calls for the new and unfinished
+  trials, and ``get_trial``) in one statement per table through SQLAlchemy Core on Optuna's own
+  tables (``optuna.storages._rdb.models``), building the same :class:`~optuna.trial.FrozenTrial`
+  as Optuna's ``_build_frozen_trial_from_trial_model``;
+* **creating** a running trial (optionally with its attributes, e.g. the worker's identity, in
+  the same transaction): Optuna's steps (lock the study row, insert, number = the study's
+  earlier trials) in Core.
+
+Everything else (studies, enqueueing, heartbeats, schema versions) is Optuna's code. The
+distribution check of a parameter against the study's earlier ones is Optuna's too: the first
+parameter of each name in a process goes through Optuna's own ``_set_trial_param``, which finds
+the study's distribution; later ones are checked against the distribution Optuna's cache holds.
+Written against Optuna's schema of ``optuna<6`` (pinned); tests in ``tests/test_rdb.py`` compare
+every method with Optuna's own on the same database.
+"""
+
+from __future__ import annotations
+
+import copy
+import datetime
+import json
+import threading
+from dataclasses import dataclass, field
+from functools import lru_cache
+from typing import Any, Iterable, Sequence
+
+from optuna import distributions
+from optuna.exceptions import UpdateFinishedTrialError
+from optuna.storages import RDBStorage
+from optuna.trial import FrozenTrial, TrialState
+
+__all__ = ["LeanRDBStorage"]
+
+
+@lru_cache(maxsize=256)
+def _distribution(text: str) -> distributions.BaseDistribution:
+    return distributions.json_to_distribution(text)
+
+
+def _utc_naive(t: datetime.datetime) -> datetime.datetime:
+    """How Optuna's schema stores a datetime (``TrialModel``: naive UTC)."""
+    return t.astimezone(datetime.timezone.utc).replace(tzinfo=None)
+
+
+def _local_naive(t: datetime.datetime | None) -> datetime.datetime | None:
+    """How Optuna's ``TrialModel`` hands a stored datetime back (naive local time)."""
+    if t is None:
+        return None
+    return t.replace(tzinfo=datetime.timezone.utc).astimezone().replace(tzinfo=None)
+
+
+@dataclass
+class _Pending:
+    """A deferred trial's writes not yet in the database."""
+
+    params: dict[str, tuple[float, distributions.BaseDistribution]] = field(default_factory=dict)
+    user_attrs: dict[str, Any] = field(default_factory=dict)
+    system_attrs: dict[str, Any] = field(default_factory=dict)
+
+    def empty(self) -> bool:
+        return not (self.params or self.user_attrs or self.system_attrs)
+
+
+class LeanRDBStorage(RDBStorage):
+    """:class:`~optuna.storages.RDBStorage` with the worker's hot path in Core (module docstring)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._pending: dict[int, _Pending] = {}
+        self._own: dict[int, FrozenTrial] = {}          # a deferred trial as this process wrote it
+        self._recent: dict[int, FrozenTrial] = {}       # the trial this process created or ended last
+        self._pending_lock = threading.Lock()
+
+    def __getstate__(self) -> dict[Any, Any]:
+        state = super().__getstate__()
+        state.pop("_pending_lock", None)
+        state.update(_pending={}, _own={}, _recent={})
+        return state
+
+    def __setstate__(self, state: dict[Any, Any]) -> None:
+        super().__setstate__(state)
+        self._pending, self._own, self._recent = {}, {}, {}
+        self._pending_lock = threading.Lock()
+
+    # -- tables ------------------------------------------------------------------------------
+
+    @staticmethod
+    def _models() -> Any:
+        from optuna.storages._rdb import models
+        return models
+
+    def _upsert(self, model: Any, keys: Sequence[str], update: Sequence[str]) -> Any:
+        """An INSERT that overwrites ``update`` on a clash of ``keys`` (none: leaves the row as it
+        is), run with a list of rows (PostgreSQL and SQLite: ``ON CONFLICT``, as Optuna's own
+        attribute writes on these databases); one statement object per table, so SQLAlchemy
+        compiles it once."""
+        cache = self.__dict__.setdefault("_statements", {})
+        key = (model.__tablename__, tuple(keys), tuple(update))
+        if key not in cache:
+            table = model.__table__
+            if self.engine.name == "postgresql":
+                from sqlalchemy.dialects.postgresql import insert
+            else:
+                from sqlalchemy.dialects.sqlite import insert
+            stmt = insert(table)
+            index = [table.c[k] for k in keys]
+            cache[key] = (stmt.on_conflict_do_update(index_elements=index, set_={c: stmt.excluded[c] for c in update})
+                          if update else stmt.on_conflict_do_nothing(index_elements=index))
+        return cache[key]
+
+    @property
+    def _lean(self) -> bool:
+        """Core paths only where the upsert dialect is known; other databases use Optuna's code."""
+        return self.engine.name in ("postgresql", "sqlite")
+
+    # -- reads -------------------------------------------------------------------------------
+
+    def _read(self, conn: Any, where: Any) -> list[FrozenTrial]:
+        """Every trial of ``trials`` matching ``where``, with its rows, as FrozenTrials by id: two
+        statements (the trials; their params, values, attributes and intermediate values as one
+        UNION ALL, each row tagged with its table)."""
+        import sqlalchemy as sa
+        m = self._models()
+        t = m.TrialModel.__table__
+        rows = conn.execute(sa.select(t.c.trial_id, t.c.number, t.c.state, t.c.datetime_start,
+                                      t.c.datetime_complete).where(where).order_by(t.c.trial_id)).all()
+        if not rows:
+            return []
+        ids = [r.trial_id for r in rows]
+        params: dict[int, list[tuple[int, str, float, str]]] = {i: [] for i in ids}
+        values: dict[int, dict[int, float]] = {i: {} for i in ids}
+        user: dict[int, dict[str, Any]] = {i: {} for i in ids}
+        system: dict[int, dict[str, Any]] = {i: {} for i in ids}
+        inter: dict[int, dict[int, float]] = {i: {} for i in ids}
+        text, num = sa.String, sa.Float
+
+        def part(tag: str, table: Any, pk: str, key: Any, number: Any, extra: Any) -> Any:
+            return sa.select(sa.literal(tag).label("tag"), table.c.trial_id, table.c[pk].label("pk"),
+                             sa.cast(key, text).label("k"), sa.cast(number, num).label("x"),
+                             sa.cast(extra, text).label("e")).where(table.c.trial_id.in_(ids))
+        tp, tv = m.TrialParamModel.__table__, m.TrialValueModel.__table__
+        tu, ts = m.TrialUserAttributeModel.__table__, m.TrialSystemAttributeModel.__table__
+        ti = m.TrialIntermediateValueModel.__table__
+        union = sa.union_all(
+            part("p", tp, "param_id", tp.c.param_name, tp.c.param_value, tp.c.distribution_json),
+            part("v", tv, "trial_value_id", tv.c.objective, tv.c.value, tv.c.value_type),
+            part("u", tu, "trial_user_attribute_id", tu.c.key, sa.null(), tu.c.value_json),
+            part("s", ts, "trial_system_attribute_id", ts.c.key, sa.null(), ts.c.value_json),
+            part("i", ti, "trial_intermediate_value_id", ti.c.step, ti.c.intermediate_value,
+                 ti.c.intermediate_value_type)).subquery()
+        value_type = m.TrialValueModel.TrialValueType
+        inter_type = m.TrialIntermediateValueModel.TrialIntermediateValueType
+        for r in conn.execute(sa.select(union).order_by(union.c.pk)):
+            tid = r.trial_id
+            if r.tag == "p":
+                params[tid].append((r.pk, r.k, r.x, r.e))
+            elif r.tag == "v":
+                values[tid][int(r.k)] = m.TrialValueModel.stored_repr_to_value(r.x, value_type[r.e])
+            elif r.tag == "u":
+                user[tid][r.k] = json.loads(r.e)
+            elif r.tag == "s":
+                system[tid][r.k] = json.loads(r.e)
+            else:
+                inter[tid][int(r.k)] = m.TrialIntermediateValueModel.stored_repr_to_intermediate_value(
+                    r.x, inter_type[r.e])
+        out_trials = []
+        for r in rows:
+            ps = sorted(params[r.trial_id])
+            vals = values[r.trial_id]
+            out_trials.append(FrozenTrial(
+                number=r.number, state=r.state, value=None,
+                values=[vals[k] for k in range(len(vals))] if vals else None,
+                datetime_start=_local_naive(r.datetime_start), datetime_complete=_local_naive(r.datetime_complete),
+                params={name: _distribution(dj).to_external_repr(v) for _, name, v, dj in ps},
+                distributions={name: _distribution(dj) for _, name, _v, dj in ps},
+                user_attrs=user[r.trial_id], system_attrs=system[r.trial_id],
+                intermediate_values=inter[r.trial_id], trial_id=r.trial_id))
+        return out_trials
+
+    def _get_trials(self, study_id: int, states: Any, included_trial_ids: set[int],
+                    trial_id_greater_than: int) -> list[FrozenTrial]:
+        if not self._lean:
+            return super()._get_trials(study_id, states, included_trial_ids, trial_id_greater_than)
+        import sqlalchemy as sa
+        t = self._models().TrialModel.__table__
+        included = [i for i in included_trial_ids if i <= trial_id_greater_than]
+        where = t.c.study_id == study_id
+        if states is not None:
+            where = sa.and_(where, t.c.state.in_(list(states)))
+        if included and trial_id_greater_than > -1:
+            where = sa.and_(where, sa.or_(t.c.trial_id.in_(included), t.c.trial_id > trial_id_greater_than))
+        elif trial_id_greater_than > -1:
+            where = sa.and_(where, t.c.trial_id > trial_id_greater_than)
+        with self.engine.connect() as conn:
+            trials = self._read(conn, where)
+            if not trials:
+                self._study_exists(conn, study_id)
+        return [self._merged(t) for t in trials]
+
+    def _study_exists(self, conn: Any, study_id: int) -> None:
+        import sqlalchemy as sa
+        s = self._models().StudyModel.__table__
+        if conn.execute(sa.select(s.c.study_id).where(s.c.study_id == study_id)).first() is None:
+            raise KeyError(f"No study with study_id {study_id} exists.")
+
+    def get_trial(self, trial_id: int) -> FrozenTrial:
+        if not self._lean:
+            return super().get_trial(trial_id)
+        with self._pending_lock:
+            own = self._own.get(trial_id) or self._recent.get(trial_id)
+            if own is not None:
+                # a deferred trial: only this process writes it while it runs (a reaper that
+                # fails it meanwhile is found by the write that ends it, as before)
+                return copy.deepcopy(own)
+        t = self._models().TrialModel.__table__
+        with self.engine.connect() as conn:
+            found = self._read(conn, t.c.trial_id == trial_id)
+        if not found:
+            raise KeyError(f"No trial with trial_id {trial_id} exists.")
+        return self._merged(found[0])
+
+    def get_study_user_attrs(self, study_id: int) -> dict[str, Any]:
+        if not self._lean:
+            return super().get_study_user_attrs(study_id)
+        import sqlalchemy as sa
+        a = self._models().StudyUserAttributeModel.__table__
+        with self.engine.connect() as conn:
+            rows = conn.execute(sa.select(a.c.key, a.c.value_json).where(a.c.study_id == study_id)
+                                .order_by(a.c.study_user_attribute_id)).all()
+            if not rows:
+                self._study_exists(conn, study_id)
+        return {r.key: json.loads(r.value_json) for r in rows}
+
+    def trial_states(self, study_id: int, from_number: int, trial_ids: Iterable[int],
+                     study_attr: str) -> tuple[list[tuple[int, int, TrialState]], Any]:
+        """In one statement: ``(trial_id, number, state)`` of the study's trials numbered from
+        ``from_number`` on and of ``trial_ids``, and the study's user attribute ``study_attr``
+        (None if unset). What a worker reads under the budget lock (``TrialIndex.recount``):
+        its cost does not grow with the study."""
+        import sqlalchemy as sa
+        m = self._models()
+        t, a = m.TrialModel.__table__, m.StudyUserAttributeModel.__table__
+        ids = sorted(set(trial_ids))
+        which = t.c.number >= from_number if not ids else sa.or_(t.c.number >= from_number, t.c.trial_id.in_(ids))
+        trials = sa.select(t.c.trial_id, t.c.number, sa.cast(t.c.state, sa.String).label("e")).where(
+            t.c.study_id == study_id, which)
+        attr = sa.select(sa.cast(sa.null(), sa.Integer), sa.cast(sa.null(), sa.Integer), a.c.value_json).where(
+            a.c.study_id == study_id, a.c.key == study_attr)
+        with self.engine.connect() as conn:
+            rows = conn.execute(sa.union_all(trials, attr)).all()
+        value, out = None, []
+        for tid, number, e in rows:
+            if tid is None:
+                value = json.loads(e)
+            else:
+                out.append((tid, number, TrialState[e]))
+        return sorted(out, key=lambda r: r[1]), value
+
+    def get_trial_id_from_study_id_trial_number(self, study_id: int, trial_number: int) -> int:
+        if not self._lean:
+            return super().get_trial_id_from_study_id_trial_number(study_id, trial_number)
+        import sqlalchemy as sa
+        t = self._models().TrialModel.__table__
+        with self.engine.connect() as conn:
+            row = conn.execute(sa.select(t.c.trial_id).where(t.c.number == trial_number,
+                                                             t.c.study_id == study_id)).first()
+        if row is None:
+            raise KeyError(f"No trial with trial number {trial_number} exists in study with study_id {study_id}.")
+        return row[0]
+
+    def _merged(self, trial: FrozenTrial) -> FrozenTrial:
+        """``trial`` as this process sees it: with its deferred writes."""
+        with self._pending_lock:
+            p = self._pending.get(trial._trial_id)
+            if p is None or p.empty():
+                return trial
+            for name, (value, dist) in p.params.items():
+                if name not in trial.params:
+                    trial.params[name] = dist.to_external_repr(value)
+                    trial.distributions[name] = dist
+            trial.user_attrs.update(p.user_attrs)
+            trial.system_attrs.update(p.system_attrs)
+        return trial
+
+    # -- creating ----------------------------------------------------------------------------
+
+    def _create_new_trial(self, study_id: int, template_trial: FrozenTrial | None = None) -> FrozenTrial:
+        simple = template_trial is None or (
+            template_trial.state == TrialState.RUNNING and not template_trial.params
+            and template_trial.values is None and not template_trial.intermediate_values)
+        if not (self._lean and simple):
+            return super()._create_new_trial(study_id, template_trial)
+        import sqlalchemy as sa
+        m = self._models()
+        t, s = m.TrialModel.__table__, m.StudyModel.__table__
+        start = datetime.datetime.now()
+        user = dict(template_trial.user_attrs) if template_trial else {}
+        system = dict(template_trial.system_attrs) if template_trial else {}
+        with self.engine.begin() as conn:
+            # Optuna's own order (``_create_new_trial``): the study's row locked, so that the
+            # number, the count of the study's earlier trials, is not raced by another creator
+            if conn.execute(sa.select(s.c.study_id).where(s.c.study_id == study_id).with_for_update()).first() is None:
+                raise KeyError(f"No study with study_id {study_id} exists.")
+            tid = conn.execute(sa.insert(t).values(study_id=study_id, number=None, state=TrialState.RUNNING,
+                                                   datetime_start=_utc_naive(start))
+                               .returning(t.c.trial_id)).scalar_one()
+            earlier = sa.select(sa.func.count(t.c.trial_id)).where(t.c.study_id == study_id, t.c.trial_id < tid)
+            number = conn.execute(sa.update(t).where(t.c.trial_id == tid).values(number=earlier.scalar_subquery())
+                                  .returning(t.c.number)).scalar_one()
+            self._write_attrs(conn, tid, user, system)
+        frozen = FrozenTrial(number=number, state=TrialState.RUNNING, value=None, values=None,
+                             datetime_start=_local_naive(_utc_naive(start)), datetime_complete=None,
+                             params={}, distributions={}, user_attrs=user, system_attrs=system,
+                             intermediate_values={}, trial_id=tid)
+        with self._pending_lock:
+            self._recent = {tid: copy.deepcopy(frozen)}
+        return frozen
+
+    # -- deferred writes ---------------------------------------------------------------------
+
+    def defer(self, trial_id: int) -> None:
+        """Buffer ``trial_id``'s parameters and attributes in this process until :meth:`flush` or
+        its ``set_trial_state_values`` (a no-op on databases the Core paths do not cover)."""
+        if not self._lean:
+            return
+        with self._pending_lock:
+            own = self._recent.pop(trial_id, None)
+        if own is None:
+            own = self.get_trial(trial_id)
+        with self._pending_lock:
+            self._pending.setdefault(trial_id, _Pending())
+            self._own.setdefault(trial_id, own)
+
+    def flush(self, trial_id: int) -> None:
+        """Write ``trial_id``'s buffered writes in one transaction; it stays deferred."""
+        with self._pending_lock:
+            p = self._pending.get(trial_id)
+            if p is None or p.empty():
+                return
+            self._pending[trial_id] = _Pending()
+        with self.engine.begin() as conn:
+            self._check_running(conn, trial_id)
+            self._write_pending(conn, trial_id, p)
+
+    def _check_running(self, conn: Any, trial_id: int) -> TrialState:
+        import sqlalchemy as sa
+        t = self._models().TrialModel.__table__
+        row = conn.execute(sa.select(t.c.state).where(t.c.trial_id == trial_id).with_for_update()).first()
+        if row is None:
+            raise KeyError(f"No trial with trial_id {trial_id} exists.")
+        self.check_trial_is_updatable(trial_id, row.state)
+        return row.state
+
+    def _write_pending(self, conn: Any, trial_id: int, p: _Pending) -> None:
+        if p.params:
+            # a second write of a name is ignored, as Optuna's (its unique key, integrity error ignored)
+            conn.execute(self._upsert(self._models().TrialParamModel, ("trial_id", "param_name"), ()),
+                         [{"trial_id": trial_id, "param_name": k, "param_value": v,
+                           "distribution_json": distributions.distribution_to_json(d)}
+                          for k, (v, d) in p.params.items()])
+        self._write_attrs(conn, trial_id, p.user_attrs, p.system_attrs)
+
+    def _write_attrs(self, conn: Any, trial_id: int, user: dict[str, Any], system: dict[str, Any]) -> None:
+        m = self._models()
+        for model, attrs in ((m.TrialUserAttributeModel, user), (m.TrialSystemAttributeModel, system)):
+            if attrs:
+                conn.execute(self._upsert(model, ("trial_id", "key"), ("value_json",)),
+                             [{"trial_id": trial_id, "key": k, "value_json": json.dumps(v)} for k, v in attrs.items()])
+
+    def _set_trial_param(self, trial_id: int, param_name: str, param_value_internal: float,
+                         distribution: distributions.BaseDistribution,
+                         previous_distribution: distributions.BaseDistribution | None) -> None:
+        with self._pending_lock:
+            p = self._pending.get(trial_id)
+            if p is not None and previous_distribution is not None:
+                distributions.check_distribution_compatibility(previous_distribution, distribution)
+                p.params.setdefault(param_name, (param_value_internal, distribution))
+                self._own_param(trial_id, param_name, param_value_internal, distribution)
+                return
+        if p is not None:
+            self.flush(trial_id)          # the study's first write of this name: Optuna's check, now
+        else:
+            self._forget(trial_id)
+        super()._set_trial_param(trial_id, param_name, param_value_internal, distribution, previous_distribution)
+        with self._pending_lock:
+            self._own_param(trial_id, param_name, param_value_internal, distribution)
+
+    def _own_param(self, trial_id: int, name: str, value: float, dist: distributions.BaseDistribution) -> None:
+        own = self._own.get(trial_id)
+        if own is not None and name not in own.params:
+            own.params[name] = dist.to_external_repr(value)
+            own.distributions[name] = dist
+
+    def set_trial_user_attr(self, trial_id: int, key: str, value: Any) -> None:
+        with self._pending_lock:
+            p = self._pending.get(trial_id)
+            if p is not None:
+                value = json.loads(json.dumps(value))   # not JSON: refused now, as Optuna's write would
+                p.user_attrs[key] = value
+                self._own[trial_id].user_attrs[key] = copy.deepcopy(value)
+                return
+            self._recent.pop(trial_id, None)
+        super().set_trial_user_attr(trial_id, key, value)
+
+    def set_trial_system_attr(self, trial_id: int, key: str, value: Any) -> None:
+        with self._pending_lock:
+            p = self._pending.get(trial_id)
+            if p is not None:
+                value = json.loads(json.dumps(value))
+                p.system_attrs[key] = value
+                self._own[trial_id].system_attrs[key] = copy.deepcopy(value)
+                return
+            self._recent.pop(trial_id, None)
+        super().set_trial_system_attr(trial_id, key, value)
+
+    def set_trial_state_values(self, trial_id: int, state: TrialState,
+                               values: Sequence[float] | None = None) -> bool:
+        with self._pending_lock:
+            p = self._pending.pop(trial_id, None)
+            own = self._own.pop(trial_id, None)
+        if p is None:
+            self._forget(trial_id)
+            return super().set_trial_state_values(trial_id, state, values)
+        import sqlalchemy as sa
+        m = self._models()
+        t = m.TrialModel.__table__
+        try:
+            with self.engine.begin() as conn:
+                if state == TrialState.RUNNING:       # a deferred trial runs already: Optuna's False
+                    self._check_running(conn, trial_id)
+                    self._write_pending(conn, trial_id, p)
+                    return False
+                # the state first, only from RUNNING (the row stays locked to the commit): one
+                # statement in place of a locking read and a write
+                change: dict[str, Any] = {"state": state}
+                if state.is_finished():
+                    change["datetime_complete"] = _utc_naive(datetime.datetime.now())
+                done = conn.execute(sa.update(t).where(t.c.trial_id == trial_id, t.c.state == TrialState.RUNNING)
+                                    .values(**change).returning(t.c.trial_id)).first()
+                if done is None:
+                    self._check_running(conn, trial_id)      # raises: no such trial, or finished
+                    raise UpdateFinishedTrialError(f"Trial#{trial_id} is not running.")
+                self._write_pending(conn, trial_id, p)
+                if values is not None:
+                    rows = []
+                    for objective, v in enumerate(values):
+                        stored, kind = m.TrialValueModel.value_to_stored_repr(v)
+                        rows.append({"trial_id": trial_id, "objective": objective, "value": stored, "value_type": kind})
+                    conn.execute(self._upsert(m.TrialValueModel, ("trial_id", "objective"), ("value", "value_type")), rows)
+        except UpdateFinishedTrialError:
+            raise
+        except Exception:
+            with self._pending_lock:           # not written: kept for a retry of the call
+                self._pending.setdefault(trial_id, p)
+                if own is not None:
+                    self._own.setdefault(trial_id, own)
+            raise
+        if own is not None:
+            # as the database now holds it (Optuna's tell reads it back at once)
+            own.state, own.datetime_complete = state, _local_naive(change.get("datetime_complete"))
+            own.values = None if values is None else [float(v) for v in values]
+            with self._pending_lock:
+                self._recent = {trial_id: own}
+        return True
+
+    def set_trial_intermediate_value(self, trial_id: int, step: int, intermediate_value: float) -> None:
+        super().set_trial_intermediate_value(trial_id, step, intermediate_value)
+        with self._pending_lock:
+            own = self._own.get(trial_id) or self._recent.get(trial_id)
+            if own is not None:
+                own.intermediate_values[step] = intermediate_value
+
+    def _forget(self, trial_id: int) -> None:
+        """A write not deferred: the kept copy of the trial (``_recent``) is no longer what the
+        database holds."""
+        with self._pending_lock:
+            self._recent.pop(trial_id, None)
+
+    def deferred(self) -> Iterable[int]:
+        """The trials this process defers (for tests and the worker's checks)."""
+        with self._pending_lock:
+            return list(self._pending)
+
+
+def lean(storage: Any) -> LeanRDBStorage | None:
+    """The :class:`LeanRDBStorage` behind an Optuna storage object (its cache), or None."""
+    base = getattr(storage, "_backend", storage)
+    return base if isinstance(base, LeanRDBStorage) else None
+
