@@ -367,6 +367,13 @@ class StudyStore:
         for t in running:
             ident = t.user_attrs.get("worker") or {}
             if not ident:
+                # read again now: ``running`` may have been read outside the lock, between the
+                # two writes that pop a waiting trial (its state, then its worker)
+                t = study._storage.get_trial(t._trial_id)
+                if t.state != TrialState.RUNNING:
+                    continue
+                ident = t.user_attrs.get("worker") or {}
+            if not ident:
                 # a worker asks and records itself in one hold of the budget lock, which the
                 # caller holds now: a trial without its worker was asked by a process that
                 # died inside that section
