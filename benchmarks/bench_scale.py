@@ -191,7 +191,12 @@ def measure(args) -> None:
     t0 = time.perf_counter()
     store = _store(args)
     study = workers.open_study(spec, store.optuna_storage(), args.seed)
-    n0 = len(study.get_trials(deepcopy=False))
+    from tuner.search.rdb import lean
+    rdb = lean(study._storage)
+    # the study's size; on a database without reading it into Optuna's cache, which would count
+    # the benchmark's own read in the worker's memory
+    n0 = (len(rdb.trial_states(study._study_id, 0, (), "budget")[0]) if rdb is not None
+          else len(study.get_trials(deepcopy=False)))
     resume_s = time.perf_counter() - t0
     rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     budget = n0 + args.trials

@@ -182,10 +182,12 @@ def test_numbers_count_the_study_trials_whoever_creates_them(url):
     for _ in range(3):
         theirs.create_new_trial(other._study_id)
     numbers = []
-    for i in range(6):
-        store = ours if i % 2 else theirs
+    for i in range(9):
+        store = ours if i % 3 else theirs         # ours twice in a row: its count from its anchor
         numbers.append(store.get_trial(store.create_new_trial(sid)).number)
-    assert numbers == list(range(6))
+        theirs.create_new_trial(other._study_id)  # another study's trials between, ids interleaved
+    assert numbers == list(range(9))
+    assert [t.number for t in theirs.get_all_trials(other._study_id)] == list(range(12))
 
 
 def test_lean_finds_ours_behind_optunas_cache(tmp_path):
@@ -213,3 +215,44 @@ def test_a_study_through_ours_gives_optunas_draws(tmp_path):
             study.tell(trial, (x - 0.3) ** 2 + n)
         out.append([(t.params, t.values, t.user_attrs) for t in study.get_trials()])
     assert out[0] == out[1]
+
+
+def test_stale_trials_are_optunas(url):
+    """The heartbeat reading: ours and Optuna's name the same running trials stale."""
+    import time
+    ours = LeanRDBStorage(url, heartbeat_interval=1, grace_period=1)
+    theirs = RDBStorage(url, heartbeat_interval=1, grace_period=1)
+    sid = optuna.create_study(storage=theirs, study_name="h")._study_id
+    old, silent, done = (theirs.create_new_trial(sid) for _ in range(3))
+    for tid in (old, done):
+        theirs.record_heartbeat(tid)
+    theirs.set_trial_state_values(done, TrialState.COMPLETE, [1.0])
+    time.sleep(2.5)          # past the grace period even in whole seconds (SQLite's clock); nothing here can turn stale later
+    assert ours._get_stale_trial_ids(sid) == theirs._get_stale_trial_ids(sid) == [old]
+
+
+def test_a_workers_index_reads_around_optunas_cache(url):
+    """The index on ours counts and windows the study as on Optuna's storage, reads it in
+    chunks, and leaves Optuna's cache empty (so a worker does not hold the whole study); a
+    waiting trial it pops is put in the cache, where suggest needs it."""
+    from tuner.search.history import TrialIndex
+    ours, theirs, _ = _pair(url)
+    study = optuna.create_study(storage=theirs, study_name="w")
+    for i in range(12):
+        study.add_trial(optuna.trial.create_trial(params={"a": i / 20}, distributions={"a": DISTS["a"]},
+                                                  value=float((i * 7) % 5)))
+    study.enqueue_trial({"a": 0.5})
+    mine = optuna.load_study(study_name="w", storage=ours)
+    index = TrialIndex()
+    index.READ_CHUNK = 5                          # three chunks and a rest
+    index.refresh(mine)
+    ref = TrialIndex().refresh(optuna.load_study(study_name="w", storage=RDBStorage(url)))
+    assert (index.n_done, index.seen, [t.number for t in index.window()]) == \
+        (ref.n_done, ref.seen, [t.number for t in ref.window()]) == (12, 13, list(range(12)))
+    assert [t.number for t in index.waiting] == [12]
+    assert not mine._storage._studies.get(mine._study_id, None) or not mine._storage._studies[mine._study_id].trials
+    trial = index.reserve(mine, {"worker": {"pid": 1}})
+    assert trial.number == 12 and trial.suggest_float("a", 0.0, 1.0) == 0.5
+    study.tell(trial.number, 0.1)
+    index.refresh(mine)
+    assert index.n_done == 13 and not index.waiting and index.window()[-1].number == 12

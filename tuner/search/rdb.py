@@ -45,7 +45,7 @@ from optuna.exceptions import UpdateFinishedTrialError
 from optuna.storages import RDBStorage
 from optuna.trial import FrozenTrial, TrialState
 
-__all__ = ["LeanRDBStorage"]
+__all__ = ["LeanRDBStorage", "lean", "into_cache"]
 
 
 @lru_cache(maxsize=256)
@@ -85,17 +85,19 @@ class LeanRDBStorage(RDBStorage):
         self._pending: dict[int, _Pending] = {}
         self._own: dict[int, FrozenTrial] = {}          # a deferred trial as this process wrote it
         self._recent: dict[int, FrozenTrial] = {}       # the trial this process created or ended last
+        self._anchor: dict[int, tuple[int, int]] = {}   # study id -> (trial id, number) seen last
         self._pending_lock = threading.Lock()
 
     def __getstate__(self) -> dict[Any, Any]:
         state = super().__getstate__()
-        state.pop("_pending_lock", None)
-        state.update(_pending={}, _own={}, _recent={})
+        for key in ("_pending_lock", "_autocommit", "_statements"):
+            state.pop(key, None)
+        state.update(_pending={}, _own={}, _recent={}, _anchor={})
         return state
 
     def __setstate__(self, state: dict[Any, Any]) -> None:
         super().__setstate__(state)
-        self._pending, self._own, self._recent = {}, {}, {}
+        self._pending, self._own, self._recent, self._anchor = {}, {}, {}, {}
         self._pending_lock = threading.Lock()
 
     # -- tables ------------------------------------------------------------------------------
@@ -123,6 +125,15 @@ class LeanRDBStorage(RDBStorage):
             cache[key] = (stmt.on_conflict_do_update(index_elements=index, set_={c: stmt.excluded[c] for c in update})
                           if update else stmt.on_conflict_do_nothing(index_elements=index))
         return cache[key]
+
+    def _reader(self) -> Any:
+        """The engine for reads: autocommit (no BEGIN and ROLLBACK round trips around a read;
+        under PostgreSQL's default isolation, READ COMMITTED, each statement of a transaction
+        takes its own snapshot anyway, so a read of two statements sees what it saw before)."""
+        reader = self.__dict__.get("_autocommit")
+        if reader is None or reader[0] is not self.engine:
+            reader = self.__dict__["_autocommit"] = (self.engine, self.engine.execution_options(isolation_level="AUTOCOMMIT"))
+        return reader[1]
 
     @property
     def _lean(self) -> bool:
@@ -207,11 +218,31 @@ class LeanRDBStorage(RDBStorage):
             where = sa.and_(where, sa.or_(t.c.trial_id.in_(included), t.c.trial_id > trial_id_greater_than))
         elif trial_id_greater_than > -1:
             where = sa.and_(where, t.c.trial_id > trial_id_greater_than)
-        with self.engine.connect() as conn:
+        with self._reader().connect() as conn:
             trials = self._read(conn, where)
             if not trials:
                 self._study_exists(conn, study_id)
         return [self._merged(t) for t in trials]
+
+    def read_trials(self, study_id: int, from_number: int, trial_ids: Iterable[int] = (),
+                    upto: int | None = None) -> list[FrozenTrial]:
+        """The study's trials numbered from ``from_number`` (below ``upto`` if given) and those
+        of ``trial_ids``, read whole in two statements and not kept anywhere (Optuna's cache
+        holds every trial it reads: a worker's index reads through this, so that its memory does
+        not grow with the study)."""
+        import sqlalchemy as sa
+        t = self._models().TrialModel.__table__
+        which = t.c.number >= from_number
+        if upto is not None:
+            which = sa.and_(which, t.c.number < upto)
+        ids = sorted(set(trial_ids))
+        if ids:
+            which = sa.or_(which, t.c.trial_id.in_(ids))
+        with self._reader().connect() as conn:
+            trials = self._read(conn, sa.and_(t.c.study_id == study_id, which))
+        for x in trials:
+            self._see(study_id, x._trial_id, x.number)
+        return [self._merged(x) for x in trials]
 
     def _study_exists(self, conn: Any, study_id: int) -> None:
         import sqlalchemy as sa
@@ -229,7 +260,7 @@ class LeanRDBStorage(RDBStorage):
                 # fails it meanwhile is found by the write that ends it, as before)
                 return copy.deepcopy(own)
         t = self._models().TrialModel.__table__
-        with self.engine.connect() as conn:
+        with self._reader().connect() as conn:
             found = self._read(conn, t.c.trial_id == trial_id)
         if not found:
             raise KeyError(f"No trial with trial_id {trial_id} exists.")
@@ -240,7 +271,7 @@ class LeanRDBStorage(RDBStorage):
             return super().get_study_user_attrs(study_id)
         import sqlalchemy as sa
         a = self._models().StudyUserAttributeModel.__table__
-        with self.engine.connect() as conn:
+        with self._reader().connect() as conn:
             rows = conn.execute(sa.select(a.c.key, a.c.value_json).where(a.c.study_id == study_id)
                                 .order_by(a.c.study_user_attribute_id)).all()
             if not rows:
@@ -254,30 +285,54 @@ class LeanRDBStorage(RDBStorage):
         (None if unset). What a worker reads under the budget lock (``TrialIndex.recount``):
         its cost does not grow with the study."""
         import sqlalchemy as sa
-        m = self._models()
-        t, a = m.TrialModel.__table__, m.StudyUserAttributeModel.__table__
         ids = sorted(set(trial_ids))
-        which = t.c.number >= from_number if not ids else sa.or_(t.c.number >= from_number, t.c.trial_id.in_(ids))
-        trials = sa.select(t.c.trial_id, t.c.number, sa.cast(t.c.state, sa.String).label("e")).where(
-            t.c.study_id == study_id, which)
-        attr = sa.select(sa.cast(sa.null(), sa.Integer), sa.cast(sa.null(), sa.Integer), a.c.value_json).where(
-            a.c.study_id == study_id, a.c.key == study_attr)
-        with self.engine.connect() as conn:
-            rows = conn.execute(sa.union_all(trials, attr)).all()
+        cache = self.__dict__.setdefault("_statements", {})
+        stmt = cache.get(("states", bool(ids)))
+        if stmt is None:             # built once: the lock's statement costs its round trip only
+            m = self._models()
+            t, a = m.TrialModel.__table__, m.StudyUserAttributeModel.__table__
+            which = t.c.number >= sa.bindparam("n")
+            if ids:
+                which = sa.or_(which, t.c.trial_id.in_(sa.bindparam("ids", expanding=True)))
+            trials = sa.select(t.c.trial_id, t.c.number, sa.cast(t.c.state, sa.String).label("e")).where(
+                t.c.study_id == sa.bindparam("sid"), which)
+            attr = sa.select(sa.cast(sa.null(), sa.Integer), sa.cast(sa.null(), sa.Integer), a.c.value_json).where(
+                a.c.study_id == sa.bindparam("sid"), a.c.key == sa.bindparam("key"))
+            stmt = cache[("states", bool(ids))] = sa.union_all(trials, attr)
+        args = {"n": from_number, "sid": study_id, "key": study_attr, **({"ids": ids} if ids else {})}
+        with self._reader().connect() as conn:
+            rows = conn.execute(stmt, args).all()
         value, out = None, []
         for tid, number, e in rows:
             if tid is None:
                 value = json.loads(e)
             else:
                 out.append((tid, number, TrialState[e]))
+                self._see(study_id, tid, number)
         return sorted(out, key=lambda r: r[1]), value
+
+    def _get_stale_trial_ids(self, study_id: int) -> list[int]:
+        """Optuna's reading (a running trial whose heartbeat is older than the grace period, by
+        the database's clock) in one statement."""
+        if not self._lean:
+            return super()._get_stale_trial_ids(study_id)
+        import sqlalchemy as sa
+        m = self._models()
+        t, h = m.TrialModel.__table__, m.TrialHeartbeatModel.__table__
+        grace = self.grace_period if self.grace_period is not None else 2 * self.heartbeat_interval
+        with self._reader().connect() as conn:
+            rows = conn.execute(sa.select(t.c.trial_id, h.c.heartbeat, sa.func.now().label("now"))
+                                .join(h, h.c.trial_id == t.c.trial_id)
+                                .where(t.c.study_id == study_id, t.c.state == TrialState.RUNNING)).all()
+        return [r.trial_id for r in rows
+                if r.now.replace(tzinfo=None) - r.heartbeat.replace(tzinfo=None) > datetime.timedelta(seconds=grace)]
 
     def get_trial_id_from_study_id_trial_number(self, study_id: int, trial_number: int) -> int:
         if not self._lean:
             return super().get_trial_id_from_study_id_trial_number(study_id, trial_number)
         import sqlalchemy as sa
         t = self._models().TrialModel.__table__
-        with self.engine.connect() as conn:
+        with self._reader().connect() as conn:
             row = conn.execute(sa.select(t.c.trial_id).where(t.c.number == trial_number,
                                                              t.c.study_id == study_id)).first()
         if row is None:
@@ -315,15 +370,22 @@ class LeanRDBStorage(RDBStorage):
         with self.engine.begin() as conn:
             # Optuna's own order (``_create_new_trial``): the study's row locked, so that the
             # number, the count of the study's earlier trials, is not raced by another creator
-            if conn.execute(sa.select(s.c.study_id).where(s.c.study_id == study_id).with_for_update()).first() is None:
+            lock = self.__dict__.setdefault("_statements", {}).get("lock_study")
+            if lock is None:
+                lock = self._statements["lock_study"] = (sa.select(s.c.study_id)
+                                                         .where(s.c.study_id == sa.bindparam("sid")).with_for_update())
+            if conn.execute(lock, {"sid": study_id}).first() is None:
                 raise KeyError(f"No study with study_id {study_id} exists.")
-            tid = conn.execute(sa.insert(t).values(study_id=study_id, number=None, state=TrialState.RUNNING,
-                                                   datetime_start=_utc_naive(start))
-                               .returning(t.c.trial_id)).scalar_one()
-            earlier = sa.select(sa.func.count(t.c.trial_id)).where(t.c.study_id == study_id, t.c.trial_id < tid)
-            number = conn.execute(sa.update(t).where(t.c.trial_id == tid).values(number=earlier.scalar_subquery())
-                                  .returning(t.c.number)).scalar_one()
-            self._write_attrs(conn, tid, user, system)
+            if self.engine.name == "postgresql":
+                tid, number = self._insert_running_pg(conn, study_id, _utc_naive(start), user, system)
+            else:
+                tid = conn.execute(sa.insert(t).values(study_id=study_id, number=None, state=TrialState.RUNNING,
+                                                       datetime_start=_utc_naive(start))
+                                   .returning(t.c.trial_id)).scalar_one()
+                earlier = sa.select(sa.func.count(t.c.trial_id)).where(t.c.study_id == study_id, t.c.trial_id < tid)
+                number = conn.execute(sa.update(t).where(t.c.trial_id == tid).values(number=earlier.scalar_subquery())
+                                      .returning(t.c.number)).scalar_one()
+                self._write_attrs(conn, tid, user, system)
         frozen = FrozenTrial(number=number, state=TrialState.RUNNING, value=None, values=None,
                              datetime_start=_local_naive(_utc_naive(start)), datetime_complete=None,
                              params={}, distributions={}, user_attrs=user, system_attrs=system,
@@ -331,6 +393,59 @@ class LeanRDBStorage(RDBStorage):
         with self._pending_lock:
             self._recent = {tid: copy.deepcopy(frozen)}
         return frozen
+
+    def _insert_running_pg(self, conn: Any, study_id: int, start_utc: datetime.datetime,
+                           user: dict[str, Any], system: dict[str, Any]) -> tuple[int, int]:
+        """PostgreSQL: the trial and its attributes in one statement (data-modifying CTEs), the
+        study's row already locked by the caller. The number is the count of the study's trials
+        before this one, as Optuna's ``count_past_trials``: under the row lock every earlier
+        trial of the study is committed when this statement takes its snapshot, and its id,
+        drawn now, is the study's largest."""
+        import sqlalchemy as sa
+        anchor = self._anchor.get(study_id)
+        shape = ("create", anchor is not None, len(user), len(system))
+        cache = self.__dict__.setdefault("_statements", {})
+        query = cache.get(shape)
+        if query is None:            # built once per shape, its values bound at each call
+            m = self._models()
+            t = m.TrialModel.__table__
+            sid = sa.bindparam("sid")
+            if anchor is None:
+                earlier = sa.select(sa.func.count(t.c.trial_id)).where(t.c.study_id == sid).scalar_subquery()
+            else:
+                # a trial this process saw, numbered k, has k trials before it (Optuna's
+                # numbering): the count is k + 1 and the study's trials after it, found by the
+                # primary key, so the statement reads the newest trials only, not the whole study
+                earlier = (sa.select(sa.func.count(t.c.trial_id) + sa.bindparam("a_next"))
+                           .where(t.c.study_id == sid, t.c.trial_id > sa.bindparam("a_id")).scalar_subquery())
+            ins = sa.insert(t).values(study_id=sid, number=earlier, state=TrialState.RUNNING,
+                                      datetime_start=sa.bindparam("start")).returning(t.c.trial_id, t.c.number)
+            ins = ins.cte("new_trial")
+            query = sa.select(ins.c.trial_id, ins.c.number)
+            for tag, model, n in (("u", m.TrialUserAttributeModel, len(user)), ("s", m.TrialSystemAttributeModel, len(system))):
+                if not n:
+                    continue
+                rows = sa.union_all(*(sa.select(ins.c.trial_id.label("trial_id"),
+                                                sa.cast(sa.bindparam(f"{tag}k{i}"), sa.String).label("key"),
+                                                sa.cast(sa.bindparam(f"{tag}v{i}"), sa.Text).label("value_json"))
+                                      for i in range(n)))
+                query = query.add_cte(sa.insert(model.__table__).from_select(["trial_id", "key", "value_json"], rows)
+                                      .cte(f"new_attrs_{tag}"))
+            cache[shape] = query
+        args: dict[str, Any] = {"sid": study_id, "start": start_utc}
+        if anchor is not None:
+            args.update(a_id=anchor[0], a_next=anchor[1] + 1)
+        for tag, attrs in (("u", user), ("s", system)):
+            for i, (k, v) in enumerate(attrs.items()):
+                args[f"{tag}k{i}"], args[f"{tag}v{i}"] = k, json.dumps(v)
+        row = conn.execute(query, args).one()
+        self._see(study_id, row.trial_id, row.number)
+        return row.trial_id, row.number
+
+    def _see(self, study_id: int, trial_id: int, number: int | None) -> None:
+        """Keep the newest trial seen of a study as the anchor of the next number's count."""
+        if number is not None and trial_id > self._anchor.get(study_id, (-1, -1))[0]:
+            self._anchor[study_id] = (trial_id, number)
 
     # -- deferred writes ---------------------------------------------------------------------
 
@@ -503,3 +618,17 @@ def lean(storage: Any) -> LeanRDBStorage | None:
     base = getattr(storage, "_backend", storage)
     return base if isinstance(base, LeanRDBStorage) else None
 
+
+def into_cache(storage: Any, study_id: int, trial: FrozenTrial) -> None:
+    """Put ``trial`` into Optuna's cache over ours (``_CachedStorage``), where a trial must be
+    before this process writes its parameters (its ``set_trial_param`` looks the trial up
+    there). A worker's index reads trials around the cache (:meth:`LeanRDBStorage.read_trials`),
+    so a trial it pops from the queue is put there by this. Optuna's private structure,
+    ``optuna<6`` pinned; a storage without it (not cached) needs nothing."""
+    add = getattr(storage, "_add_trials_to_cache", None)
+    if add is None:
+        return
+    from optuna.storages._cached_storage import _StudyInfo
+    with storage._lock:
+        storage._studies.setdefault(study_id, _StudyInfo())
+        add(study_id, [trial])

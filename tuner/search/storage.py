@@ -277,7 +277,10 @@ class StudyStore:
         if self._engine is None or self._engine[0] != os.getpid():
             import sqlalchemy
             kwargs = {k: v for k, v in self._engine_kwargs().items() if k != "pool_pre_ping"}
-            self._engine = (os.getpid(), sqlalchemy.create_engine(self.url, pool_size=2, **kwargs))
+            # autocommit: the lock and the unlock are one round trip each, no BEGIN or COMMIT
+            # (an advisory lock is the session's, not a transaction's)
+            self._engine = (os.getpid(), sqlalchemy.create_engine(self.url, pool_size=2, isolation_level="AUTOCOMMIT",
+                                                                  **kwargs))
         return self._engine[1]
 
     @contextlib.contextmanager
@@ -304,7 +307,6 @@ class StudyStore:
         finally:
             try:
                 conn.execute(sqlalchemy.text("SELECT pg_advisory_unlock(:k)"), {"k": k})
-                conn.commit()
             except Exception:  # noqa: BLE001 - the lock must not outlive this block: close its session
                 with contextlib.suppress(Exception):
                     conn.invalidate()

@@ -225,6 +225,7 @@ def work(spec: StudySpec, store: StudyStore, budget: int, seed: int,
     frozen = _freeze_history(index.n_done, -FREEZE_EVERY)
     objective = objective_for(spec, Evaluator(spec, threads=threads))
     rdb = lean(study._storage)
+    me = process_identity()                         # host, pid, start time: this process's, once
     beat = Heartbeat(store, spec.name).start()
     ran = 0
     try:
@@ -247,7 +248,7 @@ def work(spec: StudySpec, store: StudyStore, budget: int, seed: int,
                     with warnings.catch_warnings():
                         # ours: heartbeats with ask/tell, on purpose (StudyStore.beat); not for users
                         warnings.filterwarnings("ignore", message="Heartbeat of storage is supposed")
-                        trial = index.reserve(study, {"worker": process_identity()})
+                        trial = index.reserve(study, {"worker": me})
             if trial is None:
                 time.sleep(poll)
                 continue
