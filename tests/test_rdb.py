@@ -160,6 +160,12 @@ def test_deferred_writes_are_one_transaction_at_flush_and_at_tell(url):
     assert (a.params, a.user_attrs, a.system_attrs, a.values, a.state) == \
         (b.params, b.user_attrs, b.system_attrs, b.values, b.state)
     assert a.datetime_complete is not None and ours.deferred() == []
+    ours.defer(tid3 := cached.create_new_trial(sid))                # ended without values
+    cached.set_trial_user_attr(tid3, "failed", "ValueError: x")
+    assert cached.set_trial_state_values(tid3, TrialState.PRUNED)
+    c = theirs.get_trial(tid3)
+    assert (c.state, c.values, c.user_attrs["failed"]) == (TrialState.PRUNED, None, "ValueError: x")
+    assert c.datetime_complete is not None and ours.get_trial(tid3).state == TrialState.PRUNED
 
 
 def test_a_deferred_trial_failed_by_another_process_is_not_overwritten(url):

@@ -469,9 +469,86 @@ class LeanRDBStorage(RDBStorage):
             if p is None or p.empty():
                 return
             self._pending[trial_id] = _Pending()
-        with self.engine.begin() as conn:
-            self._check_running(conn, trial_id)
-            self._write_pending(conn, trial_id, p)
+        try:
+            if self.engine.name == "postgresql":
+                if not self._write_one_pg(trial_id, p):
+                    with self.engine.connect() as conn:
+                        self._check_running(conn, trial_id)    # raises: no such trial, or finished
+                    raise UpdateFinishedTrialError(f"Trial#{trial_id} is not running.")
+                return
+            with self.engine.begin() as conn:
+                self._check_running(conn, trial_id)
+                self._write_pending(conn, trial_id, p)
+        except UpdateFinishedTrialError:
+            raise
+        except Exception:
+            with self._pending_lock:           # not written: kept for the next write
+                newer = self._pending.get(trial_id) or _Pending()
+                self._pending[trial_id] = _Pending({**newer.params, **p.params},   # a param: the first write
+                                                   {**p.user_attrs, **newer.user_attrs},
+                                                   {**p.system_attrs, **newer.system_attrs})
+            raise
+
+    def _write_one_pg(self, trial_id: int, p: _Pending, change: dict[str, Any] | None = None,
+                      values: Sequence[float] | None = None) -> bool:
+        """PostgreSQL: a deferred trial's writes in one statement (autocommit, so one round trip):
+        a guard CTE, the trial locked while it runs (``change`` None: a flush) or its state
+        changed from RUNNING (``change``: the new state and end time), and the inserts of the
+        parameters, attributes and values selected from the guard, so that nothing is written
+        unless the trial was running. Returns whether it was. Built once per shape."""
+        import sqlalchemy as sa
+        from sqlalchemy.dialects.postgresql import insert
+        m = self._models()
+        t = m.TrialModel.__table__
+        vals = [] if values is None else list(values)
+        shape = ("write", tuple(sorted(change)) if change is not None else None, len(p.params),
+                 len(p.user_attrs), len(p.system_attrs), len(vals))
+        cache = self.__dict__.setdefault("_statements", {})
+        query = cache.get(shape)
+        if query is None:
+            running = sa.and_(t.c.trial_id == sa.bindparam("tid"), t.c.state == TrialState.RUNNING)
+            if change is None:
+                guard = sa.select(t.c.trial_id).where(running).with_for_update().cte("guard")
+            else:
+                guard = (sa.update(t).where(running)
+                         .values(**{c: sa.bindparam(f"c_{c}", type_=t.c[c].type) for c in sorted(change)})
+                         .returning(t.c.trial_id).cte("guard"))
+            query = sa.select(guard.c.trial_id)
+            parts = (("p", m.TrialParamModel, ("param_name", "param_value", "distribution_json"), len(p.params),
+                      ("trial_id", "param_name"), ()),
+                     ("u", m.TrialUserAttributeModel, ("key", "value_json"), len(p.user_attrs), ("trial_id", "key"),
+                      ("value_json",)),
+                     ("s", m.TrialSystemAttributeModel, ("key", "value_json"), len(p.system_attrs), ("trial_id", "key"),
+                      ("value_json",)),
+                     ("v", m.TrialValueModel, ("objective", "value", "value_type"), len(vals), ("trial_id", "objective"),
+                      ("value", "value_type")))
+            for tag, model, cols, n, keys, update in parts:
+                if not n:
+                    continue
+                table = model.__table__
+                rows = sa.union_all(*(sa.select(guard.c.trial_id.label("trial_id"), *(
+                    sa.cast(sa.bindparam(f"{tag}_{c}_{i}", type_=table.c[c].type), table.c[c].type).label(c)
+                    for c in cols)) for i in range(n)))
+                ins = insert(table).from_select(["trial_id", *cols], rows)
+                index = [table.c[k] for k in keys]
+                ins = (ins.on_conflict_do_update(index_elements=index, set_={c: ins.excluded[c] for c in update})
+                       if update else ins.on_conflict_do_nothing(index_elements=index))   # a param: first write wins
+                query = query.add_cte(ins.cte(f"w_{tag}"))
+            cache[shape] = query
+        args: dict[str, Any] = {"tid": trial_id}
+        for c, v in (change or {}).items():
+            args[f"c_{c}"] = v
+        for i, (k, (v, d)) in enumerate(p.params.items()):
+            args.update({f"p_param_name_{i}": k, f"p_param_value_{i}": v,
+                         f"p_distribution_json_{i}": distributions.distribution_to_json(d)})
+        for tag, attrs in (("u", p.user_attrs), ("s", p.system_attrs)):
+            for i, (k, v) in enumerate(attrs.items()):
+                args[f"{tag}_key_{i}"], args[f"{tag}_value_json_{i}"] = k, json.dumps(v)
+        for i, v in enumerate(vals):
+            stored, kind = m.TrialValueModel.value_to_stored_repr(v)
+            args.update({f"v_objective_{i}": i, f"v_value_{i}": stored, f"v_value_type_{i}": kind})
+        with self._reader().connect() as conn:
+            return conn.execute(query, args).first() is not None
 
     def _check_running(self, conn: Any, trial_id: int) -> TrialState:
         import sqlalchemy as sa
@@ -552,32 +629,17 @@ class LeanRDBStorage(RDBStorage):
         if p is None:
             self._forget(trial_id)
             return super().set_trial_state_values(trial_id, state, values)
-        import sqlalchemy as sa
-        m = self._models()
-        t = m.TrialModel.__table__
+        change: dict[str, Any] = {"state": state}
+        if state.is_finished():
+            change["datetime_complete"] = _utc_naive(datetime.datetime.now())
         try:
-            with self.engine.begin() as conn:
-                if state == TrialState.RUNNING:       # a deferred trial runs already: Optuna's False
-                    self._check_running(conn, trial_id)
-                    self._write_pending(conn, trial_id, p)
-                    return False
-                # the state first, only from RUNNING (the row stays locked to the commit): one
-                # statement in place of a locking read and a write
-                change: dict[str, Any] = {"state": state}
-                if state.is_finished():
-                    change["datetime_complete"] = _utc_naive(datetime.datetime.now())
-                done = conn.execute(sa.update(t).where(t.c.trial_id == trial_id, t.c.state == TrialState.RUNNING)
-                                    .values(**change).returning(t.c.trial_id)).first()
-                if done is None:
-                    self._check_running(conn, trial_id)      # raises: no such trial, or finished
+            if self.engine.name == "postgresql" and state != TrialState.RUNNING:
+                if not self._write_one_pg(trial_id, p, change, values):
+                    with self.engine.connect() as conn:
+                        self._check_running(conn, trial_id)    # raises: no such trial, or finished
                     raise UpdateFinishedTrialError(f"Trial#{trial_id} is not running.")
-                self._write_pending(conn, trial_id, p)
-                if values is not None:
-                    rows = []
-                    for objective, v in enumerate(values):
-                        stored, kind = m.TrialValueModel.value_to_stored_repr(v)
-                        rows.append({"trial_id": trial_id, "objective": objective, "value": stored, "value_type": kind})
-                    conn.execute(self._upsert(m.TrialValueModel, ("trial_id", "objective"), ("value", "value_type")), rows)
+            else:
+                self._write_many(trial_id, p, state, change, values)
         except UpdateFinishedTrialError:
             raise
         except Exception:
@@ -586,6 +648,8 @@ class LeanRDBStorage(RDBStorage):
                 if own is not None:
                     self._own.setdefault(trial_id, own)
             raise
+        if state == TrialState.RUNNING:
+            return False
         if own is not None:
             # as the database now holds it (Optuna's tell reads it back at once)
             own.state, own.datetime_complete = state, _local_naive(change.get("datetime_complete"))
@@ -593,6 +657,33 @@ class LeanRDBStorage(RDBStorage):
             with self._pending_lock:
                 self._recent = {trial_id: own}
         return True
+
+    def _write_many(self, trial_id: int, p: _Pending, state: TrialState, change: dict[str, Any],
+                    values: Sequence[float] | None) -> None:
+        """A deferred trial's end in one transaction of several statements (SQLite; and a
+        RUNNING state asked of a trial that runs already, Optuna's False)."""
+        import sqlalchemy as sa
+        m = self._models()
+        t = m.TrialModel.__table__
+        with self.engine.begin() as conn:
+            if state == TrialState.RUNNING:           # a deferred trial runs already: Optuna's False
+                self._check_running(conn, trial_id)
+                self._write_pending(conn, trial_id, p)
+                return
+            # the state first, only from RUNNING (the row stays locked to the commit): one
+            # statement in place of a locking read and a write
+            done = conn.execute(sa.update(t).where(t.c.trial_id == trial_id, t.c.state == TrialState.RUNNING)
+                                .values(**change).returning(t.c.trial_id)).first()
+            if done is None:
+                self._check_running(conn, trial_id)      # raises: no such trial, or finished
+                raise UpdateFinishedTrialError(f"Trial#{trial_id} is not running.")
+            self._write_pending(conn, trial_id, p)
+            if values is not None:
+                rows = []
+                for objective, v in enumerate(values):
+                    stored, kind = m.TrialValueModel.value_to_stored_repr(v)
+                    rows.append({"trial_id": trial_id, "objective": objective, "value": stored, "value_type": kind})
+                conn.execute(self._upsert(m.TrialValueModel, ("trial_id", "objective"), ("value", "value_type")), rows)
 
     def set_trial_intermediate_value(self, trial_id: int, step: int, intermediate_value: float) -> None:
         super().set_trial_intermediate_value(trial_id, step, intermediate_value)
