@@ -120,6 +120,7 @@ class TrialIndex:
         self._recent: deque[FrozenTrial] = deque(maxlen=n_recent)
         self._tie = itertools.count()
         self._pending_done = 0                          # finished at the last recount, not yet read
+        self._last_id = -1                              # a database: the largest trial id read
 
     def _bind(self, study: optuna.Study) -> None:
         if self._storage is None:
@@ -187,12 +188,12 @@ class TrialIndex:
         sid = self._study_id
         if self.seen == 0 and not self._unfinished:
             while True:
-                chunk = rdb.read_trials(sid, self.seen, (), upto=self.seen + self.READ_CHUNK)
+                chunk = rdb.read_trials(sid, self._last_id, (), limit=self.READ_CHUNK)
                 self._take(chunk, {})
                 if len(chunk) < self.READ_CHUNK:
                     break
         now: dict[int, FrozenTrial] = {}
-        self._take(rdb.read_trials(sid, self.seen, self._unfinished.values()), now)
+        self._take(rdb.read_trials(sid, self._last_id, self._unfinished.values()), now)
         self.running = [t for t in now.values() if t.state == TrialState.RUNNING]
         self.waiting = [t for t in now.values() if t.state == TrialState.WAITING]
         self._pending_done = 0
@@ -201,6 +202,7 @@ class TrialIndex:
     def _take(self, trials: list[FrozenTrial], now: dict[int, FrozenTrial]) -> None:
         for t in sorted(trials, key=lambda t: t.number):
             self.seen = max(self.seen, t.number + 1)
+            self._last_id = max(self._last_id, t._trial_id)
             if t.state.is_finished():
                 self._unfinished.pop(t.number, None)
                 self._absorb(t)
@@ -221,7 +223,7 @@ class TrialIndex:
         if rdb is None:
             self.refresh(study)
             return study.user_attrs.get(attr)
-        rows, value = rdb.trial_states(self._study_id, self.seen, self._unfinished.values(), attr)
+        rows, value = rdb.trial_states(self._study_id, self._last_id, self._unfinished.values(), attr)
         known = {t.number: t for t in self.running}
         self._pending_done = sum(1 for _, _, st in rows if st in DONE_STATES)
         self.running = [known.get(n) or _Stub(tid, n, st) for tid, n, st in rows if st == TrialState.RUNNING]

@@ -142,15 +142,15 @@ class LeanRDBStorage(RDBStorage):
 
     # -- reads -------------------------------------------------------------------------------
 
-    def _read(self, conn: Any, where: Any) -> list[FrozenTrial]:
-        """Every trial of ``trials`` matching ``where``, with its rows, as FrozenTrials by id: two
-        statements (the trials; their params, values, attributes and intermediate values as one
-        UNION ALL, each row tagged with its table)."""
+    def _read(self, conn: Any, where: Any, limit: int | None = None) -> list[FrozenTrial]:
+        """Every trial of ``trials`` matching ``where`` (the first ``limit`` by id), with its rows,
+        as FrozenTrials by id: two statements (the trials; their params, values, attributes and
+        intermediate values as one UNION ALL, each row tagged with its table)."""
         import sqlalchemy as sa
         m = self._models()
         t = m.TrialModel.__table__
         rows = conn.execute(sa.select(t.c.trial_id, t.c.number, t.c.state, t.c.datetime_start,
-                                      t.c.datetime_complete).where(where).order_by(t.c.trial_id)).all()
+                                      t.c.datetime_complete).where(where).order_by(t.c.trial_id).limit(limit)).all()
         if not rows:
             return []
         ids = [r.trial_id for r in rows]
@@ -224,22 +224,21 @@ class LeanRDBStorage(RDBStorage):
                 self._study_exists(conn, study_id)
         return [self._merged(t) for t in trials]
 
-    def read_trials(self, study_id: int, from_number: int, trial_ids: Iterable[int] = (),
-                    upto: int | None = None) -> list[FrozenTrial]:
-        """The study's trials numbered from ``from_number`` (below ``upto`` if given) and those
-        of ``trial_ids``, read whole in two statements and not kept anywhere (Optuna's cache
-        holds every trial it reads: a worker's index reads through this, so that its memory does
-        not grow with the study)."""
+    def read_trials(self, study_id: int, after_id: int, trial_ids: Iterable[int] = (),
+                    limit: int | None = None) -> list[FrozenTrial]:
+        """The study's trials with an id above ``after_id`` (the first ``limit`` of them, if
+        given) and those of ``trial_ids``, read whole in two statements and not kept anywhere
+        (Optuna's cache holds every trial it reads: a worker's index reads through this, so that
+        its memory does not grow with the study). By id, not number: the primary key finds the
+        newest trials without reading the study's older ones (there is no index on numbers)."""
         import sqlalchemy as sa
         t = self._models().TrialModel.__table__
-        which = t.c.number >= from_number
-        if upto is not None:
-            which = sa.and_(which, t.c.number < upto)
+        which = t.c.trial_id > after_id
         ids = sorted(set(trial_ids))
         if ids:
             which = sa.or_(which, t.c.trial_id.in_(ids))
         with self._reader().connect() as conn:
-            trials = self._read(conn, sa.and_(t.c.study_id == study_id, which))
+            trials = self._read(conn, sa.and_(t.c.study_id == study_id, which), limit)
         for x in trials:
             self._see(study_id, x._trial_id, x.number)
         return [self._merged(x) for x in trials]
@@ -278,10 +277,10 @@ class LeanRDBStorage(RDBStorage):
                 self._study_exists(conn, study_id)
         return {r.key: json.loads(r.value_json) for r in rows}
 
-    def trial_states(self, study_id: int, from_number: int, trial_ids: Iterable[int],
+    def trial_states(self, study_id: int, after_id: int, trial_ids: Iterable[int],
                      study_attr: str) -> tuple[list[tuple[int, int, TrialState]], Any]:
-        """In one statement: ``(trial_id, number, state)`` of the study's trials numbered from
-        ``from_number`` on and of ``trial_ids``, and the study's user attribute ``study_attr``
+        """In one statement: ``(trial_id, number, state)`` of the study's trials with an id above
+        ``after_id`` and of ``trial_ids``, and the study's user attribute ``study_attr``
         (None if unset). What a worker reads under the budget lock (``TrialIndex.recount``):
         its cost does not grow with the study."""
         import sqlalchemy as sa
@@ -291,7 +290,7 @@ class LeanRDBStorage(RDBStorage):
         if stmt is None:             # built once: the lock's statement costs its round trip only
             m = self._models()
             t, a = m.TrialModel.__table__, m.StudyUserAttributeModel.__table__
-            which = t.c.number >= sa.bindparam("n")
+            which = t.c.trial_id > sa.bindparam("after")
             if ids:
                 which = sa.or_(which, t.c.trial_id.in_(sa.bindparam("ids", expanding=True)))
             trials = sa.select(t.c.trial_id, t.c.number, sa.cast(t.c.state, sa.String).label("e")).where(
@@ -299,7 +298,7 @@ class LeanRDBStorage(RDBStorage):
             attr = sa.select(sa.cast(sa.null(), sa.Integer), sa.cast(sa.null(), sa.Integer), a.c.value_json).where(
                 a.c.study_id == sa.bindparam("sid"), a.c.key == sa.bindparam("key"))
             stmt = cache[("states", bool(ids))] = sa.union_all(trials, attr)
-        args = {"n": from_number, "sid": study_id, "key": study_attr, **({"ids": ids} if ids else {})}
+        args = {"after": after_id, "sid": study_id, "key": study_attr, **({"ids": ids} if ids else {})}
         with self._reader().connect() as conn:
             rows = conn.execute(stmt, args).all()
         value, out = None, []
