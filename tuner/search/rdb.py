@@ -8,19 +8,24 @@ Ours: a subclass that keeps Optuna's schema, its cache (``_CachedStorage`` still
 every other method, and changes only the calls a worker makes for every trial:
 
 * **deferred writes** (:meth:`LeanRDBStorage.defer`): a worker's own running trial buffers its
-  parameters and attributes in memory; :meth:`LeanRDBStorage.flush` writes them in one
-  transaction (the worker flushes after sampling, so that other workers see the parameters for
-  their constant liar and duplicate check), and ``set_trial_state_values`` (``tell``) writes the
-  rest together with the values and the state. A reader in this process sees the buffered
-  writes; a worker that dies loses only what was not flushed (its trial is failed by the reaper
-  and retried from its flushed parameters, as before);
+  parameters and attributes in memory; :meth:`LeanRDBStorage.flush` writes them (the worker
+  flushes after sampling, so that other workers see the parameters for their constant liar and
+  duplicate check), and ``set_trial_state_values`` (``tell``) writes the rest together with the
+  values and the state. On PostgreSQL each is one statement: a guard (the trial locked while it
+  runs, or its state changed from RUNNING) and the inserts selected from it, so that nothing is
+  written to a trial another process has ended; on SQLite one transaction. A reader in this
+  process sees the buffered writes; a worker that dies loses only what was not flushed (its
+  trial is failed by the reaper and retried from its flushed parameters, as before);
 * **reads** of trials (``_get_trials``, which Optuna's cache calls for the new and unfinished
-  trials, and ``get_trial``) in one statement per table through SQLAlchemy Core on Optuna's own
-  tables (``optuna.storages._rdb.models``), building the same :class:`~optuna.trial.FrozenTrial`
-  as Optuna's ``_build_frozen_trial_from_trial_model``;
+  trials, ``get_trial``, and :meth:`LeanRDBStorage.read_trials`, which a worker's index uses to
+  read around Optuna's cache so that a worker does not hold the whole study) in two statements
+  (the trials, then their rows of every table as one UNION ALL) through SQLAlchemy Core on
+  Optuna's own tables (``optuna.storages._rdb.models``), in autocommit, building the same
+  :class:`~optuna.trial.FrozenTrial` as Optuna's ``_build_frozen_trial_from_trial_model``;
+  :meth:`LeanRDBStorage.trial_states`, the states the budget lock needs, in one;
 * **creating** a running trial (optionally with its attributes, e.g. the worker's identity, in
   the same transaction): Optuna's steps (lock the study row, insert, number = the study's
-  earlier trials) in Core.
+  earlier trials, counted from the last trial this process saw) in Core.
 
 Everything else (studies, enqueueing, heartbeats, schema versions) is Optuna's code. The
 distribution check of a parameter against the study's earlier ones is Optuna's too: the first
