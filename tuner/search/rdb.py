@@ -475,10 +475,7 @@ class LeanRDBStorage(RDBStorage):
             self._pending[trial_id] = _Pending()
         try:
             if self.engine.name == "postgresql":
-                if not self._write_one_pg(trial_id, p):
-                    with self.engine.connect() as conn:
-                        self._check_running(conn, trial_id)    # raises: no such trial, or finished
-                    raise UpdateFinishedTrialError(f"Trial#{trial_id} is not running.")
+                self._write_one_pg(trial_id, p)
                 return
             with self.engine.begin() as conn:
                 self._check_running(conn, trial_id)
@@ -494,12 +491,12 @@ class LeanRDBStorage(RDBStorage):
             raise
 
     def _write_one_pg(self, trial_id: int, p: _Pending, change: dict[str, Any] | None = None,
-                      values: Sequence[float] | None = None) -> bool:
+                      values: Sequence[float] | None = None) -> None:
         """PostgreSQL: a deferred trial's writes in one statement (autocommit, so one round trip):
         a guard CTE, the trial locked while it runs (``change`` None: a flush) or its state
         changed from RUNNING (``change``: the new state and end time), and the inserts of the
         parameters, attributes and values selected from the guard, so that nothing is written
-        unless the trial was running. Returns whether it was. Built once per shape."""
+        unless the trial was running (otherwise :meth:`_refuse`). Built once per shape."""
         import sqlalchemy as sa
         from sqlalchemy.dialects.postgresql import insert
         m = self._models()
@@ -548,11 +545,25 @@ class LeanRDBStorage(RDBStorage):
         for tag, attrs in (("u", p.user_attrs), ("s", p.system_attrs)):
             for i, (k, v) in enumerate(attrs.items()):
                 args[f"{tag}_key_{i}"], args[f"{tag}_value_json_{i}"] = k, json.dumps(v)
-        for i, v in enumerate(vals):
-            stored, kind = m.TrialValueModel.value_to_stored_repr(v)
-            args.update({f"v_objective_{i}": i, f"v_value_{i}": stored, f"v_value_type_{i}": kind})
+        for i, row in enumerate(self._value_rows(trial_id, vals)):
+            args.update({f"v_{c}_{i}": row[c] for c in ("objective", "value", "value_type")})
         with self._reader().connect() as conn:
-            return conn.execute(query, args).first() is not None
+            if conn.execute(query, args).first() is None:
+                self._refuse(conn, trial_id)
+
+    def _value_rows(self, trial_id: int, values: Sequence[float]) -> list[dict[str, Any]]:
+        """``trial_values`` rows as Optuna stores them (an infinity as its type, no value)."""
+        rows = []
+        for objective, v in enumerate(values):
+            stored, kind = self._models().TrialValueModel.value_to_stored_repr(v)
+            rows.append({"trial_id": trial_id, "objective": objective, "value": stored, "value_type": kind})
+        return rows
+
+    def _refuse(self, conn: Any, trial_id: int) -> None:
+        """A write's guard found ``trial_id`` not running: KeyError if there is no such trial,
+        else Optuna's ``UpdateFinishedTrialError``; always raises."""
+        self._check_running(conn, trial_id)
+        raise UpdateFinishedTrialError(f"Trial#{trial_id} is not running.")
 
     def _check_running(self, conn: Any, trial_id: int) -> TrialState:
         import sqlalchemy as sa
@@ -638,10 +649,7 @@ class LeanRDBStorage(RDBStorage):
             change["datetime_complete"] = _utc_naive(datetime.datetime.now())
         try:
             if self.engine.name == "postgresql" and state != TrialState.RUNNING:
-                if not self._write_one_pg(trial_id, p, change, values):
-                    with self.engine.connect() as conn:
-                        self._check_running(conn, trial_id)    # raises: no such trial, or finished
-                    raise UpdateFinishedTrialError(f"Trial#{trial_id} is not running.")
+                self._write_one_pg(trial_id, p, change, values)
             else:
                 self._write_many(trial_id, p, state, change, values)
         except UpdateFinishedTrialError:
@@ -679,15 +687,11 @@ class LeanRDBStorage(RDBStorage):
             done = conn.execute(sa.update(t).where(t.c.trial_id == trial_id, t.c.state == TrialState.RUNNING)
                                 .values(**change).returning(t.c.trial_id)).first()
             if done is None:
-                self._check_running(conn, trial_id)      # raises: no such trial, or finished
-                raise UpdateFinishedTrialError(f"Trial#{trial_id} is not running.")
+                self._refuse(conn, trial_id)
             self._write_pending(conn, trial_id, p)
             if values is not None:
-                rows = []
-                for objective, v in enumerate(values):
-                    stored, kind = m.TrialValueModel.value_to_stored_repr(v)
-                    rows.append({"trial_id": trial_id, "objective": objective, "value": stored, "value_type": kind})
-                conn.execute(self._upsert(m.TrialValueModel, ("trial_id", "objective"), ("value", "value_type")), rows)
+                conn.execute(self._upsert(m.TrialValueModel, ("trial_id", "objective"), ("value", "value_type")),
+                             self._value_rows(trial_id, values))
 
     def set_trial_intermediate_value(self, trial_id: int, step: int, intermediate_value: float) -> None:
         super().set_trial_intermediate_value(trial_id, step, intermediate_value)
