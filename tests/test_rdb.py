@@ -262,3 +262,49 @@ def test_a_workers_index_reads_around_optunas_cache(url):
     study.tell(trial.number, 0.1)
     index.refresh(mine)
     assert index.n_done == 13 and not index.waiting and index.window()[-1].number == 12
+
+
+def test_a_worker_reads_its_own_ended_trials_from_its_copy(url):
+    """A trial this process ended is not read back from the database by its next
+    ``read_trials`` (one statement, not two), and the copy it gets is the trial the database
+    holds, as another process reads it; a trial ended elsewhere is read whole."""
+    import sqlalchemy as sa
+    ours, theirs, sid = _pair(url)
+    _fill(theirs, sid)
+    cached = optuna.load_study(study_name="s", storage=ours)._storage
+    after = max(t._trial_id for t in theirs.get_all_trials(sid))
+    tid = cached.create_new_trial(sid, optuna.trial.FrozenTrial(
+        number=-1, state=TrialState.RUNNING, value=None, values=None, datetime_start=None,
+        datetime_complete=None, params={}, distributions={}, user_attrs={"worker": {"pid": 7}},
+        system_attrs={}, intermediate_values={}, trial_id=-1))
+    ours.defer(tid)
+    for name, value in (("a", 0.75), ("b", 0.5), ("c", 8), ("d", 3)):
+        cached.set_trial_param(tid, name, DISTS[name].to_internal_repr(value), DISTS[name])
+    ours.flush(tid)
+    cached.set_trial_user_attr(tid, "result", {"per": (1, 2.5, None), "fell": False})   # a tuple: a list once stored
+    cached.set_trial_system_attr(tid, "constraints", [-1.0])
+    assert cached.set_trial_state_values(tid, TrialState.COMPLETE, [0.3, float("-inf")])
+    other = theirs.create_new_trial(sid)                  # ended by another process
+    theirs.set_trial_user_attr(other, "result", {"fell": True})
+    theirs.set_trial_state_values(other, TrialState.FAIL)
+    statements = []
+    sa.event.listen(ours.engine, "before_cursor_execute", lambda *a: statements.append(a[2]))
+    got = {t._trial_id: t for t in ours.read_trials(sid, after)}
+    assert len(statements) == 2                           # the trials, and the rows of the other one only
+    fresh = LeanRDBStorage(url)                           # another process's reading
+    for t in fresh.read_trials(sid, after):
+        _same(got[t._trial_id], t)
+    assert got[tid].user_attrs["result"]["per"] == [1, 2.5, None]
+    statements.clear()
+    assert [t._trial_id for t in ours.read_trials(sid, after)] == [tid, other]   # the copy used once
+    assert len(statements) == 2
+    mine = LeanRDBStorage(url)                            # only the own trial new: one statement
+    mine_cached = optuna.load_study(study_name="s", storage=mine)._storage
+    t2 = mine_cached.create_new_trial(sid)
+    mine.defer(t2)
+    mine_cached.set_trial_state_values(t2, TrialState.PRUNED)
+    statements.clear()
+    sa.event.listen(mine.engine, "before_cursor_execute", lambda *a: statements.append(a[2]))
+    [back] = mine.read_trials(sid, other)
+    assert len(statements) == 1
+    _same(back, fresh.get_trial(t2))

@@ -85,11 +85,16 @@ class _Pending:
 class LeanRDBStorage(RDBStorage):
     """:class:`~optuna.storages.RDBStorage` with the worker's hot path in Core (module docstring)."""
 
+    #: at most this many trials this process ended are kept until its next :meth:`read_trials`
+    #: (a process that does not call it keeps no more; beyond it, its trials are read back)
+    ENDED_KEPT = 64
+
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self._pending: dict[int, _Pending] = {}
         self._own: dict[int, FrozenTrial] = {}          # a deferred trial as this process wrote it
         self._recent: dict[int, FrozenTrial] = {}       # the trial this process created or ended last
+        self._ended: dict[int, FrozenTrial] = {}        # trials this process ended, not yet read back
         self._anchor: dict[int, tuple[int, int]] = {}   # study id -> (trial id, number) seen last
         self._pending_lock = threading.Lock()
 
@@ -97,12 +102,12 @@ class LeanRDBStorage(RDBStorage):
         state = super().__getstate__()
         for key in ("_pending_lock", "_autocommit", "_statements"):
             state.pop(key, None)
-        state.update(_pending={}, _own={}, _recent={}, _anchor={})
+        state.update(_pending={}, _own={}, _recent={}, _ended={}, _anchor={})
         return state
 
     def __setstate__(self, state: dict[Any, Any]) -> None:
         super().__setstate__(state)
-        self._pending, self._own, self._recent, self._anchor = {}, {}, {}, {}
+        self._pending, self._own, self._recent, self._ended, self._anchor = {}, {}, {}, {}, {}
         self._pending_lock = threading.Lock()
 
     # -- tables ------------------------------------------------------------------------------
@@ -147,10 +152,13 @@ class LeanRDBStorage(RDBStorage):
 
     # -- reads -------------------------------------------------------------------------------
 
-    def _read(self, conn: Any, where: Any, limit: int | None = None) -> list[FrozenTrial]:
+    def _read(self, conn: Any, where: Any, limit: int | None = None,
+              known: dict[int, FrozenTrial] | None = None) -> list[FrozenTrial]:
         """Every trial of ``trials`` matching ``where`` (the first ``limit`` by id), with its rows,
         as FrozenTrials by id: two statements (the trials; their params, values, attributes and
-        intermediate values as one UNION ALL, each row tagged with its table)."""
+        intermediate values as one UNION ALL, each row tagged with its table). A trial of
+        ``known`` (this process's copies of trials it ended) found in the state its copy holds
+        is taken from there, its rows not read; when every trial found is, one statement."""
         import sqlalchemy as sa
         m = self._models()
         t = m.TrialModel.__table__
@@ -158,7 +166,15 @@ class LeanRDBStorage(RDBStorage):
                                       t.c.datetime_complete).where(where).order_by(t.c.trial_id).limit(limit)).all()
         if not rows:
             return []
-        ids = [r.trial_id for r in rows]
+        mine: dict[int, FrozenTrial] = {}
+        if known:
+            for r in rows:
+                k = known.get(r.trial_id)
+                if k is not None and k.state == r.state and k.number == r.number:
+                    mine[r.trial_id] = k
+        if len(mine) == len(rows):
+            return [mine[r.trial_id] for r in rows]
+        ids = [r.trial_id for r in rows if r.trial_id not in mine]
         params: dict[int, list[tuple[int, str, float, str]]] = {i: [] for i in ids}
         values: dict[int, dict[int, float]] = {i: {} for i in ids}
         user: dict[int, dict[str, Any]] = {i: {} for i in ids}
@@ -197,6 +213,9 @@ class LeanRDBStorage(RDBStorage):
                     r.x, inter_type[r.e])
         out_trials = []
         for r in rows:
+            if r.trial_id in mine:
+                out_trials.append(mine[r.trial_id])
+                continue
             ps = sorted(params[r.trial_id])
             vals = values[r.trial_id]
             out_trials.append(FrozenTrial(
@@ -242,8 +261,11 @@ class LeanRDBStorage(RDBStorage):
         ids = sorted(set(trial_ids))
         if ids:
             which = sa.or_(which, t.c.trial_id.in_(ids))
+        with self._pending_lock:
+            known = self._ended
+            self._ended = {}
         with self._reader().connect() as conn:
-            trials = self._read(conn, sa.and_(t.c.study_id == study_id, which), limit)
+            trials = self._read(conn, sa.and_(t.c.study_id == study_id, which), limit, known)
         for x in trials:
             self._see(study_id, x._trial_id, x.number)
         return [self._merged(x) for x in trials]
@@ -668,6 +690,10 @@ class LeanRDBStorage(RDBStorage):
             own.values = None if values is None else [float(v) for v in values]
             with self._pending_lock:
                 self._recent = {trial_id: own}
+                # the worker's next index read takes its own trial from this copy, not the
+                # database (a copy, since Optuna's tell may change the one ``_recent`` hands out)
+                if len(self._ended) < self.ENDED_KEPT:
+                    self._ended[trial_id] = copy.deepcopy(own)
         return True
 
     def _write_many(self, trial_id: int, p: _Pending, state: TrialState, change: dict[str, Any],
