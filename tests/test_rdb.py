@@ -258,6 +258,7 @@ def test_a_workers_index_reads_around_optunas_cache(url):
     assert [t.number for t in index.waiting] == [12]
     assert not mine._storage._studies.get(mine._study_id, None) or not mine._storage._studies[mine._study_id].trials
     trial = index.reserve(mine, {"worker": {"pid": 1}})
+    assert theirs.get_trial(trial._trial_id).user_attrs == {"worker": {"pid": 1}}   # popped with its worker
     assert trial.number == 12 and trial.suggest_float("a", 0.0, 1.0) == 0.5
     study.tell(trial.number, 0.1)
     index.refresh(mine)
@@ -308,3 +309,37 @@ def test_a_worker_reads_its_own_ended_trials_from_its_copy(url):
     [back] = mine.read_trials(sid, other)
     assert len(statements) == 1
     _same(back, fresh.get_trial(t2))
+
+
+def test_a_waiting_trial_is_popped_with_its_worker_in_one_write(url):
+    """``claim``: RUNNING from WAITING with its start and the worker's identity at once (one
+    statement on PostgreSQL), False for a trial another process popped, Optuna's errors for an
+    ended or missing trial; the same trial Optuna's two writes make."""
+    import sqlalchemy as sa
+    from optuna.exceptions import UpdateFinishedTrialError
+    ours, theirs, _ = _pair(url)
+    study = optuna.create_study(storage=theirs, study_name="q")
+    for a in (0.1, 0.2, 0.3):
+        study.enqueue_trial({"a": a})
+    first, second, third = (t._trial_id for t in study.get_trials())
+    statements = []
+    sa.event.listen(ours.engine, "before_cursor_execute", lambda *a: statements.append(a[2]))
+    assert ours.claim(first, {"worker": {"pid": 7}, "note": "x"})
+    if url.startswith("postgresql"):
+        assert len(statements) == 1
+    theirs.set_trial_state_values(second, TrialState.RUNNING)          # Optuna's pop, for comparison
+    theirs.set_trial_user_attr(second, "worker", {"pid": 7})
+    theirs.set_trial_user_attr(second, "note", "x")
+    a, b = theirs.get_trial(first), theirs.get_trial(second)
+    assert (a.state, a.user_attrs) == (b.state, b.user_attrs)
+    assert a.system_attrs == {"fixed_params": {"a": 0.1}}                 # the enqueued parameters kept
+    assert a.state == TrialState.RUNNING and a.datetime_start >= study.get_trials()[0].datetime_start
+    assert abs((b.datetime_start - a.datetime_start).total_seconds()) < 60
+    assert ours.claim(first, {"worker": {"pid": 8}}) is False             # popped already: left as it is
+    assert theirs.get_trial(first).user_attrs["worker"] == {"pid": 7}
+    theirs.set_trial_state_values(third, TrialState.FAIL)
+    with pytest.raises(UpdateFinishedTrialError):
+        ours.claim(third, {"worker": {"pid": 7}})
+    assert "worker" not in theirs.get_trial(third).user_attrs
+    with pytest.raises(KeyError):
+        ours.claim(10**6, {"worker": {}})

@@ -252,11 +252,16 @@ class TrialIndex:
         parameters are sampled at the first ``suggest``)."""
         storage = self._storage
         attrs = dict(user_attrs or {})
+        rdb = lean(storage)
         for t in sorted(self.waiting, key=lambda t: t.number):
             try:
-                if storage.set_trial_state_values(t._trial_id, state=TrialState.RUNNING):
-                    if lean(storage) is not None:      # read around Optuna's cache: into it now
+                if rdb is not None:
+                    # a database: popped with its worker in one write; the index reads around
+                    # Optuna's cache, where the trial must be before its parameters are written
+                    if rdb.claim(t._trial_id, attrs):
                         into_cache(storage, self._study_id, storage.get_trial(t._trial_id))
+                        return optuna.Trial(study, t._trial_id)
+                elif storage.set_trial_state_values(t._trial_id, state=TrialState.RUNNING):
                     for k, v in attrs.items():
                         storage.set_trial_user_attr(t._trial_id, k, v)
                     return optuna.Trial(study, t._trial_id)

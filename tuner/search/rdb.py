@@ -468,6 +468,62 @@ class LeanRDBStorage(RDBStorage):
         self._see(study_id, row.trial_id, row.number)
         return row.trial_id, row.number
 
+    def claim(self, trial_id: int, user_attrs: dict[str, Any]) -> bool:
+        """Pop a waiting (enqueued) trial for this process: its state RUNNING, its start now and
+        ``user_attrs`` (the worker's identity) in one write, so that no reader sees it running
+        without its worker. On PostgreSQL one statement (a guard CTE: the trial updated only
+        from WAITING; the attributes inserted from it); SQLite: one transaction. False if the
+        trial runs already (another process popped it), as Optuna's ``set_trial_state_values``;
+        ``UpdateFinishedTrialError`` if it has ended, KeyError if there is no such trial."""
+        if not self._lean:
+            if not super().set_trial_state_values(trial_id, TrialState.RUNNING):
+                return False
+            for k, v in user_attrs.items():
+                super().set_trial_user_attr(trial_id, k, v)
+            return True
+        import sqlalchemy as sa
+        m = self._models()
+        t, u = m.TrialModel.__table__, m.TrialUserAttributeModel.__table__
+        start = _utc_naive(datetime.datetime.now())
+        waiting = sa.and_(t.c.trial_id == sa.bindparam("tid"), t.c.state == TrialState.WAITING)
+        pop = (sa.update(t).where(waiting).values(state=TrialState.RUNNING, datetime_start=sa.bindparam("start"))
+               .returning(t.c.trial_id))
+        attrs = [{"trial_id": trial_id, "key": k, "value_json": json.dumps(v)} for k, v in user_attrs.items()]
+        self._forget(trial_id)
+        if self.engine.name == "postgresql" and attrs:
+            cache = self.__dict__.setdefault("_statements", {})
+            shape = ("claim", len(attrs))
+            query = cache.get(shape)
+            if query is None:
+                from sqlalchemy.dialects.postgresql import insert
+                guard = pop.cte("guard")
+                rows = sa.union_all(*(sa.select(guard.c.trial_id.label("trial_id"),
+                                                sa.cast(sa.bindparam(f"k{i}"), u.c.key.type).label("key"),
+                                                sa.cast(sa.bindparam(f"v{i}"), u.c.value_json.type).label("value_json"))
+                                      for i in range(len(attrs))))
+                ins = insert(u).from_select(["trial_id", "key", "value_json"], rows)
+                ins = ins.on_conflict_do_update(index_elements=[u.c.trial_id, u.c.key],
+                                                set_={"value_json": ins.excluded.value_json})
+                query = cache[shape] = sa.select(guard.c.trial_id).add_cte(ins.cte("w_u"))
+            args: dict[str, Any] = {"tid": trial_id, "start": start}
+            for i, row in enumerate(attrs):
+                args[f"k{i}"], args[f"v{i}"] = row["key"], row["value_json"]
+            with self._reader().connect() as conn:
+                if conn.execute(query, args).first() is not None:
+                    return True
+                return self._not_claimed(conn, trial_id)
+        with self.engine.begin() as conn:
+            if conn.execute(pop, {"tid": trial_id, "start": start}).first() is None:
+                return self._not_claimed(conn, trial_id)
+            if attrs:
+                conn.execute(self._upsert(m.TrialUserAttributeModel, ("trial_id", "key"), ("value_json",)), attrs)
+        return True
+
+    def _not_claimed(self, conn: Any, trial_id: int) -> bool:
+        """:meth:`claim` found ``trial_id`` not waiting: False if it runs, else raises."""
+        self._check_running(conn, trial_id)
+        return False
+
     def _see(self, study_id: int, trial_id: int, number: int | None) -> None:
         """Keep the newest trial seen of a study as the anchor of the next number's count."""
         if number is not None and trial_id > self._anchor.get(study_id, (-1, -1))[0]:

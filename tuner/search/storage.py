@@ -370,7 +370,8 @@ class StudyStore:
             ident = t.user_attrs.get("worker") or {}
             if not ident:
                 # read again now: ``running`` may have been read outside the lock, between the
-                # two writes that pop a waiting trial (its state, then its worker)
+                # two journal records that pop a waiting trial (its state, then its worker; a
+                # database pops it in one write, LeanRDBStorage.claim), or by a foreign client
                 t = study._storage.get_trial(t._trial_id)
                 if t.state != TrialState.RUNNING:
                     continue

@@ -208,10 +208,10 @@ def work(spec: StudySpec, store: StudyStore, budget: int, seed: int,
     Under the store's budget lock, per trial: dead trials are failed and re-enqueued
     (:meth:`StudyStore.reap`), the study's finished and running trials are counted (the
     :class:`TrialIndex`, read incrementally before the lock and recounted under it: on a
-    database one statement), and a trial is reserved (created with the worker's identity in the
-    same write, or popped from the queue and then given it) only while finished + running <
-    budget. So any number of processes, on any
-    number of machines, run exactly the budget; a process that finds the rest running waits
+    database one statement), and a trial is reserved (created, or popped from the queue, with
+    the worker's identity in the same write; on the journal a popped trial gets it in a second
+    record) only while finished + running < budget. So any number of processes, on any number
+    of machines, run exactly the budget; a process that finds the rest running waits
     for them (one of them may die and need a retry). The parameters are sampled after the lock
     is released, so the lock is held for constant work whatever the study's size. A set walked
     before (a resumed sampler, or TPE on an integer axis, can propose one again) is not walked
