@@ -11,7 +11,7 @@ from optuna.trial import TrialState
 
 from tuner.search import history
 from tuner.search.history import TrialIndex, WindowedTPESampler
-from tuner.search.journal import SafeJournalBackend
+from tuner.search.journal import PackedJournalStorage, SafeJournalBackend
 
 optuna.logging.set_verbosity(optuna.logging.WARNING)
 
@@ -20,7 +20,7 @@ SPACE = {"x": FloatDistribution(-1.0, 1.0), "y": FloatDistribution(-1.0, 1.0)}
 
 def _storage(kind, tmp_path):
     if kind == "journal":
-        return JournalStorage(SafeJournalBackend(tmp_path / "s.journal"))
+        return PackedJournalStorage(SafeJournalBackend(tmp_path / "s.journal"))   # as gait-tuner opens it
     return InMemoryStorage()            # the database branch (states by query)
 
 

@@ -45,6 +45,7 @@ from optuna.study import StudyDirection
 from optuna.samplers._tpe.sampler import default_gamma, default_gamma_multiobjective
 from optuna.trial import FrozenTrial, TrialState
 
+from .journal import unpacked
 from .rdb import into_cache, lean
 from .trials import DONE_STATES
 
@@ -276,6 +277,8 @@ class TrialIndex:
         return optuna.Trial(study, storage.create_new_trial(self._study_id, template))
 
     def _absorb(self, t: FrozenTrial) -> None:
+        if t.state.is_finished():
+            t = unpacked(t)             # the journal's packed trial: the index keeps it whole
         if t.state == TrialState.FAIL:
             self.failed.append(t)
         if t.state not in DONE_STATES:

@@ -1,6 +1,5 @@
-"""The journal file's hardening: a kernel lock, writes rolled back on a full disk, torn lines cut.
-
-Two kinds of storage:
+"""The journal file's hardening (a kernel lock, writes rolled back on a full disk, torn lines cut)
+and its replay held packed (a finished trial in memory as a compressed record, not objects).
 """
 
 from __future__ import annotations
@@ -10,19 +9,26 @@ import errno
 import fcntl
 import json
 import os
+import pickle
 import sys
+import threading
 import time
+import uuid
+import zlib
 from pathlib import Path
 from typing import Any
 
+from optuna.storages import JournalStorage
 from optuna.storages.journal import JournalFileBackend
 from optuna.storages.journal._file import BaseJournalFileLock  # the lock interface JournalFileBackend takes
 from optuna.storages.journal._storage import JournalOperation as Op   # the records' op codes
-from optuna.trial import TrialState
+from optuna.storages.journal._storage import JournalStorageReplayResult   # optuna<6 pinned
+from optuna.trial import FrozenTrial, TrialState
 
 from ..errors import UserError
 
-__all__ = ["DISK_FULL", "StorageFull", "FlockLock", "repair_journal", "SafeJournalBackend"]
+__all__ = ["DISK_FULL", "StorageFull", "FlockLock", "repair_journal", "SafeJournalBackend", "PackedTrial",
+           "PackedJournalStorage", "unpacked"]
 
 DISK_FULL = (errno.ENOSPC, errno.EFBIG, errno.EDQUOT)
 
@@ -192,3 +198,129 @@ def _cut_torn_tail_if_any(path: Path, size: int) -> int:
         if f.read(1) == b"\n":
             return 0
     return _cut_torn_tail(path)
+
+
+
+# -- the replay held packed -----------------------------------------------------------------------
+
+#: a packed trial's fields kept as objects: read for every trial by a scan of the study (its
+#: number, its state for a filter by state, its id) or by Optuna's median pruner at every report
+#: (its intermediate values: empty, or a few numbers per trial)
+_KEPT = ("_number", "state", "_trial_id", "intermediate_values")
+#: FrozenTrial's fields in the order its constructor sets them (its repr and hash follow it)
+_ORDER = ("_number", "state", "_values", "_datetime_start", "datetime_complete", "_params", "_user_attrs",
+          "_system_attrs", "intermediate_values", "_distributions", "_trial_id")
+
+
+class PackedTrial(FrozenTrial):
+    """A finished trial as a worker's journal replay holds it: its number, state, id and
+    intermediate values as objects, every other field (parameters, distributions, values,
+    attributes, times) one zlib-compressed pickle, unpacked at each read of such a field.
+
+    Ours. Optuna's replay keeps every trial of the journal as objects (~11 kB a trial of a
+    gait-tuner study: its walked set and result as dicts), so a worker's memory grew by ~100 MB
+    over 10k trials; packed, ~1 kB. It is a FrozenTrial for every reader (its fields read as
+    Optuna's, equal to the unpacked trial); a field read is a fresh copy, so changing what a read
+    returns changes nothing held (as Optuna's ``deepcopy=True`` reads). A field set on it is
+    kept as an object, ahead of the packed one. Hot readers take :func:`unpacked` once.
+    """
+
+    def __init__(self, trial: FrozenTrial, zdict: bytes = b"") -> None:   # FrozenTrial's init: packed here
+        d = unpacked(trial).__dict__
+        own = self.__dict__
+        for k in _KEPT:
+            own[k] = d[k]
+        rest = {k: v for k, v in d.items() if k not in _KEPT}
+        # ``zdict``: a like trial's record (one bytes object shared by the replay's trials), so
+        # that what trials share (parameter names, distributions, attribute keys) packs to little
+        pack = zlib.compressobj(1, zdict=zdict) if zdict else zlib.compressobj(1)
+        own["_packed"] = pack.compress(pickle.dumps(rest, protocol=pickle.HIGHEST_PROTOCOL)) + pack.flush()
+        own["_zdict"] = zdict
+
+    def _rest(self) -> dict[str, Any]:
+        own = self.__dict__
+        unpack = zlib.decompressobj(zdict=own["_zdict"]) if own["_zdict"] else zlib.decompressobj()
+        return pickle.loads(unpack.decompress(own["_packed"]) + unpack.flush())
+
+    def _fields(self) -> dict[str, Any]:
+        """Every field, unpacked (a fresh copy), in FrozenTrial's order."""
+        rest = self._rest()
+        rest.update((k, v) for k, v in self.__dict__.items() if k not in ("_packed", "_zdict"))
+        return {k: rest[k] for k in _ORDER if k in rest} | {k: v for k, v in rest.items() if k not in _ORDER}
+
+    def __getattr__(self, name: str) -> Any:            # only for names not held as objects
+        if name.startswith("__") or name in ("_packed", "_zdict") or "_packed" not in self.__dict__:
+            raise AttributeError(name)
+        try:
+            return self._rest()[name]
+        except KeyError:
+            raise AttributeError(name) from None
+
+    def __eq__(self, other: Any) -> bool:
+        if not isinstance(other, FrozenTrial):
+            return NotImplemented
+        return unpacked(other).__dict__ == self._fields()
+
+    def __hash__(self) -> int:
+        return hash(unpacked(self))
+
+    def __repr__(self) -> str:
+        return repr(unpacked(self)).replace("FrozenTrial(", "PackedTrial(", 1)
+
+
+def unpacked(trial: FrozenTrial) -> FrozenTrial:
+    """``trial`` as a plain FrozenTrial (a :class:`PackedTrial` unpacked; any other as it is)."""
+    if not isinstance(trial, PackedTrial):
+        return trial
+    out = FrozenTrial.__new__(FrozenTrial)
+    out.__dict__.update(trial._fields())
+    return out
+
+
+class _PackedReplay(JournalStorageReplayResult):
+    """Optuna's replay of the journal, a trial packed when it is read finished (created finished,
+    or its state set to a finished one); a finished trial is never changed again."""
+
+    _zdict = b""
+
+    def _pack(self, trial_id: int) -> None:
+        t = self._trials.get(trial_id)
+        if t is None or not t.state.is_finished() or isinstance(t, PackedTrial):
+            return
+        if not self._zdict:          # the first finished trial's record: the others' dictionary
+            rest = {k: v for k, v in t.__dict__.items() if k not in _KEPT}
+            self._zdict = pickle.dumps(rest, protocol=pickle.HIGHEST_PROTOCOL)
+        self._trials[trial_id] = PackedTrial(t, self._zdict)
+
+    def _apply_create_trial(self, log: dict[str, Any]) -> None:
+        before = len(self._trials)
+        super()._apply_create_trial(log)
+        if len(self._trials) > before:
+            self._pack(before)                          # Optuna numbers trial ids from 0 in replay order
+
+    def _apply_set_trial_state_values(self, log: dict[str, Any]) -> None:
+        super()._apply_set_trial_state_values(log)
+        self._pack(log["trial_id"])
+
+
+class PackedJournalStorage(JournalStorage):
+    """Optuna's journal storage whose replay holds finished trials packed (:class:`PackedTrial`).
+
+    Its ``__init__`` and ``__setstate__`` are Optuna's (optuna<6 pinned) with our replay; a
+    backend with snapshots (Optuna's Redis) would restore Optuna's own replay, unpacked, so it
+    is refused here (gait-tuner's journal is a file)."""
+
+    def __init__(self, log_storage: Any) -> None:       # noqa: D107 - Optuna's, with our replay
+        from optuna.storages.journal._base import BaseJournalSnapshot
+        if isinstance(log_storage, BaseJournalSnapshot):
+            raise TypeError("PackedJournalStorage: a journal backend with snapshots is not supported")
+        self._worker_id_prefix = str(uuid.uuid4()) + "-"
+        self._backend = log_storage
+        self._thread_lock = threading.Lock()
+        self._replay_result = _PackedReplay(self._worker_id_prefix)
+        with self._thread_lock:
+            self._sync_with_backend()
+
+    def __setstate__(self, state: dict[Any, Any]) -> None:
+        super().__setstate__(state)
+        self._replay_result = _PackedReplay(self._worker_id_prefix)

@@ -37,11 +37,10 @@ from pathlib import Path
 from typing import Any, Iterator
 
 import optuna
-from optuna.storages import JournalStorage
 from optuna.trial import TrialState
 
 from ..errors import UserError
-from .journal import DISK_FULL, FlockLock, SafeJournalBackend, StorageFull, repair_journal
+from .journal import DISK_FULL, FlockLock, PackedJournalStorage, SafeJournalBackend, StorageFull, repair_journal
 from .liveness import HEARTBEAT_GRACE_S, HEARTBEAT_INTERVAL_S, alive_here, worker_file
 
 __all__ = ["StudyStore", "normalise_url", "CRASH_SIGNALS", "MAX_RETRIES", "storage_full"]
@@ -230,7 +229,7 @@ class StudyStore:
         if self.journal is not None:
             try:
                 repair_journal(self.journal)
-                self._storage = JournalStorage(SafeJournalBackend(self.journal))
+                self._storage = PackedJournalStorage(SafeJournalBackend(self.journal))
             except (ValueError, json.JSONDecodeError) as exc:
                 raise UserError(f"journal {self.journal} is corrupt ({exc}); it is not a journal "
                                 f"written by gait-tuner, or was edited") from None
