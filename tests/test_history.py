@@ -310,3 +310,39 @@ def test_a_worker_freezes_what_it_has_read_once_and_every_thousand_trials():
         assert _freeze_history(FREEZE_EVERY + 5, at) == FREEZE_EVERY + 5 and gc.get_freeze_count() > 0
     finally:
         gc.unfreeze()
+
+
+@pytest.mark.parametrize("kind", ["journal", "database"])
+def test_the_indexed_median_pruner_decides_as_optunas_without_reading_the_study(kind, tmp_path, monkeypatch):
+    import random
+    from tuner.search.history import IndexedMedianPruner
+    study = optuna.create_study(storage=_storage(kind, tmp_path), study_name="m")
+    index = TrialIndex()
+    ours = IndexedMedianPruner(index, n_startup_trials=3, n_warmup_steps=0)
+    theirs = optuna.pruners.MedianPruner(n_startup_trials=3, n_warmup_steps=0)
+    reads = []
+    listing = optuna.Study.get_trials
+    monkeypatch.setattr(optuna.Study, "get_trials",
+                        lambda self, *a, **k: reads.append(k.get("states")) or listing(self, *a, **k))
+    rng = random.Random(0)
+    decisions = []
+    for i in range(30):
+        index.refresh(study)
+        trial = study.ask()
+        if i % 7 == 3:                                  # completed without reports, and failed
+            study.tell(trial, 1.0) if i % 2 else study.tell(trial, state=TrialState.FAIL)
+            continue
+        pruned = False
+        for step in range(3):
+            trial.report(rng.uniform(0.0, 1.0) + 0.1 * step, step)
+            frozen = study._storage.get_trial(trial._trial_id)
+            reads.clear()
+            a = ours.prune(study, frozen)
+            assert reads == []                          # the index's curves, not the study
+            assert a == theirs.prune(study, frozen)
+            decisions.append(a)
+            if a:
+                pruned = True
+                break
+        study.tell(trial, state=TrialState.PRUNED) if pruned else study.tell(trial, rng.uniform(0.0, 1.0))
+    assert True in decisions and False in decisions

@@ -32,7 +32,7 @@ from gaits import ParamError
 from ..errors import UserError
 from ..process_pool import mp_context
 from .liveness import Heartbeat, process_identity
-from .history import TrialIndex, WindowedTPESampler
+from .history import IndexedMedianPruner, TrialIndex, WindowedTPESampler
 from .objective import Evaluator, objective_for, record_constraint, suggest
 from .journal import StorageFull
 from .rdb import lean
@@ -68,8 +68,10 @@ def load_tuned_study(spec: StudySpec, storage: str | None, runs_dir: Path) -> op
 
 def open_study(spec: StudySpec, storage: Any, seed: int | None = None,
                index: TrialIndex | None = None) -> optuna.Study:
-    pruner = (optuna.pruners.MedianPruner(n_startup_trials=6, n_warmup_steps=0)
-              if len(spec.objectives) == 1 and len(spec.surfaces) > 1 else optuna.pruners.NopPruner())
+    pruner: optuna.pruners.BasePruner = optuna.pruners.NopPruner()
+    if len(spec.objectives) == 1 and len(spec.surfaces) > 1:
+        pruner = (optuna.pruners.MedianPruner(n_startup_trials=6, n_warmup_steps=0) if index is None
+                  else IndexedMedianPruner(index, n_startup_trials=6, n_warmup_steps=0))
     study = optuna.create_study(study_name=spec.name, storage=storage, load_if_exists=True,
                                 directions=spec.directions,
                                 sampler=_sampler(spec, spec.sampler_seed if seed is None else seed, index),
