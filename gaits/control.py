@@ -170,6 +170,15 @@ class TablePlayer:
         self._i += 1
         return self._q[min(self._i, self._last)]
 
+    def ahead(self, n: int) -> np.ndarray | None:
+        """The targets of ticks 0..n-1 at once, (n, 20) [rad]: row k is what ``step`` returns at
+        tick k after ``reset`` (row 0, the start pose's), since the table ignores what it senses
+        and the commands. A loop may take these instead of calling ``step`` each tick. None for
+        a subclass whose ``step`` is its own (its targets are not known ahead)."""
+        if type(self).step is not TablePlayer.step:
+            return None
+        return self._q[np.minimum(np.arange(n), self._last)]
+
     def plan(self, n: int) -> PlanRecord:
         tr = self.traj
         k = min(n, len(tr.t))

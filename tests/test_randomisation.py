@@ -180,3 +180,25 @@ def test_randomisation_fields_are_validated():
         randomisation_from_mapping({"mass": 0.1}, "robust")
     with pytest.raises(UserError, match=r"randomisation.tilt_deg = nan"):
         Randomisation(tilt_deg=float("nan"))
+
+
+class _Stepped(gaits.control.TablePlayer):
+    """The same table, stepped tick by tick (its own ``step``: no targets ahead)."""
+
+    def step(self, m, command=None):
+        return super().step(m, command)
+
+
+@pytest.mark.parametrize("surface,randomised", [("rigid", False), ("grass30", True)])
+def test_a_table_taken_ahead_walks_bit_for_bit_as_one_stepped(surface, randomised):
+    """The rollout takes a table's targets ahead (`TablePlayer.ahead`) instead of stepping it:
+    the same walk to the bit, with latency, backlash and the grass's drag gate."""
+    sim = sim_for(surface)
+    traj = walk(sim)
+    p = pert(sim, Randomisation(), seed=3) if randomised else None
+    assert _Stepped(traj).ahead(5) is None and gaits.control.TablePlayer(traj).ahead(5).shape == (5, 20)
+    a = sim.run(gaits.control.TablePlayer(traj), duration=4.0, perturb=p, record_qpos=True)
+    b = sim.run(_Stepped(traj), duration=4.0, perturb=p, record_qpos=True)
+    for field in ("qpos", "q", "q_cmd", "q_ref", "q_sent", "force", "p_com"):
+        assert np.array_equal(getattr(a, field), getattr(b, field), equal_nan=True), field
+    assert a.reason == b.reason

@@ -436,13 +436,25 @@ class Simulator:
         sent = deque(cmd.copy() for _ in range(latency))   # commands on their way to the servos
         meas = reader.read(0.0)
         controller.reset(meas)
+        # a controller that senses nothing and knows its targets ahead (a joint table, without a
+        # command stream): its targets mapped to the servos at once, not read, stepped and
+        # mapped tick by tick (the same numbers: the same operations per element)
+        ahead = getattr(controller, "ahead", None)
+        rows = ahead(n_ticks) if ahead is not None and commands is None and not reader.senses else None
+        mapped = None
+        if rows is not None:
+            targets[1:] = rows[1:]
+            mapped = rows[:, col] * sign + offset
         for k in range(1, n_ticks):
-            if k > 1:
-                meas = reader.read((k - 1) * dt)
-            command = None if commands is None else commands.at((k - 1) * dt)
-            target = controller.step(meas, command)
-            targets[k] = target
-            delta = target[col] * sign + offset - cmd
+            if mapped is not None:
+                delta = mapped[k] - cmd
+            else:
+                if k > 1:
+                    meas = reader.read((k - 1) * dt)
+                command = None if commands is None else commands.at((k - 1) * dt)
+                target = controller.step(meas, command)
+                targets[k] = target
+                delta = target[col] * sign + offset - cmd
             cmd += vmin(vmax(delta, lo_step, out=delta), step, out=delta)
             vmin(vmax(cmd, q_lo, out=cmd), q_hi, out=cmd)
             if latency:
