@@ -127,6 +127,9 @@ class Controller(Protocol):
       ``command`` is the walk command (vx [m/s], vy [m/s], wz [rad/s]) of this tick, (3,),
       or None when the walk has none.
     * ``plan(n)``: the :class:`PlanRecord` of the first ``n`` ticks.
+    * ``ahead(n)`` (optional, for a controller that senses nothing): the targets of ticks
+      0..n-1 as one (n, 20) array, or None; the loop then takes them instead of calling
+      ``step`` (a walk without a command stream), as :meth:`TablePlayer.ahead`.
     """
 
     dt: float
