@@ -361,20 +361,14 @@ class _Curve:
 _NO_CURVE = _Curve({})       # a completed trial that reported nothing (one shared object)
 
 
-class _CurveStudy:
-    """The study as the pruner sees it: its completed trials are the index's curves."""
+class _CurveStudy(_WindowStudy):
+    """The study as the pruner sees it: its completed trials are the index's curves (returned
+    as they are: every curve is a completed trial, so no filter runs over the study)."""
 
-    def __init__(self, study: optuna.Study, curves: list[_Curve]) -> None:
-        self._study = study
-        self._curves = curves
-
-    def get_trials(self, deepcopy: bool = True, states: Any = None) -> list[Any]:
+    def _get_trials(self, deepcopy: bool = True, states: Any = None, use_cache: bool = False) -> list[Any]:
         if tuple(states or ()) != (TrialState.COMPLETE,):
             return self._study.get_trials(deepcopy=deepcopy, states=states)
-        return self._curves
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._study, name)
+        return self._trials
 
 
 class IndexedMedianPruner(optuna.pruners.MedianPruner):

@@ -43,7 +43,7 @@ import json
 import threading
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import Any, Iterable, Sequence
+from typing import Any, Callable, Iterable, Sequence
 
 from optuna import distributions
 from optuna.exceptions import UpdateFinishedTrialError
@@ -117,14 +117,50 @@ class LeanRDBStorage(RDBStorage):
         from optuna.storages._rdb import models
         return models
 
+    def _statement(self, key: Any, build: Callable[[], Any]) -> Any:
+        """The statement ``build`` makes, built once per ``key`` (its values bound at each call),
+        so that SQLAlchemy compiles it once and a hot call costs its round trip only."""
+        cache = self.__dict__.setdefault("_statements", {})
+        stmt = cache.get(key)
+        if stmt is None:
+            stmt = cache[key] = build()
+        return stmt
+
+    def _rows_cte(self, source: Any, model: Any, cols: Sequence[str], n: int, tag: str,
+                  keys: Sequence[str] = (), update: Sequence[str] = ()) -> Any:
+        """PostgreSQL: an INSERT into ``model``'s table, as a CTE, of ``n`` rows selected from
+        ``source`` (a CTE whose ``trial_id`` names the trial; none if it returns no row), each
+        row's ``cols`` bound as ``{tag}_{col}_{i}`` (:meth:`_rows_args`); on a clash of ``keys``,
+        ``update`` overwritten (none: the row left as it is)."""
+        import sqlalchemy as sa
+        from sqlalchemy.dialects.postgresql import insert
+        table = model.__table__
+        rows = sa.union_all(*(sa.select(source.c.trial_id.label("trial_id"), *(
+            sa.cast(sa.bindparam(f"{tag}_{c}_{i}", type_=table.c[c].type), table.c[c].type).label(c)
+            for c in cols)) for i in range(n)))
+        ins = insert(table).from_select(["trial_id", *cols], rows)
+        if keys:
+            index = [table.c[k] for k in keys]
+            ins = (ins.on_conflict_do_update(index_elements=index, set_={c: ins.excluded[c] for c in update})
+                   if update else ins.on_conflict_do_nothing(index_elements=index))
+        return ins.cte(f"w_{tag}")
+
+    @staticmethod
+    def _rows_args(tag: str, rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
+        """The bound values of :meth:`_rows_cte`'s rows."""
+        return {f"{tag}_{c}_{i}": v for i, row in enumerate(rows) for c, v in row.items()}
+
+    @staticmethod
+    def _attr_rows(attrs: dict[str, Any]) -> list[dict[str, Any]]:
+        """Attribute rows as Optuna stores them (the value as JSON)."""
+        return [{"key": k, "value_json": json.dumps(v)} for k, v in attrs.items()]
+
     def _upsert(self, model: Any, keys: Sequence[str], update: Sequence[str]) -> Any:
         """An INSERT that overwrites ``update`` on a clash of ``keys`` (none: leaves the row as it
         is), run with a list of rows (PostgreSQL and SQLite: ``ON CONFLICT``, as Optuna's own
         attribute writes on these databases); one statement object per table, so SQLAlchemy
         compiles it once."""
-        cache = self.__dict__.setdefault("_statements", {})
-        key = (model.__tablename__, tuple(keys), tuple(update))
-        if key not in cache:
+        def build() -> Any:
             table = model.__table__
             if self.engine.name == "postgresql":
                 from sqlalchemy.dialects.postgresql import insert
@@ -132,9 +168,9 @@ class LeanRDBStorage(RDBStorage):
                 from sqlalchemy.dialects.sqlite import insert
             stmt = insert(table)
             index = [table.c[k] for k in keys]
-            cache[key] = (stmt.on_conflict_do_update(index_elements=index, set_={c: stmt.excluded[c] for c in update})
-                          if update else stmt.on_conflict_do_nothing(index_elements=index))
-        return cache[key]
+            return (stmt.on_conflict_do_update(index_elements=index, set_={c: stmt.excluded[c] for c in update})
+                    if update else stmt.on_conflict_do_nothing(index_elements=index))
+        return self._statement((model.__tablename__, tuple(keys), tuple(update)), build)
 
     def _reader(self) -> Any:
         """The engine for reads: autocommit (no BEGIN and ROLLBACK round trips around a read;
@@ -312,9 +348,8 @@ class LeanRDBStorage(RDBStorage):
         its cost does not grow with the study."""
         import sqlalchemy as sa
         ids = sorted(set(trial_ids))
-        cache = self.__dict__.setdefault("_statements", {})
-        stmt = cache.get(("states", bool(ids)))
-        if stmt is None:             # built once: the lock's statement costs its round trip only
+
+        def build() -> Any:
             m = self._models()
             t, a = m.TrialModel.__table__, m.StudyUserAttributeModel.__table__
             which = t.c.trial_id > sa.bindparam("after")
@@ -324,7 +359,8 @@ class LeanRDBStorage(RDBStorage):
                 t.c.study_id == sa.bindparam("sid"), which)
             attr = sa.select(sa.cast(sa.null(), sa.Integer), sa.cast(sa.null(), sa.Integer), a.c.value_json).where(
                 a.c.study_id == sa.bindparam("sid"), a.c.key == sa.bindparam("key"))
-            stmt = cache[("states", bool(ids))] = sa.union_all(trials, attr)
+            return sa.union_all(trials, attr)
+        stmt = self._statement(("states", bool(ids)), build)      # the lock's statement: its round trip only
         args = {"after": after_id, "sid": study_id, "key": study_attr, **({"ids": ids} if ids else {})}
         with self._reader().connect() as conn:
             rows = conn.execute(stmt, args).all()
@@ -396,10 +432,8 @@ class LeanRDBStorage(RDBStorage):
         with self.engine.begin() as conn:
             # Optuna's own order (``_create_new_trial``): the study's row locked, so that the
             # number, the count of the study's earlier trials, is not raced by another creator
-            lock = self.__dict__.setdefault("_statements", {}).get("lock_study")
-            if lock is None:
-                lock = self._statements["lock_study"] = (sa.select(s.c.study_id)
-                                                         .where(s.c.study_id == sa.bindparam("sid")).with_for_update())
+            lock = self._statement("lock_study", lambda: sa.select(s.c.study_id)
+                                   .where(s.c.study_id == sa.bindparam("sid")).with_for_update())
             if conn.execute(lock, {"sid": study_id}).first() is None:
                 raise KeyError(f"No study with study_id {study_id} exists.")
             if self.engine.name == "postgresql":
@@ -429,10 +463,9 @@ class LeanRDBStorage(RDBStorage):
         drawn now, is the study's largest."""
         import sqlalchemy as sa
         anchor = self._anchor.get(study_id)
-        shape = ("create", anchor is not None, len(user), len(system))
-        cache = self.__dict__.setdefault("_statements", {})
-        query = cache.get(shape)
-        if query is None:            # built once per shape, its values bound at each call
+        rows = {"u": self._attr_rows(user), "s": self._attr_rows(system)}
+
+        def build() -> Any:
             m = self._models()
             t = m.TrialModel.__table__
             sid = sa.bindparam("sid")
@@ -448,22 +481,15 @@ class LeanRDBStorage(RDBStorage):
                                       datetime_start=sa.bindparam("start")).returning(t.c.trial_id, t.c.number)
             ins = ins.cte("new_trial")
             query = sa.select(ins.c.trial_id, ins.c.number)
-            for tag, model, n in (("u", m.TrialUserAttributeModel, len(user)), ("s", m.TrialSystemAttributeModel, len(system))):
-                if not n:
-                    continue
-                rows = sa.union_all(*(sa.select(ins.c.trial_id.label("trial_id"),
-                                                sa.cast(sa.bindparam(f"{tag}k{i}"), sa.String).label("key"),
-                                                sa.cast(sa.bindparam(f"{tag}v{i}"), sa.Text).label("value_json"))
-                                      for i in range(n)))
-                query = query.add_cte(sa.insert(model.__table__).from_select(["trial_id", "key", "value_json"], rows)
-                                      .cte(f"new_attrs_{tag}"))
-            cache[shape] = query
-        args: dict[str, Any] = {"sid": study_id, "start": start_utc}
+            for tag, model in (("u", m.TrialUserAttributeModel), ("s", m.TrialSystemAttributeModel)):
+                if rows[tag]:
+                    query = query.add_cte(self._rows_cte(ins, model, ("key", "value_json"), len(rows[tag]), tag))
+            return query
+        query = self._statement(("create", anchor is not None, len(user), len(system)), build)
+        args: dict[str, Any] = {"sid": study_id, "start": start_utc,
+                                **self._rows_args("u", rows["u"]), **self._rows_args("s", rows["s"])}
         if anchor is not None:
             args.update(a_id=anchor[0], a_next=anchor[1] + 1)
-        for tag, attrs in (("u", user), ("s", system)):
-            for i, (k, v) in enumerate(attrs.items()):
-                args[f"{tag}k{i}"], args[f"{tag}v{i}"] = k, json.dumps(v)
         row = conn.execute(query, args).one()
         self._see(study_id, row.trial_id, row.number)
         return row.trial_id, row.number
@@ -483,40 +509,28 @@ class LeanRDBStorage(RDBStorage):
             return True
         import sqlalchemy as sa
         m = self._models()
-        t, u = m.TrialModel.__table__, m.TrialUserAttributeModel.__table__
+        t = m.TrialModel.__table__
         start = _utc_naive(datetime.datetime.now())
         waiting = sa.and_(t.c.trial_id == sa.bindparam("tid"), t.c.state == TrialState.WAITING)
         pop = (sa.update(t).where(waiting).values(state=TrialState.RUNNING, datetime_start=sa.bindparam("start"))
                .returning(t.c.trial_id))
-        attrs = [{"trial_id": trial_id, "key": k, "value_json": json.dumps(v)} for k, v in user_attrs.items()]
+        attrs = self._attr_rows(user_attrs)
         self._forget(trial_id)
         if self.engine.name == "postgresql" and attrs:
-            cache = self.__dict__.setdefault("_statements", {})
-            shape = ("claim", len(attrs))
-            query = cache.get(shape)
-            if query is None:
-                from sqlalchemy.dialects.postgresql import insert
+            def build() -> Any:
                 guard = pop.cte("guard")
-                rows = sa.union_all(*(sa.select(guard.c.trial_id.label("trial_id"),
-                                                sa.cast(sa.bindparam(f"k{i}"), u.c.key.type).label("key"),
-                                                sa.cast(sa.bindparam(f"v{i}"), u.c.value_json.type).label("value_json"))
-                                      for i in range(len(attrs))))
-                ins = insert(u).from_select(["trial_id", "key", "value_json"], rows)
-                ins = ins.on_conflict_do_update(index_elements=[u.c.trial_id, u.c.key],
-                                                set_={"value_json": ins.excluded.value_json})
-                query = cache[shape] = sa.select(guard.c.trial_id).add_cte(ins.cte("w_u"))
-            args: dict[str, Any] = {"tid": trial_id, "start": start}
-            for i, row in enumerate(attrs):
-                args[f"k{i}"], args[f"v{i}"] = row["key"], row["value_json"]
+                return sa.select(guard.c.trial_id).add_cte(self._rows_cte(
+                    guard, m.TrialUserAttributeModel, ("key", "value_json"), len(attrs), "u", ("trial_id", "key"),
+                    ("value_json",)))
+            query = self._statement(("claim", len(attrs)), build)
             with self._reader().connect() as conn:
-                if conn.execute(query, args).first() is not None:
+                if conn.execute(query, {"tid": trial_id, "start": start, **self._rows_args("u", attrs)}).first() is not None:
                     return True
                 return self._not_claimed(conn, trial_id)
         with self.engine.begin() as conn:
             if conn.execute(pop, {"tid": trial_id, "start": start}).first() is None:
                 return self._not_claimed(conn, trial_id)
-            if attrs:
-                conn.execute(self._upsert(m.TrialUserAttributeModel, ("trial_id", "key"), ("value_json",)), attrs)
+            self._write_attrs(conn, trial_id, user_attrs, {})
         return True
 
     def _not_claimed(self, conn: Any, trial_id: int) -> bool:
@@ -576,15 +590,15 @@ class LeanRDBStorage(RDBStorage):
         parameters, attributes and values selected from the guard, so that nothing is written
         unless the trial was running (otherwise :meth:`_refuse`). Built once per shape."""
         import sqlalchemy as sa
-        from sqlalchemy.dialects.postgresql import insert
         m = self._models()
         t = m.TrialModel.__table__
         vals = [] if values is None else list(values)
-        shape = ("write", tuple(sorted(change)) if change is not None else None, len(p.params),
-                 len(p.user_attrs), len(p.system_attrs), len(vals))
-        cache = self.__dict__.setdefault("_statements", {})
-        query = cache.get(shape)
-        if query is None:
+        rows = {"p": [{"param_name": k, "param_value": v, "distribution_json": distributions.distribution_to_json(d)}
+                      for k, (v, d) in p.params.items()],
+                "u": self._attr_rows(p.user_attrs), "s": self._attr_rows(p.system_attrs),
+                "v": [{c: r[c] for c in ("objective", "value", "value_type")} for r in self._value_rows(trial_id, vals)]}
+
+        def build() -> Any:
             running = sa.and_(t.c.trial_id == sa.bindparam("tid"), t.c.state == TrialState.RUNNING)
             if change is None:
                 guard = sa.select(t.c.trial_id).where(running).with_for_update().cte("guard")
@@ -593,38 +607,21 @@ class LeanRDBStorage(RDBStorage):
                          .values(**{c: sa.bindparam(f"c_{c}", type_=t.c[c].type) for c in sorted(change)})
                          .returning(t.c.trial_id).cte("guard"))
             query = sa.select(guard.c.trial_id)
-            parts = (("p", m.TrialParamModel, ("param_name", "param_value", "distribution_json"), len(p.params),
-                      ("trial_id", "param_name"), ()),
-                     ("u", m.TrialUserAttributeModel, ("key", "value_json"), len(p.user_attrs), ("trial_id", "key"),
-                      ("value_json",)),
-                     ("s", m.TrialSystemAttributeModel, ("key", "value_json"), len(p.system_attrs), ("trial_id", "key"),
-                      ("value_json",)),
-                     ("v", m.TrialValueModel, ("objective", "value", "value_type"), len(vals), ("trial_id", "objective"),
+            parts = (("p", m.TrialParamModel, ("param_name", "param_value", "distribution_json"),
+                      ("trial_id", "param_name"), ()),                      # a param: the first write wins
+                     ("u", m.TrialUserAttributeModel, ("key", "value_json"), ("trial_id", "key"), ("value_json",)),
+                     ("s", m.TrialSystemAttributeModel, ("key", "value_json"), ("trial_id", "key"), ("value_json",)),
+                     ("v", m.TrialValueModel, ("objective", "value", "value_type"), ("trial_id", "objective"),
                       ("value", "value_type")))
-            for tag, model, cols, n, keys, update in parts:
-                if not n:
-                    continue
-                table = model.__table__
-                rows = sa.union_all(*(sa.select(guard.c.trial_id.label("trial_id"), *(
-                    sa.cast(sa.bindparam(f"{tag}_{c}_{i}", type_=table.c[c].type), table.c[c].type).label(c)
-                    for c in cols)) for i in range(n)))
-                ins = insert(table).from_select(["trial_id", *cols], rows)
-                index = [table.c[k] for k in keys]
-                ins = (ins.on_conflict_do_update(index_elements=index, set_={c: ins.excluded[c] for c in update})
-                       if update else ins.on_conflict_do_nothing(index_elements=index))   # a param: first write wins
-                query = query.add_cte(ins.cte(f"w_{tag}"))
-            cache[shape] = query
-        args: dict[str, Any] = {"tid": trial_id}
-        for c, v in (change or {}).items():
-            args[f"c_{c}"] = v
-        for i, (k, (v, d)) in enumerate(p.params.items()):
-            args.update({f"p_param_name_{i}": k, f"p_param_value_{i}": v,
-                         f"p_distribution_json_{i}": distributions.distribution_to_json(d)})
-        for tag, attrs in (("u", p.user_attrs), ("s", p.system_attrs)):
-            for i, (k, v) in enumerate(attrs.items()):
-                args[f"{tag}_key_{i}"], args[f"{tag}_value_json_{i}"] = k, json.dumps(v)
-        for i, row in enumerate(self._value_rows(trial_id, vals)):
-            args.update({f"v_{c}_{i}": row[c] for c in ("objective", "value", "value_type")})
+            for tag, model, cols, keys, update in parts:
+                if rows[tag]:
+                    query = query.add_cte(self._rows_cte(guard, model, cols, len(rows[tag]), tag, keys, update))
+            return query
+        shape = ("write", tuple(sorted(change)) if change is not None else None, *(len(r) for r in rows.values()))
+        query = self._statement(shape, build)
+        args: dict[str, Any] = {"tid": trial_id, **{f"c_{c}": v for c, v in (change or {}).items()}}
+        for tag, r in rows.items():
+            args.update(self._rows_args(tag, r))
         with self._reader().connect() as conn:
             if conn.execute(query, args).first() is None:
                 self._refuse(conn, trial_id)
@@ -666,7 +663,7 @@ class LeanRDBStorage(RDBStorage):
         for model, attrs in ((m.TrialUserAttributeModel, user), (m.TrialSystemAttributeModel, system)):
             if attrs:
                 conn.execute(self._upsert(model, ("trial_id", "key"), ("value_json",)),
-                             [{"trial_id": trial_id, "key": k, "value_json": json.dumps(v)} for k, v in attrs.items()])
+                             [{"trial_id": trial_id, **r} for r in self._attr_rows(attrs)])
 
     def _set_trial_param(self, trial_id: int, param_name: str, param_value_internal: float,
                          distribution: distributions.BaseDistribution,
