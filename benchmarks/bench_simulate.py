@@ -4,7 +4,10 @@ Usage: ``python benchmarks/bench_simulate.py [--repeats 5]``
 
 For each surface, one model, one gait (TLIPFM Table 2, 10.96 s). ``simulate`` is the full
 rollout (the table player, the rate limiter and joint ranges, the grass drag gate, sensors
-copied every tick, fall and divergence checks, trace post-processing). Its controls are recorded
+copied every tick, fall and divergence checks, trace post-processing); on rigid and carpet4,
+where nothing reads the state between ticks, it runs the walk through MuJoCo's native rollout in
+chunks of ``NATIVE_CHUNK`` ticks, judged after each; on grass the drag gate keeps it in the tick
+loop. Its controls are recorded
 as MuJoCo applied them each tick (every actuator: the servos' rate-limited targets and the drag
 dampers' gate), with its initial state, and played again two ways, so that the physics compared
 is the same walk's:

@@ -16,6 +16,10 @@ surface) and runs many rollouts. :meth:`Simulator.run` is the closed loop, per c
    loop checks for a fall or a diverging simulation.
 
 :meth:`Simulator.rollout` plays a joint table (the open loop the papers describe) through it.
+When nothing in a walk reads its state before MuJoCo does (a controller that senses nothing and
+knows its targets ahead, no backlash, no grass drag gate, no hook), its servo commands are all
+known at the start, and MuJoCo's native rollout runs it in chunks, each judged by the same checks
+after it: bit for bit the tick loop's walk (tested), without its per-tick Python.
 
 Sensors in the model: an IMU site on the torso (orientation, position), the whole-body CoM,
 each sole centre, four touch sensors per sole (toe-left, toe-right, heel-left, heel-right
@@ -31,6 +35,7 @@ from collections import deque
 from dataclasses import dataclass, field
 
 import mujoco
+import mujoco.rollout
 import numpy as np
 
 from gaits import JOINT_NAMES, GaitTrajectory, StabiliserParams
@@ -45,6 +50,12 @@ from .scene import CORNERS, IMU_SITE_POS, PREFIX, add_pendulum, build_scene, dra
 from .surfaces import Surface
 
 __all__ = ["FallCriteria", "OUTCOMES", "Trace", "Simulator", "dead_band"]
+
+#: Control ticks per call of MuJoCo's native rollout (ours): each call costs ~10 us besides the
+#: physics, and a walk that falls inside a chunk is simulated to the chunk's end (at most 0.2 s
+#: of 10 ms ticks) before the check finds it.
+NATIVE_CHUNK = 20
+_ROLLOUT = mujoco.rollout.Rollout(nthread=0)       # runs on the calling thread: no pool
 
 
 @dataclass(frozen=True)
@@ -115,6 +126,37 @@ def dead_band(target: np.ndarray, q: np.ndarray, half_width: np.ndarray) -> np.n
     return q + np.sign(e) * np.maximum(np.abs(e) - half_width, 0.0)
 
 
+def rate_limited(target: np.ndarray, c0: np.ndarray, step: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """The servo commands (N, n) the rollout's rate limiter makes of known targets (N, n): from
+    ``c0``, each tick c += clip(target - c, -step, step), then c clipped to [lo, hi]; row 0 is
+    ``c0``. Bit for bit the tick loop's arithmetic, without its loop where it cannot matter: when
+    the previous command equals the previous target and the new target is within ``step`` of it,
+    inside [lo, hi] and within a factor 2 of it (Sterbenz's lemma: the difference is exact, so
+    c + (target - c) is the target exactly), the command is the target; the other ticks (a limit
+    binding, a sign change, a command catching up) run the recursion, element by element."""
+    out = np.array(target, dtype=float)
+    out[0] = c0
+    prev, cur = target[:-1], target[1:]
+    exact = (cur == prev) | ((cur >= 0.5 * prev) & (cur <= 2.0 * prev)) | ((cur <= 0.5 * prev) & (cur >= 2.0 * prev))
+    easy = exact & (np.abs(cur - prev) <= step) & (cur >= lo) & (cur <= hi)     # row i: tick i + 1
+    n = len(out)
+    for j in range(out.shape[1]):
+        hard = np.flatnonzero(~easy[:, j]) + 1
+        col, m, s, lo_j, hi_j = out[:, j], target[:, j], step[j], lo[j], hi[j]
+        k = 1 if c0[j] != m[0] else (int(hard[0]) if hard.size else n)
+        while k < n:
+            c = col[k - 1]
+            while k < n:
+                c = min(max(c + min(max(m[k] - c, -s), s), lo_j), hi_j)
+                col[k] = c
+                k += 1
+                if c == m[k - 1] and (k == n or easy[k - 1, j]):
+                    break
+            i = int(np.searchsorted(hard, k))
+            k = int(hard[i]) if i < hard.size else n
+    return out
+
+
 _quat_pitch_roll = tilt_from_quat
 
 
@@ -177,6 +219,7 @@ class Simulator:
         self._s_quat, self._s_pos, self._s_com = blocks["quat"], blocks["pos"], blocks["com"]
         self._s_sole, self._s_touch, self._s_touchpos = blocks["sole"], blocks["touch"], blocks["touchpos"]
         self._s_q, self._s_dq, self._s_tau = blocks["q"], blocks["dq"], blocks["tau"]
+        self._s_fall = blocks["fall"]
         self._imu_offset = np.array(IMU_SITE_POS, dtype=float)
         self._torso = m.body(r.torso).id
         self._feet = np.array([m.body(f).id for f in r.feet])
@@ -425,7 +468,8 @@ class Simulator:
         ground = self.surface.drag > 0.0 or self.surface.blades     # a per-tick part of the ground
         if self._blade is not None:
             self._blade.reset()
-        warn = d.warning[mujoco.mjtWarning.mjWARN_BADQACC]
+        W = mujoco.mjtWarning          # MuJoCo resets a state it finds huge or NaN, with one of these
+        warn_q, warn_v, warn_a = d.warning[W.mjWARN_BADQPOS], d.warning[W.mjWARN_BADQVEL], d.warning[W.mjWARN_BADQACC]
         reason, k_end = "completed", n_ticks
         torso = self._torso
         col, sign, offset, q_lo, q_hi = self._col_in_gait, self._sign, self._offset, self._q_lo, self._q_hi
@@ -442,10 +486,22 @@ class Simulator:
         ahead = getattr(controller, "ahead", None)
         rows = ahead(n_ticks) if ahead is not None and commands is None and not reader.senses else None
         mapped = None
+        k_first = 1
         if rows is not None:
             targets[1:] = rows[1:]
             mapped = rows[:, col] * sign + offset
-        for k in range(1, n_ticks):
+            # nothing in the plant reads the state either (no backlash, no ground gate, no hook):
+            # the whole walk's servo commands are known now, and MuJoCo runs it natively in chunks
+            if backlash is None and not ground and not hooks and on_tick is None:
+                cmd_seq = rate_limited(mapped, cmd, step, q_lo, q_hi)
+                cmds[:] = cmd_seq
+                sent_log[:] = cmd_seq[np.maximum(np.arange(n_ticks) - latency, 0)]
+                k_first, reason, k_end = self._native(sent_log, kicks, sens, qpos_log, z_min, cos_tilt)
+                cmd = cmd_seq[k_first - 1].copy()            # where the ticks below go on, if they do
+                sent = deque(cmd_seq[max(k_first - 1 - latency + i, 0)].copy() for i in range(latency))
+                if k_first < n_ticks:
+                    reason, k_end = "completed", n_ticks
+        for k in range(k_first, n_ticks):
             if mapped is not None:
                 delta = mapped[k] - cmd
             else:
@@ -480,17 +536,16 @@ class Simulator:
             cmds[k] = cmd
             if qpos_log is not None:
                 qpos_log[k] = d.qpos
-            if warn.number or not math.isfinite(qacc[0]):
-                reason, k_end = f"diverged: MuJoCo reported unstable accelerations at t = {k * dt:.2f} s", k
+            if warn_q.number or warn_v.number or warn_a.number or not math.isfinite(qacc[0]):
+                what = "positions" if warn_q.number else "velocities" if warn_v.number else "accelerations"
+                reason, k_end = f"diverged: MuJoCo reported unstable {what} at t = {k * dt:.2f} s", k
                 break
             v0, v1, v2, w0, w1, w2 = qvel[0], qvel[1], qvel[2], qvel[3], qvel[4], qvel[5]
             if (v0 * v0 + v1 * v1 + v2 * v2 > max_speed2 or w0 * w0 + w1 * w1 + w2 * w2 > max_spin2
                     or xpos[torso, 2] > max_height or not math.isfinite(v0)):
                 k_end = k + 1
-                reason = (f"impossible: at t = {k * dt:.2f} s the torso moves {math.sqrt(v0 * v0 + v1 * v1 + v2 * v2):.1f} "
-                          f"m/s, spins {math.sqrt(w0 * w0 + w1 * w1 + w2 * w2):.0f} rad/s, {xpos[torso, 2]:.2f} m high "
-                          f"(no kid-size robot does: limits {self.fall.max_speed:g} m/s, {self.fall.max_spin:g} "
-                          f"rad/s, {max_height:g} m)")
+                reason = self._impossible(k, v0 * v0 + v1 * v1 + v2 * v2, w0 * w0 + w1 * w1 + w2 * w2,
+                                          float(xpos[torso, 2]))
                 break
             if xmat[torso, 8] < cos_tilt or xpos[torso, 2] < z_min:
                 k_end = k + 1
@@ -511,6 +566,87 @@ class Simulator:
         if pushes:
             trace.meta["pushes"] = [(float(t), np.asarray(j, dtype=float).tolist()) for t, j in pushes]
         return trace
+
+    def _native(self, sent: np.ndarray, kicks: dict, sens: np.ndarray, qpos_log: np.ndarray | None,
+                z_min: float, cos_tilt: float) -> tuple[int, str, int]:
+        """The ticks of a walk whose servo commands ``sent`` (n_ticks, n_servo) are all known, run
+        by MuJoCo's native rollout (``mujoco.rollout``, on this thread) in chunks of
+        :data:`NATIVE_CHUNK` ticks, each judged after it (the loop's fall and blow-up checks on the
+        same numbers, vectorised: the torso's frame from the ``fall`` sensors, the velocities from
+        the state); a tick with a push is a chunk of its own (the push as MuJoCo's applied force).
+        Fills ``sens`` (and ``qpos_log``) tick by tick, bit for bit the loop's.
+
+        Returns (k, reason, k_end): the walk ended at k_end for ``reason`` (k = n_ticks), or, when
+        MuJoCo raised a warning inside a chunk (the native rollout stops there; the loop decides
+        what a warning means), the state put back to the start of that chunk and k its first tick,
+        for the tick loop to go on from."""
+        m, d = self.model, self.data
+        n_ticks, nst = len(sent), self.nstep
+        full = mujoco.mjtState.mjSTATE_FULLPHYSICS.value
+        with_force = (mujoco.mjtState.mjSTATE_CTRL.value | mujoco.mjtState.mjSTATE_XFRC_APPLIED.value)
+        nstate = mujoco.mj_stateSize(m, full)
+        q0, v0 = 1, 1 + m.nq                                   # qpos and qvel in a FULLPHYSICS state
+        fall = self._s_fall
+        torso = self._torso
+        per_step = np.empty((n_ticks * nst, m.nu))            # every physics step's controls
+        per_step[:] = d.ctrl                                   # the held joints' targets as placed
+        per_step[:, :self._n_servo] = np.repeat(sent, nst, axis=0)
+        state0, warm0 = np.empty((1, nstate)), np.empty((1, m.nv))
+        out_state = np.empty((1, NATIVE_CHUNK * nst, nstate))
+        out_sens = np.empty((1, NATIVE_CHUNK * nst, m.nsensordata))
+        max_speed2, max_spin2, max_height = self.fall.max_speed ** 2, self.fall.max_spin ** 2, self.fall.max_height
+        pushed = sorted(j + 1 for j in kicks)                  # the ticks whose physics a push acts in
+        k = 1
+        while k < n_ticks:
+            later = [j for j in pushed if j >= k]
+            if later and later[0] == k:
+                k1 = k + 1
+                force = np.zeros((nst, m.nbody, 6))
+                force[:, torso, :3] = kicks[k - 1]
+                spec = with_force
+                control = np.concatenate([per_step[k * nst:k1 * nst], force.reshape(nst, -1)], axis=1)[None]
+            else:
+                k1 = min(k + NATIVE_CHUNK, n_ticks, *later[:1])
+                spec, control = mujoco.mjtState.mjSTATE_CTRL.value, per_step[None, k * nst:k1 * nst]
+            n = k1 - k
+            mujoco.mj_getState(m, d, state0[0], full)
+            warm0[0] = d.qacc_warmstart
+            st, sd = out_state[:, :n * nst], out_sens[:, :n * nst]
+            _ROLLOUT.rollout([m], [d], state0, control, control_spec=spec, skip_checks=True,
+                             nstep=n * nst, initial_warmstart=warm0, state=st, sensordata=sd)
+            if d.warning.number.any():
+                mujoco.mj_setState(m, d, state0[0], full)
+                d.qacc_warmstart[:] = warm0[0]
+                d.xfrc_applied[:] = 0.0
+                for i in range(mujoco.mjtWarning.mjNWARNING.value):
+                    d.warning[i].number = 0
+                return k, "", n_ticks
+            ticks_state, ticks_sens = st[0, nst - 1::nst], sd[0, nst - 1::nst]    # each tick's last step
+            sens[k:k1] = ticks_sens
+            if qpos_log is not None:
+                qpos_log[k:k1] = ticks_state[:, q0:q0 + m.nq]
+            v_0, v_1, v_2, w_0, w_1, w_2 = ticks_state[:, v0:v0 + 6].T
+            speed2 = v_0 * v_0 + v_1 * v_1 + v_2 * v_2
+            spin2 = w_0 * w_0 + w_1 * w_1 + w_2 * w_2
+            zaxis_z, height = ticks_sens[:, fall.start + 2], ticks_sens[:, fall.start + 5]
+            impossible = (speed2 > max_speed2) | (spin2 > max_spin2) | (height > max_height) | ~np.isfinite(v_0)
+            bad = impossible | (zaxis_z < cos_tilt) | (height < z_min)          # the loop's checks
+            if bad.any():
+                i = int(np.argmax(bad))
+                j = k + i
+                mujoco.mj_setState(m, d, ticks_state[i], full)         # the state the walk ended in
+                if impossible[i]:
+                    return n_ticks, self._impossible(j, float(speed2[i]), float(spin2[i]), float(height[i])), j + 1
+                return n_ticks, "fell", j + 1
+            k = k1
+        return n_ticks, "completed", n_ticks
+
+    def _impossible(self, k: int, speed2: float, spin2: float, height: float) -> str:
+        """The reason a walk ended at tick ``k`` in a state no kid-size robot reaches."""
+        return (f"impossible: at t = {k * self.control_period:.2f} s the torso moves {math.sqrt(speed2):.1f} "
+                f"m/s, spins {math.sqrt(spin2):.0f} rad/s, {height:.2f} m high "
+                f"(no kid-size robot does: limits {self.fall.max_speed:g} m/s, {self.fall.max_spin:g} "
+                f"rad/s, {self.fall.max_height:g} m)")
 
     def _trace(self, plan: PlanRecord, sens: np.ndarray, cmds: np.ndarray, q_ref: np.ndarray,
                reason: str, z0: float) -> Trace:

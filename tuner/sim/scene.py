@@ -274,6 +274,10 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
     for ours in servo_joints:
         sensor("tau", 1, name=f"{PREFIX}tau/{ours}", type=S.mjSENS_ACTUATORFRC, objtype=O.mjOBJ_ACTUATOR,
                objname=f"{PREFIX}servo/{ours}")
+    # ground truth for the fall check (ours): the torso body's frame z axis and origin, copies of
+    # MuJoCo's xmat and xpos, so a rollout run natively (``mujoco.rollout``) is judged on the same numbers
+    sensor("fall", 3, name=PREFIX + "torso_zaxis", type=S.mjSENS_FRAMEZAXIS, objtype=O.mjOBJ_XBODY, objname=r.torso)
+    sensor("fall", 3, name=PREFIX + "torso_origin", type=S.mjSENS_FRAMEPOS, objtype=O.mjOBJ_XBODY, objname=r.torso)
 
     # keyframes: ctrl rebuilt from qpos (the targets that hold the pose), or dropped
     adr = {}
