@@ -135,6 +135,34 @@ def test_a_warning_inside_a_chunk_hands_the_walk_back_to_the_loop(monkeypatch):
     same(a, b)
 
 
+def test_a_walk_handed_back_mid_way_goes_on_in_the_loop_bit_for_bit(monkeypatch):
+    """A warning that does not end the walk (here a contact arena said full, in the third chunk):
+    the loop takes the walk from that chunk's start, its servo commands and the ones still on
+    their way (command latency) where the native chunks left them, and ends it as the loop alone
+    would."""
+    import tuner.sim.rollout as R
+
+    sim = sim_for("carpet4")
+    traj = table(sim)
+    real, calls = R._ROLLOUT, []
+
+    class Warns:
+        def rollout(self, model, data, *args, **kw):
+            out = real.rollout(model, data, *args, **kw)
+            calls.append(1)
+            if len(calls) == 3:
+                data[0].warning[mujoco.mjtWarning.mjWARN_CONTACTFULL].number = 1
+            return out
+
+    monkeypatch.setattr(R, "_ROLLOUT", Warns())
+    p = dataclasses.replace(draw(NONE, 4, *sim.n_random(), namespace=TUNE), latency=2)
+    pushes = [(3.005, np.array([0.5, 0.2, 0.0]))]
+    a = sim.run(gaits.control.TablePlayer(traj), duration=4.0, perturb=p, pushes=pushes, record_qpos=True)
+    assert len(calls) == 3 and a.completed                       # no native chunk after the third
+    b = ticked(sim, traj, duration=4.0, perturb=p, pushes=pushes)
+    same(a, b)
+
+
 def test_the_fall_sensors_are_the_torsos_frame():
     sim = sim_for("carpet4")
     sim.rollout(table(sim), duration=1.0)

@@ -498,7 +498,7 @@ class Simulator:
                 sent_log[:] = cmd_seq[np.maximum(np.arange(n_ticks) - latency, 0)]
                 k_first, reason, k_end = self._native(sent_log, kicks, sens, qpos_log, z_min, cos_tilt)
                 cmd = cmd_seq[k_first - 1].copy()            # where the ticks below go on, if they do
-                sent = deque(cmd_seq[max(k_first - 1 - latency + i, 0)].copy() for i in range(latency))
+                sent = deque(cmd_seq[max(k_first - latency + i, 0)].copy() for i in range(latency))
                 if k_first < n_ticks:
                     reason, k_end = "completed", n_ticks
         for k in range(k_first, n_ticks):
