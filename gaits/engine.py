@@ -9,7 +9,9 @@ encoders, IMU and sole forces, and returns the 20 joint targets of the next tick
 Per step (ours unless named):
 
 * **footsteps** from the *current* command only: the planner rule of ``gaits/footstep_planner.py``
-  for this step and ``preview_steps`` more, the command held (no future command is known);
+  for this step and ``preview_steps`` more, the command held (no future command is known); slow
+  steps may land wider than the gait's ``half_width`` (``stance_widen``, fading out by
+  ``stance_speed``: a wider base against pushes from the side while stepping in place);
 * the **natural ZMP** of the TLIPFM paper (eqs 10-11, the three segments 0, t1, t2, T with d1, d2,
   a) along them, and the **CoM in closed form** (eqs 23-26; ``gaits/lipm.py``) from a state that
   blends the plan's with the *estimated* one (``k_pos``, ``k_vel``: 0 is the open-loop plan, 1 a
@@ -113,6 +115,11 @@ class EngineParams(GaitParams):
     stride_turn: float = param(1.0, "-", 0.5, 1.5, "the same for a turning command")
     idle: str = param("stand", "-", doc="at a zero command: stand, or step in place",
                       choices=("stand", "step"))
+    stance_widen: float = param(0.0, "m", 0.0, 0.03, "slow steps land this much wider on each side than "
+                                "the gait's half_width, less as the command grows (ours: a wider stance "
+                                "for pushes from the side while stepping slowly or in place)")
+    stance_speed: float = param(0.1, "m/s", 0.01, 1.0, "the command at which the widening is gone: the "
+                                "larger of |vx|, |vy| and |wz| times the feet's distance (2 half_width)")
     stop_error: float = param(0.005, "m", 0.0005, 0.05, "the plan stops stepping when its capture point is "
                               "this close to between the feet")
     stand_time: float = param(0.2, "s", 0.02, 5.0, "standing: time constant of the capture point's return "
@@ -222,7 +229,8 @@ class Step:
 class _Gait:
     """What the engine takes from a TLIPFM set, and the step rules that use it."""
 
-    def __init__(self, p: TlipfmParams, limits: StepLimits) -> None:
+    def __init__(self, p: TlipfmParams, limits: StepLimits, stance_widen: float = 0.0,
+                 stance_speed: float = 0.1) -> None:
         if not isinstance(p, TlipfmParams):
             raise ParamError(f"the walk engine plans TLIPFM steps; a {p.FAMILY!r} set has no engine "
                              f"(gaits.family({p.FAMILY!r}).engine)")
@@ -233,10 +241,23 @@ class _Gait:
         self.limits = limits
         total = p.d1 + p.d2
         self.rho = p.d2 / total if abs(total) > 1e-12 else 0.5
+        self.stance_widen, self.stance_speed = float(stance_widen), float(stance_speed)
+
+    def half_width(self, command: np.ndarray) -> float:
+        """Half the feet's distance the steps of ``command`` land at [m]: the gait's ``half_width``,
+        plus ``stance_widen`` at a zero command, falling linearly to nothing at ``stance_speed`` of
+        the larger of |vx|, |vy| and a turn's speed of one foot about the other, |wz| 2 half_width
+        (ours)."""
+        W = self.p.half_width
+        if self.stance_widen <= 0.0:
+            return W
+        speed = max(abs(float(command[0])), abs(float(command[1])), abs(float(command[2])) * 2.0 * W)
+        return W + self.stance_widen * max(0.0, 1.0 - speed / self.stance_speed)
 
     def nominal_target(self, support: np.ndarray, side: int, command: np.ndarray) -> np.ndarray:
-        """The planner's footstep (``footstep_planner.plan_footsteps``' rule) for a held command."""
-        T, W = self.p.period, self.p.half_width
+        """The planner's footstep (``footstep_planner.plan_footsteps``' rule) for a held command, the
+        feet ``half_width(command)`` from the mid-line."""
+        T, W = self.p.period, self.half_width(command)
         s = -side
         vx, vy, wz = command
         mid = compose(support, np.array([0.0, s * W, 0.0]))
@@ -409,7 +430,7 @@ class WalkEngine:
     senses = frozenset(READINGS)
 
     def __init__(self, gait: TlipfmParams, params: EngineParams, robot, dt: float, limits: StepLimits) -> None:
-        self.gait = _Gait(gait, limits)
+        self.gait = _Gait(gait, limits, params.stance_widen, params.stance_speed)
         self.params = params
         self.leg: LegGeometry = robot.leg
         self.foot_size = tuple(robot.foot_size)

@@ -120,6 +120,28 @@ def _step_on_the_left():
     return g, st, cmd
 
 
+def test_slow_steps_land_wider_by_stance_widen():
+    """``stance_widen``: at a zero command the planner's footstep lands that much wider on each side,
+    half as much at half ``stance_speed``, the gait's own width from ``stance_speed`` on (forward,
+    sideways, or a foot turning about the other); 0 (the default) is the planner's rule."""
+    W = FAST.half_width
+    g = _Gait(FAST, LIMITS, stance_widen=0.02, stance_speed=0.1)
+    support = np.array([0.3, W, 0.0])                                 # the left foot supports
+    turn = 0.05 / (2 * W)                                            # one foot about the other at 0.05 m/s
+    for cmd, w in (((0, 0, 0), W + 0.02), ((0.05, 0, 0), W + 0.01), ((0, -0.05, 0), W + 0.01),
+                   ((0.1, 0, 0), W), ((0.3, 0, 0), W), ((0, 0, -turn), W + 0.01), ((0, 0, 2 * turn), W)):
+        cmd = np.array(cmd, dtype=float)
+        assert g.half_width(cmd) == pytest.approx(w, abs=1e-12)
+        if cmd[1] == 0 and cmd[2] == 0:
+            B = g.nominal_target(support, 1, cmd)
+            assert B[1] == pytest.approx(support[1] - 2 * w, abs=1e-12) and B[0] == pytest.approx(0.3 + cmd[0] * FAST.period)
+    plain = _Gait(FAST, LIMITS)
+    assert plain.half_width(np.zeros(3)) == W
+    assert np.array_equal(plain.nominal_target(support, 1, np.zeros(3)), np.array([0.3, -W, 0.0]))
+    with pytest.raises(gaits.ParamError):
+        EngineParams(stance_widen=0.05)                               # beyond the stated range
+
+
 def test_an_undisturbed_step_is_the_planners():
     g, st, cmd = _step_on_the_left()
     xi = g.required_dcm(st.support, st.side, st.p0, cmd, 4)        # this step and the 3 of the preview
