@@ -475,7 +475,8 @@ class Simulator:
         col, sign, offset, q_lo, q_hi = self._col_in_gait, self._sign, self._offset, self._q_lo, self._q_hi
         lo_step = -step
         vmax, vmin = np.maximum, np.minimum        # np.clip's own arithmetic, without its 2 us wrapper
-        ctrl, sdata, qacc, xmat, xpos = d.ctrl, d.sensordata, d.qacc, d.xmat, d.xpos
+        ctrl, sdata, qacc = d.ctrl, d.sensordata, d.qacc
+        tilt_i, height_i = self._s_fall.start + 2, self._s_fall.start + 5   # the torso's z axis' z, its height
         n_servo = self._n_servo
         sent = deque(cmd.copy() for _ in range(latency))   # commands on their way to the servos
         meas = reader.read(0.0)
@@ -485,25 +486,24 @@ class Simulator:
         # mapped tick by tick (the same numbers: the same operations per element)
         ahead = getattr(controller, "ahead", None)
         rows = ahead(n_ticks) if ahead is not None and commands is None and not reader.senses else None
-        mapped = None
+        planned = None
         k_first = 1
         if rows is not None:
             targets[1:] = rows[1:]
-            mapped = rows[:, col] * sign + offset
+            # the rate limiter and the joint ranges read only the targets: every tick's servo
+            # command is known now, and what reaches the servos through the latency (before backlash)
+            cmds[:] = rate_limited(rows[:, col] * sign + offset, cmd, step, q_lo, q_hi)
+            planned = cmds[np.maximum(np.arange(n_ticks) - latency, 0)]
             # nothing in the plant reads the state either (no backlash, no ground gate, no hook):
-            # the whole walk's servo commands are known now, and MuJoCo runs it natively in chunks
+            # MuJoCo runs the walk natively in chunks
             if backlash is None and not ground and not hooks and on_tick is None:
-                cmd_seq = rate_limited(mapped, cmd, step, q_lo, q_hi)
-                cmds[:] = cmd_seq
-                sent_log[:] = cmd_seq[np.maximum(np.arange(n_ticks) - latency, 0)]
-                k_first, reason, k_end = self._native(sent_log, kicks, sens, qpos_log, z_min, cos_tilt)
-                cmd = cmd_seq[k_first - 1].copy()            # where the ticks below go on, if they do
-                sent = deque(cmd_seq[max(k_first - latency + i, 0)].copy() for i in range(latency))
-                if k_first < n_ticks:
+                sent_log[:] = planned
+                k_first, reason, k_end = self._native(planned, kicks, sens, qpos_log, z_min, cos_tilt)
+                if k_first < n_ticks:                       # handed back: the ticks below go on
                     reason, k_end = "completed", n_ticks
         for k in range(k_first, n_ticks):
-            if mapped is not None:
-                delta = mapped[k] - cmd
+            if planned is not None:
+                out = planned[k]
             else:
                 if k > 1:
                     meas = reader.read((k - 1) * dt)
@@ -511,13 +511,14 @@ class Simulator:
                 target = controller.step(meas, command)
                 targets[k] = target
                 delta = target[col] * sign + offset - cmd
-            cmd += vmin(vmax(delta, lo_step, out=delta), step, out=delta)
-            vmin(vmax(cmd, q_lo, out=cmd), q_hi, out=cmd)
-            if latency:
-                sent.append(cmd.copy())
-                out = sent.popleft()
-            else:
-                out = cmd
+                cmd += vmin(vmax(delta, lo_step, out=delta), step, out=delta)
+                vmin(vmax(cmd, q_lo, out=cmd), q_hi, out=cmd)
+                cmds[k] = cmd
+                if latency:
+                    sent.append(cmd.copy())
+                    out = sent.popleft()
+                else:
+                    out = cmd
             if backlash is not None:
                 out = dead_band(out, d.qpos[self._qadr], backlash)
             ctrl[:n_servo] = out
@@ -533,7 +534,6 @@ class Simulator:
             if kick is not None:
                 d.xfrc_applied[torso, :3] = 0.0
             sens[k] = sdata
-            cmds[k] = cmd
             if qpos_log is not None:
                 qpos_log[k] = d.qpos
             if warn_q.number or warn_v.number or warn_a.number or not math.isfinite(qacc[0]):
@@ -542,12 +542,12 @@ class Simulator:
                 break
             v0, v1, v2, w0, w1, w2 = qvel[0], qvel[1], qvel[2], qvel[3], qvel[4], qvel[5]
             if (v0 * v0 + v1 * v1 + v2 * v2 > max_speed2 or w0 * w0 + w1 * w1 + w2 * w2 > max_spin2
-                    or xpos[torso, 2] > max_height or not math.isfinite(v0)):
+                    or sdata[height_i] > max_height or not math.isfinite(v0)):
                 k_end = k + 1
                 reason = self._impossible(k, v0 * v0 + v1 * v1 + v2 * v2, w0 * w0 + w1 * w1 + w2 * w2,
-                                          float(xpos[torso, 2]))
+                                          float(sdata[height_i]))
                 break
-            if xmat[torso, 8] < cos_tilt or xpos[torso, 2] < z_min:
+            if sdata[tilt_i] < cos_tilt or sdata[height_i] < z_min:
                 k_end = k + 1
                 reason = "fell"
                 break
@@ -628,7 +628,7 @@ class Simulator:
             v_0, v_1, v_2, w_0, w_1, w_2 = ticks_state[:, v0:v0 + 6].T
             speed2 = v_0 * v_0 + v_1 * v_1 + v_2 * v_2
             spin2 = w_0 * w_0 + w_1 * w_1 + w_2 * w_2
-            zaxis_z, height = ticks_sens[:, fall.start + 2], ticks_sens[:, fall.start + 5]
+            zaxis_z, height = ticks_sens[:, fall.start + 2], ticks_sens[:, fall.start + 5]   # as the loop's
             impossible = (speed2 > max_speed2) | (spin2 > max_spin2) | (height > max_height) | ~np.isfinite(v_0)
             bad = impossible | (zaxis_z < cos_tilt) | (height < z_min)          # the loop's checks
             if bad.any():
