@@ -2,7 +2,7 @@
 EROS tables on the first pedestal, and the turf test methods.
 
     python benchmarks/bench_turf.py [--repeats 5] [--surfaces rigid,grass50,examples/surfaces/grass50-blades.yaml,...]
-                                    [--parts table,foot,variants,distance]
+                                    [--parts table,foot,variants,jam,distance]
 
 Cost: the same TLIPFM walk (tkux-table2, 10 s) on each surface, the surfaces interleaved in every
 repeat (this machine is noisy), the minimum of the repeats, as a ratio to the rigid floor's.
@@ -13,7 +13,12 @@ beside carpet4's. Tables: the EROS experiment's Tables 7 and 8 on the surface as
 ``foot``: the drop test's force reduction and deformation with a 0.1, 1 and 3 kg test foot (the
 apparatus' foot mass is not in our sources: how much the figures hang on it). ``variants``: the
 blade layer's example file with one number changed at a time (by a fifth or more), its landing
-and Tables 7 and 8 on pedestal 1: how much its figures hang on its numbers.
+and Tables 7 and 8 on pedestal 1: how much its figures hang on its numbers. ``jam``: the jam
+example (``grass50-blades-jam.yaml``) with its jam speed and pressure changed: the landing speeds
+of the EROS walk's sole points with and without the optimisation on it (each point's mean speed over
+the tick it entered the blades in, after the first 1.2 s), the toe-first landing at 0.7 m/s, and
+Tables 7 and 8 and the pitch vibration on pedestal 1: the window of jam speeds that splits the
+tables as the paper's.
 
 ``distance`` (not in the default run): why walks cover more than their plan. Three straight table
 walks (the TLIPFM paper's Table 2, EROS x16 with its optimisation, ``kidsize-omni-carpet4``'s own
@@ -45,18 +50,19 @@ from tuner.sim.turf_tests import DropTest, drop_test, rotation_test, sole_roll_s
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT = ["rigid", "carpet4", "grass50", str(ROOT / "examples/surfaces/grass50-blades.yaml"),
-           str(ROOT / "examples/surfaces/grass50-blades-creep.yaml")]
+           str(ROOT / "examples/surfaces/grass50-blades-creep.yaml"),
+           str(ROOT / "examples/surfaces/grass50-blades-jam.yaml")]
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--surfaces", default=",".join(DEFAULT))
-    ap.add_argument("--parts", default="table,foot,variants")
+    ap.add_argument("--parts", default="table,foot,variants,jam")
     a = ap.parse_args()
     parts = set(a.parts.split(","))
-    if not parts <= {"table", "foot", "variants", "distance"}:
-        ap.error(f"--parts {a.parts!r}: the parts are table, foot, variants, distance")
+    if not parts <= {"table", "foot", "variants", "jam", "distance"}:
+        ap.error(f"--parts {a.parts!r}: the parts are table, foot, variants, jam, distance")
     robot = load_robot("kidsize")
     surfaces = [load_surface(s) for s in a.surfaces.split(",")]
     if "table" in parts:
@@ -69,6 +75,8 @@ def main() -> None:
                                               for fm, c in zip((0.1, 1.0, 3.0), cells)))
     if "variants" in parts:
         variants(robot)
+    if "jam" in parts:
+        jam(robot)
     if "distance" in parts:
         distance(surfaces)
 
@@ -138,6 +146,56 @@ def variants(robot) -> None:
         label = ", ".join(f"{k} {v:g}" for k, v in change.items()) or "as shipped"
         print(f"  {label:26s} {np.degrees(tr.pitch.max()):5.2f} / {np.degrees(tr.pitch[-1]):5.2f}   {t7:3.0f} / {t8:3.0f}",
               flush=True)
+
+
+def landing_speeds(robot, surface) -> dict[bool, tuple[float, float]]:
+    """Per EROS gait (without / with the optimisation, 8 mm forward): (median, fastest) [m/s] of its
+    sole points' downward speeds as they enter the blades, after the first 1.2 s (standing)."""
+    from tuner.report.experiments import eros_params
+    from tuner.sim import blades
+    sim = Simulator(robot, surface)
+    seen: list[float] = []
+    prev = {}
+    update = blades.BladeLayer.update
+
+    def spy(layer, model, data, p, h, mu):
+        z = p[:, 2].copy()
+        entered = (z < h) & ~layer.inside
+        if data.time > 1.2 and entered.any() and "z" in prev:
+            seen.extend(((prev["z"] - z) / layer.dt)[entered].tolist())
+        prev["z"] = z
+        return update(layer, model, data, p, h, mu)
+    out = {}
+    blades.BladeLayer.update = spy
+    try:
+        for optimised in (False, True):
+            seen.clear()
+            prev.clear()
+            sim.rollout(gaits.generate(eros_params(8, optimised), robot.leg, sim.control_period))
+            out[optimised] = (float(np.median(seen)), float(np.max(seen)))
+    finally:
+        blades.BladeLayer.update = update
+    return out
+
+
+def jam(robot) -> None:
+    base = load_surface(str(ROOT / "examples/surfaces/grass50-blades-jam.yaml"))
+    q0 = gaits.generate(gaits.load_baseline("eros-x8-without").params, robot.leg).q_ref[0]
+    speeds = landing_speeds(robot, base.replace(blade_jam_speed=0.0))
+    print(f"\nthe EROS walk's sole points enter the blades (8 mm forward, grass50-blades): without the "
+          f"optimisation median {speeds[False][0]:.2f} m/s, fastest {speeds[False][1]:.2f}; with it "
+          f"{speeds[True][0]:.2f}, fastest {speeds[True][1]:.2f}")
+    print("grass50-blades-jam, jam speed m/s / pressure kPa: landing at 0.7 m/s max / final deg, Table 7 / 8 % "
+          "on pedestal 1, pitch +- without / with deg")
+    for v, p in ((0.5, 13e3), (0.55, 13e3), (0.57, 13e3), (0.6, 13e3), (0.62, 13e3), (0.65, 13e3), (0.7, 13e3),
+                 (0.75, 13e3), (0.6, 6.5e3), (0.6, 26e3), (0.6, 130e3)):
+        s = base.replace(blade_jam_speed=v, blade_jam_pressure=p)
+        tr = Simulator(robot, s).landing_test(q0, pitch=math.radians(3.0), forward_speed=0.1, sink_speed=0.7)
+        cells = {o: eros_matrix(robot, {1: s}, optimised=o) for o in (False, True)}
+        t7, t8 = (stability_percent(cells[o])[1] for o in (False, True))
+        pm = [float(np.median([c.metrics.pitch_pm_deg for c in cells[o]])) for o in (False, True)]
+        print(f"  {v:4.2f} / {p / 1e3:5.1f}   {np.degrees(tr.pitch.max()):5.2f} / {np.degrees(tr.pitch[-1]):6.2f}"
+              f"   {t7:3.0f} / {t8:3.0f}   {pm[0]:5.1f} / {pm[1]:4.1f}", flush=True)
 
 
 def table(robot, surfaces, repeats: int) -> None:

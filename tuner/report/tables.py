@@ -34,7 +34,8 @@ def format_surface_tests(report: Mapping) -> str:
         b = bands.get(key) or {}
         lines.append(f"  {what} [{unit}]: " + (", ".join(f"{m} {lo:g}-{hi:g}" for m, (lo, hi) in b.items())
                                               or "no published band in our sources"))
-    head = (f"{'surface':14s}{'layer':>7s}{'FR %':>8s}{'VD mm':>8s}{'ER %':>8s}{'RR N m':>8s}{'sole mm':>9s}"
+    w = max([14, *(len(n) + 1 for n in report["surfaces"])])       # the names' column
+    head = (f"{'surface':{w}s}{'layer':>7s}{'FR %':>8s}{'VD mm':>8s}{'ER %':>8s}{'RR N m':>8s}{'sole mm':>9s}"
             f"{'roll':>8s}  in bands")
     lines += ["", head, "-" * len(head)]
     for name, row in report["surfaces"].items():
@@ -45,7 +46,7 @@ def format_surface_tests(report: Mapping) -> str:
             f"{row['robot_sole_sink_mm']:.2f}"
         roll = row.get("robot_sole_roll_Nm_per_rad")
         roll = "-" if roll is None else f"{roll:.0f}"
-        lines.append(f"{name:14s}{layer:>7s}" + "".join(f"{c:>8s}" for c in cells) + f"{sink:>9s}{roll:>8s}  {inb}")
+        lines.append(f"{name:{w}s}{layer:>7s}" + "".join(f"{c:>8s}" for c in cells) + f"{sink:>9s}{roll:>8s}  {inb}")
     sc = report["scale"]
     lines += ["", f"FR force reduction, VD vertical deformation, ER energy restitution (drop test); RR rotational "
                   f"resistance; sole: depth a {sc['robot_mass_kg']:g} kg robot's {sc['robot_sole_m'][0] * 100:g} x "

@@ -19,7 +19,17 @@ tips (``layer_height`` above the soil) and v its velocity:
   that place, its anchor, and damped by ``drag``; when the spring pulls harder than the layer's
   ``friction`` x the point's support, the anchor slides along (a bristle model of friction);
 * a sole turning in the blades meets its points' holds and drag: a torque, as turf resists a
-  turning boot.
+  turning boot;
+* jam (with ``blade_jam_speed`` > 0): a point that enters the blades faster than that (downward,
+  its mean speed over the control tick it entered in) is jammed where it entered: a vertical
+  spring k_h to that height, beside its support, and the base's damping hold it there (it sinks
+  no further than the spring lets it, and rises only against it) until the spring pulls it up
+  harder than
+  ``blade_jam_pressure`` x its area, or it leaves the blades. This is the EROS paper's own
+  account of its robot's falls on grass (Sec. V: "the toe of the foot was landed first, and it
+  caused the toe stuck in the synthetic grass. The landing speed of steps are also makes toe
+  stuck harder"), written as a mechanism; the speed at which a turf jams a sole is not in any
+  source here (README "A sole jammed by a fast landing").
 
 Each point has three site-transmission actuators with affine gains (``add_blades``): MuJoCo
 computes the forces every physics step, the damping implicitly (``implicitfast``); once per
@@ -66,8 +76,9 @@ class BladeLayer:
     ``areas`` (N,) [m^2]: the sole each point stands for; ``first`` the index of the first point's
     first actuator (each point's three follow in :func:`add_blades`' order)."""
 
-    def __init__(self, surface: Surface, areas: np.ndarray, first: int) -> None:
+    def __init__(self, surface: Surface, areas: np.ndarray, first: int, dt: float) -> None:
         a = np.asarray(areas, dtype=float)
+        self.dt = float(dt)                    # [s] between two calls of update (the entry speed's)
         self.k_base = surface.blade_modulus * a
         self.k_tip = surface.blade_tip_modulus * a if surface.blade_tip_depth > 0.0 else self.k_base
         self.d_tip = surface.blade_tip_depth
@@ -85,16 +96,24 @@ class BladeLayer:
         self._rows = slice(first, first + BLADE_ACTUATORS * self.n)
         self._block = np.zeros((self.n, BLADE_ACTUATORS, 3))     # each point's three gain rows
         self._block[:, 1:, 1] = -self.k_hold[:, None]
+        self.jam_speed = surface.blade_jam_speed
+        self.jam_force = surface.blade_jam_pressure * a
+        self.jammed = np.zeros(self.n, dtype=bool)
+        self.jam_z = np.zeros(self.n)
+        self._z_prev = np.full(self.n, np.nan)
 
     def reset(self) -> None:
         """A new walk: no point is in the blades."""
         self.inside[:] = False
+        self.jammed[:] = False
+        self._z_prev[:] = np.nan
 
     def update(self, model: mujoco.MjModel, data: mujoco.MjData, p_world: np.ndarray, layer_height: float,
                friction: float) -> np.ndarray:
         """One control tick: the points at ``p_world`` (N, 3) [m], the layer ``layer_height`` [m]
         tall and ``friction`` strong. Sets the actuators' ctrl and gains; returns each point's
-        support [N] (zero outside the layer)."""
+        support [N] (zero outside the layer; a jammed point's includes its jam's spring, and its
+        hold lets go at friction x that)."""
         h = layer_height
         z = p_world[:, 2]
         xy = p_world[:, :2]
@@ -107,6 +126,9 @@ class BladeLayer:
         k = np.where(base, self.k_base, self.k_tip)
         f0 = np.where(base, self._f0_base, 0.0)
         load = (f0 + k * depth) * now
+        if self.jam_speed > 0.0:                  # a jammed point's spring carries it too
+            self._jam(z, now, entered)
+            load = load + self.jammed * self.k_hold * (self.jam_z - z)
         np.maximum(load, 0.0, out=load)
         d = self.anchor - xy
         pull2 = (d * d).sum(axis=1) * self._k_hold2
@@ -116,13 +138,30 @@ class BladeLayer:
             scale = limit[slip] / np.sqrt(pull2[slip])
             self.anchor[slip] = xy[slip] + d[slip] * scale[:, None]
         self.inside = now
-        # support F = f0 + k (h - z) - c v_z; hold F = k_h (anchor - x) - drag v_x (gains, ctrl)
+        # support F = f0 + k (h - z) - c v_z (+ k_h (z_jam - z) where jammed); hold F = k_h (anchor
+        # - x) - drag v_x (gains, ctrl)
         blk = self._block
         blk[:, 0, 0] = f0 + k * h
         blk[:, 0, 1] = -k
         blk[:, 0, 2] = np.where(base, -self.c, -self.c_tip)
+        if self.jammed.any():
+            j = self.jammed
+            blk[j, 0, 0] += self.k_hold[j] * self.jam_z[j]
+            blk[j, 0, 1] -= self.k_hold[j]
+            blk[j, 0, 2] = -self.c[j]             # damped as the base (the tips may have none)
         blk[:, 1:, 0] = self.k_hold[:, None] * self.anchor
         blk[:, 1:, 2] = -self.drag * self.drag_scale
         model.actuator_gainprm[self._rows, :3] = blk.reshape(-1, 3)
         data.ctrl[self._rows] = np.repeat(now, BLADE_ACTUATORS)
         return load
+
+    def _jam(self, z: np.ndarray, now: np.ndarray, entered: np.ndarray) -> None:
+        """The jam (module docstring): points entering faster than ``jam_speed`` are jammed at the
+        height they entered; a jam lets go when its spring pulls the point up harder than
+        ``jam_force`` or the point is out of the blades."""
+        fast = entered & ((self._z_prev - z) > self.jam_speed * self.dt)   # NaN on a walk's first call: False
+        self._z_prev[:] = z
+        self.jam_z[fast] = z[fast]
+        jammed = (self.jammed & now) | fast
+        jammed &= ~(self.k_hold * (z - self.jam_z) > self.jam_force)
+        self.jammed = jammed

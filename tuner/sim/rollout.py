@@ -205,7 +205,7 @@ class Simulator:
         self._blade = None
         if surface.blades:                     # each sole corner stands for a quarter of its sole
             area = np.repeat([robot.foot_size_of(i)[0] * robot.foot_size_of(i)[1] / 4 for i in range(2)], 4)
-            self._blade = BladeLayer(surface, area, self._n_act)
+            self._blade = BladeLayer(surface, area, self._n_act, self.control_period)
             self._mu_blade = surface.friction
 
     def _index(self) -> None:

@@ -178,6 +178,11 @@ def _base_spec(timestep: float) -> tuple[mujoco.MjSpec, mujoco.MjsDefault]:
     return spec, spec.default
 
 
+#: [s] how often the rigs update the ground's per-point part (ours; the robot's simulation: every
+#: control tick, 10 ms)
+GROUND_TICK = 0.002
+
+
 class _Points:
     """The ground's per-point part on a rig, as on the robot's soles: a contact layer's drag, or the
     blade layer (``blades.py``), on the given sites, each standing for its ``area`` of sole. Call
@@ -197,7 +202,7 @@ class _Points:
                 add_blades(spec, ground, gt, site, f"p{i}")
             elif self.kind == "drag":
                 add_drag(spec, ground, gt, site, f"p{i}")
-        self.blades = BladeLayer(ground, np.asarray(areas), self.first) if self.kind == "blades" else None
+        self.blades = BladeLayer(ground, np.asarray(areas), self.first, GROUND_TICK) if self.kind == "blades" else None
         self.ids = None
 
     def tick(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
@@ -260,8 +265,13 @@ def drop_test(ground: Surface | SpringGround, t: DropTest = DropTest()) -> DropR
     The foot first settles alone (the mass off the spring, as the apparatus holds it before the
     release); then the mass touches the unloaded spring at the impact speed; the run ends when the
     spring is unloaded again."""
-    tick = max(1, int(round(0.002 / t.timestep)))
-    alone, pts0 = _drop_rig(ground, t, with_mass=False)
+    tick = max(1, int(round(GROUND_TICK / t.timestep)))
+    # the apparatus puts its foot on the surface: it settles without a jam (a blade layer's, which
+    # a foot let fall onto it would meet)
+    placed = ground
+    if isinstance(ground, Surface) and ground.blade_jam_speed > 0.0:
+        placed = ground.replace(blade_jam_speed=0.0)
+    alone, pts0 = _drop_rig(placed, t, with_mass=False)
     d0 = mujoco.MjData(alone)
     for n in range(int(round(t.settle / t.timestep))):
         if n % tick == 0:
@@ -351,7 +361,7 @@ def rotation_test(ground: Surface | SpringGround, t: RotationTest = RotationTest
     d = mujoco.MjData(m)
     dof = m.joint(PREFIX + "turn").dofadr[0]
     stud_ids = np.array([m.site(s).id for s in sites], dtype=int)
-    nstep = max(1, int(round(0.002 / t.timestep)))     # the ground's tick (_Points)
+    nstep = max(1, int(round(GROUND_TICK / t.timestep)))     # the ground's tick (_Points)
     n_settle = int(round(t.settle / t.timestep))
     n_turn = int(round(t.turn / t.speed / t.timestep))
     torque = []
@@ -412,7 +422,7 @@ def _sole_rig(ground: Surface, joints: tuple[str, ...], mass: float, sole: tuple
 def _run(m: mujoco.MjModel, d: mujoco.MjData, pts: _Points, n: int, ctrl=None, after=None) -> None:
     """Step the rig ``n`` times, the ground ticking every 2 ms; ``ctrl(i)`` gives the actuators'
     controls before step i, ``after(i)`` reads after it."""
-    tick = max(1, int(round(0.002 / m.opt.timestep)))
+    tick = max(1, int(round(GROUND_TICK / m.opt.timestep)))
     for i in range(n):
         if i % tick == 0:
             mujoco.mj_kinematics(m, d)
@@ -426,12 +436,15 @@ def _run(m: mujoco.MjModel, d: mujoco.MjData, pts: _Points, n: int, ctrl=None, a
 
 
 def sole_sink(ground: Surface, *, mass: float = 4.95, sole: tuple[float, float] = (0.10, 0.06),
-              timestep: float = 0.002, settle: float = 1.0) -> float:
+              timestep: float = 0.002, settle: float = 1.0, speed: float = 0.0) -> float:
     """Robot scale: the depth [mm] below the blade tips at which a flat sole of ``sole`` (length,
     width) [m] carrying ``mass`` [kg] (the built-in robot's weight on one foot) settles at rest,
-    on the robot's own 2 ms step."""
+    on the robot's own 2 ms step: let down from 2 mm above the tips, or with ``speed`` > 0 [m/s]
+    moving down at that speed from 0.5 mm above them (a landing: a layer with a jam holds a fast
+    one near the tips, ``blades.py``)."""
     h = ground.layer_height
-    m, d, pts = _sole_rig(ground, ("z",), mass, sole, h + 0.002, timestep)
+    m, d, pts = _sole_rig(ground, ("z",), mass, sole, h + (0.0005 if speed > 0.0 else 0.002), timestep)
+    d.qvel[0] = -speed
     _run(m, d, pts, int(round(settle / timestep)))
     return 1000.0 * (h - float(d.xpos[m.body(PREFIX + "sole").id, 2]))
 
