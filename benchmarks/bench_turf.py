@@ -148,10 +148,9 @@ def variants(robot) -> None:
               flush=True)
 
 
-def landing_speeds(robot, surface) -> dict[bool, tuple[float, float]]:
-    """Per EROS gait (without / with the optimisation, 8 mm forward): (median, fastest) [m/s] of its
-    sole points' downward speeds as they enter the blades, after the first 1.2 s (standing)."""
-    from tuner.report.experiments import eros_params
+def landing_speeds(robot, surface, drives: dict[str, gaits.Drive]) -> dict[str, tuple[float, float]]:
+    """Per drive: (median, fastest) [m/s] of its sole points' downward speeds as they enter the
+    blades of ``surface`` (each over the tick it entered in), after the first 1.2 s (standing)."""
     from tuner.sim import blades
     sim = Simulator(robot, surface)
     seen: list[float] = []
@@ -168,23 +167,40 @@ def landing_speeds(robot, surface) -> dict[bool, tuple[float, float]]:
     out = {}
     blades.BladeLayer.update = spy
     try:
-        for optimised in (False, True):
+        for label, drive in drives.items():
             seen.clear()
             prev.clear()
-            sim.rollout(gaits.generate(eros_params(8, optimised), robot.leg, sim.control_period))
-            out[optimised] = (float(np.median(seen)), float(np.max(seen)))
+            sim.run(drive.controller(robot, sim.control_period), **{**drive.run_options(), "duration": 6.0})
+            out[label] = (float(np.median(seen)), float(np.max(seen)))
     finally:
         blades.BladeLayer.update = update
     return out
 
 
+JAM_SETS = ("kidsize-omni-grass50", "kidsize-robust-grass50")
+
+
 def jam(robot) -> None:
-    base = load_surface(str(ROOT / "examples/surfaces/grass50-blades-jam.yaml"))
+    from tuner.params_io import resolve_params
+    from tuner.report.experiments import eros_params
+    from tuner.sim.robustness import evaluate
+    path = str(ROOT / "examples/surfaces/grass50-blades-jam.yaml")
+    base = load_surface(path)
     q0 = gaits.generate(gaits.load_baseline("eros-x8-without").params, robot.leg).q_ref[0]
-    speeds = landing_speeds(robot, base.replace(blade_jam_speed=0.0))
-    print(f"\nthe EROS walk's sole points enter the blades (8 mm forward, grass50-blades): without the "
-          f"optimisation median {speeds[False][0]:.2f} m/s, fastest {speeds[False][1]:.2f}; with it "
-          f"{speeds[True][0]:.2f}, fastest {speeds[True][1]:.2f}")
+    drives = {f"EROS 8 mm {'with' if o else 'without'} the optimisation":
+              gaits.Drive(eros_params(8, o), source="bench") for o in (False, True)}
+    drives.update({name: gaits.Drive.of(resolve_params(name, None), source="bench") for name in JAM_SETS})
+    speeds = landing_speeds(robot, base.replace(blade_jam_speed=0.0), drives)
+    print("\nthe sole points' speed entering the blades of grass50-blades (median / fastest m/s), and for the "
+          "shipped grass50 table sets the survival of 10 randomised walks on grass50-blades / its jam file:")
+    for label, (med, top) in speeds.items():
+        extra = ""
+        if label in JAM_SETS:
+            surv = [float(np.mean([r["survived"] for r in evaluate("kidsize", s, drives[label], rollouts=10, seed=2,
+                                                                  pushes=(), workers=1).rollouts]))
+                    for s in (str(ROOT / "examples/surfaces/grass50-blades.yaml"), path)]
+            extra = f"   survival {surv[0]:.0%} / {surv[1]:.0%}"
+        print(f"  {label:40s} {med:.2f} / {top:.2f}{extra}", flush=True)
     print("grass50-blades-jam, jam speed m/s / pressure kPa: landing at 0.7 m/s max / final deg, Table 7 / 8 % "
           "on pedestal 1, pitch +- without / with deg")
     for v, p in ((0.5, 13e3), (0.55, 13e3), (0.57, 13e3), (0.6, 13e3), (0.62, 13e3), (0.65, 13e3), (0.7, 13e3),
