@@ -24,8 +24,8 @@ tips (``layer_height`` above the soil) and v its velocity:
   its mean speed over the control tick it entered in) is jammed where it entered: a vertical
   spring k_h to that height, beside its support, and the base's damping hold it there (it sinks
   no further than the spring lets it, and rises only against it) until the spring pulls it up
-  harder than
-  ``blade_jam_pressure`` x its area, or it leaves the blades. This is the EROS paper's own
+  harder than ``blade_jam_pressure`` x its area, or it leaves the blades; its hold lets go at
+  friction x all of its support. This is the EROS paper's own
   account of its robot's falls on grass (Sec. V: "the toe of the foot was landed first, and it
   caused the toe stuck in the synthetic grass. The landing speed of steps are also makes toe
   stuck harder"), written as a mechanism; the speed at which a turf jams a sole is not in any
