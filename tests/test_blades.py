@@ -29,6 +29,9 @@ def test_the_example_files_are_blade_layers_of_the_pedestals_height():
     assert BLADES.blades and BLADES.layer_height == 0.05 and BLADES.name == "grass50-blades"
     assert CREEP.replace(name="grass50-blades", blade_tip_damping=0.0) == BLADES   # they differ in the tips only
     assert JAM.replace(name="grass50-blades", blade_jam_speed=0.0, blade_jam_pressure=0.0) == BLADES   # the jam only
+    jam30 = load_surface(str(EXAMPLES / "grass30-blades-jam.yaml"))
+    assert jam30.layer_height == SURFACES["grass30"].layer_height                   # pedestal 2's blades
+    assert jam30.replace(name=JAM.name, layer_height=JAM.layer_height) == JAM      # and nothing else differs
     assert not SURFACES["grass50"].blades                 # the built-in pedestals keep their contact layer
 
 
