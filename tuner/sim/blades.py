@@ -101,6 +101,7 @@ class BladeLayer:
         self.jammed = np.zeros(self.n, dtype=bool)
         self.jam_z = np.zeros(self.n)
         self._z_prev = np.full(self.n, np.nan)
+        self.entry_speed = np.full(self.n, np.nan)
 
     def reset(self) -> None:
         """A new walk: no point is in the blades."""
@@ -127,8 +128,7 @@ class BladeLayer:
         f0 = np.where(base, self._f0_base, 0.0)
         load = (f0 + k * depth) * now
         if self.jam_speed > 0.0:                  # a jammed point's spring carries it too
-            self._jam(z, now, entered)
-            load = load + self.jammed * self.k_hold * (self.jam_z - z)
+            load = load + self._jam(z, now, entered)
         np.maximum(load, 0.0, out=load)
         d = self.anchor - xy
         pull2 = (d * d).sum(axis=1) * self._k_hold2
@@ -155,13 +155,16 @@ class BladeLayer:
         data.ctrl[self._rows] = np.repeat(now, BLADE_ACTUATORS)
         return load
 
-    def _jam(self, z: np.ndarray, now: np.ndarray, entered: np.ndarray) -> None:
+    def _jam(self, z: np.ndarray, now: np.ndarray, entered: np.ndarray) -> np.ndarray:
         """The jam (module docstring): points entering faster than ``jam_speed`` are jammed at the
         height they entered; a jam lets go when its spring pulls the point up harder than
-        ``jam_force`` or the point is out of the blades."""
-        fast = entered & ((self._z_prev - z) > self.jam_speed * self.dt)   # NaN on a walk's first call: False
+        ``jam_force`` or the point is out of the blades. Returns the jams' springs' support [N]
+        (zero where none holds); ``entry_speed`` keeps each point's downward speed over this tick
+        [m/s] (NaN on a walk's first tick)."""
+        self.entry_speed = (self._z_prev - z) / self.dt
         self._z_prev[:] = z
+        fast = entered & (self.entry_speed > self.jam_speed)          # NaN compares False
         self.jam_z[fast] = z[fast]
-        jammed = (self.jammed & now) | fast
-        jammed &= ~(self.k_hold * (z - self.jam_z) > self.jam_force)
-        self.jammed = jammed
+        spring = self.k_hold * (self.jam_z - z)
+        self.jammed = ((self.jammed & now) | fast) & ~(-spring > self.jam_force)
+        return self.jammed * spring

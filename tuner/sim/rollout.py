@@ -220,6 +220,8 @@ class Simulator:
         self._s_sole, self._s_touch, self._s_touchpos = blocks["sole"], blocks["touch"], blocks["touchpos"]
         self._s_q, self._s_dq, self._s_tau = blocks["q"], blocks["dq"], blocks["tau"]
         self._s_fall = blocks["fall"]
+        # the fall checks' two numbers in the sensor vector: the torso's z axis' z, and its height
+        self._s_tilt, self._s_height = self._s_fall.start + 2, self._s_fall.start + 5
         self._imu_offset = np.array(IMU_SITE_POS, dtype=float)
         self._torso = m.body(r.torso).id
         self._feet = np.array([m.body(f).id for f in r.feet])
@@ -476,7 +478,7 @@ class Simulator:
         lo_step = -step
         vmax, vmin = np.maximum, np.minimum        # np.clip's own arithmetic, without its 2 us wrapper
         ctrl, sdata, qacc = d.ctrl, d.sensordata, d.qacc
-        tilt_i, height_i = self._s_fall.start + 2, self._s_fall.start + 5   # the torso's z axis' z, its height
+        tilt_i, height_i = self._s_tilt, self._s_height
         n_servo = self._n_servo
         sent = deque(cmd.copy() for _ in range(latency))   # commands on their way to the servos
         meas = reader.read(0.0)
@@ -586,7 +588,6 @@ class Simulator:
         with_force = (mujoco.mjtState.mjSTATE_CTRL.value | mujoco.mjtState.mjSTATE_XFRC_APPLIED.value)
         nstate = mujoco.mj_stateSize(m, full)
         q0, v0 = 1, 1 + m.nq                                   # qpos and qvel in a FULLPHYSICS state
-        fall = self._s_fall
         torso = self._torso
         per_step = np.empty((n_ticks * nst, m.nu))            # every physics step's controls
         per_step[:] = d.ctrl                                   # the held joints' targets as placed
@@ -628,7 +629,7 @@ class Simulator:
             v_0, v_1, v_2, w_0, w_1, w_2 = ticks_state[:, v0:v0 + 6].T
             speed2 = v_0 * v_0 + v_1 * v_1 + v_2 * v_2
             spin2 = w_0 * w_0 + w_1 * w_1 + w_2 * w_2
-            zaxis_z, height = ticks_sens[:, fall.start + 2], ticks_sens[:, fall.start + 5]   # as the loop's
+            zaxis_z, height = ticks_sens[:, self._s_tilt], ticks_sens[:, self._s_height]   # as the loop's
             impossible = (speed2 > max_speed2) | (spin2 > max_spin2) | (height > max_height) | ~np.isfinite(v_0)
             bad = impossible | (zaxis_z < cos_tilt) | (height < z_min)          # the loop's checks
             if bad.any():
