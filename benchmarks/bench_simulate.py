@@ -4,10 +4,12 @@ Usage: ``python benchmarks/bench_simulate.py [--repeats 5]``
 
 For each surface, one model, one gait (TLIPFM Table 2, 10.96 s). ``simulate`` is the full
 rollout (the table player, the rate limiter and joint ranges, the grass drag gate, sensors
-copied every tick, fall and divergence checks, trace post-processing); on rigid and carpet4,
-where nothing reads the state between ticks, it runs the walk through MuJoCo's native rollout in
-chunks of ``NATIVE_CHUNK`` ticks, judged after each; on grass the drag gate keeps it in the tick
-loop. Its controls are recorded
+copied every tick, fall and divergence checks, trace post-processing); nothing reads the state
+between ticks (on grass the drag gate runs inside MuJoCo's step, ``tuner/sim/drag_gate.c``), so
+it runs the walk through MuJoCo's native rollout in chunks of ``NATIVE_CHUNK`` ticks, judged
+after each. On grass, ``py-gate`` is the same rollout with the gate in Python between ticks (the
+tick loop; ``Simulator(..., native_gate=False)``, what runs where no C compiler is), checked
+bit-identical. Its controls are recorded
 as MuJoCo applied them each tick (every actuator: the servos' rate-limited targets and the drag
 dampers' gate), with its initial state, and played again two ways, so that the physics compared
 is the same walk's:
@@ -36,6 +38,7 @@ import numpy as np
 
 import gaits
 from tuner.robots import load_robot
+from tuner.sim import native_gate
 from tuner.sim.rollout import Simulator
 from tuner.sim.surfaces import SURFACES
 
@@ -96,6 +99,8 @@ def main() -> None:
     ap.add_argument("--pool-rollouts", type=int, default=20)
     args = ap.parse_args()
     robot = load_robot("kidsize")
+    native_gate.install()
+    print(f"drag gate: {native_gate.status()}")
     print(f"{'surface':8s} {'simulate':>9s} {'replay':>8s} {'native':>8s} {'sim/replay':>10s} {'sim/native':>10s}"
           f" {'RTF':>6s}  same  completed")
     rigid_time = None
@@ -107,8 +112,16 @@ def main() -> None:
         data = mujoco.MjData(sim.model)
         same = (np.array_equal(replay(sim, state0, controls), q_end)
                 and np.array_equal(qpos_of(sim, native(sim, state0, per_step, data)), q_end))
-        full, rep, nat = [], [], []
+        full, rep, nat, pyg = [], [], [], []
+        slow = Simulator(robot, SURFACES[name], native_gate=False) if sim._native_gate else None
+        if slow is not None:
+            a, b = sim.rollout(traj, record_qpos=True), slow.rollout(traj, record_qpos=True)
+            same = same and np.array_equal(a.qpos, b.qpos) and np.array_equal(a.force, b.force)
         for _ in range(args.repeats):
+            if slow is not None:
+                t0 = time.perf_counter()
+                slow.rollout(traj)
+                pyg.append(time.perf_counter() - t0)
             t0 = time.perf_counter()
             sim.rollout(traj)
             full.append(time.perf_counter() - t0)
@@ -121,7 +134,8 @@ def main() -> None:
         f, r, n_ = min(full), min(rep), min(nat)
         rigid_time = rigid_time or f
         print(f"{name:8s} {f:8.4f}s {r:7.4f}s {n_:7.4f}s {f / r:9.2f}x {f / n_:9.2f}x {traj.duration / f:5.0f}x"
-              f"  {'yes' if same else 'NO':>4s}  {trace.completed}   (cost vs rigid simulate: {f / rigid_time:.2f}x)")
+              f"  {'yes' if same else 'NO':>4s}  {trace.completed}   (cost vs rigid simulate: {f / rigid_time:.2f}x)"
+              + (f"  py-gate {min(pyg):.4f}s = {min(pyg) / n_:.2f}x native" if pyg else ""))
     n = args.pool_rollouts
     for workers in (1, 2):
         t0 = time.perf_counter()

@@ -84,7 +84,7 @@ def test_rate_limited_is_the_loops_limiter_to_the_bit(seed):
     assert np.array_equal(np.signbit(ours), np.signbit(loop))
 
 
-@pytest.mark.parametrize("surface", ["rigid", "carpet4"])
+@pytest.mark.parametrize("surface", ["rigid", "carpet4", "grass50"])
 def test_a_table_runs_natively_bit_for_bit(surface, monkeypatch):
     sim = sim_for(surface)
     traj = table(sim)
@@ -98,12 +98,13 @@ def test_a_table_runs_natively_bit_for_bit(surface, monkeypatch):
     assert np.array_equal(end, sim.data.qpos)                    # the data left in the walk's last state
 
 
+@pytest.mark.parametrize("surface", ["carpet4", "grass30"])
 @pytest.mark.parametrize("impulse,outcome", [(0.5, "completed"), (3.0, "fell")])
-def test_pushes_and_falls_natively_bit_for_bit(impulse, outcome, monkeypatch):
+def test_pushes_and_falls_natively_bit_for_bit(impulse, outcome, surface, monkeypatch):
     """A push is a chunk of its own (MuJoCo's applied force); a fall inside a chunk ends the walk at
     the loop's tick, the data in that tick's state; command latency and a perturbed model (no
-    backlash: a dead band reads the state) too."""
-    sim = sim_for("carpet4")
+    backlash: a dead band reads the state) too; on grass the drag gate in MuJoCo's step."""
+    sim = sim_for(surface)
     traj = table(sim)
     calls = counting(monkeypatch, sim)
     p = dataclasses.replace(draw(NONE, 4, *sim.n_random(), namespace=TUNE), latency=2)
@@ -135,14 +136,15 @@ def test_a_warning_inside_a_chunk_hands_the_walk_back_to_the_loop(monkeypatch):
     same(a, b)
 
 
-def test_a_walk_handed_back_mid_way_goes_on_in_the_loop_bit_for_bit(monkeypatch):
-    """A warning that does not end the walk (here a contact arena said full, in the third chunk):
+@pytest.mark.parametrize("surface,chunk", [("carpet4", 3), ("grass50", 13)])
+def test_a_walk_handed_back_mid_way_goes_on_in_the_loop_bit_for_bit(surface, chunk, monkeypatch):
+    """A warning that does not end the walk (here a contact arena said full, in a chunk mid-walk):
     the loop takes the walk from that chunk's start, its servo commands and the ones still on
     their way (command latency) where the native chunks left them, and ends it as the loop alone
-    would."""
+    would (on grass, with the drag gate's state where the chunk's start left it)."""
     import tuner.sim.rollout as R
 
-    sim = sim_for("carpet4")
+    sim = sim_for(surface)
     traj = table(sim)
     real, calls = R._ROLLOUT, []
 
@@ -150,7 +152,7 @@ def test_a_walk_handed_back_mid_way_goes_on_in_the_loop_bit_for_bit(monkeypatch)
         def rollout(self, model, data, *args, **kw):
             out = real.rollout(model, data, *args, **kw)
             calls.append(1)
-            if len(calls) == 3:
+            if len(calls) == chunk:
                 data[0].warning[mujoco.mjtWarning.mjWARN_CONTACTFULL].number = 1
             return out
 
@@ -158,7 +160,7 @@ def test_a_walk_handed_back_mid_way_goes_on_in_the_loop_bit_for_bit(monkeypatch)
     p = dataclasses.replace(draw(NONE, 4, *sim.n_random(), namespace=TUNE), latency=2)
     pushes = [(3.005, np.array([0.5, 0.2, 0.0]))]
     a = sim.run(gaits.control.TablePlayer(traj), duration=4.0, perturb=p, pushes=pushes, record_qpos=True)
-    assert len(calls) == 3 and a.completed                       # no native chunk after the third
+    assert len(calls) == chunk and a.completed                   # no native chunk after that one
     b = ticked(sim, traj, duration=4.0, perturb=p, pushes=pushes)
     same(a, b)
 

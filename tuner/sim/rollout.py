@@ -10,14 +10,16 @@ surface) and runs many rollouts. :meth:`Simulator.run` is the closed loop, per c
    a walk engine, or a user's own) returns joint targets for the next tick;
 3. the plant: targets rate-limited to the servos' speed and clipped to the joint ranges, held
    back by the command latency and the backlash dead band, sent to the position actuators
-   (torque-limited); the grass drag gated to the sole corners inside the blades; pushes;
+   (torque-limited); the grass drag gated to the sole corners inside the blades (inside MuJoCo's
+   step where the C callback could be built, ``native_gate.py``; else here); pushes;
 4. MuJoCo advances by ``nstep`` physics steps in one call;
 5. the recorder keeps the sensor vector (ground truth included, for the metrics only) and the
    loop checks for a fall or a diverging simulation.
 
 :meth:`Simulator.rollout` plays a joint table (the open loop the papers describe) through it.
 When nothing in a walk reads its state before MuJoCo does (a controller that senses nothing and
-knows its targets ahead, no backlash, no grass drag gate, no hook), its servo commands are all
+knows its targets ahead, no backlash, no blade layer, no hook; the contact layer's drag gate runs
+inside MuJoCo's step, ``drag_gate.c``, where it could be compiled), its servo commands are all
 known at the start, and MuJoCo's native rollout runs it in chunks, each judged by the same checks
 after it: bit for bit the tick loop's walk (tested), without its per-tick Python.
 
@@ -46,6 +48,7 @@ from .randomisation import Perturbation
 from .sensors import SensorReader, tilt_from_quat
 from ..robots import RobotModel, SimOptions
 from .blades import BladeLayer
+from .native_gate import arm as arm_native_gate, disarm as disarm_native_gate, install as install_native_gate
 from .scene import CORNERS, IMU_SITE_POS, PREFIX, add_pendulum, build_scene, drag_gate
 from .surfaces import Surface
 
@@ -171,9 +174,11 @@ class Simulator:
 
     def __init__(self, robot: RobotModel, surface: Surface, *, control_period: float | None = None,
                  timestep: float | None = None, fall: FallCriteria | None = None,
-                 pendulum: float | None = None) -> None:
+                 pendulum: float | None = None, native_gate: bool = True) -> None:
         """``pendulum`` [m]: add the push-recovery challenge's pendulum on a rope this long
-        (``scene.add_pendulum``; ``tuner/sim/challenge.py`` swings it)."""
+        (``scene.add_pendulum``; ``tuner/sim/challenge.py`` swings it). ``native_gate``: on a
+        contact-layer grass, gate the drag dampers in MuJoCo's step (``native_gate.py``) when the
+        callback can be installed; False keeps the Python gate (the same walk to the bit, slower)."""
         self.robot = robot
         self.surface = surface
         opts = robot.sim
@@ -207,6 +212,9 @@ class Simulator:
             area = np.repeat([robot.foot_size_of(i)[0] * robot.foot_size_of(i)[1] / 4 for i in range(2)], 4)
             self._blade = BladeLayer(surface, area, self._n_act, self.control_period)
             self._mu_blade = surface.friction
+        # the contact layer's drag gate: in MuJoCo's step where it can be (native_gate.py)
+        self._drag_gate = surface.drag > 0.0 and not surface.blades
+        self._native_gate = self._drag_gate and native_gate and install_native_gate()
 
     def _index(self) -> None:
         m, r, lay = self.model, self.robot, self.layout
@@ -248,6 +256,7 @@ class Simulator:
         self._touch_sum[np.arange(len(lay.touch_quadrant)), list(lay.touch_quadrant)] = 1.0
         self._n_servo = len(self.joint_names)
         self._n_act = self._n_servo + len(held)
+        self._drag_sites = m.actuator_trnid[self._n_act::2, 0].copy()    # each corner's x damper's site
 
     def to_robot(self, q_gait: np.ndarray) -> np.ndarray:
         """Joint targets in gait-tuner order and signs (..., 20) -> the robot's servos (..., n)."""
@@ -317,13 +326,13 @@ class Simulator:
         on where a corner is inside the layer (module ``tuner.surfaces``; MuJoCo applies -drag * v
         every physics step), or the blade layer's stages and holds (``blades.py``)."""
         d = self.data
-        R = d.xmat[self._feet].reshape(2, 3, 3)
-        off = R @ self._corners_T                                           # (2, 3, 4) corners from the feet
         if self._blade is None:
-            pz = d.xpos[self._feet, 2:3] + off[:, 2, :]                     # (2, 4) corner heights
-            inside = drag_gate(pz, self._layer_h, self.surface.drag_depth).ravel()
+            # the corners' heights MuJoCo computed in the last step (what drag_gate.c reads)
+            inside = drag_gate(d.site_xpos[self._drag_sites, 2], self._layer_h, self.surface.drag_depth)
             d.ctrl[self._n_act:] = np.repeat(inside, 2)                     # x and y per corner
         else:
+            R = d.xmat[self._feet].reshape(2, 3, 3)
+            off = R @ self._corners_T                                       # (2, 3, 4) corners from the feet
             p = (d.xpos[self._feet][:, :, None] + off).transpose(0, 2, 1).reshape(8, 3)
             self._blade.update(self.model, d, p, self._layer_h, self._mu_blade)
 
@@ -467,7 +476,8 @@ class Simulator:
         max_speed2, max_spin2, max_height = self.fall.max_speed ** 2, self.fall.max_spin ** 2, self.fall.max_height
         qvel = d.qvel
         z_min = self.fall.min_height_ratio * z0 if height_check else -math.inf
-        ground = self.surface.drag > 0.0 or self.surface.blades     # a per-tick part of the ground
+        # a per-tick part of the ground in Python: the blade layer, or the drag gate without its callback
+        ground = self.surface.blades or (self._drag_gate and not self._native_gate)
         if self._blade is not None:
             self._blade.reset()
         W = mujoco.mjtWarning          # MuJoCo resets a state it finds huge or NaN, with one of these
@@ -483,79 +493,86 @@ class Simulator:
         sent = deque(cmd.copy() for _ in range(latency))   # commands on their way to the servos
         meas = reader.read(0.0)
         controller.reset(meas)
-        # a controller that senses nothing and knows its targets ahead (a joint table, without a
-        # command stream): its targets mapped to the servos at once, not read, stepped and
-        # mapped tick by tick (the same numbers: the same operations per element)
-        ahead = getattr(controller, "ahead", None)
-        rows = ahead(n_ticks) if ahead is not None and commands is None and not reader.senses else None
-        planned = None
-        k_first = 1
-        if rows is not None:
-            targets[1:] = rows[1:]
-            # the rate limiter and the joint ranges read only the targets: every tick's servo
-            # command is known now, and what reaches the servos through the latency (before backlash)
-            cmds[:] = rate_limited(rows[:, col] * sign + offset, cmd, step, q_lo, q_hi)
-            planned = cmds[np.maximum(np.arange(n_ticks) - latency, 0)]
-            # nothing in the plant reads the state either (no backlash, no ground gate, no hook):
-            # MuJoCo runs the walk natively in chunks
-            if backlash is None and not ground and not hooks and on_tick is None:
-                sent_log[:] = planned
-                k_first, reason, k_end = self._native(planned, kicks, sens, qpos_log, z_min, cos_tilt)
-                if k_first < n_ticks:                       # handed back: the ticks below go on
-                    reason, k_end = "completed", n_ticks
-        for k in range(k_first, n_ticks):
-            if planned is not None:
-                out = planned[k]
-            else:
-                if k > 1:
-                    meas = reader.read((k - 1) * dt)
-                command = None if commands is None else commands.at((k - 1) * dt)
-                target = controller.step(meas, command)
-                targets[k] = target
-                delta = target[col] * sign + offset - cmd
-                cmd += vmin(vmax(delta, lo_step, out=delta), step, out=delta)
-                vmin(vmax(cmd, q_lo, out=cmd), q_hi, out=cmd)
-                cmds[k] = cmd
-                if latency:
-                    sent.append(cmd.copy())
-                    out = sent.popleft()
+        if self._native_gate:           # MuJoCo gates the drag inside its steps from here on (drag_gate.c)
+            arm_native_gate(m, d, height=self._layer_h, depth=self.surface.drag_depth, nstep=self.nstep,
+                            first=self._n_act, n_points=len(self._drag_sites))
+        try:
+            # a controller that senses nothing and knows its targets ahead (a joint table, without a
+            # command stream): its targets mapped to the servos at once, not read, stepped and
+            # mapped tick by tick (the same numbers: the same operations per element)
+            ahead = getattr(controller, "ahead", None)
+            rows = ahead(n_ticks) if ahead is not None and commands is None and not reader.senses else None
+            planned = None
+            k_first = 1
+            if rows is not None:
+                targets[1:] = rows[1:]
+                # the rate limiter and the joint ranges read only the targets: every tick's servo
+                # command is known now, and what reaches the servos through the latency (before backlash)
+                cmds[:] = rate_limited(rows[:, col] * sign + offset, cmd, step, q_lo, q_hi)
+                planned = cmds[np.maximum(np.arange(n_ticks) - latency, 0)]
+                # nothing in the plant reads the state either (no backlash, no Python ground tick, no hook):
+                # MuJoCo runs the walk natively in chunks
+                if backlash is None and not ground and not hooks and on_tick is None:
+                    sent_log[:] = planned
+                    k_first, reason, k_end = self._native(planned, kicks, sens, qpos_log, z_min, cos_tilt)
+                    if k_first < n_ticks:                       # handed back: the ticks below go on
+                        reason, k_end = "completed", n_ticks
+            for k in range(k_first, n_ticks):
+                if planned is not None:
+                    out = planned[k]
                 else:
-                    out = cmd
-            if backlash is not None:
-                out = dead_band(out, d.qpos[self._qadr], backlash)
-            ctrl[:n_servo] = out
-            sent_log[k] = out
-            if ground:
-                self._ground_tick()
-            kick = kicks.get(k - 1)
-            if kick is not None:
-                d.xfrc_applied[torso, :3] = kick
-            if hooks and (k - 1) in hooks:
-                hooks[k - 1](m, d)
-            mujoco.mj_step(m, d, nstep=self.nstep)
-            if kick is not None:
-                d.xfrc_applied[torso, :3] = 0.0
-            sens[k] = sdata
-            if qpos_log is not None:
-                qpos_log[k] = d.qpos
-            if warn_q.number or warn_v.number or warn_a.number or not math.isfinite(qacc[0]):
-                what = "positions" if warn_q.number else "velocities" if warn_v.number else "accelerations"
-                reason, k_end = f"diverged: MuJoCo reported unstable {what} at t = {k * dt:.2f} s", k
-                break
-            v0, v1, v2, w0, w1, w2 = qvel[0], qvel[1], qvel[2], qvel[3], qvel[4], qvel[5]
-            if (v0 * v0 + v1 * v1 + v2 * v2 > max_speed2 or w0 * w0 + w1 * w1 + w2 * w2 > max_spin2
-                    or sdata[height_i] > max_height or not math.isfinite(v0)):
-                k_end = k + 1
-                reason = self._impossible(k, v0 * v0 + v1 * v1 + v2 * v2, w0 * w0 + w1 * w1 + w2 * w2,
-                                          float(sdata[height_i]))
-                break
-            if sdata[tilt_i] < cos_tilt or sdata[height_i] < z_min:
-                k_end = k + 1
-                reason = "fell"
-                break
-            if on_tick is not None and on_tick(k, d) is False:
-                k_end, reason = k + 1, "stopped"
-                break
+                    if k > 1:
+                        meas = reader.read((k - 1) * dt)
+                    command = None if commands is None else commands.at((k - 1) * dt)
+                    target = controller.step(meas, command)
+                    targets[k] = target
+                    delta = target[col] * sign + offset - cmd
+                    cmd += vmin(vmax(delta, lo_step, out=delta), step, out=delta)
+                    vmin(vmax(cmd, q_lo, out=cmd), q_hi, out=cmd)
+                    cmds[k] = cmd
+                    if latency:
+                        sent.append(cmd.copy())
+                        out = sent.popleft()
+                    else:
+                        out = cmd
+                if backlash is not None:
+                    out = dead_band(out, d.qpos[self._qadr], backlash)
+                ctrl[:n_servo] = out
+                sent_log[k] = out
+                if ground:
+                    self._ground_tick()
+                kick = kicks.get(k - 1)
+                if kick is not None:
+                    d.xfrc_applied[torso, :3] = kick
+                if hooks and (k - 1) in hooks:
+                    hooks[k - 1](m, d)
+                mujoco.mj_step(m, d, nstep=self.nstep)
+                if kick is not None:
+                    d.xfrc_applied[torso, :3] = 0.0
+                sens[k] = sdata
+                if qpos_log is not None:
+                    qpos_log[k] = d.qpos
+                if warn_q.number or warn_v.number or warn_a.number or not math.isfinite(qacc[0]):
+                    what = "positions" if warn_q.number else "velocities" if warn_v.number else "accelerations"
+                    reason, k_end = f"diverged: MuJoCo reported unstable {what} at t = {k * dt:.2f} s", k
+                    break
+                v0, v1, v2, w0, w1, w2 = qvel[0], qvel[1], qvel[2], qvel[3], qvel[4], qvel[5]
+                if (v0 * v0 + v1 * v1 + v2 * v2 > max_speed2 or w0 * w0 + w1 * w1 + w2 * w2 > max_spin2
+                        or sdata[height_i] > max_height or not math.isfinite(v0)):
+                    k_end = k + 1
+                    reason = self._impossible(k, v0 * v0 + v1 * v1 + v2 * v2, w0 * w0 + w1 * w1 + w2 * w2,
+                                              float(sdata[height_i]))
+                    break
+                if sdata[tilt_i] < cos_tilt or sdata[height_i] < z_min:
+                    k_end = k + 1
+                    reason = "fell"
+                    break
+                if on_tick is not None and on_tick(k, d) is False:
+                    k_end, reason = k + 1, "stopped"
+                    break
+        finally:
+            if self._native_gate:
+                disarm_native_gate(m, d)
         trace = self._trace(controller.plan(k_end), sens[:k_end], cmds[:k_end], targets[:k_end, col],
                             reason, z0)
         trace.q_sent = self.from_robot(sent_log[:k_end])
@@ -612,12 +629,14 @@ class Simulator:
             n = k1 - k
             mujoco.mj_getState(m, d, state0[0], full)
             warm0[0] = d.qacc_warmstart
+            user0 = d.userdata.copy()                          # the native drag gate's state (native_gate.py)
             st, sd = out_state[:, :n * nst], out_sens[:, :n * nst]
             _ROLLOUT.rollout([m], [d], state0, control, control_spec=spec, skip_checks=True,
                              nstep=n * nst, initial_warmstart=warm0, state=st, sensordata=sd)
             if d.warning.number.any():
                 mujoco.mj_setState(m, d, state0[0], full)
                 d.qacc_warmstart[:] = warm0[0]
+                d.userdata[:] = user0
                 d.xfrc_applied[:] = 0.0
                 for i in range(mujoco.mjtWarning.mjNWARNING.value):
                     d.warning[i].number = 0

@@ -32,6 +32,7 @@ from gaits import JOINT_NAMES
 from ..robots.robot_model import RobotModel
 from ..robots.solver import SOLVER_OPTIONS
 from .blades import REF_SITE, add_blades
+from .native_gate import BLOCK as GATE_BLOCK
 from .surfaces import Surface
 
 __all__ = ["PREFIX", "SceneLayout", "build_scene", "add_ground", "add_drag", "drag_gate", "CORNERS", "IMU_SITE_POS"]
@@ -231,6 +232,8 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
                     n_drag += add_blades(spec, s, gt, site, f"{side}{k}")
                 else:
                     n_drag += add_drag(spec, s, gt, site, f"{side}{k}")
+        if not s.blades:                          # the native gate's numbers (native_gate.py), after the file's own
+            spec.nuserdata += GATE_BLOCK
 
     # sensors, in this order
     S, O = mujoco.mjtSensor, mujoco.mjtObj

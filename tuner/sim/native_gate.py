@@ -1,0 +1,129 @@
+"""The grass drag dampers' gate as a native MuJoCo callback (ours): ``drag_gate.c``, compiled once.
+
+On a contact-layer grass each sole corner's drag dampers are switched on while the corner is in
+the blades (``scene.drag_gate``). The tick loop did it in Python between control ticks, which kept
+every grass walk out of MuJoCo's native rollout (1.15x its cost). MuJoCo has no native element
+that gates a damper along x by a height along z, so this module compiles a 60-line C function
+(``drag_gate.c``, next to it) with the machine's C compiler into a user cache, loads it with
+ctypes and installs it as MuJoCo's control callback (``mjcb_control``), which MuJoCo calls inside
+every physics step, in ``mj_step`` and in ``mujoco.rollout`` alike. The callback reads its
+numbers from the last :data:`BLOCK` entries of ``mjData.userdata`` (the simulator's models add
+them) and does nothing unless a walk armed them, so it never touches another model.
+
+It computes the loop's gate to the bit (the same comparisons and one division, from the same
+corner heights at the same instants; tested against :meth:`Simulator._ground_tick` walk by walk).
+Without a compiler (or with ``GAIT_TUNER_NATIVE_GATE=0``, or when another callback is installed)
+:func:`install` returns False and the simulator keeps the Python gate: the same walks, slower.
+
+The compiled library is cached under ``$XDG_CACHE_HOME/gait-tuner`` (default ``~/.cache``) by a
+hash of the source and the MuJoCo version (the struct layout it reads), written to a temporary
+name and renamed, so concurrent workers never load a half-written file.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import os
+import shutil
+import subprocess
+import tempfile
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+__all__ = ["BLOCK", "MAGIC", "install", "status", "arm", "disarm"]
+
+SOURCE = Path(__file__).with_name("drag_gate.c")
+#: The layout of the callback's block (mirrors ``drag_gate.c``).
+ARMED, HEIGHT, DEPTH, NSTEP, STEP0, FIRST, NPOINT, HEAD = range(8)
+MAXPOINT = 16
+BLOCK = HEAD + 2 * MAXPOINT
+MAGIC = 24061.0
+
+_state: dict = {"lib": None, "status": None}
+
+
+def _cache_dir() -> Path:
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "gait-tuner"
+
+
+def _build() -> ctypes.CDLL:
+    """The compiled callback library (built on first use, then loaded from the cache)."""
+    source = SOURCE.read_bytes()
+    key = hashlib.sha256(source + mujoco.__version__.encode()).hexdigest()[:16]
+    target = _cache_dir() / f"drag_gate-{key}.so"
+    if not target.exists():
+        cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
+        if not cc:
+            raise OSError("no C compiler (cc, gcc or clang) on the PATH")
+        include = Path(mujoco.__file__).with_name("include")
+        target.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(suffix=".so", dir=target.parent)
+        os.close(fd)
+        try:
+            # no fast-math, no contraction: the gate's arithmetic is the numpy reference's to the bit
+            run = subprocess.run([cc, "-O2", "-std=c99", "-fPIC", "-shared", "-ffp-contract=off",
+                                  f"-I{include}", str(SOURCE), "-o", tmp, "-lm"],
+                                 capture_output=True, text=True, timeout=120)
+            if run.returncode != 0:
+                raise OSError(f"{cc} failed: {run.stderr.strip().splitlines()[-1] if run.stderr.strip() else run.returncode}")
+            os.replace(tmp, target)
+        finally:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+    lib = ctypes.CDLL(str(target))
+    lib.gait_tuner_gate_block.restype = ctypes.c_int
+    lib.gait_tuner_gate_magic.restype = ctypes.c_double
+    if lib.gait_tuner_gate_block() != BLOCK or lib.gait_tuner_gate_magic() != MAGIC:
+        raise OSError(f"{target} does not match native_gate.py's layout")
+    return lib
+
+
+def install() -> bool:
+    """Install the native gate as MuJoCo's control callback in this process, if it can be: True
+    when it is in place (now or before), False when the simulator must gate in Python (the
+    reason in :func:`status`)."""
+    if _state["status"] is not None:
+        return _state["lib"] is not None and mujoco.get_mjcb_control() is _state["fn"]
+    if os.environ.get("GAIT_TUNER_NATIVE_GATE", "1").strip() in ("0", "no", "off", "false"):
+        _state["status"] = "off (GAIT_TUNER_NATIVE_GATE=0): the drag gate runs in Python"
+        return False
+    if mujoco.get_mjcb_control() is not None:
+        _state["status"] = "off (another mjcb_control callback is installed): the drag gate runs in Python"
+        return False
+    try:
+        lib = _build()
+    except (OSError, subprocess.SubprocessError) as e:
+        _state["status"] = f"off ({e}): the drag gate runs in Python"
+        return False
+    fn = lib.gait_tuner_drag_gate
+    mujoco.set_mjcb_control(fn)
+    _state.update(lib=lib, fn=fn, status="native (drag_gate.c as mjcb_control)")
+    return True
+
+
+def status() -> str:
+    """How the drag gate runs in this process (after :func:`install`)."""
+    return _state["status"] or "not installed yet"
+
+
+def arm(model: mujoco.MjModel, data: mujoco.MjData, *, height: float, depth: float, nstep: int,
+        first: int, n_points: int) -> None:
+    """Arm the callback for a walk starting now: corners' dampers from actuator ``first`` on,
+    ``n_points`` corners, blade tips at ``height`` [m], drag depth ``depth`` [m], ``nstep``
+    physics steps per control tick."""
+    if not 0 < n_points <= MAXPOINT:
+        raise ValueError(f"the native drag gate takes 1-{MAXPOINT} corners, not {n_points}")
+    u = data.userdata[model.nuserdata - BLOCK:]
+    u[:] = 0.0
+    u[HEIGHT], u[DEPTH], u[NSTEP] = height, depth, nstep
+    u[STEP0] = float(np.rint(data.time / model.opt.timestep))
+    u[FIRST], u[NPOINT] = first, n_points
+    u[ARMED] = MAGIC
+
+
+def disarm(model: mujoco.MjModel, data: mujoco.MjData) -> None:
+    data.userdata[model.nuserdata - BLOCK + ARMED] = 0.0
