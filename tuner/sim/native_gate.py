@@ -28,6 +28,7 @@ import os
 import shutil
 import subprocess
 import tempfile
+import threading
 from pathlib import Path
 
 import mujoco
@@ -43,6 +44,7 @@ BLOCK = HEAD + 2 * MAXPOINT
 MAGIC = 24061.0
 
 _state: dict = {"lib": None, "status": None}
+_lock = threading.Lock()             # simulators built on several threads at once install it once
 
 
 def _cache_dir() -> Path:
@@ -86,6 +88,11 @@ def install() -> bool:
     """Install the native gate as MuJoCo's control callback in this process, if it can be: True
     when it is in place (now or before), False when the simulator must gate in Python (the
     reason in :func:`status`)."""
+    with _lock:
+        return _install()
+
+
+def _install() -> bool:
     if _state["status"] is not None:
         return _state["lib"] is not None and mujoco.get_mjcb_control() is _state["fn"]
     if os.environ.get("GAIT_TUNER_NATIVE_GATE", "1").strip() in ("0", "no", "off", "false"):
