@@ -171,3 +171,18 @@ def test_the_gate_compiles_into_an_empty_cache(tmp_path):
     assert out.stdout.split("\n")[:2] == ["True", "native (drag_gate.c as mjcb_control)"]
     built = list((tmp_path / "gait-tuner").glob("drag_gate-*.so"))
     assert len(built) == 1 and not [p for p in (tmp_path / "gait-tuner").iterdir() if p not in built]
+
+
+def test_a_damaged_cached_library_is_rebuilt(tmp_path):
+    """A cached file that does not load (here overwritten with text) is built again, once."""
+    env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path)}
+    code = "from tuner.sim import native_gate; print(native_gate.install(), native_gate.status())"
+    first = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
+    assert first.stdout.strip() == "True native (drag_gate.c as mjcb_control)", first.stderr
+    [built] = list((tmp_path / "gait-tuner").glob("drag_gate-*.so"))
+    built.unlink()                                             # not in place: a loaded copy keeps its pages
+    built.write_text("not a library")
+    again = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0, again.stderr
+    assert again.stdout.strip() == "True native (drag_gate.c as mjcb_control)"
+    assert built.stat().st_size > 1000 and b"not a library" not in built.read_bytes()

@@ -52,36 +52,51 @@ def _cache_dir() -> Path:
     return Path(base) / "gait-tuner"
 
 
-def _build() -> ctypes.CDLL:
-    """The compiled callback library (built on first use, then loaded from the cache)."""
-    source = SOURCE.read_bytes()
-    key = hashlib.sha256(source + mujoco.__version__.encode()).hexdigest()[:16]
-    target = _cache_dir() / f"drag_gate-{key}.so"
-    if not target.exists():
-        cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
-        if not cc:
-            raise OSError("no C compiler (cc, gcc or clang) on the PATH")
-        include = Path(mujoco.__file__).with_name("include")
-        target.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(suffix=".so", dir=target.parent)
-        os.close(fd)
-        try:
-            # no fast-math, no contraction: the gate's arithmetic is the numpy reference's to the bit
-            run = subprocess.run([cc, "-O2", "-std=c99", "-fPIC", "-shared", "-ffp-contract=off",
-                                  f"-I{include}", str(SOURCE), "-o", tmp, "-lm"],
-                                 capture_output=True, text=True, timeout=120)
-            if run.returncode != 0:
-                raise OSError(f"{cc} failed: {run.stderr.strip().splitlines()[-1] if run.stderr.strip() else run.returncode}")
-            os.replace(tmp, target)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
+def _compile(target: Path) -> None:
+    """Compile ``drag_gate.c`` into ``target`` (a temporary name, then renamed)."""
+    cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
+    if not cc:
+        raise OSError("no C compiler (cc, gcc or clang) on the PATH")
+    include = Path(mujoco.__file__).with_name("include")
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=".building-", suffix=".so", dir=target.parent)
+    os.close(fd)
+    try:
+        # no fast-math, no contraction: the gate's arithmetic is the numpy reference's to the bit
+        run = subprocess.run([cc, "-O2", "-std=c99", "-fPIC", "-shared", "-ffp-contract=off",
+                              f"-I{include}", str(SOURCE), "-o", tmp, "-lm"],
+                             capture_output=True, text=True, timeout=120)
+        if run.returncode != 0:
+            err = run.stderr.strip().splitlines()
+            raise OSError(f"{cc} failed: {err[-1] if err else f'exit {run.returncode}'}")
+        os.replace(tmp, target)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def _load(target: Path) -> ctypes.CDLL:
     lib = ctypes.CDLL(str(target))
     lib.gait_tuner_gate_block.restype = ctypes.c_int
     lib.gait_tuner_gate_magic.restype = ctypes.c_double
     if lib.gait_tuner_gate_block() != BLOCK or lib.gait_tuner_gate_magic() != MAGIC:
         raise OSError(f"{target} does not match native_gate.py's layout")
     return lib
+
+
+def _build() -> ctypes.CDLL:
+    """The compiled callback library: loaded from the cache, built there first when it is missing
+    or does not load (a damaged file is rebuilt once)."""
+    source = SOURCE.read_bytes()
+    key = hashlib.sha256(source + mujoco.__version__.encode()).hexdigest()[:16]
+    target = _cache_dir() / f"drag_gate-{key}.so"
+    if target.exists():
+        try:
+            return _load(target)
+        except (OSError, AttributeError):
+            target.unlink(missing_ok=True)
+    _compile(target)
+    return _load(target)
 
 
 def install() -> bool:
