@@ -108,6 +108,9 @@ def test_surfaces_listing(gait_tuner_cmd, run_env):
     assert r.returncode == 0
     for name in ("rigid", "carpet4", "grass10", "grass30", "grass50"):
         assert name in r.stdout
+    assert r.stdout.strip().splitlines()[-1].startswith("grass drag gate on this machine: ")
+    r = run(gait_tuner_cmd, ["surfaces", "--surface", "carpet4"], run_env)
+    assert r.returncode == 0 and "drag gate" not in r.stdout
 
 
 def test_compare_writes_report(gait_tuner_cmd, run_env, tmp_path):
