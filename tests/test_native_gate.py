@@ -22,8 +22,9 @@ from tuner.sim.rollout import Simulator
 from tuner.sim.scene import drag_gate
 from tuner.sim.surfaces import SURFACES
 
+from test_native_rollout import same  # the field-by-field comparison of two walks
+
 ROBOT = load_robot("kidsize")
-FIELDS = ("t", "pitch", "roll", "p_torso", "p_com", "force", "zmp", "q", "q_cmd", "q_ref", "q_sent", "tau", "qpos")
 
 if not native_gate.install():
     pytest.skip(f"the native drag gate is not available here: {native_gate.status()}", allow_module_level=True)
@@ -34,12 +35,6 @@ def pair(surface):
     a, b = Simulator(ROBOT, s), Simulator(ROBOT, s, native_gate=False)
     assert a._native_gate and not b._native_gate
     return a, b
-
-
-def same(a, b):
-    for f in FIELDS:
-        assert np.array_equal(getattr(a, f), getattr(b, f), equal_nan=True), f
-    assert a.reason == b.reason
 
 
 @pytest.mark.parametrize("surface", ["grass10", "grass30", "grass50"])
@@ -186,3 +181,14 @@ def test_a_damaged_cached_library_is_rebuilt(tmp_path):
     assert again.returncode == 0, again.stderr
     assert again.stdout.strip() == "True native (drag_gate.c as mjcb_control)"
     assert built.stat().st_size > 1000 and b"not a library" not in built.read_bytes()
+
+
+def test_which_surfaces_gate_their_drag():
+    from pathlib import Path
+
+    from tuner.sim.surfaces import load_surface
+    assert {n: s.drag_gated for n, s in SURFACES.items()} == {
+        "rigid": False, "carpet4": False, "grass10": True, "grass30": True, "grass50": True}
+    blades = load_surface(str(Path(__file__).resolve().parents[1] / "examples" / "surfaces" / "grass50-blades.yaml"))
+    assert blades.drag > 0.0 and not blades.drag_gated
+    assert len(Simulator(ROBOT, blades)._drag_sites) == 0

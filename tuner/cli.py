@@ -1295,7 +1295,7 @@ def surfaces(run_tests: bool, surface_names: tuple[str, ...], as_json: bool) -> 
         for s in chosen:
             click.echo(f"{s.name:8s} layer {s.layer_height * 1000:4.0f} mm  drag {s.drag:5.1f} N s/m  "
                        f"friction {s.friction:.2f}  {s.description}")
-        if any(s.drag > 0.0 and not s.blades for s in chosen):
+        if any(s.drag_gated for s in chosen):
             from .sim import native_gate
             native_gate.install()
             click.echo(f"\ngrass drag gate on this machine: {native_gate.status()}")

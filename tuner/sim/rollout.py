@@ -213,8 +213,7 @@ class Simulator:
             self._blade = BladeLayer(surface, area, self._n_act, self.control_period)
             self._mu_blade = surface.friction
         # the contact layer's drag gate: in MuJoCo's step where it can be (native_gate.py)
-        self._drag_gate = surface.drag > 0.0 and not surface.blades
-        self._native_gate = self._drag_gate and native_gate and install_native_gate()
+        self._native_gate = surface.drag_gated and native_gate and install_native_gate()
 
     def _index(self) -> None:
         m, r, lay = self.model, self.robot, self.layout
@@ -256,7 +255,8 @@ class Simulator:
         self._touch_sum[np.arange(len(lay.touch_quadrant)), list(lay.touch_quadrant)] = 1.0
         self._n_servo = len(self.joint_names)
         self._n_act = self._n_servo + len(held)
-        self._drag_sites = m.actuator_trnid[self._n_act::2, 0].copy()    # each corner's x damper's site
+        # each corner's x damper's site (drag_gate.c finds them the same way)
+        self._drag_sites = m.actuator_trnid[self._n_act::2, 0].copy() if self.surface.drag_gated else np.zeros(0, int)
 
     def to_robot(self, q_gait: np.ndarray) -> np.ndarray:
         """Joint targets in gait-tuner order and signs (..., 20) -> the robot's servos (..., n)."""
@@ -477,7 +477,7 @@ class Simulator:
         qvel = d.qvel
         z_min = self.fall.min_height_ratio * z0 if height_check else -math.inf
         # a per-tick part of the ground in Python: the blade layer, or the drag gate without its callback
-        ground = self.surface.blades or (self._drag_gate and not self._native_gate)
+        ground = self.surface.blades or (self.surface.drag_gated and not self._native_gate)
         if self._blade is not None:
             self._blade.reset()
         W = mujoco.mjtWarning          # MuJoCo resets a state it finds huge or NaN, with one of these

@@ -232,7 +232,7 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
                     n_drag += add_blades(spec, s, gt, site, f"{side}{k}")
                 else:
                     n_drag += add_drag(spec, s, gt, site, f"{side}{k}")
-        if not s.blades:                          # the native gate's numbers (native_gate.py), after the file's own
+        if s.drag_gated:                          # the native gate's numbers (native_gate.py), after the file's own
             spec.nuserdata += GATE_BLOCK
 
     # sensors, in this order

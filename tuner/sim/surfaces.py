@@ -113,6 +113,12 @@ class Surface(GaitParams):
         """The blade layer (ours: springs per sole point, by pressure) instead of the contact layer."""
         return self.blade_modulus > 0.0
 
+    @property
+    def drag_gated(self) -> bool:
+        """The contact layer's drag dampers, switched per sole corner by its depth (``scene.drag_gate``;
+        in MuJoCo's step by ``drag_gate.c`` where it could be built): drag and no blade layer."""
+        return self.drag > 0.0 and not self.blades
+
 
 SURFACES: dict[str, Surface] = {
     "rigid": Surface(name="rigid", friction=0.9, soil_friction=0.9,

@@ -194,7 +194,7 @@ class _Points:
         self.kind = None
         if isinstance(ground, Surface) and ground.blades:
             self.kind = "blades"
-        elif isinstance(ground, Surface) and ground.drag > 0.0:
+        elif isinstance(ground, Surface) and ground.drag_gated:
             self.kind = "drag"
         self.first = len(spec.actuators)
         for i, site in enumerate(sites):
