@@ -364,6 +364,14 @@ OPTIONS = [
     (["robot", "check", "no-such-map.yaml"], "no-such-map"),
     (["robot", "nope"], "nope"),
     (["nope-verb"], "nope-verb"),
+    # NaN passes click's FloatRange (every comparison with it is false): refused by name
+    (["challenge", "push", "--params", "kidsize-engine-carpet4", "--step", "nan"], "--step"),
+    (["challenge", "push", "--params", "kidsize-engine-carpet4", "--rope", "nan"], "--rope"),
+    (["challenge", "push", "--params", "kidsize-engine-carpet4", "--rope", "inf"], "--rope"),
+    (["robot", "check", "kidsize", "--duration", "nan"], "--duration"),
+    (["experiment", "eros", "--lift-scale", "nan"], "--lift-scale"),
+    (["experiment", "eros", "--double-support", "nan"], "--double-support"),
+    (["calibrate", "--lift-scale", "nan"], "--lift-scale"),
 ]
 
 
