@@ -30,6 +30,11 @@ tips (``layer_height`` above the soil) and v its velocity:
   caused the toe stuck in the synthetic grass. The landing speed of steps are also makes toe
   stuck harder"), written as a mechanism; the speed at which a turf jams a sole is not in any
   source here (README "A sole jammed by a fast landing").
+* jam by sliding (with ``blade_jam_slide`` > 0; ours): a point that enters the blades moving
+  horizontally faster than that (its mean horizontal speed over the tick it entered in: a toe
+  dragged into the blades rather than set down in them) is jammed the same way. Either jam may be
+  on, or both. README "A sole jammed by a fast landing" says what each reproduces of the paper's
+  tables and what neither does.
 
 Each point has three site-transmission actuators with affine gains (``add_blades``): MuJoCo
 computes the forces every physics step, the damping implicitly (``implicitfast``); once per
@@ -97,17 +102,21 @@ class BladeLayer:
         self._block = np.zeros((self.n, BLADE_ACTUATORS, 3))     # each point's three gain rows
         self._block[:, 1:, 1] = -self.k_hold[:, None]
         self.jam_speed = surface.blade_jam_speed
+        self.jam_slide = surface.blade_jam_slide
         self.jam_force = surface.blade_jam_pressure * a
         self.jammed = np.zeros(self.n, dtype=bool)
         self.jam_z = np.zeros(self.n)
         self._z_prev = np.full(self.n, np.nan)
+        self._xy_prev = np.full((self.n, 2), np.nan)
         self.entry_speed = np.full(self.n, np.nan)
+        self.slide_speed = np.full(self.n, np.nan)
 
     def reset(self) -> None:
         """A new walk: no point is in the blades."""
         self.inside[:] = False
         self.jammed[:] = False
         self._z_prev[:] = np.nan
+        self._xy_prev[:] = np.nan
 
     def update(self, model: mujoco.MjModel, data: mujoco.MjData, p_world: np.ndarray, layer_height: float,
                friction: float) -> np.ndarray:
@@ -127,8 +136,8 @@ class BladeLayer:
         k = np.where(base, self.k_base, self.k_tip)
         f0 = np.where(base, self._f0_base, 0.0)
         load = (f0 + k * depth) * now
-        if self.jam_speed > 0.0:                  # a jammed point's spring carries it too
-            load = load + self._jam(z, now, entered)
+        if self.jam_speed > 0.0 or self.jam_slide > 0.0:     # a jammed point's spring carries it too
+            load = load + self._jam(z, xy, now, entered)
         np.maximum(load, 0.0, out=load)
         d = self.anchor - xy
         pull2 = (d * d).sum(axis=1) * self._k_hold2
@@ -155,15 +164,24 @@ class BladeLayer:
         data.ctrl[self._rows] = np.repeat(now, BLADE_ACTUATORS)
         return load
 
-    def _jam(self, z: np.ndarray, now: np.ndarray, entered: np.ndarray) -> np.ndarray:
-        """The jam (module docstring): points entering faster than ``jam_speed`` are jammed at the
-        height they entered; a jam lets go when its spring pulls the point up harder than
-        ``jam_force`` or the point is out of the blades. Returns the jams' springs' support [N]
-        (zero where none holds); ``entry_speed`` keeps each point's downward speed over this tick
-        [m/s] (NaN on a walk's first tick)."""
+    def _jam(self, z: np.ndarray, xy: np.ndarray, now: np.ndarray, entered: np.ndarray) -> np.ndarray:
+        """The jam (module docstring): points entering faster than ``jam_speed`` (downward) or
+        ``jam_slide`` (horizontally), where that is > 0, are jammed at the height they entered; a
+        jam lets go when its spring pulls the point up harder than ``jam_force`` or the point is out
+        of the blades. Returns the jams' springs' support [N] (zero where none holds);
+        ``entry_speed`` and ``slide_speed`` keep each point's downward and horizontal speed over
+        this tick [m/s] (NaN on a walk's first tick)."""
         self.entry_speed = (self._z_prev - z) / self.dt
         self._z_prev[:] = z
-        fast = entered & (self.entry_speed > self.jam_speed)          # NaN compares False
+        d = xy - self._xy_prev
+        self.slide_speed = np.sqrt((d * d).sum(axis=1)) / self.dt
+        self._xy_prev[:] = xy
+        fast = np.zeros(self.n, dtype=bool)                            # NaN compares False
+        if self.jam_speed > 0.0:
+            fast |= self.entry_speed > self.jam_speed
+        if self.jam_slide > 0.0:
+            fast |= self.slide_speed > self.jam_slide
+        fast &= entered
         self.jam_z[fast] = z[fast]
         spring = self.k_hold * (self.jam_z - z)
         self.jammed = ((self.jammed & now) | fast) & ~(-spring > self.jam_force)

@@ -26,7 +26,8 @@ A surface with ``blade_modulus`` > 0 is the **blade layer** instead (ours, ``bla
 contact layer; springs under each sole corner by pressure, in two stages (flexible tips over a
 stiff base), blades that hold a corner where it entered until friction lets go, and the drag; with
 ``blade_jam_speed`` > 0, a corner that lands faster than that is jammed near the tips (the EROS
-paper's account of a toe stuck in the grass, as a mechanism). The built-in pedestals keep the
+paper's account of a toe stuck in the grass, as a mechanism); with ``blade_jam_slide`` > 0, one that
+enters the blades sliding faster than that (a toe dragged into them) is jammed the same way. The built-in pedestals keep the
 contact layer (their calibration); ``examples/surfaces`` has blade layers of grass50's height
 (and a jam file of grass30's).
 
@@ -83,6 +84,9 @@ class Surface(GaitParams):
     blade_jam_speed: float = param(0.0, "m/s", 0.0, 10.0, "blade layer (ours): a sole point entering the "
                                    "blades faster than this (downward) is jammed at the height it entered, "
                                    "held there by blade_shear until pulled out (0: no point jams)")
+    blade_jam_slide: float = param(0.0, "m/s", 0.0, 10.0, "blade layer (ours): a sole point entering the "
+                                   "blades sliding faster than this (horizontally) is jammed the same way (0: no "
+                                   "point jams so)")
     blade_jam_pressure: float = param(0.0, "Pa", 0.0, 1.0e7, "blade layer: the upward pull per sole area that "
                                       "frees a jammed point")
     description: str = param("", "-", doc="where the numbers come from")
@@ -95,10 +99,11 @@ class Surface(GaitParams):
             if getattr(self, name) > self.layer_height:
                 raise ParamError(f"surface {self.name!r}: {name} = {getattr(self, name):g} m must not exceed "
                                  f"layer_height = {self.layer_height:g} m")
-        if self.blade_jam_speed > 0.0 and (self.blade_modulus == 0.0 or self.blade_shear == 0.0):
-            raise ParamError(f"surface {self.name!r}: blade_jam_speed = {self.blade_jam_speed:g} m/s needs the "
-                             f"blade layer (blade_modulus > 0) and its hold (blade_shear > 0): a jammed point "
-                             f"is held by it")
+        for name in ("blade_jam_speed", "blade_jam_slide"):
+            value = getattr(self, name)
+            if value > 0.0 and (self.blade_modulus == 0.0 or self.blade_shear == 0.0):
+                raise ParamError(f"surface {self.name!r}: {name} = {value:g} m/s needs the blade layer "
+                                 f"(blade_modulus > 0) and its hold (blade_shear > 0): a jammed point is held by it")
         for name, value, unit in (("blade_modulus", self.blade_modulus, "N/m^3"), ("drag", self.drag, "N s/m")):
             if self.layer_height == 0.0 and value > 0.0:         # what acts in a layer needs one
                 raise ParamError(f"surface {self.name!r}: {name} = {value:g} {unit} needs a layer "
