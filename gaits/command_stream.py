@@ -24,6 +24,7 @@ from .walk_command import WalkCommand
 __all__ = ["CommandStream"]
 
 MAX_ROWS = 100_000
+MAX_T = 600.0               # [s] the last row's t at most (a RoboCup half is ten minutes; the tail adds)
 
 
 @dataclass(frozen=True)
@@ -51,6 +52,10 @@ class CommandStream:
             bad = int(np.flatnonzero(steps <= 0)[0]) + 2
             raise ParamError(f"command stream row {bad}: t = {t[bad - 1]:g} s does not come after "
                              f"the previous row's {t[bad - 2]:g} s")
+        if t[-1] > MAX_T:
+            bad = int(np.flatnonzero(t > MAX_T)[0]) + 1
+            raise ParamError(f"command stream row {bad}: t = {t[bad - 1]:g} s is beyond {MAX_T:g} s (a stream's "
+                             f"rows lie within ten minutes, a RoboCup half)")
         for i, row in enumerate(c):
             try:
                 WalkCommand(*row)

@@ -78,6 +78,19 @@ def test_a_stream_holds_each_row_until_the_next():
         CommandStream([1.0], [[0, 0, 0]])
     with pytest.raises(ParamError, match="row 2: command vx = 5 m/s is out of range"):
         CommandStream([0.0, 1.0], [[0, 0, 0], [5, 0, 0]])
+    with pytest.raises(ParamError, match="row 3: t = 601 s is beyond 600 s"):     # a walk of days: refused
+        CommandStream([0.0, 600.0, 601.0, 1e9], np.zeros((4, 3)))
+    assert CommandStream([0.0, 600.0], np.zeros((2, 3)), tail=600.0).duration == 1200.0
+
+
+def test_a_stream_file_from_a_spreadsheet_loads_as_written(tmp_path):
+    """A UTF-8 byte-order mark before the header (as spreadsheets write CSV) and CRLF line ends."""
+    from tuner.streams import load_stream
+    plain, marked = tmp_path / "plain.csv", tmp_path / "marked.csv"
+    plain.write_text(STREAM)
+    marked.write_bytes(b"\xef\xbb\xbf" + STREAM.replace("\n", "\r\n").encode())
+    a, b = load_stream(plain), load_stream(marked)
+    assert np.array_equal(a.t, b.t) and np.array_equal(a.commands, b.commands) and a.tail == b.tail
 
 
 def test_a_table_walks_a_stream_planned_per_step():
@@ -122,6 +135,7 @@ def test_simulate_a_stream_reports_its_tracking(gait_tuner_cmd, run_env, tmp_pat
     ("t,vx,vy,wz\n0,a,0,0\n", "line 2: '0,a,0,0' is not four numbers"),
     ("t,vx,vy,wz\n0,0,0,0\n2,0,0,0\n1,0,0,0\n", "row 3: t = 1 s does not come after"),
     ("t,vx,vy,wz\n0,0,0,nan\n", "row 1: values must be finite"),
+    ("t,vx,vy,wz\n0,0,0,0\n1e9,0,0,0\n", "row 2: t = 1e+09 s is beyond 600 s"),
 ])
 def test_bad_stream_files_are_one_line(gait_tuner_cmd, run_env, tmp_path, content, message):
     f = tmp_path / "s.csv"

@@ -2,7 +2,8 @@
 
 ``t`` in seconds from the start, ``vx``, ``vy`` in m/s, ``wz`` in rad/s; each row's command holds
 until the next row's t, and the walk lasts until the last row's t plus ``tail`` (the caller's
-``--duration``, or 2 s). Lines starting with ``#`` are comments. Every way a file can be wrong is
+``--duration``, or 2 s); the rows lie within 600 s. Lines starting with ``#`` are comments; a
+UTF-8 byte-order mark (as spreadsheets write) is skipped. Every way a file can be wrong is
 one :class:`UserError` naming the file and the row.
 """
 
@@ -27,7 +28,7 @@ def load_stream(path: str | Path, tail: float | None = None) -> CommandStream:
     path = Path(path)
     raw = read_bytes_checked(path, "command stream", MAX_STREAM_BYTES, UserError)
     try:
-        text = raw.decode("utf-8")
+        text = raw.decode("utf-8-sig")          # a spreadsheet's byte-order mark is not part of the header
     except UnicodeDecodeError as exc:
         raise UserError(f"{path}: is not UTF-8 text (byte {exc.start})") from None
     rows = [(i + 1, r) for i, r in enumerate(csv.reader(io.StringIO(text)))
