@@ -158,6 +158,22 @@ RANDOM_FIELDS = [
 ]
 
 
+# an engine study's scenario section (tuner/sim/scenario.py, tuner/search/study.py)
+ENGINE_STUDY = {**STUDY, "engine": {}, "scenario": {"walks": 2, "duration": 4.0}}
+SCENARIO_FIELDS = [
+    ("scenario.walks", 0, "scenario: walks = 0"), ("scenario.walks", 1.5, "whole number"),
+    ("scenario.min_survival", 1.5, "scenario: min_survival = 1.5"),
+    ("scenario.tracking_weight", -1, "scenario: tracking_weight = -1"),
+    ("scenario.push_min", 2.0, "scenario: push_min = 2 N s exceeds push_max = 1.5"),
+    ("scenario.push_max", float("nan"), "scenario: push_max = nan"),
+    ("scenario.duration", 1e9, "scenario: duration = 1000000000.0"),
+    ("scenario.forward", -0.3, "scenario: forward = -0.3"), ("scenario.turn", "fast", "scenario: turn = 'fast'"),
+    ("scenario.segment_min", 4.0, "scenario: segment_min = 4 s exceeds segment_max = 3 s"),
+    ("scenario.bogus", 1, "unknown key 'bogus'"), ("scenario", [1], "scenario must be a mapping"),
+    ("scenario.randomisation", {"mass_scale": -1}, "scenario.randomisation"),
+]
+
+
 def _ids(rows):
     return [f"{path}={value!r}"[:60] for path, value, _ in rows]
 
@@ -189,6 +205,19 @@ def dump(path: Path, doc) -> Path:
 def test_study_fields(capsys, workdir, field, value, words):
     study = dump(workdir / "study.yaml", _set(STUDY, field, value))
     run_bad(capsys, ["tune", study, "--workers", "1"], words)
+
+
+@pytest.mark.parametrize("field, value, words", SCENARIO_FIELDS, ids=_ids(SCENARIO_FIELDS))
+def test_scenario_fields(capsys, workdir, field, value, words):
+    study = dump(workdir / "study.yaml", _set(ENGINE_STUDY, field, value))
+    run_bad(capsys, ["tune", study, "--workers", "1"], words)
+
+
+def test_a_scenario_message_names_its_section_once(capsys, workdir):
+    study = dump(workdir / "study.yaml", _set(ENGINE_STUDY, "scenario.push_max", -1))
+    assert main(["tune", str(study), "--workers", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "study.yaml: scenario: push_max = -1: expected a number in [0, 50] N s" in err, err
 
 
 @pytest.mark.parametrize("field, value, words", MAP_FIELDS, ids=_ids(MAP_FIELDS))
@@ -410,7 +439,7 @@ def test_journal_that_is_not_a_journal(capsys, workdir):
 
 
 def test_the_suite_is_as_large_as_promised():
-    n = (len(STUDY_FIELDS) + len(MAP_FIELDS) + len(PARAMS_FIELDS) + len(SURFACE_FIELDS) + len(RANDOM_FIELDS)
+    n = (len(STUDY_FIELDS) + len(SCENARIO_FIELDS) + len(MAP_FIELDS) + len(PARAMS_FIELDS) + len(SURFACE_FIELDS) + len(RANDOM_FIELDS)
          + len(KINDS) * len(FILE_OPTIONS) + len(OPTIONS) + 3)
     assert n >= 200, n
 

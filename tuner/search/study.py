@@ -480,13 +480,13 @@ def _study_scenario(doc: Any, source: str) -> ScenarioSpec | None:
             _fail(source, f"scenario: unknown key {k!r} (allowed: {', '.join(own + SCENARIO_FIELDS)})")
     k = doc.get("walks", 6)
     if not isinstance(k, int) or isinstance(k, bool) or not 1 <= k <= 1000:
-        _fail(source, f"scenario.walks = {k!r}: expected a whole number in [1, 1000]")
+        _fail(source, f"scenario: walks = {k!r}: expected a whole number in [1, 1000]")
     ms = doc.get("min_survival", 0.9)
     if not isinstance(ms, (int, float)) or isinstance(ms, bool) or not 0.0 <= ms <= 1.0:
-        _fail(source, f"scenario.min_survival = {ms!r}: expected a fraction in [0, 1]")
+        _fail(source, f"scenario: min_survival = {ms!r}: expected a fraction in [0, 1]")
     tw = doc.get("tracking_weight", 10.0)
     if not isinstance(tw, (int, float)) or isinstance(tw, bool) or not 0.0 <= tw <= 1000.0:
-        _fail(source, f"scenario.tracking_weight = {tw!r}: expected a number in [0, 1000] deg per m/s")
+        _fail(source, f"scenario: tracking_weight = {tw!r}: expected a number in [0, 1000] deg per m/s")
     try:
         rnd = randomisation_from_mapping(doc.get("randomisation"), "scenario.randomisation")
         scen = scenario_from_mapping({kk: v for kk, v in doc.items() if kk in SCENARIO_FIELDS}, "scenario")

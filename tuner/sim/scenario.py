@@ -61,13 +61,13 @@ class Scenario:
         for name, (lo, hi, unit) in _RANGES.items():
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or not lo <= v <= hi:
-                raise UserError(f"scenario.{name} = {v!r}: expected a number in [{lo:g}, {hi:g}] {unit}")
+                raise UserError(f"{name} = {v!r}: expected a number in [{lo:g}, {hi:g}] {unit}")
             object.__setattr__(self, name, float(v))
         if self.segment_min > self.segment_max:
-            raise UserError(f"scenario: segment_min = {self.segment_min:g} s exceeds segment_max = "
+            raise UserError(f"segment_min = {self.segment_min:g} s exceeds segment_max = "
                             f"{self.segment_max:g} s")
         if self.push_min > self.push_max:
-            raise UserError(f"scenario: push_min = {self.push_min:g} N s exceeds push_max = {self.push_max:g} N s")
+            raise UserError(f"push_min = {self.push_min:g} N s exceeds push_max = {self.push_max:g} N s")
 
     @property
     def length(self) -> float:
