@@ -51,7 +51,8 @@ from tuner.sim.turf_tests import DropTest, drop_test, rotation_test, sole_roll_s
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT = ["rigid", "carpet4", "grass50", str(ROOT / "examples/surfaces/grass50-blades.yaml"),
            str(ROOT / "examples/surfaces/grass50-blades-creep.yaml"),
-           str(ROOT / "examples/surfaces/grass50-blades-jam.yaml")]
+           str(ROOT / "examples/surfaces/grass50-blades-jam.yaml"),
+           str(ROOT / "examples/surfaces/grass50-blades-slide.yaml")]
 
 
 def main() -> None:
