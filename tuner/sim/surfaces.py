@@ -26,10 +26,10 @@ A surface with ``blade_modulus`` > 0 is the **blade layer** instead (ours, ``bla
 contact layer; springs under each sole corner by pressure, in two stages (flexible tips over a
 stiff base), blades that hold a corner where it entered until friction lets go, and the drag; with
 ``blade_jam_speed`` > 0, a corner that lands faster than that is jammed near the tips (the EROS
-paper's account of a toe stuck in the grass, as a mechanism); with ``blade_jam_slide`` > 0, one that
-enters the blades sliding faster than that (a toe dragged into them) is jammed the same way. The built-in pedestals keep the
-contact layer (their calibration); ``examples/surfaces`` has blade layers of grass50's height
-(and a jam file of grass30's).
+paper's account of a toe stuck in the grass, as a mechanism); with ``blade_jam_slide`` > 0, one
+that enters the blades sliding faster than that (a toe dragged into them) is jammed the same way.
+The built-in pedestals keep the contact layer (their calibration); ``examples/surfaces`` has blade
+layers of grass50's height (and jam files of grass30's).
 
 The four built-in surfaces mirror the EROS paper's pedestals (Sec. 5, Figs
 20-23): grass50 (50 mm blades, sparse, irregular), grass30 (30 mm, dense,
