@@ -34,6 +34,7 @@ def test_the_example_files_are_blade_layers_of_the_pedestals_height():
     assert jam30.layer_height == SURFACES["grass30"].layer_height                   # pedestal 2's blades
     assert jam30.replace(name=JAM.name, layer_height=JAM.layer_height) == JAM      # and nothing else differs
     assert SLIDE.replace(name=JAM.name, blade_jam_slide=0.0, blade_jam_speed=0.6) == JAM   # the jam's cause only
+    assert JAM.jams and SLIDE.jams and not BLADES.jams and not CREEP.jams
     slide30 = load_surface(str(EXAMPLES / "grass30-blades-slide.yaml"))
     assert slide30.replace(name=SLIDE.name, layer_height=SLIDE.layer_height) == SLIDE
     assert not SURFACES["grass50"].blades                 # the built-in pedestals keep their contact layer

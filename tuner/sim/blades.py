@@ -103,6 +103,7 @@ class BladeLayer:
         self._block[:, 1:, 1] = -self.k_hold[:, None]
         self.jam_speed = surface.blade_jam_speed
         self.jam_slide = surface.blade_jam_slide
+        self.jams = surface.jams
         self.jam_force = surface.blade_jam_pressure * a
         self.jammed = np.zeros(self.n, dtype=bool)
         self.jam_z = np.zeros(self.n)
@@ -136,7 +137,7 @@ class BladeLayer:
         k = np.where(base, self.k_base, self.k_tip)
         f0 = np.where(base, self._f0_base, 0.0)
         load = (f0 + k * depth) * now
-        if self.jam_speed > 0.0 or self.jam_slide > 0.0:     # a jammed point's spring carries it too
+        if self.jams:                             # a jammed point's spring carries it too
             load = load + self._jam(z, xy, now, entered)
         np.maximum(load, 0.0, out=load)
         d = self.anchor - xy

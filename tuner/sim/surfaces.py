@@ -124,6 +124,12 @@ class Surface(GaitParams):
         in MuJoCo's step by ``drag_gate.c`` where it could be built): drag and no blade layer."""
         return self.drag > 0.0 and not self.blades
 
+    @property
+    def jams(self) -> bool:
+        """The blade layer jams a sole point that enters too fast: downward (``blade_jam_speed``),
+        sliding (``blade_jam_slide``), or both."""
+        return self.blade_jam_speed > 0.0 or self.blade_jam_slide > 0.0
+
 
 SURFACES: dict[str, Surface] = {
     "rigid": Surface(name="rigid", friction=0.9, soil_friction=0.9,

@@ -269,7 +269,7 @@ def drop_test(ground: Surface | SpringGround, t: DropTest = DropTest()) -> DropR
     # the apparatus puts its foot on the surface: it settles without a jam (a blade layer's, which
     # a foot let fall onto it would meet)
     placed = ground
-    if isinstance(ground, Surface) and (ground.blade_jam_speed > 0.0 or ground.blade_jam_slide > 0.0):
+    if isinstance(ground, Surface) and ground.jams:
         placed = ground.replace(blade_jam_speed=0.0, blade_jam_slide=0.0)
     alone, pts0 = _drop_rig(placed, t, with_mass=False)
     d0 = mujoco.MjData(alone)
