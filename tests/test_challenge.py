@@ -192,5 +192,9 @@ def test_challenge_by_direction_through_the_cli(gait_tuner_cmd, run_env):
     bad = run(gait_tuner_cmd, ["challenge", "push", "--params", "kidsize-omni-carpet4", "--by-direction",
                                "--directions", "left"], run_env)
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1 and "--directions" in bad.stderr
+    for twice in ("0,0", "90,-270", "0,360"):
+        again = run(gait_tuner_cmd, ["challenge", "push", "--params", "kidsize-omni-carpet4", "--by-direction",
+                                     "--directions", twice], run_env)
+        assert again.returncode == 2 and len(again.stderr.strip().splitlines()) == 1 and "given already" in again.stderr
     alone = run(gait_tuner_cmd, ["challenge", "push", "--params", "kidsize-omni-carpet4", "--directions", "90"], run_env)
     assert alone.returncode == 2 and len(alone.stderr.strip().splitlines()) == 1 and "--by-direction" in alone.stderr

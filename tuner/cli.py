@@ -1225,6 +1225,14 @@ def _challenge_by_direction(sim, drive, directions: str, step: float, as_json: b
         raise UserError(f"--directions {directions!r}: expected comma-separated angles in degrees, e.g. 90,270") from None
     if not dirs or not all(-360.0 <= d <= 360.0 for d in dirs):
         raise UserError(f"--directions {directions!r}: give one or more angles in [-360, 360] deg")
+    seen: dict[float, float] = {}
+    for d in dirs:
+        key = round(d % 360.0, 9) % 360.0
+        if key in seen:
+            same = seen[key]
+            raise UserError(f"--directions {directions!r}: {d:g} deg is the direction of {same:g} deg, given "
+                            "already (each direction is walked once)")
+        seen[key] = d
     step = step if click.get_current_context().get_parameter_source("step").name != "DEFAULT" else 0.1
 
     def shown(row: dict) -> None:
