@@ -16,8 +16,12 @@ open-loop set of the same surface (``kidsize-omni-<surface>``, a table planned p
   rate-limited command, ``accel_*``, has reached the segment's: a 0.45 m/s change at 0.5 m/s^2
   takes 0.9 s of a 2 s segment), for the table too (the same steps, side by side);
 * the push-recovery challenge (``gait-tuner challenge push``) on carpet4 and grass30, push seeds
-  0, 1, 2: the largest fully successful D and the bottle's momentum at impact per seed and the
-  median momentum, engine vs open-loop;
+  0, 1, 2 (``--challenge-seeds``): the largest fully successful D and the bottle's momentum at
+  impact per seed and the median momentum, the engine beside the best open-loop set in the
+  challenge (``CHALLENGE_TABLE``, the slow robust walk with its stabiliser) and the fast carpet4
+  table, and the engine's median as a multiple of the best open-loop set's;
+* every shipped set without an engine in the challenge (``--parts tables``, not in the default
+  run, ~40 min with nine seeds): which open-loop set is the best, the one to compare with;
 * the engine's cost per tick in Python (median, 99th percentile) beside one tick of physics;
 * single pushes by direction (``--parts directions``, not in the default run): the largest D each
   of eight directions survives at two points of a step, engine vs open-loop (which direction binds
@@ -42,7 +46,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import gaits  # noqa: E402
-from tuner.params_io import resolve_params  # noqa: E402
+from gaits import list_baselines  # noqa: E402
+from tuner.params_io import list_results, resolve_params  # noqa: E402
 from tuner.sim.challenge import challenge  # noqa: E402
 from tuner.sim.metrics import AXES, steady_tracking, tracking_by_axis, tracking_shares  # noqa: E402
 from tuner.sim.robustness import evaluate  # noqa: E402
@@ -53,6 +58,12 @@ from tuner.robots import load_robot  # noqa: E402
 
 SETS = {"carpet4": ("kidsize-engine-carpet4", "kidsize-omni-carpet4", 0.3),
         "grass50": ("kidsize-engine-grass50", "kidsize-omni-grass50", 0.2)}
+# The best open-loop set in the push challenge, on carpet4 and on grass30 alike: the slow (0.51 s)
+# robust walk with its IMU stabiliser takes the largest median push of every shipped set without an
+# engine over push seeds 0-8 (``--parts tables`` surveys them all: 1.70 N s on both surfaces, the
+# fast carpet4 table 1.16 / 1.43); the match walks above compare with the fast tables instead, the
+# only ones that walk the match stream's speeds.
+CHALLENGE_TABLE = "kidsize-robust-fb-grass50"
 
 
 def survival(rows) -> float:
@@ -106,13 +117,14 @@ def main() -> None:
     ap.add_argument("--challenge-seeds", default="0,1,2", metavar="K,K,...",
                     help="the challenge's push-direction seeds (one seed's three pushes per D say little)")
     ap.add_argument("--parts", default="walks,challenge,cost,limits",
-                    help="which parts to run, comma-separated (walks, challenge, cost, limits, directions; "
-                         "directions is not in the default: ~10 min); the tick cost is best measured "
+                    help="which parts to run, comma-separated (walks, challenge, cost, limits, directions, "
+                         "tables; directions and tables are not in the default: ~10 and ~40 min); the tick "
+                         "cost is best measured "
                          "alone on an idle machine: --parts cost")
     args = ap.parse_args()
     parts = set(args.parts.split(","))
-    if not parts <= {"walks", "challenge", "cost", "limits", "directions"}:
-        ap.error(f"--parts: {args.parts!r}: the parts are walks, challenge, cost, limits, directions")
+    if not parts <= {"walks", "challenge", "cost", "limits", "directions", "tables"}:
+        ap.error(f"--parts: {args.parts!r}: the parts are walks, challenge, cost, limits, directions, tables")
     n = 20 if args.quick else args.walks
     also: dict[str, list[str]] = {k: [] for k in SETS}
     for item in args.also:
@@ -158,11 +170,20 @@ def main() -> None:
     for surface in (("carpet4",) + (() if args.quick else ("grass30",))) if "challenge" in parts else ():
         robot = load_robot("kidsize")
         sim = Simulator(robot, load_surface(surface), pendulum=1.5)
-        for label in ("kidsize-engine-carpet4", "kidsize-omni-carpet4", *also["carpet4"]):
-            runs = [challenge(sim, gaits.Drive.of(resolve_params(label, None), source=label), seed=k) for k in seeds]
-            cells = [f"{r['best_distance_m'] or 0:.2f} / {r['momentum_Ns'] or 0:.2f}" for r in runs]
-            med = float(np.median([r["momentum_Ns"] or 0.0 for r in runs]))
-            print(f"  {surface:8s} {label:28s} " + ",  ".join(cells) + f"   median {med:.2f} N s", flush=True)
+        medians = {}
+        for label in ("kidsize-engine-carpet4", CHALLENGE_TABLE, "kidsize-omni-carpet4", *also["carpet4"]):
+            medians[label] = challenge_row(sim, surface, label, seeds)
+        print(f"  {surface:8s} the engine's median / the best open-loop set's ({CHALLENGE_TABLE}): "
+              f"{medians['kidsize-engine-carpet4'] / medians[CHALLENGE_TABLE]:.2f}x", flush=True)
+    if "tables" in parts:
+        print(f"\nthe push challenge for every shipped set without an engine (push seeds {args.challenge_seeds}): "
+              "which open-loop set is the best")
+    for surface in ("carpet4", "grass30") if "tables" in parts else ():
+        sim = Simulator(load_robot("kidsize"), load_surface(surface), pendulum=1.5)
+        labels = [x for x in list_results() + list_baselines() if resolve_params(x, None).engine is None]
+        medians = {label: challenge_row(sim, surface, label, seeds) for label in labels}
+        best = max(medians, key=medians.get)
+        print(f"  {surface:8s} best: {best} ({medians[best]:.2f} N s)", flush=True)
     if "cost" in parts:
         print("\nthe engine's cost per tick, in Python on this machine (a 20 s match walk)")
     for surface, (engine_set, _, _) in (SETS.items() if "cost" in parts else ()):
@@ -179,6 +200,15 @@ def main() -> None:
         print("\nwhich limit binds: kidsize-engine-carpet4's challenge trials walked again (rope 1.5 m, seed 0)")
         for surface in ("carpet4", "grass30"):
             limits(surface)
+
+
+def challenge_row(sim, surface: str, label: str, seeds) -> float:
+    """Print one set's challenge per push seed (best D / momentum) and return its median momentum."""
+    runs = [challenge(sim, gaits.Drive.of(resolve_params(label, None), source=label), seed=k) for k in seeds]
+    cells = [f"{r['best_distance_m'] or 0:.2f} / {r['momentum_Ns'] or 0:.2f}" for r in runs]
+    med = float(np.median([r["momentum_Ns"] or 0.0 for r in runs]))
+    print(f"  {surface:8s} {label:28s} " + ",  ".join(cells) + f"   median {med:.2f} N s", flush=True)
+    return med
 
 
 def directions(surface: str, labels) -> None:

@@ -678,6 +678,20 @@ class WalkEngine:
         dx, dv = self._disturbance()
         return self.com + e.k_pos * dx, self.vel + e.k_vel * dv
 
+    def _take_blended(self) -> None:
+        """The plan takes the blended state (a re-plan), and the plan's last ``lag`` of ticks the same
+        correction: the disturbance is the estimate less the plan ``lag`` ago, so without it a second
+        re-plan within ``lag`` would count the first one's share of the push again (with
+        ``replan_interval`` below ``lag``: re-planning every tick took the grass30 challenge from
+        0.95 to 0.70 m, median of nine push seeds; ours)."""
+        com, vel = self._blended()
+        dc, dv = com - self.com, vel - self.vel
+        n = int(round(self.params.lag / self.dt))
+        for i in range(max(0, len(self._history) - n - 1), len(self._history)):
+            c, v = self._history[i]
+            self._history[i] = (c + dc, v + dv)
+        self.com, self.vel = com, vel
+
     def _advance(self, m: Measurement) -> None:
         """Move the plan on to time ``self.t`` (the targets' time): stand, shift, steps, stop. The
         plan's CoM state (``com``, ``vel``) is always that of local time ``state_tau`` of the
@@ -774,7 +788,7 @@ class WalkEngine:
         st.theta_a = 0.0
         st.offset = np.zeros(2)
         if not first and float(np.linalg.norm(self._dcm_error())) > self.params.replan_error:
-            self.com, self.vel = self._blended()
+            self._take_blended()
         self._plan_rest(0.0, swing_pose=None)
         self.step_starts.append(t0)
         self.events.append((t0, f"step {self.steps_taken} on the {'left' if side == 1 else 'right'} foot to "
@@ -816,7 +830,7 @@ class WalkEngine:
         self.last_replan = self.t
         self.events.append((self.t, f"re-plan at tau {tau:.2f} s, capture-point error "
                                     f"{float(np.linalg.norm(self._dcm_error())) * 1000:.0f} mm"))
-        self.com, self.vel = self._blended()
+        self._take_blended()
         if tau > st.t1:                               # re-target the swing from where the foot is
             pose, theta = self._swing_pose(tau)
             st.pose_a, st.tau_a, st.theta_a = pose[:3], tau, theta

@@ -451,3 +451,27 @@ def test_the_gyro_makes_up_a_turning_shortfall_within_bounds():
     stopped = walk(3.0, 0.8, ticks=600, then_stop=True)
     assert abs(stopped._wz_extra) < 0.5 * abs(short._wz_extra)
     assert stopped.mode == "stand"                 # the decayed correction ends: asked to stop, it stops
+
+
+def test_a_re_plan_takes_the_pushs_velocity_once():
+    """A re-plan moves the plan's velocity by k_vel of the disturbance and leaves the rest as the
+    disturbance at once, though the disturbance compares with the plan ``lag`` ago: a second re-plan
+    at the next tick adds k_vel of what is left, not k_vel of the whole push again."""
+    e = engine(k_vel=0.6, lag=0.03, replan_error=10.0)
+    e.start_pose()
+    e.reset(Measurement(0.0))
+    for i in range(200):                                   # blind ticks: the plan walks on
+        e.step(Measurement(i * 0.01), np.array([0.1, 0.0, 0.0]))
+    assert e.mode == "walk"
+    n = 3
+    com_lag, vel_lag = e._history[-1 - n]
+    push = np.array([0.3, -0.1])
+    e.estimator.x = np.array([com_lag, vel_lag + push])
+    e._bias = np.zeros(4)
+    v0 = e.vel.copy()
+    assert np.allclose(e._disturbance()[1], push)
+    e._take_blended()
+    assert np.allclose(e.vel - v0, 0.6 * push)
+    assert np.allclose(e._disturbance()[1], 0.4 * push)
+    e._take_blended()
+    assert np.allclose(e.vel - v0, (0.6 + 0.6 * 0.4) * push)
