@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import math
 import sys
 import time
 from pathlib import Path
@@ -175,20 +176,21 @@ def main() -> None:
         print(f"\npush-recovery challenge (rope 1.5 m, push seeds {args.challenge_seeds}): best D [m] / momentum "
               f"at impact [N s] per seed, and the median momentum")
     for surface in (("carpet4",) + (() if args.quick else ("grass30",))) if "challenge" in parts else ():
-        robot = load_robot("kidsize")
-        sim = Simulator(robot, load_surface(surface), pendulum=1.5)
+        sim = challenge_sim(surface)
         medians = {}
         for label in ("kidsize-engine-carpet4", CHALLENGE_TABLE, "kidsize-omni-carpet4", *also["carpet4"]):
             medians[label] = challenge_row(sim, surface, label, seeds)
+        ratio = medians["kidsize-engine-carpet4"] / medians[CHALLENGE_TABLE] if medians[CHALLENGE_TABLE] else math.inf
         print(f"  {surface:8s} the engine's median / the best open-loop set's ({CHALLENGE_TABLE}): "
-              f"{medians['kidsize-engine-carpet4'] / medians[CHALLENGE_TABLE]:.2f}x", flush=True)
+              f"{ratio:.2f}x", flush=True)
     if "tables" in parts:
         print(f"\nthe push challenge for every shipped set without an engine (push seeds {args.challenge_seeds}): "
               "which open-loop set is the best")
     for surface in ("carpet4", "grass30") if "tables" in parts else ():
-        sim = Simulator(load_robot("kidsize"), load_surface(surface), pendulum=1.5)
-        labels = [x for x in list_results() + list_baselines() if resolve_params(x, None).engine is None]
-        medians = {label: challenge_row(sim, surface, label, seeds) for label in labels}
+        sim = challenge_sim(surface)
+        sets = {x: resolve_params(x, None) for x in list_results() + list_baselines()}
+        medians = {label: challenge_row(sim, surface, label, seeds, gf) for label, gf in sets.items()
+                   if gf.engine is None}
         best = max(medians, key=medians.get)
         print(f"  {surface:8s} best: {best} ({medians[best]:.2f} N s)", flush=True)
     if "cost" in parts:
@@ -209,9 +211,16 @@ def main() -> None:
             limits(surface)
 
 
-def challenge_row(sim, surface: str, label: str, seeds) -> float:
-    """Print one set's challenge per push seed (best D / momentum) and return its median momentum."""
-    runs = [challenge(sim, gaits.Drive.of(resolve_params(label, None), source=label), seed=k) for k in seeds]
+def challenge_sim(surface: str) -> Simulator:
+    """The challenge's scene: the kid-size robot on ``surface`` with the 1.5 m pendulum."""
+    return Simulator(load_robot("kidsize"), load_surface(surface), pendulum=1.5)
+
+
+def challenge_row(sim, surface: str, label: str, seeds, gf: gaits.GaitFile | None = None) -> float:
+    """Print one set's challenge per push seed (best D / momentum) and return its median momentum
+    (``gf``: the set already read, else read from ``label``)."""
+    drive = gaits.Drive.of(gf or resolve_params(label, None), source=label)
+    runs = [challenge(sim, drive, seed=k) for k in seeds]
     cells = [f"{r['best_distance_m'] or 0:.2f} / {r['momentum_Ns'] or 0:.2f}" for r in runs]
     med = float(np.median([r["momentum_Ns"] or 0.0 for r in runs]))
     print(f"  {surface:8s} {label:28s} " + ",  ".join(cells) + f"   median {med:.2f} N s", flush=True)
@@ -221,7 +230,7 @@ def challenge_row(sim, surface: str, label: str, seeds) -> float:
 def directions(surface: str, labels) -> None:
     """Print, per set, the largest single push per direction (``challenge.push_by_direction``)."""
     from tuner.sim.challenge import push_by_direction
-    sim = Simulator(load_robot("kidsize"), load_surface(surface), pendulum=1.5)
+    sim = challenge_sim(surface)
     for label in labels:
         rows = push_by_direction(sim, gaits.Drive.of(resolve_params(label, None), source=label))
         cells = [f"{r['direction_deg']:.0f}: {r['best_distance_m'] or 0:.1f}/{r['momentum_Ns'] or 0:.2f}" for r in rows]
@@ -235,7 +244,7 @@ def limits(surface: str) -> None:
     the re-plans per limit and the servos at a limit in the second after each push."""
     from tuner.sim.challenge import PUSH_TIMES_S, push_trial
     from tuner.sim.walk_speed import saturation
-    sim = Simulator(load_robot("kidsize"), load_surface(surface), pendulum=1.5)
+    sim = challenge_sim(surface)
     drive = gaits.Drive.of(resolve_params("kidsize-engine-carpet4", None), source="kidsize-engine-carpet4")
     r = challenge(sim, drive)
     failing = r["trials"][-1]["distance_m"] if not r["trials"][-1]["success"] else None
