@@ -3,8 +3,10 @@ scenario study runs end to end through the CLI."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
+import re
 import subprocess
 from pathlib import Path
 
@@ -14,7 +16,7 @@ import pytest
 import gaits
 from tuner.params_io import resolve_params
 from tuner.robots import load_robot
-from tuner.sim.challenge import drop_height, push_trial, rank
+from tuner.sim.challenge import challenge, drop_height, push_trial, rank
 from tuner.sim.rollout import Simulator
 from tuner.sim.scene import BOTTLE_MASS
 from tuner.sim.surfaces import SURFACES
@@ -85,24 +87,106 @@ def test_challenge_through_the_cli(gait_tuner_cmd, run_env):
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1
 
 
+def tune_and_export(cmd, env, tmp_path, text: str, workers: int):
+    """Write the study ``text``, tune it through the CLI, export its best trial: (study, runs, tune's
+    stdout, the exported set's path)."""
+    study = tmp_path / "tiny.yaml"
+    study.write_text(text)
+    runs = tmp_path / "runs"
+    tuned = run(cmd, ["tune", study, "--workers", str(workers), "--runs", runs], env)
+    assert tuned.returncode == 0, tuned.stderr
+    out = tmp_path / "best.yaml"
+    r = run(cmd, ["export", study, "--runs", runs, "--out", out], env)
+    assert r.returncode == 0, r.stderr
+    return study, runs, tuned.stdout, out
+
+
 def test_a_tiny_scenario_study_end_to_end(gait_tuner_cmd, run_env, tmp_path):
-    study = tmp_path / "tiny-engine.yaml"
-    study.write_text(
+    _, _, _, out = tune_and_export(
+        gait_tuner_cmd, run_env, tmp_path,
         "gait: tlipfm\nbase: kidsize-omni-carpet4\nsurfaces: [carpet4]\nengine: {}\n"
         "space:\n  engine.k_vel: {low: 0.0, high: 1.0}\n  h_z: {low: 0.02, high: 0.05}\n"
-        "scenario: {walks: 2, duration: 4.0, min_survival: 0.5, push_rate: 0.2}\ntrials: 3\nenqueue: [baselines]\n")
-    runs = tmp_path / "runs"
-    r = run(gait_tuner_cmd, ["tune", study, "--workers", "2", "--runs", runs], run_env)
-    assert r.returncode == 0, r.stderr
-    out = tmp_path / "best.yaml"
-    r = run(gait_tuner_cmd, ["export", study, "--runs", runs, "--out", out], run_env)
-    assert r.returncode == 0, r.stderr
+        "scenario: {walks: 2, duration: 4.0, min_survival: 0.5, push_rate: 0.2}\ntrials: 3\nenqueue: [baselines]\n", 2)
     gf = gaits.load_gait_file(out)
     assert gf.engine is not None and 0.0 <= gf.engine.k_vel <= 1.0
     r = run(gait_tuner_cmd, ["simulate", "--params", out, "--surface", "carpet4", "--commands",
                              ROOT / "examples" / "streams" / "match-carpet4.csv", "--json"], run_env)
     assert r.returncode == 0, r.stderr
     assert "online walk engine" in json.loads(r.stdout)["drive"]
+
+
+def test_a_tiny_challenge_study_end_to_end(gait_tuner_cmd, run_env, tmp_path):
+    """A study scored on the push-recovery challenge: its objective is the mean largest D over the
+    push seeds, as ``challenge`` itself finds them for the trial's set."""
+    study, runs, said, out = tune_and_export(
+        gait_tuner_cmd, run_env, tmp_path,
+        "gait: tlipfm\nbase: kidsize-engine-carpet4\nsurfaces: [carpet4]\nengine: {k_vel: 0.6}\n"
+        "space:\n  engine.k_vel: {low: 0.5, high: 0.9}\ntrials: 2\nenqueue: [baselines]\n"
+        "challenge: {seeds: [0, 1], start: 0.6, step: 0.3}\n", 1)
+    assert "push distance" in said
+    r = run(gait_tuner_cmd, ["trials", study, "--runs", runs, "--json"], run_env)
+    assert r.returncode == 0, r.stderr
+    rows = json.loads(r.stdout)["shown"]
+    assert len(rows) == 2 and all(row["feasible"] for row in rows)
+    gf = gaits.load_gait_file(out)
+    assert gf.engine is not None and 0.5 <= gf.engine.k_vel <= 0.9
+    sim = Simulator(load_robot("kidsize"), SURFACES["carpet4"], pendulum=1.5)
+    found = [challenge(sim, gaits.Drive.of(gf), seed=k, start=0.6, step=0.3)["best_distance_m"] for k in (0, 1)]
+    expected = sum(0.3 if d is None else d for d in found) / 2
+    assert max(row["score"] for row in rows) == pytest.approx(expected)
+
+
+def test_a_challenge_trial_that_takes_no_push_scores_below_every_one_that_does():
+    from tuner.search.objective import Evaluator
+    from tuner.search.study import ChallengeSpec, load_study
+    spec = dataclasses.replace(load_study("kidsize-omni-carpet4"), surfaces=("rigid",), speed=None,
+                               challenge=ChallengeSpec(seeds=(0,), start=1.4, step=0.05))
+    res = Evaluator(spec).evaluate(gaits.Drive.of(resolve_params("kidsize-omni-carpet4", None)))
+    assert res.values == (pytest.approx(1.35),) and res.fall_constraint < 0
+    assert res.per_surface["rigid"]["best_distance_m"] == [None]
+
+
+@pytest.mark.parametrize("aggregate, expected", [("worst", 0.5), ("mean", (0.5 + 0.875) / 2)])
+def test_a_challenge_study_aggregates_the_surfaces_mean_distances(monkeypatch, aggregate, expected):
+    import tuner.sim.challenge as ch
+    from tuner.search.objective import Evaluator
+    from tuner.search.study import ChallengeSpec, load_study
+    found = {("rigid", 0): 0.4, ("rigid", 1): 0.6, ("carpet4", 0): None, ("carpet4", 1): 1.2}
+
+    def fake(sim, drive, *, seed, start, step):
+        d = found[(sim.surface.name, seed)]
+        return {"best_distance_m": d, "momentum_Ns": None if d is None else 1.0}
+    monkeypatch.setattr(ch, "challenge", fake)
+    spec = dataclasses.replace(load_study("kidsize-omni-carpet4"), surfaces=("rigid", "carpet4"), speed=None,
+                               aggregate=aggregate, challenge=ChallengeSpec(seeds=(0, 1), start=0.6, step=0.05))
+    res = Evaluator(spec).evaluate(gaits.Drive.of(resolve_params("kidsize-omni-carpet4", None)))
+    # per surface the mean over seeds: rigid (0.4 + 0.6) / 2 = 0.5; carpet4 (0.55, start - step for no
+    # push, + 1.2) / 2 = 0.875; then the worst of them, or their mean
+    assert res.per_surface["carpet4"]["best_distance_m"] == [None, 1.2]
+    assert res.values == (pytest.approx(expected),)
+
+
+@pytest.mark.parametrize("section, message", [
+    ("challenge: {seeds: [0, 0]}", "seeds"),
+    ("challenge: {seeds: []}", "seeds"),
+    ("challenge: {rope: 3}", "rope = 3"),
+    ("challenge: {start: 1.5}", "start = 1.5"),
+    ("challenge: {step: 0}", "step = 0"),
+    ("challenge: {pushes: 3}", "unknown key 'pushes'"),
+    ("challenge: [0, 1]", "challenge must be a mapping"),
+    ("challenge: {}\nobjectives: [pitch_rms]", "remove 'objectives'"),
+    ("challenge: {}\nscenario: {walks: 2}", "does not go with scenario"),
+    ("challenge: {}\nrobust: {rollouts: 2}", "does not go with robust"),
+    ("challenge: {}\nduration: 5", "remove 'duration'"),
+])
+def test_a_challenge_section_is_checked(tmp_path, section, message):
+    from tuner.errors import UserError
+    from tuner.search.study import load_study
+    study = tmp_path / "bad.yaml"
+    study.write_text("gait: tlipfm\nbase: kidsize-engine-carpet4\nsurfaces: [carpet4]\nengine: {}\n"
+                     "space:\n  engine.k_vel: {low: 0.5, high: 0.9}\n" + section + "\n")
+    with pytest.raises(UserError, match=re.escape(message)):
+        load_study(str(study))
 
 
 def test_the_engine_says_which_limits_its_re_plans_sat_on():

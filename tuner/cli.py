@@ -776,6 +776,12 @@ def _run_study_and_report(spec, store, study_file: str, storage: str | None, tot
                    + (f"; rejected: {why}" if why else "")
                    + f"; infeasible trials (a direction not held on a surface, or rejected): "
                      f"{sum(1 for x in study.get_trials(deepcopy=False, states=DONE_STATES) if not trial_feasible(x))}")
+    elif spec.challenge is not None:
+        per = (t.user_attrs.get("result") or {}).get("per_surface") or {}
+        cells = "; ".join(f"{name} " + ", ".join("-" if d is None else f"{d:.2f}" for d in row["best_distance_m"])
+                          for name, row in per.items())
+        click.echo(f"best trial {t.number}: push distance {t.values[0]:.3f} m (mean largest D over the push "
+                   f"seeds {', '.join(str(k) for k in spec.challenge.seeds)}" + (f": {cells}" if cells else "") + ")")
     else:
         click.echo(f"best trial {t.number}: pitch score {t.values[0]:.3f} deg"
                    + (f", speed {t.values[1]:.4f} m/s" if len(t.values) > 1 else "")
@@ -868,8 +874,8 @@ def trials(study_file: str, storage: str | None, runs_dir: Path, pareto: bool, s
            as_json: bool) -> None:
     """List a study's trials: state, objectives, feasibility, survival, searched parameters.
 
-    score: the pitch score [deg] minimised (see tuner/search/objective.py); speed [m/s] when the study
-    has it; feasible: stayed up (robust: survival >= the study's minimum) and walked at
+    score: the pitch score [deg] minimised (see tuner/search/objective.py; a speed study's speed score
+    and a challenge study's push distance [m] maximised); speed [m/s] when the study has it; feasible: stayed up (robust: survival >= the study's minimum) and walked at
     least half its plan; survival: robust studies' share of randomised walks that stayed up.
     """
     import json

@@ -104,22 +104,25 @@ class Evaluator:
         self.sims = [sim_cache.simulator(self.robot, s) for s in self.spec.surfaces]
         self._copies: dict[int, "queue.SimpleQueue"] = {}
 
-    def _in_order(self, n: int, walk: Callable[[Any, int], Any]) -> Iterator[tuple[str, Any]]:
+    def _in_order(self, n: int, walk: Callable[[Any, int], Any],
+                  sims: list | None = None) -> Iterator[tuple[str, Any]]:
         """``(surface, walk(simulator, i))`` for every surface of the study in turn and i in
         0..n-1, yielded in that order; on ``self.threads`` threads when more than one (one stream
         over all surfaces, so no thread waits at a surface's end), each walk on a free copy of its
-        surface's simulator; what the caller does not consume is cancelled."""
-        tasks = [(name, sim, i) for name, sim in zip(self.spec.surfaces, self.sims) for i in range(n)]
+        surface's simulator (of ``sims``, one per surface, when given: the challenge's, with its
+        pendulum); what the caller does not consume is cancelled."""
+        sims = self.sims if sims is None else sims
+        tasks = [(name, sim, i) for name, sim in zip(self.spec.surfaces, sims) for i in range(n)]
         if self.threads <= 1 or len(tasks) <= 1:
             for name, sim, i in tasks:
                 yield name, walk(sim, i)
             return
-        for sim in self.sims:
+        for sim in sims:
             if id(sim) not in self._copies:
                 free = self._copies[id(sim)] = queue.SimpleQueue()
                 free.put(sim)
                 for _ in range(self.threads - 1):
-                    free.put(Simulator(self.robot, sim.surface))
+                    free.put(Simulator(self.robot, sim.surface, pendulum=sim.rope))
 
         def task(sim: Any, i: int) -> Any:
             free = self._copies[id(sim)]
@@ -141,6 +144,8 @@ class Evaluator:
         """Per-surface metrics and the aggregate score of what ``drive`` walks (a trial's set and
         stabiliser)."""
         spec = self.spec
+        if spec.challenge is not None:
+            return self._evaluate_challenge(drive)
         if spec.speed is not None:
             return self._evaluate_speed(drive.params, drive.stabiliser)
         if spec.scenario is not None:
@@ -275,6 +280,39 @@ class Evaluator:
         return TrialResult(score=float(np.mean(scores)), speed=0.0, fall_constraint=constraint, fell=falls > 0,
                            per_surface=per, survival=survival, hopeless=hopeless)
 
+    def _evaluate_challenge(self, drive: gaits.Drive) -> TrialResult:
+        """The push-recovery challenge (``tuner/sim/challenge.py``) per surface and push seed of the
+        study's ``challenge:`` section; the one objective, ``push_distance``, is per surface the mean
+        over the seeds of the largest fully successful D [m] (``start - step`` where even ``start``
+        fails: worse than any success, and still ordered), then the worst surface's or the mean over
+        surfaces, as the study's ``aggregate`` says. Always feasible: a trial that takes no push
+        scores low, not infeasible (ours: the sampler then learns from every trial's distance)."""
+        from ..sim.challenge import challenge
+        ch = self.spec.challenge
+        if getattr(self, "_challenge_sims", None) is None:
+            self._challenge_sims = [Simulator(self.robot, sim.surface, pendulum=ch.rope) for sim in self.sims]
+        floor = ch.start - ch.step
+
+        def walk(sim: Any, i: int) -> dict:
+            return challenge(sim, drive, seed=ch.seeds[i], start=ch.start, step=ch.step)
+
+        per: dict[str, dict] = {}
+        distances: dict[str, list[float]] = {}
+        try:
+            for name, r in self._in_order(len(ch.seeds), walk, self._challenge_sims):
+                d = r["best_distance_m"]
+                distances.setdefault(name, []).append(floor if d is None else float(d))
+                row = per.setdefault(name, {"best_distance_m": [], "momentum_Ns": []})
+                row["best_distance_m"].append(d)
+                row["momentum_Ns"].append(r["momentum_Ns"])
+        except (ParamError, UnreachableTargetError) as exc:
+            return TrialResult(score=floor, speed=0.0, fall_constraint=1.0, fell=True, per_surface={},
+                               invalid=str(exc), values=(floor,))
+        means = [float(np.mean(v)) for v in distances.values()]
+        score = min(means) if self.spec.aggregate == "worst" else float(np.mean(means))
+        return TrialResult(score=score, speed=0.0, fall_constraint=-1.0, fell=False, per_surface=per,
+                           values=(score,))
+
     def _evaluate_speed(self, params: gaits.GaitParams, stabiliser: Any) -> TrialResult:
         """A speed study's trial: every direction's staircase on every surface
         (``tuner/sim/walk_speed.py``); per direction the worst (or mean) surface's highest stair
@@ -364,7 +402,7 @@ def objective_for(spec: StudySpec, evaluator: Evaluator) -> Callable[[optuna.Tri
             trial.report(value, step)
             return trial.should_prune()
 
-        res = evaluator.evaluate(drive, None if spec.speed is not None else report)
+        res = evaluator.evaluate(drive, None if spec.speed is not None or spec.challenge is not None else report)
         # two journal writes per trial (params, result): workers contend for the file lock
         record_constraint(trial, res.fall_constraint)
         walked = {"controller": dict(drive.user.params)} if drive.user is not None else drive.params.to_mapping()
@@ -378,8 +416,9 @@ def objective_for(spec: StudySpec, evaluator: Evaluator) -> Callable[[optuna.Tri
             minimum = (spec.scenario or spec.robust).min_survival
             raise optuna.TrialPruned(f"survival already below {minimum:.0%}")
         if res.values is not None:
-            trial.set_user_attr("speed", {"by_direction": res.by_direction, "score": res.score,
-                                          "pitch_rms_deg": res.pitch_rms_deg})
+            if spec.speed is not None:
+                trial.set_user_attr("speed", {"by_direction": res.by_direction, "score": res.score,
+                                              "pitch_rms_deg": res.pitch_rms_deg})
             return res.values if len(res.values) > 1 else res.values[0]
         if len(spec.objectives) > 1:
             return res.score, res.speed

@@ -35,6 +35,11 @@ A study tunes one gait family on one robot against one or several surfaces::
       tracking_weight: 10.0        #   score = pitch RMS [deg] + this x (vx + vy RMSE [m/s] + 0.1 wz RMSE [rad/s])
       randomisation: {}            #   overrides of tuner/sim/randomisation.py's defaults, or none
       forward: 0.3                 #   the scenario's distribution: any field of tuner/sim/scenario.py
+    challenge:                     # optional: the push-recovery challenge (tuner/sim/challenge.py) per
+      seeds: [0, 1, 2]             #   surface and push seed; the objective push_distance is per surface
+      rope: 1.5                    #   the mean largest fully successful D [m], then the aggregate over
+      start: 0.05                  #   surfaces (maximised); the robot walks in place; D raised from
+      step: 0.05                   #   start by step [m] until a trial fails
     controller: my_controller.yaml # optional, instead of gait/base: a controller of your own
                                    #   (tuner/controllers.py); its parameters are searched as
                                    #   controller.NAME (default: every range its file declares);
@@ -50,7 +55,8 @@ A study tunes one gait family on one robot against one or several surfaces::
       mode: weighted               #   weighted: one objective (maximised); pareto: one per
                                    #   direction (maximised) and pitch_rms (minimised)
 
-A speed study has no ``objectives`` key: its objectives follow from ``speed.mode``.
+A speed study has no ``objectives`` key: its objectives follow from ``speed.mode``; nor has a
+challenge study: its one objective is ``push_distance``.
 
 Every mistake is a :class:`tuner.errors.UserError` naming the file, the key and
 the allowed values.
@@ -81,10 +87,11 @@ __all__ = ["ParamRange", "SpeedSpec", "StudySpec", "load_study", "STUDY_DIR", "l
 
 STUDY_DIR = Path(__file__).resolve().parents[2] / "studies"
 OBJECTIVES = {"pitch_rms": "minimize", "speed": "maximize", "speed_score": "maximize",
-              **{d: "maximize" for d in ("forward", "backward", "left", "right", "turn_left", "turn_right")}}
+              **{d: "maximize" for d in ("forward", "backward", "left", "right", "turn_left", "turn_right")},
+              "push_distance": "maximize"}
 _KEYS = ("name", "description", "robot", "surfaces", "aggregate", "gait", "base", "fixed", "space",
          "objectives", "trials", "duration", "enqueue", "baselines", "sampler_seed", "robust", "stabiliser",
-         "speed", "controller", "engine", "scenario")
+         "speed", "controller", "engine", "scenario", "challenge")
 RISKS = ("cvar25", "worst", "mean")
 STAB_PREFIX = "stabiliser."
 CTRL_PREFIX = "controller."
@@ -171,6 +178,7 @@ class StudySpec:
     controller: UserController | None = None   # a controller of the user's own (then gait "user")
     engine: Any = None                # gaits.engine.EngineParams: trials walk the online engine
     scenario: Any = None              # ScenarioSpec: match walks per surface per trial
+    challenge: Any = None             # ChallengeSpec: the push-recovery challenge per surface per trial
 
     @property
     def directions(self) -> list[str]:
@@ -222,6 +230,15 @@ def _beside(spec: str, study: Path) -> str:
 
 def _fail(source: str, msg: str) -> None:
     raise UserError(f"{source}: {msg}")
+
+
+def _check_section(sec: Any, name: str, allowed: tuple[str, ...], source: str) -> None:
+    """A study's section must be a mapping of the allowed keys (one line naming the first stranger)."""
+    if not isinstance(sec, Mapping):
+        _fail(source, f"{name} must be a mapping of {', '.join(allowed)}")
+    for k in sec:
+        if k not in allowed:
+            _fail(source, f"{name}: unknown key {k!r} (allowed: {', '.join(allowed)})")
 
 
 def _study_robot(robot: Any, path: Path, source: str) -> str:
@@ -328,6 +345,7 @@ def load_study(path_or_name: str) -> StudySpec:
     scenario = _study_scenario(doc.get("scenario"), source)
     if scenario is not None and (robust is not None or speed is not None):
         _fail(source, "scenario does not go with robust or speed: a scenario study has its own randomised walks")
+    challenge = _study_challenge(doc, source)
     if speed is not None and engine is not None:
         _fail(source, "speed studies walk tables on staircases: give the engine a scenario: section instead")
     _check_integer_ranges(space, source)
@@ -337,7 +355,8 @@ def load_study(path_or_name: str) -> StudySpec:
                      duration=None if duration is None else float(duration), enqueue=tuple(enqueue),
                      baselines=tuple(extra_sets), sampler_seed=seed,
                      description=description, source=source, robust=robust,
-                     stabiliser=stabiliser, speed=speed, engine=engine, scenario=scenario)
+                     stabiliser=stabiliser, speed=speed, engine=engine, scenario=scenario,
+                     challenge=challenge)
 
 
 def _common(doc: Mapping[str, Any], path: Path, source: str, gait: str) -> tuple:
@@ -371,7 +390,11 @@ def _common(doc: Mapping[str, Any], path: Path, source: str, gait: str) -> tuple
         if doc.get("robust") is not None:
             _fail(source, "speed and robust together are not built: list the pedestals under surfaces")
     objectives = doc.get("objectives", ["pitch_rms"])
-    if speed is not None:
+    if doc.get("challenge") is not None:
+        if "objectives" in doc:
+            _fail(source, "a challenge study's one objective is push_distance: remove 'objectives'")
+        objectives = ["push_distance"]
+    elif speed is not None:
         objectives = (["speed_score"] if speed.mode == "weighted"
                       else [d[0] for d in speed.directions] + ["pitch_rms"])
     elif not isinstance(objectives, list) or not objectives or any(o not in OBJECTIVES for o in objectives) \
@@ -453,7 +476,7 @@ def _user_study(doc: Mapping[str, Any], path: Path, source: str) -> "StudySpec":
                      robot=str(robot), aggregate=aggregate, objectives=tuple(objectives), trials=trials,
                      duration=duration, enqueue=tuple(enqueue), sampler_seed=seed, description=description,
                      source=source, robust=_study_robust(doc.get("robust"), source), stabiliser=stabiliser,
-                     controller=user)
+                     controller=user, challenge=_study_challenge(doc, source))
 
 
 @dataclass(frozen=True)
@@ -472,12 +495,8 @@ def _study_scenario(doc: Any, source: str) -> ScenarioSpec | None:
         return None
     from ..sim.randomisation import randomisation_from_mapping
     from ..sim.scenario import SCENARIO_FIELDS, scenario_from_mapping
-    own = ("walks", "min_survival", "tracking_weight", "randomisation")
-    if not isinstance(doc, Mapping):
-        _fail(source, f"scenario must be a mapping of {', '.join(own + SCENARIO_FIELDS)}")
-    for k in doc:
-        if k not in own + SCENARIO_FIELDS:
-            _fail(source, f"scenario: unknown key {k!r} (allowed: {', '.join(own + SCENARIO_FIELDS)})")
+    _check_section(doc, "scenario", ("walks", "min_survival", "tracking_weight", "randomisation") + SCENARIO_FIELDS,
+                   source)
     k = doc.get("walks", 6)
     if not isinstance(k, int) or isinstance(k, bool) or not 1 <= k <= 1000:
         _fail(source, f"scenario: walks = {k!r}: expected a whole number in [1, 1000]")
@@ -493,6 +512,47 @@ def _study_scenario(doc: Any, source: str) -> ScenarioSpec | None:
     except UserError as exc:
         _fail(source, str(exc))
     return ScenarioSpec(k, float(ms), float(tw), rnd, scen)
+
+
+@dataclass(frozen=True)
+class ChallengeSpec:
+    """A challenge study's trials (ours): the push-recovery challenge (``tuner/sim/challenge.py``) on
+    each surface for each push seed; the score is the mean over them of the largest fully
+    successful D [m] (``start - step`` where even ``start`` fails)."""
+
+    seeds: tuple[int, ...] = (0, 1, 2)
+    rope: float = 1.5                  # [m] the rules allow 1-2 m
+    start: float = 0.05                # [m] the first D tried
+    step: float = 0.05                 # [m] D raised by this until a trial fails
+
+
+def _study_challenge(doc: Mapping[str, Any], source: str) -> ChallengeSpec | None:
+    """The ``challenge:`` section, checked against the study's other sections."""
+    sec = doc.get("challenge")
+    if sec is None:
+        return None
+    _check_section(sec, "challenge", ("seeds", "rope", "start", "step"), source)
+    for other in ("robust", "scenario", "speed"):
+        if doc.get(other) is not None:
+            _fail(source, f"challenge does not go with {other}: a challenge study walks the challenge's own trials")
+    if doc.get("duration") is not None and doc.get("controller") is None:
+        _fail(source, "challenge: the challenge's trials last 14 s each: remove 'duration'")
+    seeds = sec.get("seeds", [0, 1, 2])
+    if not isinstance(seeds, list) or not seeds or len(seeds) > 100 or any(
+            not isinstance(k, int) or isinstance(k, bool) or not 0 <= k <= MAX_SEED for k in seeds) \
+            or len(set(seeds)) != len(seeds):
+        _fail(source, f"challenge: seeds = {seeds!r}: expected a list of 1 to 100 different whole numbers "
+                      f"in [0, {MAX_SEED}]")
+    vals = {}
+    for k, default, lo, hi in (("rope", 1.5, 1.0, 2.0), ("start", 0.05, 0.01, 1.9), ("step", 0.05, 0.01, 1.0)):
+        v = sec.get(k, default)
+        if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v) or not lo <= v <= hi:
+            _fail(source, f"challenge: {k} = {v!r}: expected a number in [{lo:g}, {hi:g}] m")
+        vals[k] = float(v)
+    if vals["start"] >= 0.95 * vals["rope"]:
+        _fail(source, f"challenge: start = {vals['start']:g} m: the bottle is released from below 0.95 of the "
+                      f"rope ({0.95 * vals['rope']:g} m): start lower")
+    return ChallengeSpec(tuple(int(k) for k in seeds), vals["rope"], vals["start"], vals["step"])
 
 
 def _study_engine(doc: Any, gait: str, source: str) -> Any:
@@ -572,12 +632,7 @@ def _study_robust(doc: Any, source: str) -> RobustSpec | None:
     if doc is None:
         return None
     from ..sim.randomisation import randomisation_from_mapping
-    allowed = ("rollouts", "risk", "min_survival", "randomisation")
-    if not isinstance(doc, Mapping):
-        _fail(source, f"robust must be a mapping of {', '.join(allowed)}")
-    for k in doc:
-        if k not in allowed:
-            _fail(source, f"robust: unknown key {k!r} (allowed: {', '.join(allowed)})")
+    _check_section(doc, "robust", ("rollouts", "risk", "min_survival", "randomisation"), source)
     k = doc.get("rollouts", 8)
     if not isinstance(k, int) or isinstance(k, bool) or not 1 <= k <= 1000:
         _fail(source, f"robust.rollouts = {k!r}: expected a whole number in [1, 1000]")

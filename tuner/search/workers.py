@@ -91,7 +91,7 @@ def open_study(spec: StudySpec, storage: Any, seed: int | None = None,
 OBJECTIVE_NAMES = {"pitch_rms": "pitch score [deg]", "speed": "forward speed [m/s]",
                    "speed_score": "speed score", "forward": "forward stair [m/s]", "backward": "backward stair [m/s]",
                    "left": "left stair [m/s]", "right": "right stair [m/s]", "turn_left": "turn-left stair [rad/s]",
-                   "turn_right": "turn-right stair [rad/s]"}
+                   "turn_right": "turn-right stair [rad/s]", "push_distance": "push distance D [m]"}
 
 
 def _clip_to_space(spec: StudySpec, params: gaits.GaitParams) -> dict[str, Any]:
