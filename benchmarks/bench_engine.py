@@ -31,7 +31,11 @@ table on grass50; tables planned per step) and the surface's own fast table
 * which limit binds (``--parts limits``): the engine set's first failing challenge trial on carpet4
   and grass30 walked again, its re-plans counted by the limit their step sat on (reach, the sole's
   edge for the ZMP, a shorter swing, the swing foot's speed) and, per push, the servos at their
-  torque or speed limit in the second after it, beside the last successful trial.
+  torque or speed limit in the second after it, beside the last successful trial;
+* what a forward push hands the robot (``--parts transfer``, not in the default run, ~10 s): the
+  CoM's velocity and the capture point's jump per D, the share of the bottle's momentum the CoM
+  takes, beside the LIPM's N-step capture bound for the engine set's reach, sole and step, and
+  what issue 21's 2x target asks of it.
 """
 
 from __future__ import annotations
@@ -52,6 +56,7 @@ import gaits  # noqa: E402
 from gaits import list_baselines  # noqa: E402
 from tuner.params_io import list_results, resolve_params  # noqa: E402
 from tuner.sim.challenge import challenge  # noqa: E402
+from tuner.sim.scene import BOTTLE_MASS as BOTTLE  # noqa: E402
 from tuner.sim.metrics import AXES, steady_tracking, tracking_by_axis, tracking_shares  # noqa: E402
 from tuner.sim.robustness import evaluate  # noqa: E402
 from tuner.sim.rollout import Simulator  # noqa: E402
@@ -126,13 +131,14 @@ def main() -> None:
                     help="the challenge's push-direction seeds (one seed's three pushes per D say little)")
     ap.add_argument("--parts", default="walks,challenge,cost,limits",
                     help="which parts to run, comma-separated (walks, challenge, cost, limits, directions, "
-                         "tables; directions and tables are not in the default: ~10 and ~40 min); the tick "
+                         "tables, transfer; directions, tables and transfer are not in the default: ~10 and ~40 min); the tick "
                          "cost is best measured "
                          "alone on an idle machine: --parts cost")
     args = ap.parse_args()
     parts = set(args.parts.split(","))
-    if not parts <= {"walks", "challenge", "cost", "limits", "directions", "tables"}:
-        ap.error(f"--parts: {args.parts!r}: the parts are walks, challenge, cost, limits, directions, tables")
+    if not parts <= {"walks", "challenge", "cost", "limits", "directions", "tables", "transfer"}:
+        ap.error(f"--parts: {args.parts!r}: the parts are walks, challenge, cost, limits, directions, tables, "
+                 f"transfer")
     n = 20 if args.quick else args.walks
     also: dict[str, list[str]] = {k: [] for k in SETS}
     for item in args.also:
@@ -205,6 +211,10 @@ def main() -> None:
               "survived / momentum [N s], D raised by 0.1 m from 0.4")
         for surface in ("carpet4",) + (() if args.quick else ("grass30",)):
             directions(surface, ("kidsize-engine-carpet4", "kidsize-omni-carpet4", *also["carpet4"]))
+    if "transfer" in parts:
+        print("\nwhat a forward push hands the robot, and the LIPM's capture bound (single pushes at 3.0 s)")
+        for surface in ("carpet4", "grass30"):
+            transfer(surface)
     if "limits" in parts:
         print("\nwhich limit binds: kidsize-engine-carpet4's challenge trials walked again (rope 1.5 m, seed 0)")
         for surface in ("carpet4", "grass30"):
@@ -264,6 +274,65 @@ def limits(surface: str) -> None:
             sat = saturation(sim, tr, t_push, min(t_push + 1.0, float(tr.t[-1])))[:3]
             print(f"  {'':8s}   push at {t_push:.0f} s, servos at a limit in the next second: " +
                   "; ".join(f"{x['joint']} torque {x['torque_share']:.0%} speed {x['speed_share']:.0%}" for x in sat))
+
+
+def capture_bound(r: float, reach: float, T: float, omega: float, n: int | None) -> float:
+    """[m] The largest capture-point offset ahead of the stance sole's centre that a linear inverted
+    pendulum can still stop in ``n`` steps (``None``: any number), each step taking ``T`` [s] and
+    landing at most ``reach`` [m] ahead of the stance foot, the ZMP at most ``r`` [m] ahead of the
+    sole's centre (N-step capturability, Koolen et al. 2012, eq. 11's recursion in one dimension):
+    d_0 = r, d_N = r + (d_(N-1) + reach - r) e^(-omega T); d_inf = r + reach / (e^(omega T) - 1)."""
+    if n is None:
+        return r + reach / math.expm1(omega * T)
+    d = r
+    for _ in range(n):
+        d = r + (d + reach - r) * math.exp(-omega * T)
+    return d
+
+
+def transfer(surface: str, label: str = "kidsize-engine-carpet4") -> None:
+    """Print what a forward push hands the robot (single pushes at 3.0 s, the bottle moving the way
+    the robot faces): the CoM's velocity gained in the 60 ms after the impact (less its mean over
+    the 50 ms before), its momentum as a share of the bottle's, and the capture point's jump; then
+    the LIPM's N-step capture bound for the set's reach, sole and step, and what issue 21's target
+    (twice the best open-loop set's momentum) asks of it at the measured share."""
+    from tuner.sim.challenge import drop_height, push_trial
+    sim = challenge_sim(surface)
+    gf = resolve_params(label, None)
+    drive = gaits.Drive.of(gf, source=label)
+    mass = float(sim.model.body_subtreemass[sim._torso])
+    omega = math.sqrt(9.81 / gf.params.z_c)
+    print(f"  {surface} {label}: robot {mass:.2f} kg, omega {omega:.2f} 1/s")
+    shares = []
+    for D in (0.6, 0.7, 0.8, 0.9, 1.0, 1.1, 1.2):
+        r = push_trial(sim, drive, D, 0, keep_trace=True, pushes=[(3.0, 0.0)])
+        tr = r["trace"]
+        dt = float(tr.t[1] - tr.t[0])
+        yaw = float(tr.yaw[int(round(2.95 / dt))]) if tr.yaw is not None else 0.0
+        u = np.array([math.cos(yaw), math.sin(yaw)])
+        v = (np.diff(tr.p_com[:, :2], axis=0) / dt) @ u
+        k = int(round(3.0 / dt))
+        dv = float(v[k - 2:k + 6].max() - v[k - 7:k - 2].mean())
+        p = BOTTLE * math.sqrt(2 * 9.81 * drop_height(sim.rope, D))
+        shares.append(mass * dv / p)
+        print(f"    D {D:.1f} m: bottle {p:.2f} N s, CoM +{dv:.3f} m/s ({mass * dv / p:.0%} of the bottle's "
+              f"momentum), capture point +{dv / omega * 1000:.0f} mm; {'up' if r['success'] else 'fell'}", flush=True)
+    share = float(np.median(shares))
+    robot = sim.robot
+    limits = gaits.family("tlipfm").step_limits(gf.params, robot)
+    sole = robot.foot_size[0] / 2 - gf.engine.zmp_margin
+    g = gf.params
+    T_short = g.t1 + gf.engine.min_ssp_scale * (g.t2 - g.t1) + (g.period - g.t2)
+    target = 2 * 1.70                               # twice CHALLENGE_TABLE's median (README)
+    ask = share * target / mass / omega
+    print(f"    LIPM capture bound ahead (ZMP {sole * 1000:.0f} mm ahead of the sole's centre, reach "
+          f"{limits.max_forward * 1000:.0f} mm): " + "; ".join(
+              f"step {T:.3f} s: " + ", ".join(f"{'inf' if n is None else n} step{'s' if n != 1 else ''} "
+                                              f"{capture_bound(sole, limits.max_forward, T, omega, n) * 1000:.0f} mm"
+                                              for n in (1, 2, 3, None))
+              for T in (g.period, T_short)))
+    print(f"    issue 21's 2x ({target:.2f} N s) at the median share {share:.0%}: the capture point +{ask * 1000:.0f} mm",
+          flush=True)
 
 
 if __name__ == "__main__":
