@@ -19,9 +19,10 @@ table on grass50; tables planned per step) and the surface's own fast table
   takes 0.9 s of a 2 s segment), for the table too (the same steps, side by side);
 * the push-recovery challenge (``gait-tuner challenge push``) on carpet4 and grass30, push seeds
   0, 1, 2 (``--challenge-seeds``): the largest fully successful D and the bottle's momentum at
-  impact per seed and the median momentum, the engine beside the best open-loop set in the
-  challenge (``CHALLENGE_TABLE``, the slow robust walk with its stabiliser) and the fast carpet4
-  table, and the engine's median as a multiple of the best open-loop set's;
+  impact per seed and the median momentum, the engine sets (the match set ``kidsize-engine-carpet4``
+  and the challenge's own, ``PUSH_SET``) beside the best open-loop set in the challenge
+  (``CHALLENGE_TABLE``, the slow robust walk with its stabiliser) and the fast carpet4 table, and
+  each engine set's median as a multiple of the best open-loop set's;
 * every shipped set without an engine in the challenge (``--parts tables``, not in the default
   run, ~40 min with nine seeds): which open-loop set is the best, the one to compare with;
 * the engine's cost per tick in Python (median, 99th percentile) beside one tick of physics;
@@ -77,6 +78,9 @@ SETS = {"carpet4": ("kidsize-engine-carpet4", "kidsize-omni-rigid", 0.3, "kidsiz
 # fast carpet4 table 1.16 / 1.43); the match walks above compare with the fast tables instead, the
 # only ones that walk the match stream's speeds.
 CHALLENGE_TABLE = "kidsize-robust-fb-grass50"
+# The engine set tuned on the challenge alone (studies/kidsize-engine-push.yaml: stepping in place,
+# push seeds 0-2 on carpet4 and grass30), beside the match set in the challenge.
+PUSH_SET = "kidsize-engine-push"
 
 
 def survival(rows) -> float:
@@ -184,11 +188,13 @@ def main() -> None:
     for surface in (("carpet4",) + (() if args.quick else ("grass30",))) if "challenge" in parts else ():
         sim = challenge_sim(surface)
         medians = {}
-        for label in ("kidsize-engine-carpet4", CHALLENGE_TABLE, "kidsize-omni-carpet4", *also["carpet4"]):
+        engines = ("kidsize-engine-carpet4", PUSH_SET)
+        for label in (*engines, CHALLENGE_TABLE, "kidsize-omni-carpet4", *also["carpet4"]):
             medians[label] = challenge_row(sim, surface, label, seeds)
-        ratio = medians["kidsize-engine-carpet4"] / medians[CHALLENGE_TABLE] if medians[CHALLENGE_TABLE] else math.inf
-        print(f"  {surface:8s} the engine's median / the best open-loop set's ({CHALLENGE_TABLE}): "
-              f"{ratio:.2f}x", flush=True)
+        for label in (*engines, *also["carpet4"]):
+            ratio = medians[label] / medians[CHALLENGE_TABLE] if medians[CHALLENGE_TABLE] else math.inf
+            print(f"  {surface:8s} {label}'s median / the best open-loop set's ({CHALLENGE_TABLE}): "
+                  f"{ratio:.2f}x", flush=True)
     if "tables" in parts:
         print(f"\nthe push challenge for every shipped set without an engine (push seeds {args.challenge_seeds}): "
               "which open-loop set is the best")
