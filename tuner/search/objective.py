@@ -103,6 +103,7 @@ class Evaluator:
         self.robot = sim_cache.robot(self.spec.robot)
         self.sims = [sim_cache.simulator(self.robot, s) for s in self.spec.surfaces]
         self._copies: dict[int, "queue.SimpleQueue"] = {}
+        self._challenge_sims: list[Simulator] | None = None     # the challenge's scenes, built on first use
 
     def _in_order(self, n: int, walk: Callable[[Any, int], Any],
                   sims: list | None = None) -> Iterator[tuple[str, Any]]:
@@ -289,7 +290,7 @@ class Evaluator:
         scores low, not infeasible (ours: the sampler then learns from every trial's distance)."""
         from ..sim.challenge import challenge
         ch = self.spec.challenge
-        if getattr(self, "_challenge_sims", None) is None:
+        if self._challenge_sims is None:
             self._challenge_sims = [Simulator(self.robot, sim.surface, pendulum=ch.rope) for sim in self.sims]
         floor = ch.start - ch.step
 
