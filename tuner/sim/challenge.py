@@ -33,7 +33,7 @@ from gaits import CommandStream
 from .rollout import Simulator
 from .scene import BOTTLE_LENGTH, BOTTLE_MASS, BOTTLE_RADIUS, PREFIX
 
-__all__ = ["challenge", "push_trial", "push_by_direction", "drop_height", "rank", "PUSH_TIMES_S", "TRIAL_S"]
+__all__ = ["challenge", "push_trial", "push_by_direction", "drop_height", "impact_momentum", "rank", "PUSH_TIMES_S", "TRIAL_S"]
 
 PUSH_TIMES_S = (3.0, 7.0, 11.0)   # [s] when the three pushes meet the robot
 TRIAL_S = 14.0                     # [s] one trial
@@ -44,6 +44,11 @@ GAP = 0.005                        # [m] between the resting bottle and the robo
 def drop_height(rope: float, distance: float) -> float:
     """H = L - sqrt(L^2 - D^2) [m]: how far the bottle falls from its release (the rules' H)."""
     return rope - math.sqrt(max(rope * rope - distance * distance, 0.0))
+
+
+def impact_momentum(rope: float, distance: float) -> float:
+    """[N s] The bottle's momentum as it meets the robot: m sqrt(2 g H) for a release from D."""
+    return BOTTLE_MASS * math.sqrt(2 * GRAVITY * drop_height(rope, distance))
 
 
 def rank(rope: float, distance: float, robot_mass: float, com_height: float) -> float:
@@ -200,7 +205,7 @@ def challenge(sim: Simulator, drive: gaits.Drive, *, seed: int = 0, start: float
         distance += step
     H = drop_height(rope, best) if best is not None else 0.0
     return {"rope_m": rope, "best_distance_m": best,
-            "momentum_Ns": BOTTLE_MASS * math.sqrt(2 * GRAVITY * H) if best is not None else None,
+            "momentum_Ns": impact_momentum(rope, best) if best is not None else None,
             "drop_m": H if best is not None else None,
             "rank": rank(rope, best, robot_mass, com_height) if best is not None else None,
             "robot_mass_kg": robot_mass, "com_height_m": com_height, "trials": trials}
@@ -231,7 +236,7 @@ def push_by_direction(sim: Simulator, drive: gaits.Drive, *, directions: Sequenc
                 best = round(distance, 4)
                 distance += step
         row = {"direction_deg": float(direction) % 360, "best_distance_m": best,
-               "momentum_Ns": BOTTLE_MASS * math.sqrt(2 * GRAVITY * drop_height(rope, best)) if best is not None else None,
+               "momentum_Ns": impact_momentum(rope, best) if best is not None else None,
                "first_failure": failed}
         rows.append(row)
         if progress is not None:
