@@ -40,8 +40,10 @@ The **estimator**: the CoM from the support leg's forward kinematics (encoders) 
 IMU's tilt, as a measurement of a Kalman filter whose model is the same LIPM driven by the
 measured centre of pressure of the sole forces (``kf_accel``, ``kf_position``: its process and
 measurement noise), and with ``kf_velocity`` > 0 the CoM's velocity measured too, from the gyro and
-the encoders' rates (a push shows in it at once, where the position shows it only as it builds up). The support foot is taken to stand where it was planned (no slip): the
-engine's world is its own odometry, starting at the robot's start pose.
+the encoders' rates (a push shows in it at once, where the position shows it only as it builds
+up; not read in a step's first ``lag``, while the landing leg still turns with the swing). The
+support foot is taken to stand where it was planned (no slip): the engine's world is its own
+odometry, starting at the robot's start pose.
 
 Which family does what (``gaits.family(...).engine``): TLIPFM has this engine and its state
 feedback; EROS and the cosine law walk online commands through their own tables re-planned at
