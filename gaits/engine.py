@@ -259,6 +259,10 @@ class _Gait:
         total = p.d1 + p.d2
         self.rho = p.d2 / total if abs(total) > 1e-12 else 0.5
         self.stance_widen, self.stance_speed = float(stance_widen), float(stance_speed)
+        # d required_dcm / d p0: a step's first ZMP point enters only the backward pass's first
+        # segment (0 to t1; the later steps start from this one's boundary, not from p0), where
+        # xi(0) = p0 + T_c k + (xi(t1) - p1 - T_c k) e^{-t1/T_c}, k = (p1 - p0) / t1 (ours)
+        self.start_weight = 1.0 - (self.Tc / p.t1) * (1.0 - math.exp(-p.t1 / self.Tc))   # t1 > 0: validated
 
     def half_width(self, command: np.ndarray) -> float:
         """Half the feet's distance the steps of ``command`` land at [m]: the gait's ``half_width``,
@@ -350,7 +354,9 @@ def adjust_step(gait: _Gait, step: Step, tau: float, xi: np.ndarray, command: np
     Returns (target (3,), lambda, offset (2,), info); ``info["binds"]`` names the limits the chosen
     solution sits on (ours, for reports): ``reach`` (the footstep at its reach box or sole gap),
     ``sole`` (the ZMP at the sole's edge less ``zmp_margin``), ``timing`` (a shorter swing than
-    planned), ``speed`` (a swing dropped because it would exceed ``foot_speed``)."""
+    planned), ``speed`` (a swing dropped because it would exceed ``foot_speed``; a timing whose
+    (1 - lambda)^2 term alone costs more than the best found is not solved, so it is never dropped:
+    the speed did not bind there)."""
     p = gait.p
     nominal = step.target.copy() if fixed_target else gait.nominal_target(step.support, step.side, command)
     c, s = math.cos(step.support[2]), math.sin(step.support[2])
@@ -381,9 +387,8 @@ def adjust_step(gait: _Gait, step: Step, tau: float, xi: np.ndarray, command: np
         req0 = required(u_nom, kp0[-1])
         # moving the footstep by Rot d moves every later point by the same, so the required DCM
         # too, except through the step's boundary (the next step's first ZMP point), which moves
-        # by D d; the LIPM being isotropic, that point's weight is one number
-        w_b = float(required(u_nom, kp0[-1] + np.array([0.01, 0.0]))[0] - req0[0]) / 0.01
-        J_req = Rot + w_b * (D - Rot)
+        # by D d; the LIPM being isotropic, that point's weight is one number (_Gait.start_weight)
+        J_req = Rot + gait.start_weight * (D - Rot)
 
     weights = np.array([params.zmp_weight] * 2 + [params.step_weight] * 2)[:n_var]
     W = np.diag(weights)
@@ -398,6 +403,8 @@ def adjust_step(gait: _Gait, step: Step, tau: float, xi: np.ndarray, command: np
     for lam in lams:
         if best is not None and best[4] < 1e-4 and lam < 1.0:
             break
+        if best is not None and params.timing_weight * (1.0 - lam) ** 2 >= best[0]:
+            continue                             # its timing alone costs more than the best: it cannot win
         t2 = p.t1 + lam * ssp
         if not fixed_target and t2 < tau + 2 * dt - 1e-12:
             continue                             # the swing cannot land sooner than that

@@ -142,6 +142,24 @@ def test_slow_steps_land_wider_by_stance_widen():
         EngineParams(stance_widen=0.05)                               # beyond the stated range
 
 
+@pytest.mark.parametrize("t1", [0.01, FAST.t1, FAST.t2 - 0.01])
+@pytest.mark.parametrize("n", [1, 3])
+def test_the_start_points_weight_is_the_required_dcms_own(t1, n):
+    """``_Gait.start_weight``, the closed form the step adjustment takes for how the DCM the next
+    steps need moves with their first ZMP point, is that DCM's own slope (a difference over the
+    point, on both axes, for a turning command too)."""
+    import dataclasses
+    g = _Gait(dataclasses.replace(FAST, t1=t1), LIMITS)
+    support = np.array([0.1, 0.05, 0.3])
+    cmd = np.array([0.15, 0.03, 0.4])
+    p0 = np.array([0.08, 0.01])
+    base = g.required_dcm(support, -1, p0, cmd, n)
+    for d in (np.array([0.01, 0.0]), np.array([0.0, -0.02])):
+        moved = g.required_dcm(support, -1, p0 + d, cmd, n)
+        assert np.allclose(moved - base, g.start_weight * d, atol=1e-12)
+    assert 0.0 < g.start_weight < 0.5              # the point is left as the ZMP moves on to the sole
+
+
 def test_an_undisturbed_step_is_the_planners():
     g, st, cmd = _step_on_the_left()
     xi = g.required_dcm(st.support, st.side, st.p0, cmd, 4)        # this step and the 3 of the preview
