@@ -237,6 +237,39 @@ def test_a_pushed_step_moves_toward_the_capture_point_within_the_limits(push, he
     assert cost(np.r_[dp, u]) <= best.fun + 1e-7
 
 
+@pytest.mark.parametrize("push,timing_weight", [((0.12, -0.08), 1e-3), ((0.06, 0.0), 1e-4), ((0.2, 0.05), 1e-2),
+                                                 ((0.01, 0.0), 1e-3)])
+def test_the_chosen_timing_costs_no_more_than_any_other(push, timing_weight):
+    """Over the five timings the adjustment may take (lambda = 1 and four from ``min_ssp_scale`` up),
+    its choice costs no more, timing term included, than the numerical optimum of any of them: the
+    timings it skips (an undisturbed step, or one whose timing term alone exceeds the best found)
+    could not have won."""
+    g, st, cmd = _step_on_the_left()
+    params = EngineParams(step_weight=0.05, zmp_weight=0.05, timing_weight=timing_weight, min_ssp_scale=0.6)
+    nominal = g.nominal_target(st.support, st.side, cmd)
+    xi = g.required_dcm(st.support, st.side, st.p0, cmd, 4) + np.array(push)
+    B, lam, dp, info = adjust_step(g, st, 0.0, xi, cmd, 3, None, params, 0.01)
+    lo, hi = g.box(st.side, 0.0)
+    plo, phi = g.zmp_box(params.zmp_margin)
+    u_nom = np.clip(nominal[:2] - st.support[:2], lo, hi)
+
+    def cost(z, lam_):
+        t2 = FAST.t1 + lam_ * (FAST.t2 - FAST.t1)
+        T = t2 + FAST.period - FAST.t2
+        Bz = np.r_[st.support[:2] + z[2:], nominal[2]]
+        kt, kp, sh = g.knots(st.support, st.p0, Bz, st.t1, t2, T, offset=z[:2])
+        r = dcm_forward(xi, 0.0, T, kt, kp, sh, g.Tc) - g.required_dcm(Bz, -st.side, kp[-1], cmd, 3)
+        du = z[2:] - u_nom
+        return float(r @ r + params.step_weight * du @ du + params.zmp_weight * z[:2] @ z[:2]
+                     + timing_weight * (1.0 - lam_) ** 2)
+    bounds = list(zip(plo, phi)) + list(zip(lo, hi))
+    m = params.min_ssp_scale
+    optima = [min(minimize(cost, np.r_[0, 0, x0], args=(lam_,), bounds=bounds, method="L-BFGS-B",
+                           options=dict(ftol=1e-14, gtol=1e-12)).fun for x0 in (u_nom, (lo + hi) / 2))
+              for lam_ in [1.0] + [m + (1.0 - m) * k / 4 for k in range(4)]]
+    assert cost(np.r_[dp, B[:2] - st.support[:2]], lam) <= min(optima) + 1e-7
+
+
 def test_a_stopping_step_and_a_landed_foot_are_solved_exactly():
     """The two other forms of the mismatch: a stop (no preview: the DCM at rest on the step's last
     ZMP point) and a landed foot (only the ZMP offset free): the answer is the numerical optimum."""
