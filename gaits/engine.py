@@ -21,12 +21,14 @@ Per step (ours unless named):
   capture point (DCM) at the step's end is the one the following steps need:
   r(u, lambda) = xi_end(u, lambda) - xi_req(u) is affine in u (both sides are closed-form LIPM
   passes: xi_end's columns are the pass's linear weights, ``lipm.dcm_forward_weights``; xi_req's
-  need one more backward pass, since moving the footstep moves every later ZMP point with it but
-  one), so for each of five lambdas the engine solves the box QP
+  follow from one backward pass and a closed-form weight, since moving the footstep moves every
+  later ZMP point with it but one, the next step's first), so for each of five lambdas the engine
+  solves the box QP
   min |r|^2 + ``step_weight`` |u - u_nominal|^2 over the reach box (forward, backward, outward
   reach; the inward bound keeps the soles ``min_gap`` apart) exactly (``lipm.solve_box_qp``),
   drops lambdas whose re-targeted swing would exceed ``foot_speed`` (the servos' speed), and
-  takes the lambda of least cost + ``timing_weight`` (1 - lambda)^2. With the estimated state equal
+  takes the lambda of least cost + ``timing_weight`` (1 - lambda)^2 (a lambda whose timing term
+  alone exceeds the best cost found is not solved: it cannot win). With the estimated state equal
   to the plan, u is the planner's own footstep and lambda = 1: the walk is the table's;
 * a step is **re-planned in swing** when the DCM error passes ``replan_error`` (a push), and the
   **cycloid swing** (eq 27) is re-targeted from where the foot is;
