@@ -375,7 +375,7 @@ def adjust_step(gait: _Gait, step: Step, tau: float, xi: np.ndarray, command: np
     # the mismatch r(z) = r0 + M z: r0 from one closed-form pass per timing; M's columns from the
     # pass's weights (lipm.dcm_forward_weights: the ZMP's two sole points move with dp, the boundary
     # with du through the knots' rho and 1/2) less the next steps' required DCM, which depends on the
-    # footstep alone (affine: two backward passes, once, not per timing)
+    # footstep alone (affine: one backward pass and _Gait.start_weight, once, not per timing)
     def required(u: np.ndarray, boundary: np.ndarray) -> np.ndarray:
         B_xy = step.support[:2] + Rot @ u
         return gait.required_dcm(np.array([B_xy[0], B_xy[1], nominal[2]]), -step.side, boundary, command, n_preview)
