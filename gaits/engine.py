@@ -262,9 +262,10 @@ class _Gait:
         self.rho = p.d2 / total if abs(total) > 1e-12 else 0.5
         self.stance_widen, self.stance_speed = float(stance_widen), float(stance_speed)
         # d required_dcm / d p0: a step's first ZMP point enters only the backward pass's first
-        # segment (0 to t1; the later steps start from this one's boundary, not from p0), where
-        # xi(0) = p0 + T_c k + (xi(t1) - p1 - T_c k) e^{-t1/T_c}, k = (p1 - p0) / t1 (ours)
-        self.start_weight = 1.0 - (self.Tc / p.t1) * (1.0 - math.exp(-p.t1 / self.Tc))   # t1 > 0: validated
+        # segment (0 to t1; the later steps start from this one's boundary, not from p0), whose
+        # forward pass is xi(t1) = a xi(0) + w_0 p0 + w_1 p1, so xi(0) moves by -w_0 / a with p0 (ours)
+        a, w, _ = dcm_forward_weights(0.0, p.t1, (0.0, p.t1), self.Tc)
+        self.start_weight = float(-w[0] / a)
 
     def half_width(self, command: np.ndarray) -> float:
         """Half the feet's distance the steps of ``command`` land at [m]: the gait's ``half_width``,

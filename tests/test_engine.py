@@ -3,6 +3,7 @@ numerical solution, the estimator's error, and a cost per tick a robot's compute
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -148,7 +149,6 @@ def test_the_start_points_weight_is_the_required_dcms_own(t1, n):
     """``_Gait.start_weight``, the closed form the step adjustment takes for how the DCM the next
     steps need moves with their first ZMP point, is that DCM's own slope (a difference over the
     point, on both axes, for a turning command too)."""
-    import dataclasses
     g = _Gait(dataclasses.replace(FAST, t1=t1), LIMITS)
     support = np.array([0.1, 0.05, 0.3])
     cmd = np.array([0.15, 0.03, 0.4])
@@ -197,6 +197,31 @@ def _turned(st, heading: float, wz: float):
     return cmd
 
 
+def _step_cost(g, st, cmd, xi, params, tau, lam, Rot, nominal, lo, hi):
+    """The step adjustment's cost of z = (ZMP offset, footstep in the support foot's frame) at the
+    timing ``lam``, built from the closed forms themselves (the knots, a forward DCM pass, the
+    required DCM): the numerical reference its QP is checked against."""
+    t2 = FAST.t1 + lam * (FAST.t2 - FAST.t1)
+    T = t2 + FAST.period - FAST.t2
+    u_nom = np.clip(Rot.T @ (nominal[:2] - st.support[:2]), lo, hi)
+
+    def cost(z):
+        Bz = np.r_[st.support[:2] + Rot @ z[2:], nominal[2]]
+        kt, kp, sh = g.knots(st.support, st.p0, Bz, st.t1, t2, T, offset=z[:2])
+        r = dcm_forward(xi, tau, T, kt, kp, sh, g.Tc) - g.required_dcm(Bz, -st.side, kp[-1], cmd, 3)
+        du = z[2:] - u_nom
+        return float(r @ r + params.step_weight * du @ du + params.zmp_weight * z[:2] @ z[:2]
+                     + params.timing_weight * (1.0 - lam) ** 2)
+    return cost
+
+
+def _numerical_min(cost, lo, hi, plo, phi, u_nom) -> float:
+    """The least of ``cost`` over the sole's and the reach's bounds, from two starts (L-BFGS-B)."""
+    bounds = list(zip(plo, phi)) + list(zip(lo, hi))
+    return min(minimize(cost, np.r_[0, 0, x0], bounds=bounds, method="L-BFGS-B",
+                        options=dict(ftol=1e-14, gtol=1e-12)).fun for x0 in (u_nom, (lo + hi) / 2))
+
+
 @pytest.mark.parametrize("push,heading,wz,tau", [((0.06, 0.0), 0.0, 0.0, 0.0), ((0.0, -0.05), 0.0, 0.0, 0.0),
                                                  ((-0.04, 0.02), 0.0, 0.0, 0.0), ((0.12, -0.08), 0.0, 0.0, 0.0),
                                                  ((0.05, 0.03), 0.7, 0.5, 0.0), ((-0.03, 0.06), -1.2, -0.4, 0.05)])
@@ -220,21 +245,9 @@ def test_a_pushed_step_moves_toward_the_capture_point_within_the_limits(push, he
     assert np.all(u >= lo - 1e-9) and np.all(u <= hi + 1e-9)             # reach and sole gap
     plo, phi = g.zmp_box(params.zmp_margin)
     assert np.all(dp >= plo - 1e-9) and np.all(dp <= phi + 1e-9)         # the ZMP stays on the sole
-    t2 = FAST.t1 + lam * (FAST.t2 - FAST.t1)
-    T = t2 + FAST.period - FAST.t2
-
-    def cost(z):
-        Bz = np.r_[st.support[:2] + Rot @ z[2:], nominal[2]]
-        kt, kp, sh = g.knots(st.support, st.p0, Bz, st.t1, t2, T, offset=z[:2])
-        r = dcm_forward(xi, tau, T, kt, kp, sh, g.Tc) - g.required_dcm(Bz, -st.side, kp[-1], cmd, 3)
-        du = z[2:] - Rot.T @ (nominal[:2] - st.support[:2])
-        return float(r @ r + params.step_weight * du @ du + params.zmp_weight * z[:2] @ z[:2])
+    cost = _step_cost(g, st, cmd, xi, params, tau, lam, Rot, nominal, lo, hi)
     u_nom = np.clip(Rot.T @ (nominal[:2] - st.support[:2]), lo, hi)
-    bounds = list(zip(plo, phi)) + list(zip(lo, hi))
-    best = min((minimize(cost, np.r_[0, 0, x0], bounds=bounds, method="L-BFGS-B",
-                         options=dict(ftol=1e-14, gtol=1e-12)) for x0 in (u_nom, (lo + hi) / 2)),
-               key=lambda r: r.fun)
-    assert cost(np.r_[dp, u]) <= best.fun + 1e-7
+    assert cost(np.r_[dp, u]) <= _numerical_min(cost, lo, hi, plo, phi, u_nom) + 1e-7
 
 
 @pytest.mark.parametrize("push,timing_weight", [((0.12, -0.08), 1e-3), ((0.06, 0.0), 1e-4), ((0.2, 0.05), 1e-2),
@@ -252,22 +265,12 @@ def test_the_chosen_timing_costs_no_more_than_any_other(push, timing_weight):
     lo, hi = g.box(st.side, 0.0)
     plo, phi = g.zmp_box(params.zmp_margin)
     u_nom = np.clip(nominal[:2] - st.support[:2], lo, hi)
-
-    def cost(z, lam_):
-        t2 = FAST.t1 + lam_ * (FAST.t2 - FAST.t1)
-        T = t2 + FAST.period - FAST.t2
-        Bz = np.r_[st.support[:2] + z[2:], nominal[2]]
-        kt, kp, sh = g.knots(st.support, st.p0, Bz, st.t1, t2, T, offset=z[:2])
-        r = dcm_forward(xi, 0.0, T, kt, kp, sh, g.Tc) - g.required_dcm(Bz, -st.side, kp[-1], cmd, 3)
-        du = z[2:] - u_nom
-        return float(r @ r + params.step_weight * du @ du + params.zmp_weight * z[:2] @ z[:2]
-                     + timing_weight * (1.0 - lam_) ** 2)
-    bounds = list(zip(plo, phi)) + list(zip(lo, hi))
     m = params.min_ssp_scale
-    optima = [min(minimize(cost, np.r_[0, 0, x0], args=(lam_,), bounds=bounds, method="L-BFGS-B",
-                           options=dict(ftol=1e-14, gtol=1e-12)).fun for x0 in (u_nom, (lo + hi) / 2))
+    optima = [_numerical_min(_step_cost(g, st, cmd, xi, params, 0.0, lam_, np.eye(2), nominal, lo, hi),
+                             lo, hi, plo, phi, u_nom)
               for lam_ in [1.0] + [m + (1.0 - m) * k / 4 for k in range(4)]]
-    assert cost(np.r_[dp, B[:2] - st.support[:2]], lam) <= min(optima) + 1e-7
+    chosen = _step_cost(g, st, cmd, xi, params, 0.0, lam, np.eye(2), nominal, lo, hi)
+    assert chosen(np.r_[dp, B[:2] - st.support[:2]]) <= min(optima) + 1e-7
 
 
 def test_a_stopping_step_and_a_landed_foot_are_solved_exactly():
@@ -419,7 +422,6 @@ def test_the_kinematic_velocity_is_the_rate_of_the_kinematic_com(replayed):
 def _carpet4_walk(**over) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """The engine set walking 0.3 m/s for 6 s on carpet4 in closed loop: (t, forward velocity read
     or nan) per tick, the simulator's times and forward CoM velocity, the CoM's forward travel [m]."""
-    import dataclasses
     drive = gaits.Drive.of(resolve_params("kidsize-engine-carpet4", None))
     drive = dataclasses.replace(drive, engine=dataclasses.replace(drive.engine, **over))
     stream = CommandStream([0.0, 6.0], [[0.3, 0, 0], [0, 0, 0]], tail=1.0)
