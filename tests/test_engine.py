@@ -197,10 +197,11 @@ def _turned(st, heading: float, wz: float):
     return cmd
 
 
-def _step_cost(g, st, cmd, xi, params, tau, lam, Rot, nominal, lo, hi):
+def _step_cost(g, st, cmd, xi, params, tau, lam, Rot, nominal, lo, hi, n_preview=3):
     """The step adjustment's cost of z = (ZMP offset, footstep in the support foot's frame) at the
     timing ``lam``, built from the closed forms themselves (the knots, a forward DCM pass, the
-    required DCM): the numerical reference its QP is checked against."""
+    required DCM of ``n_preview`` steps; none: a stop, at rest on the step's last ZMP point): the
+    numerical reference its QP is checked against."""
     t2 = FAST.t1 + lam * (FAST.t2 - FAST.t1)
     T = t2 + FAST.period - FAST.t2
     u_nom = np.clip(Rot.T @ (nominal[:2] - st.support[:2]), lo, hi)
@@ -208,7 +209,8 @@ def _step_cost(g, st, cmd, xi, params, tau, lam, Rot, nominal, lo, hi):
     def cost(z):
         Bz = np.r_[st.support[:2] + Rot @ z[2:], nominal[2]]
         kt, kp, sh = g.knots(st.support, st.p0, Bz, st.t1, t2, T, offset=z[:2])
-        r = dcm_forward(xi, tau, T, kt, kp, sh, g.Tc) - g.required_dcm(Bz, -st.side, kp[-1], cmd, 3)
+        required = kp[-1] if n_preview == 0 else g.required_dcm(Bz, -st.side, kp[-1], cmd, n_preview)
+        r = dcm_forward(xi, tau, T, kt, kp, sh, g.Tc) - required
         du = z[2:] - u_nom
         return float(r @ r + params.step_weight * du @ du + params.zmp_weight * z[:2] @ z[:2]
                      + params.timing_weight * (1.0 - lam) ** 2)
@@ -286,18 +288,10 @@ def test_a_stopping_step_and_a_landed_foot_are_solved_exactly():
     lo, hi = g.box(st.side, nominal[2] - 0.4)
     plo, phi = g.zmp_box(params.zmp_margin)
     B, lam, dp, _ = adjust_step(g, st, 0.0, xi, cmd, 0, None, params, 0.01)
-    t2 = FAST.t1 + lam * (FAST.t2 - FAST.t1)
-    T = t2 + FAST.period - FAST.t2
     u_nom = np.clip(Rot.T @ (nominal[:2] - st.support[:2]), lo, hi)
-
-    def stop_cost(z):
-        Bz = np.r_[st.support[:2] + Rot @ z[2:], nominal[2]]
-        kt, kp, sh = g.knots(st.support, st.p0, Bz, st.t1, t2, T, offset=z[:2])
-        r = dcm_forward(xi, 0.0, T, kt, kp, sh, g.Tc) - kp[-1]
-        return float(r @ r + params.step_weight * (z[2:] - u_nom) @ (z[2:] - u_nom) + params.zmp_weight * z[:2] @ z[:2])
-    ref = minimize(stop_cost, np.r_[0, 0, u_nom], bounds=list(zip(plo, phi)) + list(zip(lo, hi)),
-                   method="L-BFGS-B", options=dict(ftol=1e-14, gtol=1e-12))
-    assert stop_cost(np.r_[dp, Rot.T @ (B[:2] - st.support[:2])]) <= ref.fun + 1e-7
+    stop_cost = _step_cost(g, st, cmd, xi, params, 0.0, lam, Rot, nominal, lo, hi, n_preview=0)
+    assert stop_cost(np.r_[dp, Rot.T @ (B[:2] - st.support[:2])]) <= \
+        _numerical_min(stop_cost, lo, hi, plo, phi, u_nom) + 1e-7
 
     st.target = nominal.copy()                                           # landed where planned
     st.landed = True
