@@ -197,14 +197,15 @@ def _turned(st, heading: float, wz: float):
     return cmd
 
 
-def _step_cost(g, st, cmd, xi, params, tau, lam, Rot, nominal, lo, hi, n_preview=3):
+def _step_cost(g, st, cmd, xi, params, tau, lam, Rot, nominal, u_nom, n_preview=3):
     """The step adjustment's cost of z = (ZMP offset, footstep in the support foot's frame) at the
     timing ``lam``, built from the closed forms themselves (the knots, a forward DCM pass, the
-    required DCM of ``n_preview`` steps; none: a stop, at rest on the step's last ZMP point): the
-    numerical reference its QP is checked against."""
-    t2 = FAST.t1 + lam * (FAST.t2 - FAST.t1)
-    T = t2 + FAST.period - FAST.t2
-    u_nom = np.clip(Rot.T @ (nominal[:2] - st.support[:2]), lo, hi)
+    required DCM of ``n_preview`` steps; none: a stop, at rest on the step's last ZMP point), the
+    footstep drawn to ``u_nom`` (the planner's, within the reach): the numerical reference its QP
+    is checked against."""
+    p = g.p
+    t2 = p.t1 + lam * (p.t2 - p.t1)
+    T = t2 + p.period - p.t2
 
     def cost(z):
         Bz = np.r_[st.support[:2] + Rot @ z[2:], nominal[2]]
@@ -247,8 +248,8 @@ def test_a_pushed_step_moves_toward_the_capture_point_within_the_limits(push, he
     assert np.all(u >= lo - 1e-9) and np.all(u <= hi + 1e-9)             # reach and sole gap
     plo, phi = g.zmp_box(params.zmp_margin)
     assert np.all(dp >= plo - 1e-9) and np.all(dp <= phi + 1e-9)         # the ZMP stays on the sole
-    cost = _step_cost(g, st, cmd, xi, params, tau, lam, Rot, nominal, lo, hi)
     u_nom = np.clip(Rot.T @ (nominal[:2] - st.support[:2]), lo, hi)
+    cost = _step_cost(g, st, cmd, xi, params, tau, lam, Rot, nominal, u_nom)
     assert cost(np.r_[dp, u]) <= _numerical_min(cost, lo, hi, plo, phi, u_nom) + 1e-7
 
 
@@ -268,10 +269,10 @@ def test_the_chosen_timing_costs_no_more_than_any_other(push, timing_weight):
     plo, phi = g.zmp_box(params.zmp_margin)
     u_nom = np.clip(nominal[:2] - st.support[:2], lo, hi)
     m = params.min_ssp_scale
-    optima = [_numerical_min(_step_cost(g, st, cmd, xi, params, 0.0, lam_, np.eye(2), nominal, lo, hi),
+    optima = [_numerical_min(_step_cost(g, st, cmd, xi, params, 0.0, lam_, np.eye(2), nominal, u_nom),
                              lo, hi, plo, phi, u_nom)
               for lam_ in [1.0] + [m + (1.0 - m) * k / 4 for k in range(4)]]
-    chosen = _step_cost(g, st, cmd, xi, params, 0.0, lam, np.eye(2), nominal, lo, hi)
+    chosen = _step_cost(g, st, cmd, xi, params, 0.0, lam, np.eye(2), nominal, u_nom)
     assert chosen(np.r_[dp, B[:2] - st.support[:2]]) <= min(optima) + 1e-7
 
 
@@ -289,7 +290,7 @@ def test_a_stopping_step_and_a_landed_foot_are_solved_exactly():
     plo, phi = g.zmp_box(params.zmp_margin)
     B, lam, dp, _ = adjust_step(g, st, 0.0, xi, cmd, 0, None, params, 0.01)
     u_nom = np.clip(Rot.T @ (nominal[:2] - st.support[:2]), lo, hi)
-    stop_cost = _step_cost(g, st, cmd, xi, params, 0.0, lam, Rot, nominal, lo, hi, n_preview=0)
+    stop_cost = _step_cost(g, st, cmd, xi, params, 0.0, lam, Rot, nominal, u_nom, n_preview=0)
     assert stop_cost(np.r_[dp, Rot.T @ (B[:2] - st.support[:2])]) <= \
         _numerical_min(stop_cost, lo, hi, plo, phi, u_nom) + 1e-7
 
