@@ -11,6 +11,10 @@ wants, each tick, the encoders in our joint convention (``gaits.JOINT_NAMES``, s
 accelerometer [m/s^2] and the eight sole force readings [N] (left toe-left, toe-right, heel-left,
 heel-right, then the right foot); it returns the 20 targets of the next tick [rad].
 
+A reading that holds a NaN or an infinity (a garbled frame) is not taken: the engine predicts
+from its model for that tick and counts it (``engine.dropped``, printed at the end); a reading of
+the wrong length is a ValueError, a wiring mistake to fix before the robot walks.
+
 The timing is the engine's: it assumes its ``dt``; a tick that overruns is reported, not skipped
 (on a robot, read the clock and log overruns: the engine's p99 is ~1 ms in Python on a laptop
 core, see ``benchmarks/bench_engine.py``).
@@ -119,6 +123,9 @@ def main() -> None:
     c = np.array(costs) * 1000
     print(f"{len(c)} ticks: {engine.steps_taken} steps, ended {engine.mode}; controller median {np.median(c):.2f} ms, "
           f"p99 {np.percentile(c, 99):.2f} ms, {overruns} tick(s) over {engine.dt * 1000:.0f} ms")
+    dropped = {name: n for name, n in engine.dropped.items() if n}
+    if dropped:
+        print("readings not finite, not taken (ticks): " + ", ".join(f"{k} {n}" for k, n in dropped.items()))
 
 
 if __name__ == "__main__":

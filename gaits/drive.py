@@ -17,7 +17,9 @@ parameters) is a drive too, without a gait set: it walks online and has no joint
 from __future__ import annotations
 
 import dataclasses
+import traceback
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
@@ -63,13 +65,69 @@ class UserController:
         return dataclasses.replace(self, params={**self.params, **values})
 
     def build(self, robot: RobotGeometry, dt: float) -> Controller:
-        ctl = self.cls(dict(self.params), robot, dt)
+        """The controller, behind :class:`UserCode` (an exception of its code names the code)."""
+        ctl = UserCode(None, self.source).call(self.cls, "its constructor", dict(self.params), robot, dt)
         missing = [m for m in ("start_pose", "reset", "step", "plan") if not callable(getattr(ctl, m, None))]
         if missing or not hasattr(ctl, "dt"):
             raise ParamError(f"controller {self.source}: the object it builds lacks "
                              f"{', '.join(missing + ([] if hasattr(ctl, 'dt') else ['dt']))} "
                              f"(see gaits/control.py, Controller)")
-        return ctl
+        return UserCode(ctl, self.source)
+
+
+class UserCode:
+    """A controller of the user's own, behind the one adapter at that border: every attribute is
+    the controller's, and an exception its code raises in ``start_pose``, ``reset``, ``step`` or
+    ``plan`` becomes a :class:`ParamError` that names the controller, the method and the line of
+    the user's code it came from (the command line prints it as one line, exit 2: a mistake in the
+    user's code is not one of ours to report)."""
+
+    def __init__(self, ctl: Any, source: str) -> None:
+        self._ctl = ctl
+        self.source = source
+
+    def __getattr__(self, name: str) -> Any:
+        if name == "_ctl":                     # not yet set (a copy being built): no recursion
+            raise AttributeError(name)
+        return getattr(self._ctl, name)
+
+    def call(self, fn: Any, what: str, *args: Any) -> Any:
+        try:
+            return fn(*args)
+        except ParamError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - the user's code may raise anything
+            raise self._named(exc, what) from exc
+
+    def _named(self, exc: Exception, what: str) -> ParamError:
+        """The error naming the innermost line of the controller's own file (else the innermost
+        line outside gaits and the installed packages, else the innermost)."""
+        frames = traceback.extract_tb(exc.__traceback__)
+        own = self.source.rsplit(":", 1)[0]
+        ours = Path(__file__).resolve().parent
+        theirs = ([f for f in frames if f.filename == own]
+                  or [f for f in frames if ours not in Path(f.filename).resolve().parents
+                      and "-packages" not in f.filename] or frames)
+        where = f" ({theirs[-1].filename}, line {theirs[-1].lineno})" if theirs else ""
+        return ParamError(f"controller {self.source}: {what} raised {type(exc).__name__}: "
+                          f"{' '.join(str(exc).split())}{where}")
+
+    def start_pose(self) -> Any:
+        return self.call(self._ctl.start_pose, "start_pose()")
+
+    def reset(self, m: Any) -> None:
+        self.call(self._ctl.reset, "reset()", m)
+
+    def step(self, m: Any, command: Any = None) -> Any:
+        try:
+            return self._ctl.step(m, command)
+        except ParamError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - the user's code may raise anything
+            raise self._named(exc, f"step() at t = {m.t:.2f} s") from exc
+
+    def plan(self, n: int) -> Any:
+        return self.call(self._ctl.plan, "plan()", n)
 
 
 @dataclass(frozen=True)

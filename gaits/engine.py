@@ -61,7 +61,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .control import READINGS, Measurement, PlanRecord, StartPose
+from .control import READINGS, Measurement, PlanRecord, StartPose, finite_readings
 from .footstep_planner import StepLimits, compose, relative, swing_fraction
 from .leg_kinematics import LegGeometry, leg_ik_pose
 from .lipm import dcm_backward, dcm_forward, dcm_forward_weights, propagate, solve_box_qp, zmp_at
@@ -196,11 +196,14 @@ class CoMEstimator:
         self.x = np.array([c, [0.0, 0.0]], dtype=float)
         self.P = np.diag([self.R, 1e-4])
 
-    def update(self, p: np.ndarray, measured: np.ndarray, measured_vel: np.ndarray | None = None) -> None:
+    def update(self, p: np.ndarray, measured: np.ndarray | None, measured_vel: np.ndarray | None = None) -> None:
         """Predict one tick with the ZMP ``p`` (2,), then correct with the kinematic CoM (2,) and,
-        when given and the filter has a velocity noise, its velocity (2,)."""
+        when given and the filter has a velocity noise, its velocity (2,); without ``measured``
+        (a tick whose readings were dropped) the prediction only."""
         self.x = self.A @ self.x + np.outer(self.B, p)
         self.P = self.A @ self.P @ self.A.T + self.Q
+        if measured is None:
+            return
         if measured_vel is None or self.R_v <= 0.0:
             K = self.P[:, 0] / (self.P[0, 0] + self.R)
             self.x = self.x + np.outer(K, measured - self.x[0])
@@ -522,6 +525,8 @@ class WalkEngine:
         self._history: list[tuple[np.ndarray, np.ndarray]] = []   # the plan's (com, vel) of recent ticks
         self._bias = np.zeros(4)                                   # slow mean of (position, velocity) error
         self.events: list[tuple[float, str]] = []      # (time, what): steps, re-plans, touch-downs
+        self.dropped = {name: 0 for name in READINGS + ("command",)}   # ticks each was not finite
+        self._dropping: tuple[str, ...] = ()
         self._log = []
 
     def start_pose(self) -> StartPose:
@@ -536,7 +541,17 @@ class WalkEngine:
 
     def step(self, m: Measurement, command: np.ndarray | None = None) -> np.ndarray:
         dt = self.dt
-        self._estimate(m)
+        m, dropped = finite_readings(m)
+        if command is not None:
+            command = np.asarray(command, dtype=float)
+            if command.shape != (3,):
+                raise ValueError(f"a walk command is (vx, vy, wz), shape (3,); got shape {command.shape}")
+            if not math.isfinite(float(command.sum())):
+                dropped += ("command",)
+                command = self.asked                   # the last command taken holds
+        if dropped or self._dropping:
+            self._note_dropped(m.t, dropped)
+        self._estimate(m, lost="q" in dropped or "imu_rpy" in dropped)
         self._command(command)
         self.t = m.t + dt
         if m.q is not None and m.imu_rpy is not None:
@@ -561,10 +576,19 @@ class WalkEngine:
                           walk_start=self.walk_start, cycle_time=2 * self.gait.p.period,
                           meta={"step_starts": list(self.step_starts), "steps": self.steps_taken,
                                 "replans": self.replans, "binding": dict(self.binding),
-                                "touchdowns": self.touchdowns, "estimate_com": a[:, 7:9],
+                                "touchdowns": self.touchdowns, "dropped": dict(self.dropped),
+                                "estimate_com": a[:, 7:9],
                                 "estimate_vel": a[:, 9:11], "plan_com": a[:, 11:13], "plan_vel": a[:, 13:15]})
 
     # --- each tick ---------------------------------------------------------------------------
+    def _note_dropped(self, t: float, dropped: tuple[str, ...]) -> None:
+        """Count the readings (and the command) not taken this tick, and log each run of them once."""
+        for name in dropped:
+            self.dropped[name] += 1
+            if name not in self._dropping:
+                self.events.append((t, f"{name} not finite: not taken (the last one holds)"))
+        self._dropping = dropped
+
     def _command(self, command: np.ndarray | None) -> None:
         """The command the steps are planned for: the asked one clipped to the envelope and
         rate-limited by ``accel_*`` (``ramp``); the ramp starts with the first step (standing, the
@@ -629,11 +653,16 @@ class WalkEngine:
         c[2] = wanted + self._wz_extra
         return self._clip_command(c)
 
-    def _estimate(self, m: Measurement) -> None:
-        """One estimator tick from the encoders, the IMU and the sole forces."""
+    def _estimate(self, m: Measurement, lost: bool = False) -> None:
+        """One estimator tick from the encoders, the IMU and the sole forces. A tick whose encoders
+        or IMU were dropped (``lost``: not finite) predicts from the model alone; one that never
+        had them (a controller run without sensing) leaves the estimator as it is."""
         if m.gyro is not None:
             self._gyro_z = float(m.gyro[2])
         if m.q is None or m.imu_rpy is None:
+            if lost:
+                cop = self._cop(m)
+                self.estimator.update(self.zmp if cop is None else cop, None)
             return
         roll, pitch = float(m.imu_rpy[0]), float(m.imu_rpy[1])
         a = self.dt / (self.params.tilt_filter + self.dt)

@@ -82,6 +82,44 @@ def test_a_bad_controller_file_is_one_line(gait_tuner_cmd, run_env, tmp_path, cl
     assert message in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
 
 
+_STANDS = ("import numpy as np\nfrom gaits.control import HoldPose\n\n\n"
+           "def helper():\n    return 1 / 0\n\n\n"
+           "class C(HoldPose):\n    def __init__(self, p, robot, dt):\n        super().__init__(np.zeros(20), dt)\n")
+
+
+@pytest.mark.parametrize("body, message", [
+    ("    def step(self, m, command=None):\n        return helper()\n",
+     "controller {path}:C: step() at t = 0.00 s raised ZeroDivisionError: division by zero ({path}, line 6)"),
+    ("    def start_pose(self):\n        raise KeyError('l_knee')\n",
+     "controller {path}:C: start_pose() raised KeyError: 'l_knee' ({path}, line 13)"),
+    ("    def step(self, m, command=None):\n        return self.q[:19]\n",
+     "the controller ({path}:C) returned targets of shape (19,) at t = 0.00 s; expected (20,)"),
+])
+def test_a_mistake_in_the_controllers_code_is_one_line_naming_it(gait_tuner_cmd, run_env, tmp_path, body, message):
+    """An exception the user's code raises while walking, or targets of the wrong shape, is the
+    user's to fix: one line naming the controller and the line of its file, exit 2 (it was an
+    internal error, "please report it", exit 1)."""
+    path = _controller_file(tmp_path, "mine.py:C", _STANDS + body)
+    r = run(gait_tuner_cmd, ["simulate", "--controller", path, "--surface", "rigid", "--duration", "1"], run_env)
+    assert r.returncode == 2, r.stderr
+    assert message.format(path=tmp_path / "mine.py") in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+
+
+def test_a_target_that_is_not_finite_ends_the_walk_as_diverged(gait_tuner_cmd, run_env, tmp_path):
+    """A NaN target would reach MuJoCo, which zeroes every servo's target and walks on (the robot
+    falls limp, and it read as a fall); the walk ends there instead, diverged, naming the joint."""
+    body = ("    def step(self, m, command=None):\n        q = self.q.copy()\n"
+            "        q[5] = float('nan') if m.t >= 0.3 else 0.0\n        return q\n")
+    path = _controller_file(tmp_path, "mine.py:C", _STANDS + body)
+    r = run(gait_tuner_cmd, ["simulate", "--controller", path, "--surface", "rigid", "--duration", "1", "--json"],
+            run_env)
+    assert r.returncode == 0, r.stderr
+    metrics = json.loads(r.stdout)["metrics"]
+    assert metrics["outcome"] == "diverged" and not metrics["fell"]
+    assert metrics["reason"] == "diverged: the controller's target for r_shoulder_pitch is nan at t = 0.30 s"
+    assert "WARNING" not in r.stderr
+
+
 def test_a_study_names_its_controller_or_a_gait_not_both(gait_tuner_cmd, run_env, tmp_path):
     study = tmp_path / "s.yaml"
     study.write_text(f"controller: {EXAMPLE / 'march.yaml'}\ngait: tlipfm\nsurfaces: [rigid]\n")

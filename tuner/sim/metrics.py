@@ -47,7 +47,8 @@ DEFINITIONS = {
     "pitch_rms_deg": "RMS of torso pitch about its mean over the walk [deg]",
     "pitch_pm_deg": "half the peak-to-peak torso pitch per gait cycle, averaged (the EROS +- figure) [deg]",
     "fell": "the robot fell (torso tilt > limit or torso too low)",
-    "outcome": "how the walk ended: completed, fell, diverged (MuJoCo's warning), impossible (a state no "
+    "outcome": "how the walk ended: completed, fell, diverged (MuJoCo's warning, or a controller's target "
+               "not finite), impossible (a state no "
                "kid-size robot reaches), stopped; only completed and stopped count as survival",
     "t_fall_s": "time of the fall [s]",
     "distance_m": "forward torso displacement over the walk [m]",

@@ -43,6 +43,7 @@ import numpy as np
 from gaits import JOINT_NAMES, GaitTrajectory, StabiliserParams
 from gaits.control import Controller, HoldPose, PlanRecord, Stabilised, TablePlayer
 
+from ..errors import UserError
 from .centre_of_pressure import centre_of_pressure
 from .randomisation import Perturbation
 from .sensors import SensorReader, tilt_from_quat
@@ -463,7 +464,8 @@ class Simulator:
         sens = np.empty((n_ticks, m.nsensordata))
         cmds = np.empty((n_ticks, len(cmd)))
         sent_log = np.empty((n_ticks, len(cmd)))
-        targets = np.empty((n_ticks, len(JOINT_NAMES)))
+        n_gait = len(JOINT_NAMES)
+        targets = np.empty((n_ticks, n_gait))
         sens[0] = d.sensordata
         cmds[0] = cmd
         sent_log[0] = cmd
@@ -525,7 +527,19 @@ class Simulator:
                         meas = reader.read((k - 1) * dt)
                     command = None if commands is None else commands.at((k - 1) * dt)
                     target = controller.step(meas, command)
+                    if np.shape(target) != (n_gait,):
+                        raise UserError(f"the controller ({getattr(controller, 'source', type(controller).__name__)}) "
+                                        f"returned targets of shape "
+                                        f"{np.shape(target)} at t = {(k - 1) * dt:.2f} s; expected ({n_gait},), "
+                                        f"one per gaits.JOINT_NAMES")
                     targets[k] = target
+                    target = targets[k]
+                    if not math.isfinite(float(target.dot(target))):   # MuJoCo would zero every servo's target
+                        j = int(np.argmax(~np.isfinite(target) | (np.abs(target) > 1e150)))    # the first
+                        reason = (f"diverged: the controller's target for {JOINT_NAMES[j]} is {targets[k, j]} "
+                                  f"at t = {(k - 1) * dt:.2f} s")
+                        k_end = k
+                        break
                     delta = target[col] * sign + offset - cmd
                     cmd += vmin(vmax(delta, lo_step, out=delta), step, out=delta)
                     vmin(vmax(cmd, q_lo, out=cmd), q_hi, out=cmd)
