@@ -401,6 +401,8 @@ OPTIONS = [
     (["experiment", "eros", "--lift-scale", "nan"], "--lift-scale"),
     (["experiment", "eros", "--double-support", "nan"], "--double-support"),
     (["calibrate", "--lift-scale", "nan"], "--lift-scale"),
+    (["calibrate", "--layer", "turf"], "--layer"),
+    (["calibrate", "--out", ""], "--out"),
 ]
 
 

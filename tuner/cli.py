@@ -636,24 +636,32 @@ def experiment(paper: str, robot_name: str, surface_name: str, lift_scale: float
 @cli.command()
 @workers_option()
 @click.option("--lift-scale", default=1.0, show_default=True, type=Span(0.05, 1.0))
-def calibrate(workers: int, lift_scale: float) -> None:
-    """Re-derive the pedestals' contact numbers from the EROS Tables 7-8 (slow: tens of minutes).
+@click.option("--layer", type=click.Choice(["contact", "blades"]), default="contact", show_default=True,
+              help="contact: grid the built-in pedestals' contact layer; blades: grid the blade layer's "
+                   "creep and jams on the grass pedestals (the carpet keeps its contact layer).")
+@click.option("--out", "out_dir", type=OutPath(file_okay=False), metavar="DIR",
+              help="Also write each chosen pedestal as a surface file DIR/<name>.yaml, for "
+                   "`experiment eros --pedestal N=DIR/<name>.yaml`.")
+def calibrate(workers: int, lift_scale: float, layer: str, out_dir: Path | None) -> None:
+    """Re-derive the pedestals' ground numbers from the EROS Tables 7-8 (slow: tens of minutes).
 
     Prints, per pedestal, the grid point whose simulated stability matrix agrees
     with the most table cells, and how much better it does than the built-in
-    surface; tuner/sim/surfaces.py holds the values in use.
+    surface; tuner/sim/surfaces.py holds the values in use (--layer blades: the
+    blade layer's grid, written with --out; the built-ins stay as they are).
     """
     from tqdm import tqdm
 
     from .report import calibration as cal
     from .report import experiments as ex
+    from .sim.surfaces import SURFACES
 
-    n = len(ex.PEDESTALS) * int(np.prod([len(v) for v in cal.DEFAULT_GRID.values()]))
+    n = len(cal.calibration_tasks(layer=layer))
     with tqdm(total=n, desc="calibration", unit="grid point", **_bar_options()) as bar:
-        gain, best, every = cal.calibrate(workers=workers, lift_scale=lift_scale, progress=bar.update)
-    click.echo(f"heel gain (shared): {gain:g} rad/m; cells in Table 7 order, S = stable, . = fell")
+        gain, best, every = cal.calibrate(workers=workers, lift_scale=lift_scale, progress=bar.update, layer=layer)
+    click.echo(f"layer: {layer}; heel gain (shared): {gain:g} rad/m; cells in Table 7 order, S = stable, . = fell")
     for ped in ex.PEDESTALS:
-        now = cal.evaluate((ped, {}, (gain,), lift_scale))[0]
+        now = cal.evaluate((ped, {}, (gain,), lift_scale, "contact"))[0]
         free = max((c for c in every if c.pedestal == ped and c.heel_gain == gain), key=lambda c: c.agree)
         c = best.get(ped)
         toe = (f"; toe test: landing pitch peak/final {now.toe[0]:.1f}/{now.toe[1]:.1f} deg"
@@ -669,6 +677,20 @@ def calibrate(workers: int, lift_scale: float) -> None:
                           if free.agree > c.agree else ""))
     click.echo("paper    without " + " | ".join(cal._paper_pattern(False, p) for p in ex.PEDESTALS)
                + "   with " + " | ".join(cal._paper_pattern(True, p) for p in ex.PEDESTALS))
+    if out_dir is not None:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        made = f"gait-tuner calibrate --layer {layer} --lift-scale {lift_scale:g}{_commit_of(__file__)}"
+        for ped, c in best.items():
+            surface = cal.pedestal_surface(ped, c.values, layer)
+            if surface == SURFACES[ex.PEDESTALS[ped]]:
+                click.echo(f"P{ped}: its built-in layer, nothing to write")
+                continue
+            header = (f"EROS pedestal {ped} ({ex.PEDESTALS[ped]}), chosen by {made}:\n"
+                      f"agrees with {c.agree} of Tables 7-8's 20 cells (without {c.without}, with {c.with_}) at "
+                      f"the heel gain {gain:g} rad/m.\nNothing of a real turf is measured: the tables choose "
+                      f"among the grid's numbers.")
+            path = write_text_atomic(out_dir / f"{surface.name}.yaml", cal.surface_yaml(surface, header))
+            click.echo(f"wrote {path}")
 
 
 def _storage_option(f):

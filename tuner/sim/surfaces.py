@@ -29,7 +29,8 @@ stiff base), blades that hold a corner where it entered until friction lets go, 
 paper's account of a toe stuck in the grass, as a mechanism); with ``blade_jam_slide`` > 0, one
 that enters the blades sliding faster than that (a toe dragged into them) is jammed the same way.
 The built-in pedestals keep the contact layer (their calibration); ``examples/surfaces`` has blade
-layers of grass50's height (and jam files of grass30's).
+layers of grass50's height (and jam files of grass30's), and ``examples/surfaces/calibrated`` the
+blade layers ``gait-tuner calibrate --layer blades`` chose for the three grass pedestals.
 
 The four built-in surfaces mirror the EROS paper's pedestals (Sec. 5, Figs
 20-23): grass50 (50 mm blades, sparse, irregular), grass30 (30 mm, dense,
