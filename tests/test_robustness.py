@@ -142,3 +142,37 @@ def test_trials_lists_a_study_and_exactly_optunas_best(gait_tuner_cmd, run_env, 
         sorted(t.number for t in study.best_trials)
     r = run(gait_tuner_cmd, ["trials", str(study_file), "--runs", str(tmp_path / "none")], run_env)
     assert r.returncode == 2 and "run `gait-tuner tune` first" in r.stderr
+
+
+def test_a_walk_held_in_place_is_counted_stalled_not_just_survived():
+    """Exact: a table's rollout that stays up having covered less than MIN_COVERED of its plan is
+    stalled; a fall, an online walk (no plan: covered None) and a walk that covered its plan are not."""
+    from tuner.sim.robustness import MIN_COVERED, RobustnessReport
+
+    def row(survived, covered):
+        return {"survived": survived, "fell": not survived, "outcome": "completed" if survived else "fell",
+                "t_fall_s": 1.0, "pitch_rms_deg": 2.0, "speed_mps": 0.1, "covered": covered}
+    rows = [row(True, MIN_COVERED - 0.01), row(True, -0.002), row(True, MIN_COVERED), row(True, 1.1),
+            row(False, 0.0), row(True, None)]
+    rep = RobustnessReport("kidsize", "grass50", "set", False, rows, {})
+    assert rep.stalled == 2
+    d = rep.to_dict()
+    assert d["stalled"] == 2 and d["survival"] == pytest.approx(5 / 6)
+    assert d["covered"][1] == pytest.approx(MIN_COVERED - 0.005)      # the median of the four that have one
+    assert "stalled         2 of the rollouts that stayed up" in rep.format()
+    assert "stalled" not in RobustnessReport("kidsize", "grass50", "set", False, rows[2:4], {}).format()
+
+
+def test_robustness_says_when_a_ground_holds_the_robot_in_place(gait_tuner_cmd, run_env):
+    """The blade layer the calibration chose for 50 mm grass (creeping tips) holds the omni set's
+    feet: every walk stays up and none walks. Survival says 100 %; ``stalled`` says why that is not
+    a walk. On the built-in grass50 the same walks cover their plan."""
+    from conftest import ROOT
+    args = ["robustness", "--params", "kidsize-omni-grass50", "--command", "0.2,0,0", "--rollouts", "2",
+            "--pushes", "0.5", "--push-rollouts", "1", "--json", "--surface"]
+    held = run(gait_tuner_cmd, args + [str(ROOT / "examples/surfaces/calibrated/grass50-blades.yaml")], run_env)
+    assert held.returncode == 0, held.stderr
+    doc = json.loads(held.stdout)
+    assert doc["survival"] == 1.0 and doc["stalled"] == 2 and doc["covered"][2] < 0.1
+    free = json.loads(run(gait_tuner_cmd, args + ["grass50"], run_env).stdout)
+    assert free["stalled"] == 0 and free["covered"][0] > 0.5

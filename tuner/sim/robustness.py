@@ -8,6 +8,10 @@ the same randomisation plus one push. Reported (definitions in ``DEFINITIONS``):
 * ``survival``: fraction of the randomised rollouts that did not fall;
 * time to fall: the fall times of those that fell (quartiles);
 * pitch RMS and speed: 10th, 50th and 90th percentiles over the rollouts that stayed up;
+* a joint table's walks: the covered fraction of its planned forward distance (percentiles over
+  the rollouts that stayed up), and how many of those ``stalled``: stayed up having covered less
+  than :data:`MIN_COVERED` of it (a robot held in place by its ground stands, it does not walk;
+  survival counts it, this says so);
 * per push size, the survival fraction; ``largest_push_ns``: the largest size survived in
   at least 90% of its rollouts (and of every smaller size).
 Workers are forked processes, each with its own simulator; the numbers do not depend on how
@@ -33,12 +37,19 @@ from .surfaces import load_surface
 __all__ = ["evaluate", "scenario_walks", "walk_scenario", "RobustnessReport", "DEFINITIONS", "DEFAULT_PUSHES", "PUSH_SURVIVAL"]
 
 PUSH_SURVIVAL = 0.9
+#: a table's walk that stays up having covered less than this share of its planned forward
+#: distance is counted ``stalled`` (the studies' MIN_PROGRESS makes such a trial infeasible)
+MIN_COVERED = 0.5
 DEFINITIONS = {
     "survival": "fraction of randomised rollouts (default randomisation, evaluation seeds) that completed: a "
                 "fall, a diverged or an impossible simulation is not a survival",
     "t_fall_s": "quartiles of the fall time of the rollouts that fell [s]",
     "pitch_rms_deg": "10/50/90th percentiles of torso pitch RMS over rollouts that stayed up [deg]",
     "speed_mps": "10/50/90th percentiles of forward speed over rollouts that stayed up [m/s]",
+    "covered": "a joint table's walks: 10/50/90th percentiles of the covered fraction of the planned forward "
+               "distance over rollouts that stayed up (null: an online walk, or no forward plan)",
+    "stalled": f"rollouts that stayed up having covered less than {MIN_COVERED:.0%} of their planned forward "
+               "distance (survival counts them: they stood rather than walked)",
     "push_survival": "per push impulse [N s]: fraction of rollouts with one push of that size that did not fall",
     "largest_push_ns": f"largest push impulse survived in >= {PUSH_SURVIVAL:.0%} of its rollouts, and so "
                        f"every smaller one [N s] (null: not even the smallest)",
@@ -52,15 +63,20 @@ DEFINITIONS = {
 _TABLES: dict = {}
 
 
-def _controller(sim: Simulator, drive: gaits.Drive):
-    """A fresh controller of ``drive`` for the simulator; a joint table is planned once per process."""
-    if drive.online:
-        return drive.controller(sim.robot, sim.control_period)
+def _table(sim: Simulator, drive: gaits.Drive):
+    """``drive``'s joint table for the simulator, planned once per process."""
     key = (drive.key(), id(sim))
     if key not in _TABLES:
         _TABLES.clear()
         _TABLES[key] = drive.table(sim.robot, sim.control_period)
-    return drive.controller(sim.robot, sim.control_period, table=_TABLES[key])
+    return _TABLES[key]
+
+
+def _controller(sim: Simulator, drive: gaits.Drive):
+    """A fresh controller of ``drive`` for the simulator; a joint table is planned once per process."""
+    if drive.online:
+        return drive.controller(sim.robot, sim.control_period)
+    return drive.controller(sim.robot, sim.control_period, table=_table(sim, drive))
 
 
 def _one(task: tuple) -> dict[str, Any]:
@@ -71,7 +87,13 @@ def _one(task: tuple) -> dict[str, Any]:
     m = summarize(trace)
     row = {"push": push, "seed": list(seed), "fell": m.fell, "outcome": m.outcome, "survived": m.survived,
            "t_fall_s": m.t_fall_s,
-           "pitch_rms_deg": m.pitch_rms_deg, "speed_mps": m.speed_mps, "distance_m": m.distance_m}
+           "pitch_rms_deg": m.pitch_rms_deg, "speed_mps": m.speed_mps, "distance_m": m.distance_m,
+           "covered": None}
+    if not drive.online:
+        pelvis_x = _table(sim, drive).p_world_pelvis[:, 0]
+        plan = float(pelvis_x[-1] - pelvis_x[0])
+        if abs(plan) > 1e-3:
+            row["covered"] = float(m.distance_m / plan)
     if drive.stream is not None:
         from .metrics import tracking
         starts = trace.meta.get("step_starts")
@@ -97,8 +119,14 @@ class RobustnessReport:
         return float(np.mean([r["survived"] for r in self.rollouts])) if self.rollouts else 0.0
 
     def _pct(self, key: str) -> list[float] | None:
-        vals = [r[key] for r in self.rollouts if r["survived"]]
+        vals = [r[key] for r in self.rollouts if r["survived"] and r.get(key) is not None]
         return [float(v) for v in np.percentile(vals, [10, 50, 90])] if vals else None
+
+    @property
+    def stalled(self) -> int:
+        """Rollouts that stayed up having covered less than :data:`MIN_COVERED` of their plan."""
+        return sum(1 for r in self.rollouts if r["survived"] and r.get("covered") is not None
+                   and r["covered"] < MIN_COVERED)
 
     @property
     def push_survival(self) -> dict[float, float]:
@@ -122,6 +150,7 @@ class RobustnessReport:
                 "falls": len(falls), "outcomes": outcomes,
                 "t_fall_s": [float(v) for v in np.percentile(falls, [25, 50, 75])] if falls else None,
                 "pitch_rms_deg": self._pct("pitch_rms_deg"), "speed_mps": self._pct("speed_mps"),
+                "covered": self._pct("covered"), "stalled": self.stalled,
                 "push_survival": {f"{k:g}": v for k, v in self.push_survival.items()},
                 "largest_push_ns": self.largest_push, "tracking_steady": self.tracking,
                 "definitions": DEFINITIONS}
@@ -140,6 +169,12 @@ class RobustnessReport:
                  f"  time to fall    {pct(d['t_fall_s'], '.2f')} s (quartiles of those that fell)",
                  f"  pitch RMS       {pct(d['pitch_rms_deg'], '.2f')} deg (10/50/90th pct, stayed up)",
                  f"  speed           {pct(d['speed_mps'], '.3f')} m/s (10/50/90th pct, stayed up)"]
+        if d["covered"] is not None:
+            lines.append(f"  covered         {pct([100 * v for v in d['covered']], '.0f')} % of the planned "
+                         f"distance (10/50/90th pct, stayed up)")
+        if d["stalled"]:
+            lines.append(f"  stalled         {d['stalled']} of the rollouts that stayed up covered less than "
+                         f"{MIN_COVERED:.0%} of their plan: they stood rather than walked (survival counts them)")
         tk = self.tracking
         if tk is not None:
             kinds = ", ".join(f"{k} {tk[k]:.0%}" for k in ("forward", "backward", "sideways", "turning")
