@@ -170,7 +170,7 @@ class RobustnessReport:
                  f"  pitch RMS       {pct(d['pitch_rms_deg'], '.2f')} deg (10/50/90th pct, stayed up)",
                  f"  speed           {pct(d['speed_mps'], '.3f')} m/s (10/50/90th pct, stayed up)"]
         if d["covered"] is not None:
-            lines.append(f"  covered         {pct([100 * v for v in d['covered']], '.0f')} % of the planned "
+            lines.append(f"  covered         {pct([round(100 * v) for v in d['covered']], 'd')} % of the planned "
                          f"distance (10/50/90th pct, stayed up)")
         if d["stalled"]:
             lines.append(f"  stalled         {d['stalled']} of the rollouts that stayed up covered less than "
