@@ -145,20 +145,21 @@ def test_trials_lists_a_study_and_exactly_optunas_best(gait_tuner_cmd, run_env, 
 
 
 def test_a_walk_held_in_place_is_counted_stalled_not_just_survived():
-    """Exact: a table's rollout that stays up having covered less than MIN_COVERED of its plan is
+    """Exact: a table's rollout that stays up having covered less than MIN_PROGRESS of its plan is
     stalled; a fall, an online walk (no plan: covered None) and a walk that covered its plan are not."""
-    from tuner.sim.robustness import MIN_COVERED, RobustnessReport
+    from tuner.sim.metrics import MIN_PROGRESS
+    from tuner.sim.robustness import RobustnessReport
 
     def row(survived, covered):
         return {"survived": survived, "fell": not survived, "outcome": "completed" if survived else "fell",
                 "t_fall_s": 1.0, "pitch_rms_deg": 2.0, "speed_mps": 0.1, "covered": covered}
-    rows = [row(True, MIN_COVERED - 0.01), row(True, -0.002), row(True, MIN_COVERED), row(True, 1.1),
+    rows = [row(True, MIN_PROGRESS - 0.01), row(True, -0.002), row(True, MIN_PROGRESS), row(True, 1.1),
             row(False, 0.0), row(True, None)]
     rep = RobustnessReport("kidsize", "grass50", "set", False, rows, {})
     assert rep.stalled == 2
     d = rep.to_dict()
     assert d["stalled"] == 2 and d["survival"] == pytest.approx(5 / 6)
-    assert d["covered"][1] == pytest.approx(MIN_COVERED - 0.005)      # the median of the four that have one
+    assert d["covered"][1] == pytest.approx(MIN_PROGRESS - 0.005)      # the median of the four that have one
     assert "stalled         2 of the rollouts that stayed up" in rep.format()
     assert "stalled" not in RobustnessReport("kidsize", "grass50", "set", False, rows[2:4], {}).format()
 

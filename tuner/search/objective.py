@@ -50,7 +50,7 @@ import gaits
 from gaits import ParamError, UnreachableTargetError
 
 from ..sim import cache as sim_cache
-from ..sim.metrics import summarize
+from ..sim.metrics import MIN_PROGRESS, planned_forward_distance, summarize
 from ..sim.randomisation import TUNE, draw
 from ..sim.rollout import Simulator
 from .study import OBJECTIVES, StudySpec
@@ -60,7 +60,6 @@ __all__ = ["FALL_PENALTY_DEG", "PROGRESS_PENALTY_DEG", "MIN_PROGRESS", "TrialRes
 
 FALL_PENALTY_DEG = 100.0
 PROGRESS_PENALTY_DEG = 50.0     # per unit of the planned distance not covered
-MIN_PROGRESS = 0.5              # a gait covering less than this fraction of its plan is infeasible
 
 
 @dataclass(frozen=True)
@@ -160,7 +159,7 @@ class Evaluator:
                 traj = drive.table(self.robot, dt)
                 planned = traj.duration - float(traj.t[np.flatnonzero(traj.support != 0)[0]]) \
                     if np.any(traj.support != 0) else traj.duration
-                plan_dist = float(traj.p_world_pelvis[-1, 0] - traj.p_world_pelvis[0, 0])
+                plan_dist = planned_forward_distance(traj)
         except (ParamError, UnreachableTargetError) as exc:
             return TrialResult(score=FALL_PENALTY_DEG * 2, speed=0.0, fall_constraint=1.0, fell=True,
                                per_surface={}, invalid=str(exc))

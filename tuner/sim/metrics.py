@@ -41,7 +41,16 @@ from .centre_of_pressure import centre_of_pressure
 from .rollout import Trace
 
 __all__ = ["Metrics", "DEFINITIONS", "distance_budget", "loaded_soles", "heading_velocity", "pitch_rms", "pitch_pm",
-           "centre_of_pressure", "zmp_error", "summarize", "tracking"]
+           "centre_of_pressure", "zmp_error", "summarize", "tracking", "MIN_PROGRESS", "planned_forward_distance"]
+
+#: A walk that stays up having covered less than this share of its planned forward distance did not
+#: walk: a study's trial is infeasible (``search/objective.py``), robustness counts it ``stalled``.
+MIN_PROGRESS = 0.5
+
+
+def planned_forward_distance(traj) -> float:
+    """[m] The forward distance a joint table plans: its pelvis's x, last minus first."""
+    return float(traj.p_world_pelvis[-1, 0] - traj.p_world_pelvis[0, 0])
 
 DEFINITIONS = {
     "pitch_rms_deg": "RMS of torso pitch about its mean over the walk [deg]",

@@ -10,7 +10,7 @@ the same randomisation plus one push. Reported (definitions in ``DEFINITIONS``):
 * pitch RMS and speed: 10th, 50th and 90th percentiles over the rollouts that stayed up;
 * a joint table's walks: the covered fraction of its planned forward distance (percentiles over
   the rollouts that stayed up), and how many of those ``stalled``: stayed up having covered less
-  than :data:`MIN_COVERED` of it (a robot held in place by its ground stands, it does not walk;
+  than ``metrics.MIN_PROGRESS`` of it (a robot held in place by its ground stands, it does not walk;
   survival counts it, this says so);
 * per push size, the survival fraction; ``largest_push_ns``: the largest size survived in
   at least 90% of its rollouts (and of every smaller size).
@@ -27,7 +27,7 @@ import numpy as np
 
 import gaits
 from .cache import simulator
-from .metrics import steady_tracking, summarize
+from .metrics import MIN_PROGRESS, planned_forward_distance, steady_tracking, summarize
 from ..process_pool import map_in_order
 from .randomisation import DEFAULT_PUSHES, EVALUATE, Randomisation, draw
 from ..robots import load_robot
@@ -37,9 +37,6 @@ from .surfaces import load_surface
 __all__ = ["evaluate", "scenario_walks", "walk_scenario", "RobustnessReport", "DEFINITIONS", "DEFAULT_PUSHES", "PUSH_SURVIVAL"]
 
 PUSH_SURVIVAL = 0.9
-#: a table's walk that stays up having covered less than this share of its planned forward
-#: distance is counted ``stalled`` (the studies' MIN_PROGRESS makes such a trial infeasible)
-MIN_COVERED = 0.5
 DEFINITIONS = {
     "survival": "fraction of randomised rollouts (default randomisation, evaluation seeds) that completed: a "
                 "fall, a diverged or an impossible simulation is not a survival",
@@ -48,7 +45,7 @@ DEFINITIONS = {
     "speed_mps": "10/50/90th percentiles of forward speed over rollouts that stayed up [m/s]",
     "covered": "a joint table's walks: 10/50/90th percentiles of the covered fraction of the planned forward "
                "distance over rollouts that stayed up (null: an online walk, or no forward plan)",
-    "stalled": f"rollouts that stayed up having covered less than {MIN_COVERED:.0%} of their planned forward "
+    "stalled": f"rollouts that stayed up having covered less than {MIN_PROGRESS:.0%} of their planned forward "
                "distance (survival counts them: they stood rather than walked)",
     "push_survival": "per push impulse [N s]: fraction of rollouts with one push of that size that did not fall",
     "largest_push_ns": f"largest push impulse survived in >= {PUSH_SURVIVAL:.0%} of its rollouts, and so "
@@ -90,8 +87,7 @@ def _one(task: tuple) -> dict[str, Any]:
            "pitch_rms_deg": m.pitch_rms_deg, "speed_mps": m.speed_mps, "distance_m": m.distance_m,
            "covered": None}
     if not drive.online:
-        pelvis_x = _table(sim, drive).p_world_pelvis[:, 0]
-        plan = float(pelvis_x[-1] - pelvis_x[0])
+        plan = planned_forward_distance(_table(sim, drive))
         if abs(plan) > 1e-3:
             row["covered"] = float(m.distance_m / plan)
     if drive.stream is not None:
@@ -124,9 +120,9 @@ class RobustnessReport:
 
     @property
     def stalled(self) -> int:
-        """Rollouts that stayed up having covered less than :data:`MIN_COVERED` of their plan."""
+        """Rollouts that stayed up having covered less than ``MIN_PROGRESS`` of their plan."""
         return sum(1 for r in self.rollouts if r["survived"] and r.get("covered") is not None
-                   and r["covered"] < MIN_COVERED)
+                   and r["covered"] < MIN_PROGRESS)
 
     @property
     def push_survival(self) -> dict[float, float]:
@@ -174,7 +170,7 @@ class RobustnessReport:
                          f"distance (10/50/90th pct, stayed up)")
         if d["stalled"]:
             lines.append(f"  stalled         {d['stalled']} of the rollouts that stayed up covered less than "
-                         f"{MIN_COVERED:.0%} of their plan: they stood rather than walked (survival counts them)")
+                         f"{MIN_PROGRESS:.0%} of their plan: they stood rather than walked (survival counts them)")
         tk = self.tracking
         if tk is not None:
             kinds = ", ".join(f"{k} {tk[k]:.0%}" for k in ("forward", "backward", "sideways", "turning")
