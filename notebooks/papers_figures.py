@@ -106,7 +106,7 @@ for a, b in zip(table1_hip, ang[:, 0]):
 # %% Simulated: EROS Figs. 24-28 (torso pitch against distance, without and with
 # the optimisation, 24 mm steps on 50 mm grass) and TLIPFM Figs. 14-16 (ZMP
 # response of LIPM, DLIPM and TLIPFM on the rigid floor). These walk the
-# built-in robot in MuJoCo (see the README for what the simulation reproduces).
+# built-in robot in MuJoCo (see docs/simulation.md for what the simulation reproduces).
 from tuner.report import experiments as ex  # noqa: E402
 from tuner.sim.metrics import summarize  # noqa: E402
 from tuner.report.plots import plot_pitch, plot_zmp  # noqa: E402

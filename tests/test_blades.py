@@ -253,7 +253,7 @@ def test_a_point_entering_the_blades_sliding_faster_than_the_slide_speed_is_jamm
 def test_a_slide_jam_drops_the_longer_steps_of_the_eros_walk_without_its_optimisation():
     """The paper's failures growing with the step on tall grass, on the slide-jam layer: the EROS
     walk without the optimisation slides its sole points into the blades at up to 0.14-0.15 m/s at
-    0-8 mm steps and 0.21-0.22 m/s at 16-24 mm (measured, README); so at 0.16 m/s its 8 mm forward
+    0-8 mm steps and 0.21-0.22 m/s at 16-24 mm (measured, docs/simulation.md); so at 0.16 m/s its 8 mm forward
     cell stands and its 16 mm one falls, and with the optimisation (its slides 0.13-0.16 m/s) the 16
     mm cell stands."""
     from tuner.report.experiments import _walk_cell

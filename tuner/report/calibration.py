@@ -22,7 +22,7 @@ own blade height, its flexible tips the same share of it as that file's (15 of 5
 grass30, 3 mm on grass10; ours). A 4 mm carpet has no blades: pedestal 4 keeps its contact layer. Ties go to the
 layer with the fewest mechanisms at work (less creep; no jam before a jam, and a faster jam speed,
 which fewer landings meet, before a slower one). Nothing of a real turf is measured here either:
-the tables choose among mechanisms, the README says what that can and cannot tell.
+the tables choose among mechanisms, docs/simulation.md says what that can and cannot tell.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """The blade layer (ours): artificial grass as springs under each sole point, by pressure, in two
 stages, with blades that hold a point where it entered until friction lets go.
 
-Why (measured, README "The turf test methods, simulated"): MuJoCo's soft contact, the
+Why (measured, docs/simulation.md "The turf test methods, simulated"): MuJoCo's soft contact, the
 pedestals' layer, sets an *acceleration* stiffness, so a toe and a flat sole sink alike and a
 layer soft enough to catch a toe holds one sole against rolling at under twice the robot's
 m g h (19 N m/rad against 10.7): the full-lift EROS walk falls at its first step there. Turf
@@ -29,11 +29,11 @@ tips (``layer_height`` above the soil) and v its velocity:
   account of its robot's falls on grass (Sec. V: "the toe of the foot was landed first, and it
   caused the toe stuck in the synthetic grass. The landing speed of steps are also makes toe
   stuck harder"), written as a mechanism; the speed at which a turf jams a sole is not in any
-  source here (README "A sole jammed by a fast landing").
+  source here (docs/simulation.md "A sole jammed by a fast landing").
 * jam by sliding (with ``blade_jam_slide`` > 0; ours): a point that enters the blades moving
   horizontally faster than that (its mean horizontal speed over the tick it entered in: a toe
   dragged into the blades rather than set down in them) is jammed the same way. Either jam may be
-  on, or both. README "A sole jammed by a fast landing" says what each reproduces of the paper's
+  on, or both. docs/simulation.md "A sole jammed by a fast landing" says what each reproduces of the paper's
   tables and what neither does.
 
 Each point has three site-transmission actuators with affine gains (``add_blades``): MuJoCo

@@ -36,7 +36,7 @@ The four built-in surfaces mirror the EROS paper's pedestals (Sec. 5, Figs
 20-23): grass50 (50 mm blades, sparse, irregular), grass30 (30 mm, dense,
 smooth), grass10 (10 mm, dense, rough) and carpet4 (4 mm carpet); ``rigid`` is
 a reference floor. How their numbers were chosen is in ``docs`` of each entry
-and in the calibration note of the README.
+and in the calibration note of docs/simulation.md.
 """
 
 from __future__ import annotations

@@ -48,9 +48,9 @@ against rolling: below m g h a robot with still ankles topples sideways in singl
 
 MuJoCo's soft contact sets an *acceleration* stiffness (``solref``), so a heavier body sinks as
 far as a light one: the layers' drop-test figures describe them under 20 kg, not a robot's foot;
-:func:`sole_sink` and the drop test disagree for that reason, and the README says so.
+:func:`sole_sink` and the drop test disagree for that reason, and docs/simulation.md says so.
 
-Sources for the numbers (cited in the README): FIFA Quality Programme for Football Turf,
+Sources for the numbers (cited in docs/simulation.md): FIFA Quality Programme for Football Turf,
 Handbook of Test Methods (October 2015 edition) and of Requirements; EN 14808, EN 14809,
 EN 15301-1, EN 15330-1; ASTM F3189 (the Advanced Artificial Athlete); McGowan et al., Sports
 Engineering 2023 (rotational traction testers' 72 deg/s and 30 deg/s).
