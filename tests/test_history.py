@@ -146,7 +146,7 @@ def test_windowed_sampler_samples_what_tpe_samples_while_the_history_fits_the_wi
 
 
 def test_windowed_sampler_reads_the_window_only(monkeypatch):
-    from optuna.samplers._tpe import sampler as tpe
+    from tuner.search.optuna_compat import tpe_sampler_module as tpe
     seen = []
     split = tpe._split_trials
 
@@ -286,11 +286,10 @@ def test_scipy_log_ndtr_stands_in_for_optunas_own():
     the centre and the right, where Optuna's series switches branches (-20, 6), and Optuna's sampler
     module uses it."""
     import numpy as np
-    from optuna.samplers._tpe import _truncnorm
     from scipy.special import log_ndtr
 
-    from tuner.search import history
-    assert history.SCIPY_LOG_NDTR and _truncnorm._log_ndtr is log_ndtr
+    from tuner.search import history, optuna_compat
+    assert history.SCIPY_LOG_NDTR and optuna_compat.log_ndtr_in_use() is log_ndtr
     x = np.concatenate([np.linspace(-60.0, 12.0, 3001), [-20.0, -20.0 - 1e-9, 6.0, 6.0 + 1e-9, 0.0]])
     ours = history.OPTUNA_LOG_NDTR(x)
     assert np.all(np.abs(ours - log_ndtr(x)) <= 1e-12 * np.maximum(1.0, np.abs(ours)))

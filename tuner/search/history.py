@@ -42,11 +42,11 @@ import optuna
 from optuna.distributions import BaseDistribution
 from optuna.storages import JournalStorage
 from optuna.study import StudyDirection
-from optuna.samplers._tpe.sampler import default_gamma, default_gamma_multiobjective
 from optuna.trial import FrozenTrial, TrialState
 
 from .journal import unpacked
-from .rdb import into_cache, lean
+from . import optuna_compat as compat
+from .rdb import lean
 from .trials import DONE_STATES
 
 __all__ = ["TrialIndex", "WindowedTPESampler", "params_key", "N_BEST", "N_RECENT"]
@@ -60,31 +60,17 @@ N_RECENT = 170
 _UNFINISHED = (TrialState.RUNNING, TrialState.WAITING)
 
 
-def _use_scipy_log_ndtr() -> bool:
-    """TPE draws from truncated normals; Optuna 5.x evaluates their log normal CDF element by element
-    in Python (``optuna.samplers._tpe._truncnorm._log_ndtr``: ``np.frompyfunc`` over a scalar
-    series). Late in a long study the kernels are narrow, the bounds sit far in their tails, and
-    the Newton inversion calls it a thousand times a trial: at 10k trials that was most of the
-    sampling time (``benchmarks/bench_scale.py``). SciPy's ``special.log_ndtr`` is the same function
-    in C; ours is to put it in place of Optuna's, in this process, where that private function
-    exists as expected (``optuna<6`` is pinned). They agree to 1e-12 of the value (tested,
-    ``tests/test_history.py``); draws may differ from an unpatched Optuna's in their last bits, a
-    seeded study still gives the same draws on every run."""
-    from optuna.samplers._tpe import _truncnorm
-    from scipy.special import log_ndtr
-    global OPTUNA_LOG_NDTR
-    own = getattr(_truncnorm, "_log_ndtr", None)
-    if not callable(own):
-        return False
-    if own is not log_ndtr:
-        OPTUNA_LOG_NDTR = own
-    _truncnorm._log_ndtr = log_ndtr
-    return True
-
-
-#: Optuna's own function, kept for the test that holds SciPy's against it
-OPTUNA_LOG_NDTR = None
-SCIPY_LOG_NDTR = _use_scipy_log_ndtr()
+#: TPE draws from truncated normals; Optuna 5.x evaluates their log normal CDF element by element
+#: in Python. Late in a long study the kernels are narrow, the bounds sit far in their tails, and
+#: the Newton inversion calls it a thousand times a trial: at 10k trials that was most of the
+#: sampling time (``benchmarks/bench_scale.py``). SciPy's ``special.log_ndtr`` is the same function
+#: in C; ours is to put it in place of Optuna's, in this process, where that private function
+#: exists as expected (:func:`optuna_compat.use_scipy_log_ndtr`). They agree to 1e-12 of the value
+#: (tested, ``tests/test_history.py``); draws may differ from an unpatched Optuna's in their last
+#: bits, a seeded study still gives the same draws on every run. ``OPTUNA_LOG_NDTR`` is Optuna's
+#: own function, kept for that test.
+OPTUNA_LOG_NDTR = compat.use_scipy_log_ndtr()
+SCIPY_LOG_NDTR = OPTUNA_LOG_NDTR is not None
 
 
 def params_key(params: dict[str, Any]) -> int:
@@ -127,7 +113,7 @@ class TrialIndex:
     def _bind(self, study: optuna.Study) -> None:
         if self._storage is None:
             self._storage = study._storage
-            self._study_id = study._study_id
+            self._study_id = compat.study_id(study)
             self._signs = tuple(1.0 if d == StudyDirection.MINIMIZE else -1.0 for d in study.directions)
 
     def refresh(self, study: optuna.Study) -> "TrialIndex":
@@ -149,7 +135,7 @@ class TrialIndex:
                 if t.state.is_finished():
                     self._absorb(t)
                 else:
-                    self._unfinished[t.number] = t._trial_id
+                    self._unfinished[t.number] = compat.trial_id(t)
                 self.seen = max(self.seen, t.number + 1)
         sid = self._study_id
         journal = isinstance(storage, JournalStorage)
@@ -204,12 +190,12 @@ class TrialIndex:
     def _take(self, trials: list[FrozenTrial], now: dict[int, FrozenTrial]) -> None:
         for t in sorted(trials, key=lambda t: t.number):
             self.seen = max(self.seen, t.number + 1)
-            self._last_id = max(self._last_id, t._trial_id)
+            self._last_id = max(self._last_id, compat.trial_id(t))
             if t.state.is_finished():
                 self._unfinished.pop(t.number, None)
                 self._absorb(t)
             else:
-                self._unfinished[t.number] = t._trial_id
+                self._unfinished[t.number] = compat.trial_id(t)
                 now[t.number] = t
 
     def recount(self, study: optuna.Study, attr: str = "budget") -> Any:
@@ -260,13 +246,13 @@ class TrialIndex:
                 if rdb is not None:
                     # a database: popped with its worker in one write; the index reads around
                     # Optuna's cache, where the trial must be before its parameters are written
-                    if rdb.claim(t._trial_id, attrs):
-                        into_cache(storage, self._study_id, storage.get_trial(t._trial_id))
-                        return optuna.Trial(study, t._trial_id)
-                elif storage.set_trial_state_values(t._trial_id, state=TrialState.RUNNING):
+                    if rdb.claim(compat.trial_id(t), attrs):
+                        compat.into_cache(storage, self._study_id, storage.get_trial(compat.trial_id(t)))
+                        return optuna.Trial(study, compat.trial_id(t))
+                elif storage.set_trial_state_values(compat.trial_id(t), state=TrialState.RUNNING):
                     for k, v in attrs.items():
-                        storage.set_trial_user_attr(t._trial_id, k, v)
-                    return optuna.Trial(study, t._trial_id)
+                        storage.set_trial_user_attr(compat.trial_id(t), k, v)
+                    return optuna.Trial(study, compat.trial_id(t))
             except optuna.exceptions.UpdateFinishedTrialError:
                 continue
         template = None
@@ -287,7 +273,7 @@ class TrialIndex:
         self.n_done += 1
         if t.state == TrialState.COMPLETE:
             self._curves.append(_Curve(t.intermediate_values) if t.intermediate_values else _NO_CURVE)
-        self._by_params.setdefault(params_key(t.params), []).append(t._trial_id)
+        self._by_params.setdefault(params_key(t.params), []).append(compat.trial_id(t))
         self._recent.append(t)
         if t.state != TrialState.COMPLETE or not _feasible(t) or t.values is None:
             return
@@ -401,9 +387,7 @@ class WindowedTPESampler(optuna.samplers.TPESampler):
     def __init__(self, space: dict[str, BaseDistribution], index: TrialIndex | None = None, **kw: Any) -> None:
         kw.setdefault("multivariate", True)
         super().__init__(**kw)
-        # TPE reads its split from this attribute (its ``gamma`` argument is deprecated since
-        # Optuna 4.9 and prints a warning; the attribute is what every 5.x TPE calls)
-        self._gamma = self._good
+        compat.set_tpe_gamma(self, self._good)
         # sorted by name, as Optuna's own inferred space is: the same draws in the same order
         self._space = {k: space[k] for k in sorted(space) if not space[k].single()}
         self.index = index or TrialIndex()
@@ -413,7 +397,7 @@ class WindowedTPESampler(optuna.samplers.TPESampler):
         """How many of the window's ``n`` trials are "good": Optuna's default for the *study's*
         count of finished trials (not the window's), at most the window's best."""
         ix = self.index
-        full = (default_gamma if len(ix._signs) <= 1 else default_gamma_multiobjective)(ix.n_done)
+        full = (compat.default_gamma if len(ix._signs) <= 1 else compat.default_gamma_multiobjective)(ix.n_done)
         return min(full, n) if ix.n_done <= n else min(full, n, ix.n_best)
 
     def mark_fresh(self, number: int) -> None:

@@ -20,12 +20,13 @@ from typing import Any
 
 from optuna.storages import JournalStorage
 from optuna.storages.journal import JournalFileBackend
-from optuna.storages.journal._file import BaseJournalFileLock  # the lock interface JournalFileBackend takes
-from optuna.storages.journal._storage import JournalOperation as Op   # the records' op codes
-from optuna.storages.journal._storage import JournalStorageReplayResult   # optuna<6 pinned
 from optuna.trial import FrozenTrial, TrialState
 
 from ..errors import UserError
+from .optuna_compat import BaseJournalFileLock  # the lock interface JournalFileBackend takes
+from .optuna_compat import FROZEN_TRIAL_FIELDS, BaseJournalSnapshot
+from .optuna_compat import JournalOperation as Op   # the records' op codes
+from .optuna_compat import JournalStorageReplayResult
 
 __all__ = ["DISK_FULL", "StorageFull", "FlockLock", "repair_journal", "SafeJournalBackend", "PackedTrial",
            "PackedJournalStorage", "unpacked"]
@@ -208,8 +209,7 @@ def _cut_torn_tail_if_any(path: Path, size: int) -> int:
 #: (its intermediate values: empty, or a few numbers per trial)
 _KEPT = ("_number", "state", "_trial_id", "intermediate_values")
 #: FrozenTrial's fields in the order its constructor sets them (its repr and hash follow it)
-_ORDER = ("_number", "state", "_values", "_datetime_start", "datetime_complete", "_params", "_user_attrs",
-          "_system_attrs", "intermediate_values", "_distributions", "_trial_id")
+_ORDER = FROZEN_TRIAL_FIELDS
 
 
 class PackedTrial(FrozenTrial):
@@ -311,7 +311,6 @@ class PackedJournalStorage(JournalStorage):
     is refused here (gait-tuner's journal is a file)."""
 
     def __init__(self, log_storage: Any) -> None:       # noqa: D107 - Optuna's, with our replay
-        from optuna.storages.journal._base import BaseJournalSnapshot
         if isinstance(log_storage, BaseJournalSnapshot):
             raise TypeError("PackedJournalStorage: a journal backend with snapshots is not supported")
         self._worker_id_prefix = str(uuid.uuid4()) + "-"

@@ -53,6 +53,7 @@ from ..sim import cache as sim_cache
 from ..sim.metrics import MIN_PROGRESS, planned_forward_distance, summarize
 from ..sim.randomisation import TUNE, draw
 from ..sim.rollout import Simulator
+from . import optuna_compat as compat
 from .study import OBJECTIVES, StudySpec
 
 __all__ = ["FALL_PENALTY_DEG", "PROGRESS_PENALTY_DEG", "MIN_PROGRESS", "TrialResult", "Evaluator", "rollout_score",
@@ -371,7 +372,7 @@ def record_constraint(trial: optuna.Trial, value: float) -> None:
     attribute ``constraints``: Optuna 5 reads it as constraint "0" (``FrozenTrial.constraints``,
     feasibility in TPE and ``best_trials``), and optuna-dashboard (0.21) reads only this key,
     not the per-name keys of ``Trial.set_constraint``, so fallen trials show as infeasible there."""
-    trial.storage.set_trial_system_attr(trial._trial_id, "constraints", [float(value)])
+    trial.storage.set_trial_system_attr(compat.trial_id(trial), "constraints", [float(value)])
 
 def suggest(trial: optuna.Trial, spec: StudySpec) -> dict[str, Any]:
     """Sample (or, called again, read back) every parameter of the study's space for ``trial``,

@@ -50,7 +50,9 @@ from optuna.exceptions import UpdateFinishedTrialError
 from optuna.storages import RDBStorage
 from optuna.trial import FrozenTrial, TrialState
 
-__all__ = ["LeanRDBStorage", "lean", "into_cache"]
+from . import optuna_compat as compat
+
+__all__ = ["LeanRDBStorage", "lean"]
 
 
 @lru_cache(maxsize=256)
@@ -114,8 +116,7 @@ class LeanRDBStorage(RDBStorage):
 
     @staticmethod
     def _models() -> Any:
-        from optuna.storages._rdb import models
-        return models
+        return compat.rdb_models()
 
     def _statement(self, key: Any, build: Callable[[], Any]) -> Any:
         """The statement ``build`` makes, built once per ``key`` (its values bound at each call),
@@ -303,7 +304,7 @@ class LeanRDBStorage(RDBStorage):
         with self._reader().connect() as conn:
             trials = self._read(conn, sa.and_(t.c.study_id == study_id, which), limit, known)
         for x in trials:
-            self._see(study_id, x._trial_id, x.number)
+            self._see(study_id, compat.trial_id(x), x.number)
         return [self._merged(x) for x in trials]
 
     def _study_exists(self, conn: Any, study_id: int) -> None:
@@ -404,7 +405,7 @@ class LeanRDBStorage(RDBStorage):
     def _merged(self, trial: FrozenTrial) -> FrozenTrial:
         """``trial`` as this process sees it: with its deferred writes."""
         with self._pending_lock:
-            p = self._pending.get(trial._trial_id)
+            p = self._pending.get(compat.trial_id(trial))
             if p is None or p.empty():
                 return trial
             for name, (value, dist) in p.params.items():
@@ -793,20 +794,5 @@ class LeanRDBStorage(RDBStorage):
 
 def lean(storage: Any) -> LeanRDBStorage | None:
     """The :class:`LeanRDBStorage` behind an Optuna storage object (its cache), or None."""
-    base = getattr(storage, "_backend", storage)
+    base = compat.cached_backend(storage)
     return base if isinstance(base, LeanRDBStorage) else None
-
-
-def into_cache(storage: Any, study_id: int, trial: FrozenTrial) -> None:
-    """Put ``trial`` into Optuna's cache over ours (``_CachedStorage``), where a trial must be
-    before this process writes its parameters (its ``set_trial_param`` looks the trial up
-    there). A worker's index reads trials around the cache (:meth:`LeanRDBStorage.read_trials`),
-    so a trial it pops from the queue is put there by this. Optuna's private structure,
-    ``optuna<6`` pinned; a storage without it (not cached) needs nothing."""
-    add = getattr(storage, "_add_trials_to_cache", None)
-    if add is None:
-        return
-    from optuna.storages._cached_storage import _StudyInfo
-    with storage._lock:
-        storage._studies.setdefault(study_id, _StudyInfo())
-        add(study_id, [trial])

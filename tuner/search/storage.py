@@ -40,6 +40,7 @@ import optuna
 from optuna.trial import TrialState
 
 from ..errors import UserError
+from . import optuna_compat as compat
 from .journal import DISK_FULL, FlockLock, PackedJournalStorage, SafeJournalBackend, StorageFull, repair_journal
 from .liveness import HEARTBEAT_GRACE_S, HEARTBEAT_INTERVAL_S, alive_here, worker_file
 
@@ -358,11 +359,11 @@ class StudyStore:
         if not running:
             return []
         stale_db: set[int] = set()
-        storage = study._storage
+        storage = compat.study_storage(study)
         if self.journal is None:
-            base = getattr(storage, "_backend", storage)
+            base = compat.cached_backend(storage)
             if getattr(base, "is_heartbeat_enabled", lambda: False)():
-                stale_db = set(base._get_stale_trial_ids(study._study_id))
+                stale_db = set(compat.stale_trial_ids(base, compat.study_id(study)))
         now = time.time()
         dead = []
         for t in running:
@@ -371,7 +372,7 @@ class StudyStore:
                 # read again now: ``running`` may have been read outside the lock, between the
                 # two journal records that pop a waiting trial (its state, then its worker; a
                 # database pops it in one write, LeanRDBStorage.claim), or by a foreign client
-                t = study._storage.get_trial(t._trial_id)
+                t = storage.get_trial(compat.trial_id(t))
                 if t.state != TrialState.RUNNING:
                     continue
                 ident = t.user_attrs.get("worker") or {}
@@ -387,7 +388,7 @@ class StudyStore:
                 continue
             if here is True:
                 continue
-            if t._trial_id in stale_db:
+            if compat.trial_id(t) in stale_db:
                 dead.append(t)
             elif self.journal is not None and ident:
                 beat = self.heartbeat_dir(study.study_name) / worker_file(ident)
@@ -402,12 +403,12 @@ class StudyStore:
     def mark_death(self, study: optuna.Study, pid: int, how: str) -> None:
         """Record on the running trial of this host's worker ``pid`` how it died (a signal's
         name), so that :meth:`reap` tells a crash from a kill; call under the budget lock."""
-        host = socket.gethostname()
+        host, storage = socket.gethostname(), compat.study_storage(study)
         for t in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
             ident = t.user_attrs.get("worker") or {}
             if ident.get("host") == host and int(ident.get("pid", -1)) == pid:
                 with contextlib.suppress(RuntimeError, optuna.exceptions.UpdateFinishedTrialError):
-                    study._storage.set_trial_user_attr(t._trial_id, "died", how)
+                    storage.set_trial_user_attr(compat.trial_id(t), "died", how)
 
     def reap(self, study: optuna.Study, running: list | None = None, failed: list | None = None) -> list[str]:
         """Fail the study's dead trials; enqueue a retry of every trial failed so (now, or at an
@@ -416,20 +417,20 @@ class StudyStore:
         heartbeat files. Call under the budget lock. ``running`` and ``failed``: the study's
         RUNNING and FAIL trials when the caller knows them (a worker's :class:`TrialIndex`),
         so that nothing here reads the whole study."""
-        notes = []
+        notes, storage = [], compat.study_storage(study)
         for t in self.dead_trials(study, running):
             why = _not_retried(t)
             try:
                 if why:
-                    study._storage.set_trial_user_attr(t._trial_id, "not_retried", why)
-                study._storage.set_trial_user_attr(t._trial_id, "failed", WORKER_DIED)
-                study._storage.set_trial_state_values(t._trial_id, TrialState.FAIL)
+                    storage.set_trial_user_attr(compat.trial_id(t), "not_retried", why)
+                storage.set_trial_user_attr(compat.trial_id(t), "failed", WORKER_DIED)
+                storage.set_trial_state_values(compat.trial_id(t), TrialState.FAIL)
             except (RuntimeError, optuna.exceptions.UpdateFinishedTrialError):
                 continue          # finished meanwhile
             if why:
                 notes.append(why)
             if failed is not None:
-                failed = [*failed, study._storage.get_trial(t._trial_id)]
+                failed = [*failed, storage.get_trial(compat.trial_id(t))]
             self._forget_worker(study.study_name, t.user_attrs.get("worker"))
         notes += self._enqueue_retries(study, failed)
         self._sweep_heartbeats(study.study_name)

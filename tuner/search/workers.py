@@ -31,6 +31,7 @@ from gaits import ParamError
 
 from ..errors import UserError
 from ..process_pool import mp_context
+from . import optuna_compat as compat
 from .liveness import Heartbeat, process_identity
 from .history import IndexedMedianPruner, TrialIndex, WindowedTPESampler
 from .objective import Evaluator, objective_for, record_constraint, suggest
@@ -227,7 +228,7 @@ def work(spec: StudySpec, store: StudyStore, budget: int, seed: int,
     index.refresh(study)                            # the whole study, once, outside the lock
     frozen = _freeze_history(index.n_done, -FREEZE_EVERY)
     objective = objective_for(spec, Evaluator(spec, threads=threads))
-    rdb = lean(study._storage)
+    rdb = lean(compat.study_storage(study))
     me = process_identity()                         # host, pid, start time: this process's, once
     beat = Heartbeat(store, spec.name).start()
     ran = 0
@@ -255,15 +256,15 @@ def work(spec: StudySpec, store: StudyStore, budget: int, seed: int,
             if trial is None:
                 time.sleep(poll)
                 continue
-            beat.trial_id = trial._trial_id
+            beat.trial_id = compat.trial_id(trial)
             if isinstance(study.sampler, WindowedTPESampler):
                 study.sampler.mark_fresh(trial.number)
             if rdb is not None:
                 # a database: the trial's writes in two transactions, not one per write (rdb.py)
-                rdb.defer(trial._trial_id)
+                rdb.defer(compat.trial_id(trial))
             suggest(trial, spec)
             if rdb is not None:
-                rdb.flush(trial._trial_id)       # its parameters, for the other workers' liar
+                rdb.flush(compat.trial_id(trial))       # its parameters, for the other workers' liar
             source = None if trial.user_attrs.get("retry_of") is not None else index.duplicate_of(trial)
             if source is not None:
                 _tell_copy(study, trial, source)
