@@ -89,7 +89,7 @@ def main() -> None:
               "(and every smaller one)")
         det = trial_cost("quickstart", str(qs))
         rob = trial_cost("kidsize-robust-grass50", "kidsize-robust-grass50")
-        k = load_study(str(ROOT / "studies" / "kidsize-robust-grass50.yaml")).robust.rollouts
+        k = load_study(str(ROOT / "studies" / "kidsize-robust-grass50.yaml")).settings.rollouts
         print(f"\none trial's evaluation: deterministic {det * 1000:.0f} ms, robust (K = {k}, no early stop) "
               f"{rob * 1000:.0f} ms: {rob / det:.1f}x")
 

@@ -153,7 +153,7 @@ def robust_trial(repeats: int) -> None:
     from tuner.search.objective import Evaluator
     from tuner.search.study import load_study
     spec = load_study("kidsize-robust-grass50")
-    spec = replace(spec, robust=replace(spec.robust, rollouts=16, min_survival=0.0))
+    spec = replace(spec, settings=replace(spec.settings, rollouts=16, min_survival=0.0))
     drive = spec.drive_for({}, source="bench")
     evs = {n: Evaluator(spec, threads=n) for n in (1, 2)}
     times = {1: [], 2: []}

@@ -72,11 +72,11 @@ def main() -> None:
             params = load_gait_file(path).params
             print(f"== kidsize-omni-{name} (period {params.period:.3f} s, h_z {params.h_z * 1000:.0f} mm, "
                   f"z_c {params.z_c * 1000:.0f} mm, lean {params.torso_pitch:+.2f} rad)")
-            print(f"{'surface':9s} " + " ".join(f"{d:>22s}" for d, _, _ in spec.speed.directions))
+            print(f"{'surface':9s} " + " ".join(f"{d:>22s}" for d, _, _ in spec.settings.directions))
             for surface, sim in sims.items():
                 cells, sat = [], None
-                for d, top, _ in spec.speed.directions:
-                    r = speed_test(sim, params, spec.speed.staircase(d, top), spec.speed.tolerance,
+                for d, top, _ in spec.settings.directions:
+                    r = speed_test(sim, params, spec.settings.staircase(d, top), spec.settings.tolerance,
                                    limits=(d == "forward"))
                     cells.append(f"{r.reached:6.3f} ({r.measured:6.3f}) {r.unit:>5s}")
                     if d == "forward":

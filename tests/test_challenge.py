@@ -137,10 +137,11 @@ def test_a_tiny_challenge_study_end_to_end(gait_tuner_cmd, run_env, tmp_path):
 
 
 def test_a_challenge_trial_that_takes_no_push_scores_below_every_one_that_does():
+    from tuner.scenarios.challenge import ChallengeSpec
     from tuner.search.objective import Evaluator
-    from tuner.search.study import ChallengeSpec, load_study
-    spec = dataclasses.replace(load_study("kidsize-omni-carpet4"), surfaces=("rigid",), speed=None,
-                               challenge=ChallengeSpec(seeds=(0,), start=1.4, step=0.05))
+    from tuner.search.study import load_study
+    spec = dataclasses.replace(load_study("kidsize-omni-carpet4"), surfaces=("rigid",), kind="challenge",
+                               settings=ChallengeSpec(seeds=(0,), start=1.4, step=0.05))
     res = Evaluator(spec).evaluate(gaits.Drive.of(resolve_params("kidsize-omni-carpet4", None)))
     assert res.values == (pytest.approx(1.35),) and res.fall_constraint < 0
     assert res.per_surface["rigid"]["best_distance_m"] == [None]
@@ -148,17 +149,18 @@ def test_a_challenge_trial_that_takes_no_push_scores_below_every_one_that_does()
 
 @pytest.mark.parametrize("aggregate, expected", [("worst", 0.5), ("mean", (0.5 + 0.875) / 2)])
 def test_a_challenge_study_aggregates_the_surfaces_mean_distances(monkeypatch, aggregate, expected):
-    import tuner.sim.challenge as ch
+    import tuner.scenarios.challenge as ch
+    from tuner.scenarios.challenge import ChallengeSpec
     from tuner.search.objective import Evaluator
-    from tuner.search.study import ChallengeSpec, load_study
+    from tuner.search.study import load_study
     found = {("rigid", 0): 0.4, ("rigid", 1): 0.6, ("carpet4", 0): None, ("carpet4", 1): 1.2}
 
     def fake(sim, drive, *, seed, start, step):
         d = found[(sim.surface.name, seed)]
         return {"best_distance_m": d, "momentum_Ns": None if d is None else 1.0}
     monkeypatch.setattr(ch, "challenge", fake)
-    spec = dataclasses.replace(load_study("kidsize-omni-carpet4"), surfaces=("rigid", "carpet4"), speed=None,
-                               aggregate=aggregate, challenge=ChallengeSpec(seeds=(0, 1), start=0.6, step=0.05))
+    spec = dataclasses.replace(load_study("kidsize-omni-carpet4"), surfaces=("rigid", "carpet4"), kind="challenge",
+                               aggregate=aggregate, settings=ChallengeSpec(seeds=(0, 1), start=0.6, step=0.05))
     res = Evaluator(spec).evaluate(gaits.Drive.of(resolve_params("kidsize-omni-carpet4", None)))
     # per surface the mean over seeds: rigid (0.4 + 0.6) / 2 = 0.5; carpet4 (0.55, start - step for no
     # push, + 1.2) / 2 = 0.875; then the worst of them, or their mean

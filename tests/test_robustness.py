@@ -66,7 +66,7 @@ def test_a_small_robust_study_end_to_end(gait_tuner_cmd, run_env, tmp_path):
     study = tmp_path / "tiny-robust.yaml"
     study.write_text(STUDY)
     spec = load_study(str(study))
-    assert spec.robust.rollouts == 2 and spec.stabiliser.enabled
+    assert spec.kind == "robust" and spec.settings.rollouts == 2 and spec.stabiliser.enabled
     r = run(gait_tuner_cmd, ["tune", str(study), "--runs", str(tmp_path / "runs"), "--workers", "2"], run_env)
     assert r.returncode == 0, r.stderr
     r = run(gait_tuner_cmd, ["export", str(study), "--runs", str(tmp_path / "runs"), "--out",

@@ -211,10 +211,10 @@ def test_a_trial_on_two_threads_is_the_one_at_a_time_trial(study, min_survival):
     from tuner.search.objective import Evaluator
     from tuner.search.study import load_study
     spec = load_study(study)
-    if spec.robust is not None:
-        spec = replace(spec, robust=replace(spec.robust, rollouts=6, min_survival=min_survival))
-    if spec.scenario is not None:
-        spec = replace(spec, surfaces=spec.surfaces[:1], scenario=replace(spec.scenario, walks=3, min_survival=0.0))
+    if spec.kind == "robust":
+        spec = replace(spec, settings=replace(spec.settings, rollouts=6, min_survival=min_survival))
+    if spec.kind == "match":
+        spec = replace(spec, surfaces=spec.surfaces[:1], settings=replace(spec.settings, walks=3, min_survival=0.0))
     drive = spec.drive_for({}, source="test")
     one, two = (Evaluator(spec, threads=n).evaluate(drive) for n in (1, 2))
     assert one == two

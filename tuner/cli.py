@@ -788,26 +788,9 @@ def _run_study_and_report(spec, store, study_file: str, storage: str | None, tot
         return
     t = best_trial(study)
     n_fell = sum(1 for x in study.get_trials(deepcopy=False, states=DONE_STATES) if trial_fell(x))
-    if spec.speed is not None:
-        got = t.user_attrs.get("speed") or {}
-        dirs = ", ".join(f"{d} {v:.3g} {'rad/s' if d.startswith('turn') else 'm/s'}"
-                         for d, v in (got.get("by_direction") or {}).items())
-        why = (t.user_attrs.get("result") or {}).get("invalid")
-        click.echo(f"best trial {t.number}: speed score {got.get('score', t.values[0]):.3f}"
-                   + (f"; highest stairs held: {dirs}" if dirs else "")
-                   + (f"; rejected: {why}" if why else "")
-                   + f"; infeasible trials (a direction not held on a surface, or rejected): "
-                     f"{sum(1 for x in study.get_trials(deepcopy=False, states=DONE_STATES) if not trial_feasible(x))}")
-    elif spec.challenge is not None:
-        per = (t.user_attrs.get("result") or {}).get("per_surface") or {}
-        cells = "; ".join(f"{name} " + ", ".join("-" if d is None else f"{d:.2f}" for d in row["best_distance_m"])
-                          for name, row in per.items())
-        click.echo(f"best trial {t.number}: push distance {t.values[0]:.3f} m (mean largest D over the push "
-                   f"seeds {', '.join(str(k) for k in spec.challenge.seeds)}" + (f": {cells}" if cells else "") + ")")
-    else:
-        click.echo(f"best trial {t.number}: pitch score {t.values[0]:.3f} deg"
-                   + (f", speed {t.values[1]:.4f} m/s" if len(t.values) > 1 else "")
-                   + f"; {'fell' if trial_fell(t) else 'stayed up'}; falls in study: {n_fell}")
+    n_infeasible = sum(1 for x in study.get_trials(deepcopy=False, states=DONE_STATES) if not trial_feasible(x))
+    click.echo(spec.scenario_room.describe_best(spec.settings, t, fell=trial_fell(t), falls=n_fell,
+                                                infeasible=n_infeasible))
     click.echo(f"export it with: gait-tuner export {study_file}"
                + (f" --storage {storage}" if storage else "") + (" --pareto-pick knee" if len(spec.objectives) > 1 else ""))
 

@@ -280,8 +280,7 @@ def _study_plots(study_file: str, runs_dir: Path, out_dir: Path) -> None:
     from ..search.trials import trial_feasible
     from .provenance import commit_of
     maximise = study.directions[0] == optuna.study.StudyDirection.MAXIMIZE
-    target = ("push distance D [m] (maximised)" if spec.challenge is not None else "speed score (maximised)") \
-        if maximise else "pitch score [deg] (minimised)"
+    target = spec.scenario_room.target_label(spec.settings)
     where = (f"study {spec.name}{commit_of(spec.source)}: robot {Path(spec.robot).stem}, "
              f"{', '.join(spec.surfaces)}")
     history_plot(study, out_dir / "study_history.png", where, trial_feasible, target, maximise)

@@ -120,13 +120,7 @@ def enqueue_starts(study: optuna.Study, spec: StudySpec) -> list[str]:
         try:
             from ..sim.surfaces import load_surface
             layer = max(load_surface(name).layer_height for name in spec.surfaces)
-            base = spec.base
-            if spec.speed is not None and spec.gait == "tlipfm":
-                # plan the seed for half the forward top stair at a 0.3 s step (ours: the seed's
-                # step length is a parameter of the problem, not a decision variable)
-                top = dict((d, t) for d, t, _ in spec.speed.directions).get("forward", 0.2)
-                sl = round(min(0.5 * top * 0.3, 0.06), 4)
-                base = base.replace(step_length=sl, d1=sl / 2, d2=sl / 2)
+            base = spec.scenario_room.seed_base(spec.settings, spec.base, spec.gait)
             seeded = seed_for(spec.gait, base, layer_height=layer)
             study.enqueue_trial(_clip_to_space(spec, seeded), user_attrs={"start": "casadi seed"})
             done.append("casadi seed")

@@ -1,7 +1,7 @@
 """Match scenarios: command streams and pushes drawn from a stated distribution (ours).
 
 A match asks a walk for a new command every second or two, stops it, turns it, and robots bump
-into it. A :class:`Scenario` states the distribution; :func:`draw_scenario` turns it and a seed into
+into it. A :class:`MatchDistribution` states the distribution; :func:`draw_scenario` turns it and a seed into
 one walk's command stream (``gaits.CommandStream``) and pushes, reproducibly (numpy's
 ``SeedSequence`` with the seed namespace of the randomisation, so tuning and evaluation never
 share a walk). Each walk:
@@ -32,7 +32,7 @@ from gaits.params import fields_from_mapping
 
 from ..errors import UserError
 
-__all__ = ["Scenario", "draw_scenario", "scenario_from_mapping", "SCENARIO_FIELDS"]
+__all__ = ["MatchDistribution", "draw_scenario", "scenario_from_mapping", "SCENARIO_FIELDS"]
 
 _RANGES = {"duration": (2.0, 600.0, "s"), "segment_min": (0.3, 30.0, "s"), "segment_max": (0.3, 60.0, "s"),
            "forward": (0.0, 2.0, "m/s"), "backward": (0.0, 2.0, "m/s"), "sideways": (0.0, 2.0, "m/s"),
@@ -41,7 +41,7 @@ _RANGES = {"duration": (2.0, 600.0, "s"), "segment_min": (0.3, 30.0, "s"), "segm
 
 
 @dataclass(frozen=True)
-class Scenario:
+class MatchDistribution:
     """The distribution of a match walk's commands and pushes (module docstring)."""
 
     duration: float = 12.0        # [s] commanded time before the final stop
@@ -81,13 +81,13 @@ class Scenario:
 SCENARIO_FIELDS = tuple(_RANGES)
 
 
-def scenario_from_mapping(doc: Any, source: str) -> Scenario:
+def scenario_from_mapping(doc: Any, source: str) -> MatchDistribution:
     if doc is None:
-        return Scenario()
-    return fields_from_mapping(Scenario, doc, source, SCENARIO_FIELDS, UserError)
+        return MatchDistribution()
+    return fields_from_mapping(MatchDistribution, doc, source, SCENARIO_FIELDS, UserError)
 
 
-def draw_scenario(s: Scenario, seed: int | tuple[int, ...], namespace: int) -> tuple[CommandStream, list]:
+def draw_scenario(s: MatchDistribution, seed: int | tuple[int, ...], namespace: int) -> tuple[CommandStream, list]:
     """One walk of the scenario: (command stream, pushes [(t [s], impulse (3,) [N s])])."""
     parts = seed if isinstance(seed, tuple) else (seed,)
     rng = np.random.default_rng(np.random.SeedSequence([int(namespace), 0x5CE7] + [int(v) for v in parts]))

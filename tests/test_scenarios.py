@@ -1,0 +1,158 @@
+"""The scenario wing (``tuner/scenarios``): one file per scenario, one registry.
+
+Three kinds of test: the shipped studies' trial scores replay equal to those the code before the
+wing computed (``tests/data/scenario_replay.json``: written by the evaluator of commit fa892a3,
+before the scenarios moved out of ``search/``, for the base set and the midpoint of each study's
+space, on the reduced budgets below); every shipped study chooses the scenario its section names;
+and a sixth scenario, added in one file (here, this test module) and one registration, is read from
+a study file, walked and stored by a real study.
+"""
+
+import dataclasses
+import json
+import math
+from dataclasses import dataclass
+
+import pytest
+
+from conftest import ROOT
+from tuner.errors import UserError
+from tuner.scenarios import BUILT_IN, SCENARIOS, register
+from tuner.scenarios.base import Scenario, TrialResult, check_section, fail
+from tuner.search.objective import Evaluator
+from tuner.search.study import list_studies, load_study
+
+REPLAY = json.loads((ROOT / "tests" / "data" / "scenario_replay.json").read_text())
+
+#: the budgets the reference was computed on (the shipped studies' own, made smaller)
+REDUCE = {
+    "quickstart": lambda s: s,
+    "tlipfm-robust": lambda s: dataclasses.replace(s, surfaces=s.surfaces[:2]),
+    "kidsize-robust-grass50": lambda s: dataclasses.replace(
+        s, settings=dataclasses.replace(s.settings, rollouts=3, min_survival=0.0)),
+    "kidsize-robust-fb-grass50": lambda s: dataclasses.replace(
+        s, surfaces=s.surfaces[:1], settings=dataclasses.replace(s.settings, rollouts=2, min_survival=0.0)),
+    "kidsize-engine-carpet4": lambda s: dataclasses.replace(
+        s, settings=dataclasses.replace(s.settings, walks=2, min_survival=0.0)),
+    "kidsize-engine-push": lambda s: dataclasses.replace(
+        s, surfaces=s.surfaces[:1], settings=dataclasses.replace(s.settings, seeds=(0,), start=0.5, step=0.1)),
+    "kidsize-omni-carpet4": lambda s: s,
+    "eros-robust": lambda s: s,
+    "kidsize-engine-match": lambda s: dataclasses.replace(
+        s, surfaces=s.surfaces[:1], settings=dataclasses.replace(s.settings, walks=2, min_survival=0.9)),
+}
+
+
+def _mid(spec):
+    return {p.name: (int(round((p.low + p.high) / 2)) if p.integer else (p.low + p.high) / 2) for p in spec.space}
+
+
+@pytest.mark.parametrize("study", list(REDUCE))
+def test_shipped_studies_trial_scores_replay_equal(study):
+    spec = REDUCE[study](load_study(study))
+    ev = Evaluator(spec)
+    for tag, sampled in (("base", {}), ("mid", _mid(spec))):
+        r = ev.evaluate(spec.drive_for(sampled))
+        want = REPLAY[f"{study}:{tag}"]
+        got = {"score": r.score, "speed": r.speed, "fall_constraint": r.fall_constraint, "fell": r.fell,
+               "survival": r.survival, "values": list(r.values) if r.values else None, "hopeless": r.hopeless,
+               "per_surface": r.per_surface}
+        assert json.loads(json.dumps(got, default=str)) == want, (study, tag)
+
+
+def test_every_shipped_study_walks_the_scenario_its_section_names():
+    sections = {sc.section: sc.name for sc in SCENARIOS.values()}
+    import yaml
+    for path in list_studies():
+        doc = yaml.safe_load(path.read_text())
+        named = [k for k in doc if k in sections and doc[k] is not None]
+        assert load_study(str(path)).kind == (sections[named[0]] if named else "walk"), path.name
+
+
+def test_the_built_in_scenarios_are_registered_once_in_order():
+    assert list(SCENARIOS)[:len(BUILT_IN)] == list(BUILT_IN)
+    with pytest.raises(ValueError, match="taken"):
+        register(SCENARIOS["robust"])
+
+
+def test_two_scenario_sections_are_one_line_naming_both(tmp_path):
+    p = tmp_path / "two.yaml"
+    p.write_text("gait: tlipfm\nsurfaces: [rigid]\nspace: {z_c: {low: 0.2, high: 0.22}}\n"
+                 "robust: {rollouts: 2}\nspeed: {directions: {forward: {top: 0.2}}}\n")
+    with pytest.raises(UserError, match="speed does not go with robust"):
+        load_study(str(p))
+
+
+# -- a sixth scenario, in one file and one registration ------------------------------------------
+
+@dataclass(frozen=True)
+class StandSpec:
+    seconds: float = 1.0
+
+
+class Stand(Scenario):
+    """Stand still for ``seconds`` on each surface; the score is the largest torso pitch RMS."""
+
+    name = "stand-test"
+    section = "stand_test"
+
+    def parse(self, sec, doc, source):
+        check_section(sec, "stand_test", ("seconds",), source)
+        s = sec.get("seconds", 1.0)
+        if not isinstance(s, (int, float)) or isinstance(s, bool) or not 0.1 <= s <= 10:
+            fail(source, f"stand_test: seconds = {s!r}: expected a number in [0.1, 10] s")
+        return StandSpec(float(s))
+
+    def evaluate(self, settings, drive, world, report=None):
+        from tuner.sim.metrics import summarize
+        per, pitches = {}, []
+        for name, m in world.in_order(1, lambda sim, i: summarize(sim.run(
+                drive.controller(world.robot, sim.control_period), duration=settings.seconds, **drive.run_options()))):
+            per[name] = {"survived": m.survived}
+            pitches.append(m.pitch_rms_deg)
+        return TrialResult(score=max(pitches), speed=0.0, fall_constraint=-1.0, fell=False, per_surface=per,
+                           attrs={"stand_test": {"seconds": settings.seconds}})
+
+
+@pytest.fixture
+def stand_registered():
+    register(Stand())
+    yield
+    del SCENARIOS["stand-test"]
+
+
+STAND_STUDY = """\
+gait: tlipfm
+base: tkux-table2
+surfaces: [rigid, carpet4]
+space: {z_c: {low: 0.20, high: 0.22}}
+trials: 2
+enqueue: []
+stand_test: {seconds: 0.5}
+"""
+
+
+def test_a_sixth_scenario_is_one_file_and_one_registration(stand_registered, tmp_path):
+    import optuna
+
+    from tuner.search.objective import objective_for
+    p = tmp_path / "stand.yaml"
+    p.write_text(STAND_STUDY)
+    spec = load_study(str(p))
+    assert spec.kind == "stand-test" and spec.settings == StandSpec(0.5) and spec.objectives == ("pitch_rms",)
+    study = optuna.create_study(sampler=optuna.samplers.RandomSampler(seed=0))
+    study.optimize(objective_for(spec, Evaluator(spec)), n_trials=2)
+    t = study.trials[0]
+    assert t.state == optuna.trial.TrialState.COMPLETE and math.isfinite(t.value)
+    assert t.user_attrs["stand_test"] == {"seconds": 0.5}
+    assert set(t.user_attrs["result"]["per_surface"]) == {"rigid", "carpet4"}
+    p.write_text(STAND_STUDY.replace("{seconds: 0.5}", "{seconds: 50}"))
+    with pytest.raises(UserError, match="stand_test: seconds = 50"):
+        load_study(str(p))
+
+
+def test_without_the_registration_its_section_is_an_unknown_key(tmp_path):
+    p = tmp_path / "stand.yaml"
+    p.write_text(STAND_STUDY)
+    with pytest.raises(UserError, match="unknown key 'stand_test'"):
+        load_study(str(p))

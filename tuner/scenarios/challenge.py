@@ -1,0 +1,103 @@
+"""The push-recovery challenge as a study (a study's ``challenge:`` section, ours): the challenge
+(``tuner/sim/challenge.py``) on each surface for each push seed.
+
+The one objective, ``push_distance`` (maximised), is per surface the mean over the seeds of the
+largest fully successful D [m] (``start - step`` where even ``start`` fails: worse than any
+success, and still ordered), then the worst surface's or the mean over surfaces, as the study's
+``aggregate`` says. Always feasible: a trial that takes no push scores low, not infeasible (ours:
+the sampler then learns from every trial's distance).
+
+    challenge:
+      seeds: [0, 1, 2]   # push seeds
+      rope: 1.5          # [m] the rules allow 1-2 m
+      start: 0.05        # [m] the first D tried
+      step: 0.05         # [m] D raised by this until a trial fails
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable, Mapping
+
+import numpy as np
+
+from gaits import ParamError, UnreachableTargetError
+
+from ..sim.challenge import challenge
+from .base import MAX_SEED, Scenario, TrialResult, check_section, fail, invalid_result, number, register
+
+
+@dataclass(frozen=True)
+class ChallengeSpec:
+    """A challenge study's trials: the push-recovery challenge on each surface for each push seed."""
+
+    seeds: tuple[int, ...] = (0, 1, 2)
+    rope: float = 1.5                  # [m] the rules allow 1-2 m
+    start: float = 0.05                # [m] the first D tried
+    step: float = 0.05                 # [m] D raised by this until a trial fails
+
+
+class Challenge(Scenario):
+    name = "challenge"
+    section = "challenge"
+    excludes = {other: "a challenge study walks the challenge's own trials" for other in ("robust", "scenario", "speed")}
+    default_objectives = ("push_distance",)
+
+    def parse(self, sec: Any, doc: Mapping[str, Any], source: str) -> ChallengeSpec:
+        check_section(sec, "challenge", ("seeds", "rope", "start", "step"), source)
+        if doc.get("duration") is not None and doc.get("controller") is None:
+            fail(source, "challenge: the challenge's trials last 14 s each: remove 'duration'")
+        seeds = sec.get("seeds", [0, 1, 2])
+        if not isinstance(seeds, list) or not seeds or len(seeds) > 100 or any(
+                not isinstance(k, int) or isinstance(k, bool) or not 0 <= k <= MAX_SEED for k in seeds) \
+                or len(set(seeds)) != len(seeds):
+            fail(source, f"challenge: seeds = {seeds!r}: expected a list of 1 to 100 different whole numbers "
+                         f"in [0, {MAX_SEED}]")
+        vals = {k: float(number(sec, k, default, lo, hi, source, f"challenge: {k}", unit="m"))
+                for k, default, lo, hi in (("rope", 1.5, 1.0, 2.0), ("start", 0.05, 0.01, 1.9),
+                                           ("step", 0.05, 0.01, 1.0))}
+        if vals["start"] >= 0.95 * vals["rope"]:
+            fail(source, f"challenge: start = {vals['start']:g} m: the bottle is released from below 0.95 of the "
+                         f"rope ({0.95 * vals['rope']:g} m): start lower")
+        return ChallengeSpec(tuple(int(k) for k in seeds), vals["rope"], vals["start"], vals["step"])
+
+    def objectives(self, settings: Any, doc: Mapping[str, Any], source: str) -> tuple[str, ...]:
+        if "objectives" in doc:
+            fail(source, "a challenge study's one objective is push_distance: remove 'objectives'")
+        return self.default_objectives
+
+    def evaluate(self, ch: ChallengeSpec, drive: Any, world: Any,
+                 report: Callable[[float, int], bool] | None = None) -> TrialResult:
+        floor = ch.start - ch.step
+
+        def walk(sim: Any, i: int) -> dict:
+            return challenge(sim, drive, seed=ch.seeds[i], start=ch.start, step=ch.step)
+
+        per: dict[str, dict] = {}
+        distances: dict[str, list[float]] = {}
+        try:
+            for name, r in world.in_order(len(ch.seeds), walk, world.sims_with_pendulum(ch.rope)):
+                d = r["best_distance_m"]
+                distances.setdefault(name, []).append(floor if d is None else float(d))
+                row = per.setdefault(name, {"best_distance_m": [], "momentum_Ns": []})
+                row["best_distance_m"].append(d)
+                row["momentum_Ns"].append(r["momentum_Ns"])
+        except (ParamError, UnreachableTargetError) as exc:
+            return invalid_result(str(exc), score=floor, values=(floor,))
+        means = [float(np.mean(v)) for v in distances.values()]
+        score = min(means) if world.aggregate_rule == "worst" else float(np.mean(means))
+        return TrialResult(score=score, speed=0.0, fall_constraint=-1.0, fell=False, per_surface=per,
+                           values=(score,))
+
+    def describe_best(self, ch: ChallengeSpec, trial: Any, *, fell: bool, falls: int, infeasible: int) -> str:
+        per = (trial.user_attrs.get("result") or {}).get("per_surface") or {}
+        cells = "; ".join(f"{name} " + ", ".join("-" if d is None else f"{d:.2f}" for d in row["best_distance_m"])
+                          for name, row in per.items())
+        return (f"best trial {trial.number}: push distance {trial.values[0]:.3f} m (mean largest D over the push "
+                f"seeds {', '.join(str(k) for k in ch.seeds)}" + (f": {cells}" if cells else "") + ")")
+
+    def target_label(self, settings: Any) -> str:
+        return "push distance D [m] (maximised)"
+
+
+register(Challenge())

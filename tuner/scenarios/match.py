@@ -1,0 +1,104 @@
+"""Match walks (a study's ``scenario:`` section): K command streams with pushes per surface per
+trial, drawn from a stated distribution (``tuner/sim/scenario.py``), under the randomisation.
+
+Seeds 0..K-1 of the tuning stream, the same for every trial. Each walk is scored pitch RMS [deg]
++ ``tracking_weight`` x (vx + vy RMSE [m/s] + 0.1 wz RMSE [rad/s]), a fall the full penalty times
+the share of the walk not walked; the trial's score is their mean. Survival below
+``min_survival`` is infeasible, and a trial whose falls already exceed what that allows stops at
+once (``hopeless``).
+
+    scenario:
+      walks: 6              # scenario seeds 0..K-1 of the tuning stream, the same every trial
+      min_survival: 0.9     # below this share of walks standing: infeasible (stops early)
+      tracking_weight: 10.0 # [deg per m/s]
+      randomisation: {}     # overrides of tuner/sim/randomisation.py's defaults, or none
+      forward: 0.3          # the distribution: any field of tuner/sim/scenario.py
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Callable, Mapping
+
+import numpy as np
+
+from ..errors import UserError
+from ..sim.randomisation import draw, randomisation_from_mapping
+from ..sim.robustness import walk_scenario
+from ..sim.scenario import SCENARIO_FIELDS, draw_scenario, scenario_from_mapping
+from .base import (FALL_PENALTY_DEG, Scenario, TrialResult, check_section, fail, register,
+                   survival_constraint)
+
+
+@dataclass(frozen=True)
+class ScenarioSpec:
+    """A scenario study's walks: K match walks per surface (``tuner/sim/scenario.py``)."""
+
+    walks: int = 6
+    min_survival: float = 0.9
+    tracking_weight: float = 10.0      # [deg per m/s]
+    randomisation: Any = None          # tuner.sim.randomisation.Randomisation
+    scenario: Any = None               # tuner.sim.scenario.MatchDistribution
+
+
+class Match(Scenario):
+    name = "match"
+    section = "scenario"
+    excludes = {"robust": "a scenario study has its own randomised walks",
+                "speed": "a scenario study has its own randomised walks"}
+
+    def parse(self, sec: Any, doc: Mapping[str, Any], source: str) -> ScenarioSpec:
+        check_section(sec, "scenario", ("walks", "min_survival", "tracking_weight", "randomisation") + SCENARIO_FIELDS,
+                      source)
+        k = sec.get("walks", 6)
+        if not isinstance(k, int) or isinstance(k, bool) or not 1 <= k <= 1000:
+            fail(source, f"scenario: walks = {k!r}: expected a whole number in [1, 1000]")
+        ms = sec.get("min_survival", 0.9)
+        if not isinstance(ms, (int, float)) or isinstance(ms, bool) or not 0.0 <= ms <= 1.0:
+            fail(source, f"scenario: min_survival = {ms!r}: expected a fraction in [0, 1]")
+        tw = sec.get("tracking_weight", 10.0)
+        if not isinstance(tw, (int, float)) or isinstance(tw, bool) or not 0.0 <= tw <= 1000.0:
+            fail(source, f"scenario: tracking_weight = {tw!r}: expected a number in [0, 1000] deg per m/s")
+        try:
+            rnd = randomisation_from_mapping(sec.get("randomisation"), "scenario.randomisation")
+            scen = scenario_from_mapping({kk: v for kk, v in sec.items() if kk in SCENARIO_FIELDS}, "scenario")
+        except UserError as exc:
+            fail(source, str(exc))
+        return ScenarioSpec(k, float(ms), float(tw), rnd, scen)
+
+    def evaluate(self, sc: ScenarioSpec, drive: Any, world: Any,
+                 report: Callable[[float, int], bool] | None = None) -> TrialResult:
+        total = sc.walks * len(world.sims)
+        allowed = math.floor((1.0 - sc.min_survival) * total + 1e-9)
+        scores, per, falls, hopeless = [], {}, 0, False
+
+        def walk(sim: Any, i: int) -> dict:
+            stream, pushes = draw_scenario(sc.scenario, i, world.namespace)
+            p = draw(sc.randomisation, i, *sim.n_random(), namespace=world.namespace)
+            return walk_scenario(sim, drive, stream, pushes, p)
+
+        rows_of: dict[str, list] = {}
+        for name, r in world.in_order(sc.walks, walk):
+            tk = r["tracking"] or {}
+            err = sum(v for v in (tk.get("vx_rmse_mps"), tk.get("vy_rmse_mps")) if v is not None) \
+                + 0.1 * (tk.get("wz_rmse_radps") or 0.0)
+            score = (r["pitch_rms_deg"] or 0.0) + sc.tracking_weight * err
+            if not r["survived"]:
+                falls += 1
+                score += FALL_PENALTY_DEG * (1.0 - min(max(r["walked"], 0.0), 1.0))
+            scores.append(score)
+            rows_of.setdefault(name, []).append(r)
+            if falls > allowed:
+                hopeless = True
+                break
+        for name, rows in rows_of.items():
+            per[name] = {"survival": float(np.mean([r["survived"] for r in rows])), "rollouts": len(rows),
+                         "fell": any(not r["survived"] for r in rows)}
+        constraint = survival_constraint(sc.min_survival, falls, total, len(scores), hopeless)
+        return TrialResult(score=float(np.mean(scores)), speed=0.0,
+                           fall_constraint=-1.0 if constraint is None else constraint, fell=falls > 0,
+                           per_surface=per, survival=1.0 - falls / len(scores), hopeless=hopeless)
+
+
+register(Match())
