@@ -11,10 +11,22 @@ from gaits import Drive, GaitFile, ParamError, all_families, list_baselines, loa
 
 from .errors import UserError
 
-__all__ = ["DEFAULT_BASELINE", "RESULTS_DIR", "list_results", "resolve_params", "resolve_drive"]
+__all__ = ["DEFAULT_BASELINE", "SHIPPED_DIR", "RESULTS_DIR", "list_results", "resolve_params", "resolve_drive"]
 
+
+def _shipped_dir() -> Path:
+    """The shipped studies: ``tuner/shipped/`` in an installed wheel (the checkout's ``studies/``
+    packaged under that name, ``pyproject.toml``), else the checkout's ``studies/`` (a source
+    tree or an editable install)."""
+    here = Path(__file__).resolve().parent
+    installed = here / "shipped"
+    return installed if installed.is_dir() else here.parent / "studies"
+
+
+#: The shipped studies (``studies/*.yaml``), with their starting sets (``starts/``).
+SHIPPED_DIR = _shipped_dir()
 #: Tuned parameter sets shipped with the studies that produced them.
-RESULTS_DIR = Path(__file__).resolve().parents[1] / "studies" / "results"
+RESULTS_DIR = SHIPPED_DIR / "results"
 
 
 def list_results() -> list[str]:

@@ -54,7 +54,7 @@ from typing import Any, Mapping
 from gaits import Drive, GaitParams, ParamError, UserController, families, family, family_class
 
 from ..errors import UserError
-from ..params_io import resolve_params
+from ..params_io import SHIPPED_DIR, resolve_params
 from ..scenarios import SCENARIOS, scenario_for_doc, scenario_named
 from ..scenarios.base import MAX_SEED, OBJECTIVES, fail
 from ..sim.surfaces import SURFACES, load_surface
@@ -65,7 +65,7 @@ NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,99}")   # a study name i
 
 __all__ = ["ParamRange", "StudySpec", "load_study", "STUDY_DIR", "list_studies", "OBJECTIVES"]
 
-STUDY_DIR = Path(__file__).resolve().parents[2] / "studies"
+STUDY_DIR = SHIPPED_DIR
 #: the keys every study file may have; each registered scenario adds its section
 _COMMON_KEYS = ("name", "description", "robot", "surfaces", "aggregate", "gait", "base", "fixed", "space",
                 "objectives", "trials", "duration", "enqueue", "baselines", "sampler_seed", "stabiliser",

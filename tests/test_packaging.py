@@ -1,0 +1,100 @@
+"""The wheel: what a non-editable install holds, and that it runs from an empty folder.
+
+A wheel is built from the checkout (``pip wheel --no-build-isolation``: the setuptools of this
+environment, a dev dependency) and installed with ``--no-deps`` into a fresh venv whose
+dependencies come from this environment's site-packages through a ``.pth`` line (the editable
+install's finder there is not run: a ``.pth`` line adds a folder, it does not process the
+``.pth`` files inside it). So ``tuner`` and ``gaits`` are imported from the wheel alone, and the
+shipped studies and sets must be in it.
+"""
+
+import os
+import subprocess
+import sys
+import sysconfig
+import tomllib
+import venv
+
+import pytest
+
+from conftest import ROOT
+
+
+def test_the_package_list_names_every_package_of_the_tree():
+    conf = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+    listed = set(conf["packages"])
+    tree = {".".join(p.parent.relative_to(ROOT).parts) for top in ("gaits", "tuner")
+            for p in (ROOT / top).rglob("__init__.py")}
+    assert tree <= listed, f"packages missing from pyproject.toml: {sorted(tree - listed)}"
+    mapped = {k: ROOT / v for k, v in conf["package-dir"].items()}
+    assert all(p.is_dir() for p in mapped.values())
+    assert listed - tree == {"tuner.shipped", "tuner.shipped.results", "tuner.shipped.starts"}
+
+
+@pytest.fixture(scope="module")
+def installed(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("wheel")
+    r = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q",
+                        "-w", str(tmp / "dist"), str(ROOT)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-3000:]
+    wheel = next((tmp / "dist").glob("gait_tuner-*.whl"))
+    env_dir = tmp / "venv"
+    venv.EnvBuilder(with_pip=False).create(env_dir)
+    py = env_dir / "bin" / "python"
+    site = subprocess.run([str(py), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
+                          capture_output=True, text=True, check=True).stdout.strip()
+    with open(os.path.join(site, "dev-deps.pth"), "w") as f:
+        f.write(sysconfig.get_paths()["purelib"] + "\n")
+    r = subprocess.run([sys.executable, "-m", "pip", "--python", str(py), "install", "--no-deps", "-q", str(wheel)],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-3000:]
+    work = tmp / "empty"
+    work.mkdir()
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH",)}
+    env["MPLBACKEND"] = "Agg"
+    return env_dir / "bin" / "gait-tuner", py, work, env
+
+
+def _run(installed, *args, timeout=600):
+    exe, _, work, env = installed
+    return subprocess.run([str(exe), *args], capture_output=True, text=True, cwd=work, env=env, timeout=timeout)
+
+
+def test_the_wheel_imports_from_itself_not_the_checkout(installed):
+    _, py, work, env = installed
+    r = subprocess.run([str(py), "-c", "import tuner, gaits, tuner.params_io as p; "
+                        "print(tuner.__file__); print(gaits.__file__); print(p.SHIPPED_DIR)"],
+                       capture_output=True, text=True, cwd=work, env=env)
+    assert r.returncode == 0, r.stderr
+    for line in r.stdout.split():
+        assert str(ROOT) not in line, line
+    assert r.stdout.split()[2].endswith(os.path.join("tuner", "shipped"))
+
+
+def test_the_installed_wheel_lists_the_shipped_studies_and_sets(installed):
+    studies = _run(installed, "studies")
+    assert studies.returncode == 0, studies.stderr
+    for name in (p.stem for p in (ROOT / "studies").glob("*.yaml")):
+        assert name in studies.stdout, name
+    sets = _run(installed, "sets")
+    assert sets.returncode == 0, sets.stderr
+    for name in (p.stem for p in (ROOT / "studies" / "results").glob("*.yaml")):
+        assert name in sets.stdout, name
+
+
+def test_the_installed_wheel_tunes_a_shipped_study_from_an_empty_folder(installed):
+    r = _run(installed, "tune", "quickstart", "--trials", "2")
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "best trial" in r.stdout
+    r = _run(installed, "export", "quickstart", "--out", "best.yaml")
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert (installed[2] / "best.yaml").exists()
+    # a study whose base is a file beside it (starts/)
+    _, py, work, env = installed
+    r = subprocess.run([str(py), "-c", "from tuner.search.study import load_study; "
+                        "print(load_study('kidsize-engine-carpet4').kind)"], capture_output=True, text=True,
+                       cwd=work, env=env)
+    assert r.returncode == 0 and r.stdout.strip() == "match", r.stderr[-2000:]
+    r = _run(installed, "simulate", "--params", "kidsize-engine-carpet4", "--surface", "carpet4",
+             "--command", "0.1,0,0", "--duration", "2")
+    assert r.returncode == 0, r.stderr[-2000:]
