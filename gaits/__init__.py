@@ -14,13 +14,14 @@ from .cosine_law import CosineLawParams
 from .drive import Drive, UserController
 from .engine import EngineParams, WalkEngine
 from .eros import ErosParams
-from .families import GaitFamily, all_families, command_walk, family, family_of
+from .families import (GaitFamily, all_families, command_walk, families, family, family_class, family_of,
+                       params_from_mapping)
 from .footstep_planner import FootstepPlan, PlanError, StepLimits, plan_footsteps
 from .imu_stabiliser import StabiliserParams, stabiliser_corrections
 from .leg_kinematics import LegGeometry, UnreachableTargetError, leg_fk, leg_ik
 from .limb_kinematics import ArmGeometry, HeadGeometry, arm_fk, head_fk
 from .gait_file import GaitFile, load_gait_file, save_gait_file
-from .params import GaitParams, ParamError, families, family_class, params_from_mapping
+from .params import GaitParams, ParamError, did_you_mean
 from .tlipfm import TlipfmParams
 from .trajectory import JOINT_NAMES, GaitTrajectory
 from .walk_command import DIRECTIONS, CommandRamp, SpeedStaircase, WalkCommand, parse_command
@@ -59,6 +60,7 @@ __all__ = [
     "TlipfmParams",
     "UnreachableTargetError",
     "arm_fk",
+    "did_you_mean",
     "families",
     "family_class",
     "generate",

@@ -69,7 +69,7 @@ import numpy as np
 
 from .footstep_planner import PlanError, StepLimits
 from .leg_kinematics import LegGeometry
-from .params import GaitParams, ParamError, param, register_family
+from .params import GaitParams, ParamError, param
 from .trajectory import GaitTrajectory, assemble
 
 __all__ = [
@@ -90,7 +90,6 @@ __all__ = [
 SETIONO_TABLE_FIT = (0.059978, 0.077668, 0.118077)
 
 
-@register_family
 @dataclass(frozen=True)
 class CosineLawParams(GaitParams):
     """Cosine-law walker parameters (SI). Defaults: the paper's Figs 6-10 and Tables 1-3."""

@@ -92,7 +92,7 @@ import numpy as np
 
 from .footstep_planner import FootstepPlan, StepLimits, plan_footsteps
 from .leg_kinematics import LegGeometry
-from .params import GaitParams, ParamError, param, register_family
+from .params import GaitParams, ParamError, param
 from .trajectory import GaitTrajectory, assemble, resample
 
 __all__ = [
@@ -120,7 +120,6 @@ X_COORDS = (XL, XR, BX, YL, YR, AL, AR, BW, BA)
 N_STATE = 12
 
 
-@register_family
 @dataclass(frozen=True)
 class ErosParams(GaitParams):
     """EROS walking-trajectory parameters (SI units). Defaults: the paper's 8 mm experiment, no optimisation."""

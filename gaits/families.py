@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any, Callable, Mapping, Protocol
 
 import numpy as np
@@ -30,8 +30,8 @@ from .tlipfm import TlipfmParams
 from .trajectory import GaitTrajectory
 from .walk_command import CommandRamp, WalkCommand
 
-__all__ = ["GaitFamily", "RobotGeometry", "register", "family", "family_of", "all_families",
-           "command_walk", "DEFAULT_REACH"]
+__all__ = ["GaitFamily", "RobotGeometry", "register", "family", "family_of", "all_families", "families",
+           "family_class", "params_from_mapping", "command_walk", "DEFAULT_REACH"]
 
 
 class RobotGeometry(Protocol):
@@ -69,6 +69,7 @@ class GaitFamily:
     from_seed: Callable[[TlipfmParams, float, Any], Any]  # (seed's TLIPFM set, CoM sway [m], base) -> set
     baselines: tuple[str, ...]                            # the paper's sets compared with a tuned one
     default_baseline: str                                 # the set used when --params is not given
+    lift_field: str = ""                                  # the field that holds the swing foot's lift [m]
     derived: Callable[[Mapping[str, Any], Any], dict[str, Any]] = _no_derived
     seed_on_own_masses: bool = False                      # the seed's CoM model takes the base's masses
     engine: str = "table"                                 # online: "feedback" (gaits/engine.py) or
@@ -150,8 +151,13 @@ _REGISTRY: dict[str, GaitFamily] = {}
 
 
 def register(fam: GaitFamily) -> GaitFamily:
+    """Register a family (its parameter class must name it; its step and lift fields must be its own)."""
     if fam.params_class.FAMILY != fam.name:
         raise ValueError(f"family {fam.name!r}: its parameter class says {fam.params_class.FAMILY!r}")
+    own = {f.name for f in fields(fam.params_class)}
+    for what in ("step_field", "lift_field"):
+        if getattr(fam, what) not in own:
+            raise ValueError(f"family {fam.name!r}: {what} {getattr(fam, what)!r} is not one of its parameters")
     _REGISTRY[fam.name] = fam
     return fam
 
@@ -170,6 +176,35 @@ def family_of(params: GaitParams) -> GaitFamily:
 
 def all_families() -> tuple[GaitFamily, ...]:
     return tuple(_REGISTRY[k] for k in sorted(_REGISTRY))
+
+
+def families() -> tuple[str, ...]:
+    """Names of the registered gait families."""
+    return tuple(sorted(_REGISTRY))
+
+
+def family_class(name: str) -> type[GaitParams]:
+    """A registered family's parameter class (ParamError naming the registered ones)."""
+    return family(name).params_class
+
+
+def params_from_mapping(family: str, data: Mapping[str, Any] | None,
+                        source: str = "<params>") -> GaitParams:
+    """Build a family's parameters from a mapping; missing keys take their defaults."""
+    cls = family_class(family)
+    data = {} if data is None else data
+    if not isinstance(data, Mapping):
+        raise ParamError(f"{source}: 'params' must be a mapping of name: value, "
+                         f"got {type(data).__name__}")
+    known = [f.name for f in fields(cls)]
+    for key in data:
+        if key not in known:
+            raise ParamError(f"{source}: unknown parameter {key!r} for gait {family!r} "
+                             f"(known: {', '.join(known)})")
+    try:
+        return cls(**dict(data))
+    except ParamError as exc:
+        raise ParamError(f"{source}: {exc}") from None
 
 
 def command_walk(params: GaitParams, robot: RobotGeometry, command: WalkCommand, dt: float,
@@ -224,7 +259,7 @@ register(GaitFamily(
     step_starts=lambda p, n: p.t_start + np.arange(n + 1) * p.period,
     command_axes=(True, True, True),
     commands_text="any (vx, vy, wz): the footstep planner's steps, hip yaw turns the feet",
-    step_field="step_length", with_step=_tlipfm_with_step, derived=_tlipfm_derived,
+    step_field="step_length", with_step=_tlipfm_with_step, derived=_tlipfm_derived, lift_field="h_z",
     stance_width=lambda p: 2.0 * p.half_width,
     seed_inputs=lambda p: (p.step_length, p.half_width), from_seed=lambda seed, sway, base: seed,
     seed_on_own_masses=True, engine="feedback",
@@ -237,7 +272,7 @@ register(GaitFamily(
     command_axes=(True, True, True),
     commands_text="any (vx, vy, wz): the footstep planner's steps walked with the paper's quarter-circle "
                   "via points (side steps and turns follow eq 37's X profile, ours), hip yaw turns the feet",
-    step_field="step_x", with_step=lambda p, step: p.replace(step_x=step),
+    step_field="step_x", with_step=lambda p, step: p.replace(step_x=step), lift_field="foot_lift",
     stance_width=lambda p: p.stance_width,
     seed_inputs=lambda p: (abs(p.step_x) if p.step_x else 0.02, p.stance_width / 2), from_seed=_eros_from_seed,
     baselines=("eros-x24-without", "eros-x24-with"), default_baseline="eros-x8-without"))
@@ -249,7 +284,7 @@ register(GaitFamily(
     command_axes=(True, False, False),
     commands_text="forward and backward (vx) only: one motion per step, S = vx t_f; the 5-DoF leg has "
                   "no hip yaw and the paper keeps the roll static, so no side steps or turns",
-    step_field="step", with_step=lambda p, step: p.replace(step=step),
+    step_field="step", with_step=lambda p, step: p.replace(step=step), lift_field="swing_height",
     stance_width=lambda p: p.stance_width,
     seed_inputs=lambda p: (abs(p.step) or 0.02, None), from_seed=_cosine_from_seed,
     baselines=("cosine-setiono",), default_baseline="cosine-setiono"))

@@ -20,7 +20,8 @@ import yaml
 from .files import MAX_BYTES, read_bytes_checked, write_text_atomic
 from .engine import EngineParams
 from .imu_stabiliser import StabiliserParams, stabiliser_from_mapping
-from .params import GaitParams, ParamError, families, family_class, fields_from_mapping, params_from_mapping
+from .families import families, family_class, params_from_mapping
+from .params import GaitParams, ParamError, fields_from_mapping
 
 __all__ = ["GaitFile", "read_yaml", "load_gait_file", "save_gait_file", "engine_from_mapping"]
 

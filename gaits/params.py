@@ -15,24 +15,33 @@ the file, the field, the value and the allowed range.
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import math
 from dataclasses import dataclass, field, fields
-from typing import Any, ClassVar, Mapping
+from typing import Any, ClassVar, Iterable, Mapping
 
 __all__ = [
+    "did_you_mean",
     "fields_from_mapping",
     "ParamError",
     "GaitParams",
     "param",
-    "register_family",
-    "families",
-    "family_class",
-    "params_from_mapping",
 ]
 
 
 class ParamError(ValueError):
     """A parameter set or file is malformed; the message names what and where."""
+
+
+def did_you_mean(word: Any, choices: Iterable[str]) -> str:
+    """``" (did you mean 'x'?)"`` for the choice closest to a mistyped ``word`` (difflib's ratio at
+    least 0.6, case ignored), else ``""``: appended to a message that names an unknown name."""
+    if not isinstance(word, str) or not word:
+        return ""
+    choices = [c for c in choices if isinstance(c, str)]
+    by_lower = {c.lower(): c for c in choices}
+    close = difflib.get_close_matches(word.lower(), list(by_lower), n=1, cutoff=0.6)
+    return f" (did you mean {by_lower[close[0]]!r}?)" if close and by_lower[close[0]] != word else ""
 
 
 def param(default: Any, unit: str, lo: float | None = None, hi: float | None = None,
@@ -127,28 +136,6 @@ class GaitParams:
         return dataclasses.replace(self, **changes)
 
 
-_FAMILIES: dict[str, type[GaitParams]] = {}
-
-
-def register_family(cls: type[GaitParams]) -> type[GaitParams]:
-    """Class decorator: make a parameter class loadable by its ``FAMILY`` name."""
-    _FAMILIES[cls.FAMILY] = cls
-    return cls
-
-
-def families() -> tuple[str, ...]:
-    """Names of the registered gait families."""
-    return tuple(sorted(_FAMILIES))
-
-
-def family_class(name: str) -> type[GaitParams]:
-    try:
-        return _FAMILIES[name]
-    except KeyError:
-        raise ParamError(f"unknown gait family {name!r}: expected one of "
-                         f"{', '.join(families())}") from None
-
-
 def fields_from_mapping(cls: type, doc: Any, source: str, allowed: tuple[str, ...] | None = None,
                         error: type[Exception] = ParamError, expected: str = "") -> Any:
     """``cls(**doc)`` for a YAML section of a dataclass's fields (missing ones take their defaults):
@@ -166,21 +153,3 @@ def fields_from_mapping(cls: type, doc: Any, source: str, allowed: tuple[str, ..
     except error as exc:
         raise error(f"{source}: {exc}") from None
 
-
-def params_from_mapping(family: str, data: Mapping[str, Any] | None,
-                        source: str = "<params>") -> GaitParams:
-    """Build a family's parameters from a mapping; missing keys take their defaults."""
-    cls = family_class(family)
-    data = {} if data is None else data
-    if not isinstance(data, Mapping):
-        raise ParamError(f"{source}: 'params' must be a mapping of name: value, "
-                         f"got {type(data).__name__}")
-    known = [f.name for f in fields(cls)]
-    for key in data:
-        if key not in known:
-            raise ParamError(f"{source}: unknown parameter {key!r} for gait {family!r} "
-                             f"(known: {', '.join(known)})")
-    try:
-        return cls(**dict(data))
-    except ParamError as exc:
-        raise ParamError(f"{source}: {exc}") from None

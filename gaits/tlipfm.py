@@ -59,7 +59,7 @@ import numpy as np
 
 from .footstep_planner import FootstepPlan, StepLimits, plan_footsteps, swing_fraction
 from .leg_kinematics import LegGeometry
-from .params import GaitParams, ParamError, param, register_family
+from .params import GaitParams, ParamError, param
 from .trajectory import GRAVITY, GaitTrajectory, assemble
 
 __all__ = [
@@ -78,7 +78,6 @@ __all__ = [
 ]
 
 
-@register_family
 @dataclass(frozen=True)
 class TlipfmParams(GaitParams):
     """TLIPFM generator parameters; defaults are the TKU-X values of Table 2 (SI units)."""

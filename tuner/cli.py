@@ -39,7 +39,7 @@ def cli() -> None:
 
 # --- options shared by several verbs, declared once --------------------------------------------
 
-FAMILIES = ("eros", "tlipfm", "cosine")
+FAMILIES = families()        # the registered gait families (gaits/families.py)
 
 
 class OutPath(click.Path):
@@ -225,8 +225,8 @@ def trajectory(family: str | None, params_spec: str | None, robot_name: str, out
     drive = resolve_drive(params_spec, family, command=_parse_command(command), commands_file=commands_file,
                           tail=_tail(duration, commands_file))
     if model is not None:
-        if drive.family != "tlipfm":
-            raise UserError("--model applies to the tlipfm family only")
+        if not hasattr(drive.params, "model"):
+            raise UserError(f"--model applies to a family with a CoM model (tlipfm), not {drive.family}")
         drive = drive.with_params(drive.params.replace(model=model))
     robot = load_robot(robot_name)
     traj = drive.table(robot, dt)
@@ -1371,7 +1371,7 @@ def sets(as_json: bool) -> None:
 
 
 @cli.command(name="params")
-@click.argument("family", type=click.Choice(["eros", "tlipfm", "cosine"]))
+@click.argument("family", type=click.Choice(FAMILIES))
 def params_cmd(family: str) -> None:
     """Print a family's parameters (name, default, unit, allowed range, paper symbol) and the walk
     commands it takes."""
@@ -1391,7 +1391,6 @@ _SYSTEM_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.E
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point: run the CLI, turn bad input into one line on stderr and exit code 2."""
-    assert families()  # the registry is filled on import of gaits
     try:
         cli.main(args=argv, prog_name="gait-tuner", standalone_mode=False)
     except click.exceptions.Exit as exc:

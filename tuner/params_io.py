@@ -7,7 +7,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from gaits import Drive, GaitFile, ParamError, all_families, list_baselines, load_baseline, load_gait_file
+from gaits import (Drive, GaitFile, ParamError, all_families, did_you_mean, list_baselines, load_baseline,
+                   load_gait_file)
 
 from .errors import UserError
 
@@ -50,7 +51,8 @@ def resolve_params(spec: str | None, family: str | None) -> GaitFile:
     elif spec in list_results():
         gait_file = load_gait_file(RESULTS_DIR / f"{spec}.yaml")
     else:
-        raise UserError(f"--params {spec!r}: no such file, and not a shipped set "
+        raise UserError(f"--params {spec!r}: no such file, and not a shipped set"
+                        f"{did_you_mean(spec, list_baselines() + list_results())} "
                         f"(baselines: {', '.join(list_baselines())}; tuned: {', '.join(list_results()) or 'none'})")
     if family is not None and gait_file.family != family:
         raise UserError(f"--params {spec!r} holds {gait_file.family!r} parameters, "

@@ -15,6 +15,8 @@ import os
 from pathlib import Path
 from typing import Callable
 
+from gaits import did_you_mean
+
 from ..errors import UserError
 from .kidsize import RobotSpec, kidsize_model, kidsize_spec, kidsize_xml
 from .robot_map import LEG_AXES, load_map
@@ -37,6 +39,7 @@ def load_robot(name_or_path: str | Path, *, relative_to: Path | None = None) -> 
     if relative_to is not None and not path.is_absolute():
         path = relative_to / path
     if not os.path.lexists(path):
-        raise UserError(f"robot {name!r}: not a built-in robot ({', '.join(BUILTIN_ROBOTS)}) and no such file"
+        raise UserError(f"robot {name!r}: not a built-in robot{did_you_mean(name, BUILTIN_ROBOTS)} "
+                        f"({', '.join(BUILTIN_ROBOTS)}) and no such file"
                         + (f" (looked in {relative_to})" if relative_to is not None else ""))
     return load_map(path)

@@ -40,7 +40,7 @@ from typing import Any, Mapping
 import mujoco
 import numpy as np
 
-from gaits import JOINT_NAMES, LegGeometry, ParamError
+from gaits import JOINT_NAMES, LegGeometry, ParamError, did_you_mean
 from gaits.leg_kinematics import LEG_JOINTS
 from gaits.files import MAX_BYTES, read_bytes_checked
 
@@ -377,7 +377,9 @@ def _read_joints(joints: Any, model: mujoco.MjModel, source: str, fname: str) ->
     _require(isinstance(joints, Mapping), source, "joints must be a mapping of our name: MJCF joint")
     jmap: dict[str, tuple[str, int | None]] = {}
     for ours, theirs in joints.items():
-        _require(ours in JOINT_NAMES, source, f"joints: unknown joint {ours!r} (ours are: {', '.join(JOINT_NAMES)})")
+        if ours not in JOINT_NAMES:
+            _require(False, source, f"joints: unknown joint {ours!r}{did_you_mean(ours, JOINT_NAMES)} "
+                                    f"(ours are: {', '.join(JOINT_NAMES)})")
         sign = None
         if isinstance(theirs, Mapping):
             _require(set(theirs) <= {"name", "sign"} and "name" in theirs, source,
@@ -386,8 +388,9 @@ def _read_joints(joints: Any, model: mujoco.MjModel, source: str, fname: str) ->
             _require(sign is None or (sign in (1, -1) and not isinstance(sign, bool)), source,
                      f"joints.{ours}.sign = {sign!r}: must be 1 or -1")
             theirs = theirs["name"]
-        _require(_has(model, mujoco.mjtObj.mjOBJ_JOINT, theirs), source,
-                 f"joints.{ours}: {theirs!r} is not a joint of {fname}")
+        if not _has(model, mujoco.mjtObj.mjOBJ_JOINT, theirs):
+            names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(model.njnt)]
+            _require(False, source, f"joints.{ours}: {theirs!r} is not a joint of {fname}{did_you_mean(theirs, names)}")
         _require(model.jnt_type[model.joint(theirs).id] == mujoco.mjtJoint.mjJNT_HINGE, source,
                  f"joints.{ours}: {theirs!r} is not a hinge joint")
         jmap[ours] = (theirs, sign)

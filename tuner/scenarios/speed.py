@@ -101,11 +101,8 @@ class Speed(Scenario):
             fail(source, "speed studies walk tables on staircases: give the engine a scenario: section instead")
 
     def seed_base(self, sp: SpeedSpec, base: Any, gait: str) -> Any:
-        if gait != "tlipfm":
-            return base
         top = dict((d, t) for d, t, _ in sp.directions).get("forward", 0.2)
-        sl = round(min(0.5 * top * 0.3, 0.06), 4)
-        return base.replace(step_length=sl, d1=sl / 2, d2=sl / 2)
+        return family(gait).with_step(base, round(min(0.5 * top * 0.3, 0.06), 4))
 
     def evaluate(self, sp: SpeedSpec, drive: Any, world: Any,
                  report: Callable[[float, int], bool] | None = None) -> TrialResult:

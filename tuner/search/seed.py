@@ -363,16 +363,12 @@ class SeedProblem:
 SWING_CLEARANCE_MARGIN = 0.01
 
 
-#: each family's swing-foot lift parameter
-_LIFT_FIELD = {"tlipfm": "h_z", "eros": "foot_lift", "cosine": "swing_height"}
-
-
 def _clear_layer(params: gaits.GaitParams, layer_height: float) -> gaits.GaitParams:
     """``params`` with the swing foot lifted ``SWING_CLEARANCE_MARGIN`` over the layer
     (never lowered; clipped to the family's own bound for its lift)."""
     if layer_height <= 0:
         return params
-    name = _LIFT_FIELD[params.FAMILY]
+    name = gaits.family(params.FAMILY).lift_field
     hi = next(f.metadata["hi"] for f in dataclasses.fields(params) if f.name == name)
     lift = min(layer_height + SWING_CLEARANCE_MARGIN, hi)
     return params.replace(**{name: lift}) if lift > getattr(params, name) else params

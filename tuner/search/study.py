@@ -51,7 +51,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 
-from gaits import Drive, GaitParams, ParamError, UserController, families, family, family_class
+from gaits import Drive, GaitParams, ParamError, UserController, did_you_mean, families, family, family_class
 
 from ..errors import UserError
 from ..params_io import SHIPPED_DIR, resolve_params
@@ -207,7 +207,7 @@ def load_study(path_or_name: str) -> StudySpec:
         path = STUDY_DIR / f"{path_or_name}.yaml"
     source = str(path)
     if not os.path.lexists(path):
-        fail(source, "no such study file (shipped studies: "
+        fail(source, f"no such study file{did_you_mean(path_or_name, [p.stem for p in list_studies()])} (shipped studies: "
               + ", ".join(p.stem for p in list_studies()) + ")")
     doc = read_yaml_file(path, "study")
     if not isinstance(doc, Mapping):
@@ -215,7 +215,7 @@ def load_study(path_or_name: str) -> StudySpec:
     keys = _keys()
     for key in doc:
         if key not in keys:
-            fail(source, f"unknown key {key!r} (allowed: {', '.join(keys)})")
+            fail(source, f"unknown key {key!r}{did_you_mean(key, keys)} (allowed: {', '.join(keys)})")
     if doc.get("controller") is not None:
         return _user_study(doc, path, source)
     for key in ("gait", "space"):
@@ -406,7 +406,7 @@ def _study_engine(doc: Any, gait: str, source: str) -> Any:
     if doc is None:
         return None
     from gaits.gait_file import engine_from_mapping
-    if gait != "tlipfm":
+    if family(gait).engine != "feedback":
         fail(source, f"engine: the walk engine plans TLIPFM steps, not {gait!r}")
     try:
         return engine_from_mapping({} if doc is True else doc, "engine")

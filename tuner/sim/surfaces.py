@@ -47,7 +47,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 
-from gaits.params import GaitParams, ParamError, param
+from gaits.params import GaitParams, ParamError, did_you_mean, param
 
 from ..errors import UserError
 from ..yaml_input import read_yaml_file
@@ -163,7 +163,7 @@ def load_surface(name_or_path: str) -> Surface:
         return SURFACES[name_or_path]
     path = Path(name_or_path)
     if not os.path.lexists(path):
-        raise UserError(f"--surface {name_or_path!r}: not a built-in surface "
+        raise UserError(f"--surface {name_or_path!r}: not a built-in surface{did_you_mean(name_or_path, SURFACES)} "
                         f"({', '.join(SURFACES)}) and no such file")
     doc: Any = read_yaml_file(path, "surface")
     if not isinstance(doc, Mapping):
@@ -171,7 +171,7 @@ def load_surface(name_or_path: str) -> Surface:
     known = [row["name"] for row in Surface.field_table()]
     for key in doc:
         if key not in known:
-            raise UserError(f"{path}: unknown surface field {key!r} (known: {', '.join(known)})")
+            raise UserError(f"{path}: unknown surface field {key!r}{did_you_mean(key, known)} (known: {', '.join(known)})")
     data = dict(doc)
     data.setdefault("name", path.stem)
     try:
