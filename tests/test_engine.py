@@ -587,14 +587,14 @@ def test_the_gyro_makes_up_a_turning_shortfall_within_bounds():
             c = np.array([0.0, 0.0, 0.6])
             if then_stop and i >= ticks - 100:
                 c = np.zeros(3)
-            e.step(Measurement(i * 0.01, gyro=np.array([0.0, 0.0, seen * float(e.command[2] - e._wz_extra)])), c)
+            e.step(Measurement(i * 0.01, gyro=np.array([0.0, 0.0, seen * float(e.command[2] - e.shaper.wz_extra)])), c)
         return e
     short = walk(3.0, 0.8)
     assert 0.6 < short.command[2] <= 0.6 * 1.3 + 1e-9
     assert walk(3.0, 1.0).command[2] == pytest.approx(0.6, abs=0.03)
     assert walk(0.0, 0.8).command[2] == pytest.approx(0.6, abs=1e-12)
     stopped = walk(3.0, 0.8, ticks=600, then_stop=True)
-    assert abs(stopped._wz_extra) < 0.5 * abs(short._wz_extra)
+    assert abs(stopped.shaper.wz_extra) < 0.5 * abs(short.shaper.wz_extra)
     assert stopped.mode == "stand"                 # the decayed correction ends: asked to stop, it stops
 
 
