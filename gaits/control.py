@@ -39,16 +39,17 @@ FOOT_FORCE_LABELS = ("l_toe_left", "l_toe_right", "l_heel_left", "l_heel_right",
 
 
 def rpy_from_quat(quat: np.ndarray) -> np.ndarray:
-    """Z-Y-X Euler angles (roll, pitch, yaw) [rad] of an orientation quaternion [w, x, y, z].
+    """Z-Y-X Euler angles (roll, pitch, yaw) [rad] of orientation quaternions [w, x, y, z]: (4,) ->
+    (3,), or (..., 4) -> (..., 3). The project's one conversion (the simulated IMU, the recorder).
 
     Pitch is positive for a forward lean, roll positive with the left side up, yaw
     counter-clockwise; the IMU filters of kid-size robots report these.
     """
-    w, x, y, z = (float(v) for v in quat)
-    roll = math.atan2(2 * (y * z + w * x), 1 - 2 * (x * x + y * y))
-    pitch = math.asin(min(max(-2 * (x * z - w * y), -1.0), 1.0))
-    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-    return np.array([roll, pitch, yaw])
+    w, x, y, z = np.moveaxis(np.asarray(quat, dtype=float), -1, 0)
+    roll = np.arctan2(2 * (y * z + w * x), 1 - 2 * (x * x + y * y))
+    pitch = np.arcsin(np.clip(-(2 * (x * z - w * y)), -1.0, 1.0))
+    yaw = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    return np.stack([roll, pitch, yaw], axis=-1)
 
 
 #: Every reading a :class:`Measurement` can carry; a controller names those it uses (``senses``).

@@ -41,12 +41,12 @@ import mujoco.rollout
 import numpy as np
 
 from gaits import JOINT_NAMES, GaitTrajectory, StabiliserParams
-from gaits.control import Controller, HoldPose, PlanRecord, Stabilised, TablePlayer
+from gaits.control import Controller, HoldPose, PlanRecord, Stabilised, TablePlayer, rpy_from_quat
 
 from ..errors import UserError
 from .centre_of_pressure import centre_of_pressure
 from .randomisation import Perturbation
-from .sensors import SensorReader, tilt_from_quat
+from .sensors import SensorReader
 from ..robots import RobotModel, SimOptions
 from .blades import BladeLayer
 from .native_gate import arm as arm_native_gate, disarm as disarm_native_gate, install as install_native_gate
@@ -159,15 +159,6 @@ def rate_limited(target: np.ndarray, c0: np.ndarray, step: np.ndarray, lo: np.nd
             i = int(np.searchsorted(hard, k))
             k = int(hard[i]) if i < hard.size else n
     return out
-
-
-_quat_pitch_roll = tilt_from_quat
-
-
-def _quat_yaw(q: np.ndarray) -> np.ndarray:
-    """Z-Y-X Euler yaw from quaternions (K, 4) [w, x, y, z], unwrapped along K [rad]."""
-    w, x, y, z = q.T
-    return np.unwrap(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
 
 
 class Simulator:
@@ -687,7 +678,8 @@ class Simulator:
         """The recorder: ground truth of every tick (the sensor vector) beside the controller's plan."""
         k = len(sens)
         t = np.arange(k) * self.control_period
-        pitch, roll = _quat_pitch_roll(sens[:, self._s_quat])
+        rpy = rpy_from_quat(sens[:, self._s_quat])
+        pitch, roll = rpy[:, 1], rpy[:, 0]
         force = sens[:, self._s_touch] @ self._touch_sum
         p_touch = sens[:, self._s_touchpos].reshape(k, 8, 3)
         weight = float(self.model.body_subtreemass[self._torso]) * 9.81      # the robot's (not a pendulum's)
@@ -724,4 +716,4 @@ class Simulator:
                            **{k: plan.meta[k] for k in ("steady", "step_starts", "stream", "steps", "replans",
                                                         "binding", "touchdowns", "estimate_com", "estimate_vel", "plan_com",
                                                         "plan_vel") if k in plan.meta}},
-                     yaw=_quat_yaw(sens[:, self._s_quat]), outcome=outcome)
+                     yaw=np.unwrap(rpy[:, 2]), outcome=outcome)

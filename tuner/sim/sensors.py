@@ -34,30 +34,14 @@ from collections import deque
 
 import numpy as np
 
-from gaits.control import READINGS, Measurement
+from gaits.control import READINGS, Measurement, rpy_from_quat
 
-__all__ = ["SensorReader", "tilt_from_quat"]
-
-
-def tilt_from_quat(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Z-Y-X Euler pitch and roll from quaternions (K, 4) [w, x, y, z] (numpy, the trace's own)."""
-    w, x, y, z = q.T
-    r20 = 2 * (x * z - w * y)
-    r21 = 2 * (y * z + w * x)
-    r22 = 1 - 2 * (x * x + y * y)
-    pitch = np.arcsin(np.clip(-r20, -1.0, 1.0))
-    roll = np.arctan2(r21, r22)
-    return pitch, roll
+__all__ = ["SensorReader"]
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """a x b for two 3-vectors (np.cross costs 50 us on 3 elements)."""
     return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
-
-
-def _yaw_from_quat(q: np.ndarray) -> float:
-    w, x, y, z = q
-    return float(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
 
 
 class SensorReader:
@@ -92,9 +76,7 @@ class SensorReader:
         d, s = self.d, self.d.sensordata
         rpy = gyro = accel = None
         if self._want["imu_rpy"]:
-            quat = s[self.sim._s_quat]
-            pitch, roll = tilt_from_quat(quat[None, :])
-            rpy = np.array([roll[0], pitch[0], _yaw_from_quat(quat)])
+            rpy = rpy_from_quat(s[self.sim._s_quat])
         if self._want["gyro"]:
             gyro = d.qvel[3:6].copy()
         if a is not None:
