@@ -2,7 +2,8 @@
 # # The papers' figures, regenerated
 #
 # A walk-through in plain Python (cells in the `# %%` format that Jupyter, VS Code
-# and jupytext open as a notebook). Run it as `python notebooks/papers_figures.py
+# and jupytext open as a notebook; `papers_figures.ipynb` beside it is this file
+# executed, with its figures). Run it as `python notebooks/papers_figures.py
 # [OUT_DIR]`; it writes one PNG per figure and prints what each shows.
 #
 # * TLIPFM (Wong et al. 2020) Fig. 5: the natural ZMP reference; Figs. 7-8: the
@@ -16,6 +17,7 @@
 #   and TLIPFM Figs. 14-16 (ZMP responses).
 
 # %%
+import os
 import sys
 from pathlib import Path
 
@@ -28,8 +30,25 @@ import numpy as np  # noqa: E402
 from gaits import cosine_law as cl  # noqa: E402
 from gaits import eros, generate, load_baseline, tlipfm  # noqa: E402
 
-OUT = Path(sys.argv[1] if len(sys.argv) > 1 else "runs/figures")
+try:                                   # in Jupyter the figures are shown as well as written
+    from IPython import get_ipython
+    from IPython.display import Image, display
+    IN_NOTEBOOK = get_ipython() is not None
+except ImportError:
+    IN_NOTEBOOK = False
+
+# the output folder: the script's argument, or FIGURES_OUT (Jupyter passes the kernel's own arguments)
+_arg = sys.argv[1] if len(sys.argv) > 1 and not IN_NOTEBOOK else None
+OUT = Path(_arg or os.environ.get("FIGURES_OUT") or "runs/figures")
 OUT.mkdir(parents=True, exist_ok=True)
+
+
+def save(fig, name: str) -> None:
+    """Write the figure as OUT/name (and show it in a notebook)."""
+    fig.savefig(OUT / name, dpi=100)
+    plt.close(fig)
+    if IN_NOTEBOOK:
+        display(Image(filename=str(OUT / name)))
 
 # %% TLIPFM Fig. 5 and Figs. 7-8: natural ZMP and CoM, with and without flywheel torque
 p = load_baseline("tkux-table2").params
@@ -54,7 +73,7 @@ for a in ax:
     a.grid(alpha=0.3)
 fig.suptitle("TLIPFM, TKU-X Table 2 (Wong et al. Figs. 5, 7-9)")
 fig.tight_layout()
-fig.savefig(OUT / "tlipfm_com.png", dpi=100)
+save(fig, "tlipfm_com.png")
 print(f"TLIPFM: T_TF = {plain.constants.T:.4f} s; with torque the CoM leads by "
       f"{(torque.pos[:, 0] - plain.pos[:, 0]).max() * 100:.2f} cm at most")
 
@@ -70,7 +89,7 @@ for a in ax:
     a.set_xlabel("time in the step [s]")
     a.set_ylabel("[cm]")
 fig.tight_layout()
-fig.savefig(OUT / "tlipfm_cycloid.png", dpi=100)
+save(fig, "tlipfm_cycloid.png")
 
 # %% EROS Figs. 13-14 and 17: quarter-circle trajectory, and the decelerated landing
 fig, ax = plt.subplots(1, 2, figsize=(11, 4))
@@ -88,7 +107,7 @@ for a in ax:
     a.legend(fontsize=8)
     a.grid(alpha=0.3)
 fig.tight_layout()
-fig.savefig(OUT / "eros_trajectory.png", dpi=100)
+save(fig, "eros_trajectory.png")
 plain_steps = len(eros.angle_steps(load_baseline("eros-x16-with").params.t_mn))
 dec = eros.decelerated_angle_steps(load_baseline("eros-x16-with").params.t_mn, 1.0, 4)
 print(f"EROS: a landing takes {plain_steps} ticks plain and {len(dec)} with C_DC = 1, n = 4")
@@ -123,6 +142,8 @@ for optimised in (False, True):
     traces["with optimisation" if optimised else "without"] = sim.rollout(
         generate(pe, robot.leg, sim.control_period))
 plot_pitch(traces, OUT / "eros_pitch_grass50.png", "EROS, 24 mm steps on 50 mm grass (cf. Fig. 28)")
+if IN_NOTEBOOK:
+    display(Image(filename=str(OUT / "eros_pitch_grass50.png")))
 for label, tr in traces.items():
     m = summarize(tr)
     print(f"EROS 24 mm on grass50, {label}: +-{m.pitch_pm_deg:.1f} deg, {tr.reason}")
@@ -131,6 +152,8 @@ for model in ("lipm", "dlipm", "tlipfm"):
     pt = load_baseline("tkux-table2").params.replace(model=model)
     tr = rigid.rollout(generate(pt, robot.leg, rigid.control_period))
     plot_zmp(tr, OUT / f"zmp_{model}.png", robot.foot_size, f"{model.upper()} ZMP response (cf. Figs. 14-16)")
+    if IN_NOTEBOOK:
+        display(Image(filename=str(OUT / f"zmp_{model}.png")))
     m = summarize(tr)
     print(f"{model}: ZMP error {m.zmp_error_x_cm:.2f}/{m.zmp_error_y_cm:.2f} cm, {tr.reason}")
 print(f"figures in {OUT}")
