@@ -159,6 +159,13 @@ def test_a_continuous_joint_needs_a_range_in_the_map(tmp_path, gait_tuner_cmd, r
     ("not a urdf", "expected a URDF (<robot> at the top)"),
     ("prismatic", "is prismatic"),
     ("bad number", "not a number"),
+    ("inverted limit", "joint 'Knee_L' of robot.urdf: <limit> lower = 2.6 is above upper = -2.6 rad"),
+    ("missing child link", "joint 'Knee_L' of robot.urdf: its child link 'shank_x' is not a link of the file"),
+    ("two parents", "link 'shank_l' of robot.urdf is the child of two joints"),
+    ("cycle under base_link", "go round in a cycle"),
+    ("separate cycle", "go round in a cycle: "),
+    ("bad origin", "joint 'Knee_L' <origin> xyz = '0 0 abc': not a number"),
+    ("too many links", "more than the 1000 links"),
 ])
 def test_what_a_urdf_map_cannot_do_is_one_line(tmp_path, gait_tuner_cmd, run_env, case, needle):
     text, extra, meshes = mesh_urdf(), "", True
@@ -185,6 +192,31 @@ def test_what_a_urdf_map_cannot_do_is_one_line(tmp_path, gait_tuner_cmd, run_env
         text = text.replace('name="Elbow_R" type="revolute"', 'name="Elbow_R" type="prismatic"')
     elif case == "bad number":
         text = text.replace('velocity="6"', 'velocity="fast"', 1)
+    elif case == "inverted limit":
+        text = text.replace('<child link="shank_l"/><origin xyz="0 0 -0.11015" rpy="0 0 0"/><axis xyz="0 1 0"/>'
+                            '<limit lower="-2.6" upper="2.6"', '<child link="shank_l"/><origin xyz="0 0 -0.11015" '
+                            'rpy="0 0 0"/><axis xyz="0 1 0"/><limit lower="2.6" upper="-2.6"')
+    elif case == "missing child link":
+        text = text.replace('<child link="shank_l"/>', '<child link="shank_x"/>')
+    elif case == "two parents":
+        text = text.replace("</robot>", '  <joint name="extra" type="fixed"><parent link="body_link"/>'
+                                        '<child link="shank_l"/></joint>\n</robot>')
+    elif case == "cycle under base_link":        # the torso's parents go round: base_link -> body_link -> loop_a -> base_link
+        text = text.replace('<robot name="third_party_kid">', '<robot name="third_party_kid">\n  <link name="base_link"/>'
+                            '<link name="loop_a"/>\n  <joint name="b" type="fixed"><parent link="base_link"/>'
+                            '<child link="body_link"/></joint><joint name="c" type="fixed"><parent link="body_link"/>'
+                            '<child link="loop_a"/></joint><joint name="d" type="fixed"><parent link="loop_a"/>'
+                            '<child link="base_link"/></joint>')
+    elif case == "separate cycle":
+        text = text.replace("</robot>", '  <link name="ring_a"/><link name="ring_b"/><joint name="r1" type="fixed">'
+                            '<parent link="ring_a"/><child link="ring_b"/></joint><joint name="r2" type="fixed">'
+                            '<parent link="ring_b"/><child link="ring_a"/></joint>\n</robot>')
+    elif case == "bad origin":
+        text = text.replace('<child link="shank_l"/><origin xyz="0 0 -0.11015"', '<child link="shank_l"/><origin xyz="0 0 abc"')
+    elif case == "too many links":
+        text = text.replace("</robot>", "".join(f'<link name="extra_{k}"/><joint name="extra_{k}" type="fixed">'
+                                                f'<parent link="body_link"/><child link="extra_{k}"/></joint>'
+                                                for k in range(1000)) + "\n</robot>")
     path = workspace(tmp_path, text, extra, meshes)
     if case == "packages with mjcf":
         T.write(tmp_path, T.mjcf(), T.map_yaml(extra="packages: {a: ws}\n"))

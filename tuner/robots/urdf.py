@@ -42,6 +42,7 @@ import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from gaits import did_you_mean
 from gaits.files import MAX_BYTES, read_bytes_checked
 
 from ..errors import UserError
@@ -50,6 +51,10 @@ __all__ = ["UrdfRobot", "urdf_to_mjcf", "resolve_package", "unbalanced_bodies", 
 
 #: The compiler settings injected into the URDF before MuJoCo reads it (see the module docstring).
 COMPILER = {"fusestatic": "false", "discardvisual": "true", "strippath": "false", "angle": "radian"}
+#: The most links and collision meshes a robot file may have before MuJoCo is asked (ours: a kid-size
+#: robot has 20-60 links; MuJoCo's arena runs out on some ten thousand).
+MAX_LINKS = 1000
+MAX_MESHES = 1000
 
 
 @dataclass
@@ -177,12 +182,80 @@ def _number(text: str | None, what: str, source: str) -> float | None:
     return v
 
 
-def _origin(j: ET.Element) -> tuple[np.ndarray, np.ndarray]:
+def _triple(text: str, what: str, source: str) -> list[float]:
+    """Three finite numbers of an attribute (one line naming it otherwise)."""
+    parts = text.split()
+    try:
+        values = [float(v) for v in parts]
+    except ValueError:
+        raise UserError(f"{source}: {what} = {text!r}: not a number") from None
+    if len(values) != 3 or not all(math.isfinite(v) for v in values):
+        raise UserError(f"{source}: {what} = {text!r}: expected three finite numbers")
+    return values
+
+
+def _origin(j: ET.Element, source: str = "") -> tuple[np.ndarray, np.ndarray]:
     """A joint's ``<origin xyz rpy>`` as (R_parent_child (3, 3), p_parent_child (3,))."""
     o = j.find("origin")
-    xyz = [float(v) for v in (o.get("xyz", "0 0 0") if o is not None else "0 0 0").split()]
-    rpy = [float(v) for v in (o.get("rpy", "0 0 0") if o is not None else "0 0 0").split()]
+    where = f"joint {j.get('name')!r} <origin>"
+    xyz = _triple(o.get("xyz", "0 0 0") if o is not None else "0 0 0", f"{where} xyz", source)
+    rpy = _triple(o.get("rpy", "0 0 0") if o is not None else "0 0 0", f"{where} rpy", source)
     return Rotation.from_euler("xyz", rpy).as_matrix(), np.array(xyz)
+
+
+def _check_tree(root: ET.Element, source: str, name: str) -> None:
+    """The URDF's links and joints make one tree of a sane size: no more than :data:`MAX_LINKS` links
+    and :data:`MAX_MESHES` collision meshes, names unique, every joint naming a parent and a child
+    that are links of the file, no link the child of two joints, no cycle, every joint's origin
+    and limits numbers (a lower limit above the upper one named). One line for the first fault."""
+    links = [ln.get("name") for ln in root.findall("link")]
+    joints = root.findall("joint")
+    meshes = len(root.findall("link/collision/geometry/mesh"))
+    if len(links) > MAX_LINKS or meshes > MAX_MESHES:
+        raise UserError(f"{source}: {name} has {len(links)} links and {meshes} collision meshes: more than the "
+                        f"{MAX_LINKS} links and {MAX_MESHES} meshes a robot file may have here")
+    for kind, names in (("link", links), ("joint", [j.get("name") for j in joints])):
+        if None in names:
+            raise UserError(f"{source}: a <{kind}> of {name} has no name")
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise UserError(f"{source}: {name} names more than one {kind} {dup[0]!r}")
+    known = set(links)
+    parent_of: dict[str, tuple[str, str]] = {}
+    for j in joints:
+        jname = j.get("name")
+        ends = {}
+        for end in ("parent", "child"):
+            el = j.find(end)
+            ends[end] = el.get("link") if el is not None else None
+            if ends[end] is None:
+                raise UserError(f"{source}: joint {jname!r} of {name} has no <{end} link=...>")
+            if ends[end] not in known:
+                raise UserError(f"{source}: joint {jname!r} of {name}: its {end} link {ends[end]!r} is not a link of "
+                                f"the file{did_you_mean(ends[end], known)}")
+        child = ends["child"]
+        if child in parent_of:
+            raise UserError(f"{source}: link {child!r} of {name} is the child of two joints, {parent_of[child][1]!r} "
+                            f"and {jname!r}: a URDF robot is one tree")
+        parent_of[child] = (ends["parent"], jname)
+        _origin(j, source)
+        lim = j.find("limit")
+        if lim is not None and j.get("type") in ("revolute", "prismatic"):
+            lo = _number(lim.get("lower"), f"joint {jname!r} <limit> lower", source)
+            hi = _number(lim.get("upper"), f"joint {jname!r} <limit> upper", source)
+            if lo is not None and hi is not None and lo > hi:
+                raise UserError(f"{source}: joint {jname!r} of {name}: <limit> lower = {lo:g} is above upper = "
+                                f"{hi:g} rad: swap them (an inverted range is not read as no range)")
+    for start in links:                   # every walk up the tree ends at a root
+        seen, link = [start], start
+        while link in parent_of:
+            link = parent_of[link][0]
+            if link in seen:
+                loop = seen[seen.index(link):] + [link]
+                raise UserError(f"{source}: the links of {name} go round in a cycle: "
+                                f"{' -> '.join(reversed(loop))} (each the parent of the next): a URDF robot is one "
+                                f"tree")
+            seen.append(link)
 
 
 def _reroot(joints: list[ET.Element], root: str, torso: str, source: str, name: str) -> None:
@@ -201,7 +274,7 @@ def _reroot(joints: list[ET.Element], root: str, torso: str, source: str, name: 
         path.append(j)
         link = j.find("parent").get("link")
     for j in path:
-        R, p = _origin(j)
+        R, p = _origin(j, source)
         Ri = R.T
         pi = -Ri @ p
         o = j.find("origin")
@@ -226,6 +299,7 @@ def urdf_to_mjcf(path: Path, raw: bytes, *, torso: str, packages: Mapping[str, P
         raise UserError(f"{source}: {name} is not well-formed XML: {exc}") from None
     if root.tag != "robot":
         raise UserError(f"{source}: {name}: expected a URDF (<robot> at the top), found <{root.tag}>")
+    _check_tree(root, source, name)
     out = UrdfRobot(xml="")
     links = {ln.get("name") for ln in root.findall("link")}
     joints = root.findall("joint")
