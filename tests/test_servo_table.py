@@ -113,6 +113,8 @@ def test_a_servo_table_through_the_cli_round_trips_and_refuses_a_too_fast_gait(t
     ("direction", "direction = 2: must be 1 or -1"),
     ("id", "id = 300: expected an integer in [0, 253]"),
     ("field", "unknown field 'speed'"),
+    ("one tick", "ticks_per_turn = 1: expected a number in [256, 1e+07] ticks"),
+    ("both units", "give ticks_per_turn or units_per_rad, not both"),
 ])
 def test_bad_servos_sections_are_one_line(tmp_path, gait_tuner_cmd, run_env, extra, needle):
     text = servos_yaml()
@@ -121,7 +123,9 @@ def test_bad_servos_sections_are_one_line(tmp_path, gait_tuner_cmd, run_env, ext
             "ticks": text.replace("ticks_per_turn: 4096", "ticks_per_turn: 0"),
             "direction": text.replace("{id: 3}", "{id: 3, direction: 2}"),
             "id": text.replace("{id: 3}", "{id: 300}"),
-            "field": text.replace("{id: 3}", "{id: 3, speed: 5}")}[extra]
+            "field": text.replace("{id: 3}", "{id: 3, speed: 5}"),
+            "one tick": text.replace("ticks_per_turn: 4096", "ticks_per_turn: 1"),
+            "both units": text.replace("{id: 3}", "{id: 3, ticks_per_turn: 4096, units_per_rad: 651.9}")}[extra]
     path = T.write(tmp_path, T.mjcf(), T.map_yaml(extra=text))
     r = run(gait_tuner_cmd, ["robot", "check", path, "--no-stand"], run_env)
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and needle in r.stderr, r.stderr
@@ -135,6 +139,16 @@ def test_a_servo_table_needs_an_id_for_every_column_and_clip_needs_it(tmp_path, 
     r = run(gait_tuner_cmd, ["trajectory", "--robot", path, "--gait", "tlipfm", "--out", tmp_path / "o",
                              "--clip", "--joint-names", "ours", "--no-plot"], run_env)
     assert r.returncode == 2 and "--clip writes the robot's own joints" in r.stderr, r.stderr
+
+
+def test_a_servo_table_outside_its_servos_positions_is_refused(tmp_path, gait_tuner_cmd, run_env):
+    """A centre that sends positions below 0 (or past one turn) is one line, and nothing is written."""
+    path = T.write(tmp_path, T.mjcf(), T.map_yaml(extra=servos_yaml().replace("centre: 2048", "centre: 100")))
+    r = run(gait_tuner_cmd, ["trajectory", "--robot", path, "--gait", "tlipfm", "--out", tmp_path / "o",
+                             "--format", "servo", "--no-plot", "--clip"], run_env)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert "would be sent position -" in r.stderr and "outside its 0..4095" in r.stderr, r.stderr
+    assert not [p for p in (tmp_path / "o").rglob("*") if p.name.endswith("servo.csv")]
 
 
 def test_read_servo_units_defaults():

@@ -140,7 +140,7 @@ def write_joint_table(traj: "gaits.GaitTrajectory", robot, path: Path, joint_nam
     """The joint table of ``traj`` for ``robot`` as CSV, headed by a comment naming what it is for;
     ``table_format`` servo: in the map's servo units instead (``<name>.servo.csv``, checked)."""
     from .robots.joint_table import robot_joint_table
-    from .robots.servo_table import check_table, servo_columns, to_units, too_fast
+    from .robots.servo_table import check_positions, check_table, servo_columns, to_units, too_fast
     if clip and joint_names != "robot":
         raise UserError("--clip writes the robot's own joints: leave out --joint-names ours")
     if table_format == "servo" and joint_names != "robot":
@@ -174,6 +174,7 @@ def write_joint_table(traj: "gaits.GaitTrajectory", robot, path: Path, joint_nam
     for line in notes:
         click.echo(f"note: {line}", err=True)
     ticks = np.column_stack([to_units(q[:, j], u) for j, u in enumerate(units)])
+    check_positions(ticks, table.t, names, units)
     dt = float(np.median(np.diff(table.t)))
     out = path.with_name(path.name.replace("joints.csv", "servo.csv")) if path.name.endswith("joints.csv") \
         else path.with_suffix(".servo.csv")

@@ -23,10 +23,13 @@ import numpy as np
 
 from ..errors import UserError
 
-__all__ = ["ServoUnit", "read_servo_units", "to_units", "from_units", "check_table", "servo_columns", "too_fast",
-           "SERVO_UNIT_FIELDS"]
+__all__ = ["ServoUnit", "read_servo_units", "to_units", "from_units", "check_table", "check_positions", "servo_columns",
+           "too_fast", "turn_units", "SERVO_UNIT_FIELDS", "MIN_TICKS_PER_TURN"]
 
 SERVO_UNIT_FIELDS = ("id", "ticks_per_turn", "units_per_rad", "centre", "direction", "offset")
+#: [ticks] the coarsest servo a table is written for (ours: 1.4 deg a tick; hobby servos give
+#: 1024 over 300 deg, Dynamixel 4096 a turn)
+MIN_TICKS_PER_TURN = 256
 
 
 @dataclass(frozen=True)
@@ -51,6 +54,9 @@ def _unit(doc: Any, where: str, base: dict[str, Any]) -> dict[str, Any]:
     if not isinstance(doc, Mapping):
         raise UserError(f"{where}: expected a mapping of {', '.join(SERVO_UNIT_FIELDS)}")
     out = dict(base)
+    if "ticks_per_turn" in doc and "units_per_rad" in doc:
+        raise UserError(f"{where}: give ticks_per_turn or units_per_rad, not both (one sets the other: "
+                        f"units_per_rad = ticks_per_turn / 2 pi)")
     for k, v in doc.items():
         if k not in SERVO_UNIT_FIELDS:
             raise UserError(f"{where}: unknown field {k!r} (allowed: {', '.join(SERVO_UNIT_FIELDS)})")
@@ -59,9 +65,10 @@ def _unit(doc: Any, where: str, base: dict[str, Any]) -> dict[str, Any]:
                 raise UserError(f"{where}.id = {v!r}: expected an integer in [0, 253]")
             out["id"] = v
         elif k == "ticks_per_turn":
-            out["units_per_rad"] = _number(v, f"{where}.ticks_per_turn", 0, 1e7, "ticks", True) / (2 * math.pi)
+            out["units_per_rad"] = _number(v, f"{where}.ticks_per_turn", MIN_TICKS_PER_TURN, 1e7, "ticks") / (2 * math.pi)
         elif k == "units_per_rad":
-            out["units_per_rad"] = _number(v, f"{where}.units_per_rad", 0, 1e7, "units/rad", True)
+            out["units_per_rad"] = _number(v, f"{where}.units_per_rad", MIN_TICKS_PER_TURN / (2 * math.pi), 1e7,
+                                           "units/rad")
         elif k == "centre":
             out["centre"] = _number(v, f"{where}.centre", -1e7, 1e7, "units")
         elif k == "direction":
@@ -109,6 +116,24 @@ def from_units(ticks: np.ndarray, u: ServoUnit) -> np.ndarray:
     """The servo's positions -> angles [rad, the file's convention] (the inverse of :func:`to_units`
     up to its rounding: half a tick)."""
     return (np.asarray(ticks, float) - u.centre) / (u.direction * u.units_per_rad) - u.offset
+
+
+def turn_units(u: ServoUnit) -> int:
+    """The positions one turn of the servo holds (its position register: 0 to this less one)."""
+    return int(round(u.units_per_rad * 2 * math.pi))
+
+
+def check_positions(ticks: np.ndarray, t: np.ndarray, names: tuple[str, ...], units: list[ServoUnit]) -> None:
+    """Every position (N, J) a servo can be sent: within 0 .. one turn less one of its units (a
+    ``centre`` or ``offset`` that puts the table outside is one line naming joint, time and value)."""
+    for j, (name, u) in enumerate(zip(names, units)):
+        top = turn_units(u) - 1
+        bad = np.flatnonzero((ticks[:, j] < 0) | (ticks[:, j] > top))
+        if bad.size:
+            i = int(bad[0])
+            raise UserError(f"servos: joint {name} (id {u.id}) would be sent position {int(ticks[i, j])} at "
+                            f"t = {t[i]:.2f} s, outside its 0..{top} (one turn of {top + 1}; centre {u.centre:g}, "
+                            f"direction {u.direction:+d}, offset {u.offset:g} rad): correct its servos: entry")
 
 
 def too_fast(q: np.ndarray, t: np.ndarray, speed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
