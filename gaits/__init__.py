@@ -20,7 +20,7 @@ from .footstep_planner import FootstepPlan, PlanError, StepLimits, plan_footstep
 from .imu_stabiliser import StabiliserParams, stabiliser_corrections
 from .leg_kinematics import LegGeometry, UnreachableTargetError, leg_fk, leg_ik
 from .limb_kinematics import ArmGeometry, HeadGeometry, arm_fk, head_fk
-from .gait_file import GaitFile, load_gait_file, save_gait_file
+from .gait_file import GaitFile, gait_file_text, load_gait_file, save_gait_file
 from .params import GaitParams, ParamError, did_you_mean
 from .tlipfm import TlipfmParams
 from .trajectory import JOINT_NAMES, GaitTrajectory
@@ -69,6 +69,7 @@ __all__ = [
     "leg_ik",
     "list_baselines",
     "load_baseline",
+    "gait_file_text",
     "load_gait_file",
     "params_from_mapping",
     "save_gait_file",

@@ -6,15 +6,26 @@ parameter file where a good one was: the text goes to a temporary file beside th
 flushed to the disk (``fsync``), and only then renamed over it (``os.replace`` is atomic on POSIX
 and Windows within one file system). If anything fails on the way the temporary file is removed
 and the target is untouched; the ``OSError`` goes on to the caller, naming the target.
+
+Several files that belong together (a parameter set and its joint or servo table) are written as
+one (:func:`write_files_atomic`): each new text to a temporary file beside its target, flushed;
+then a manifest naming every (temporary, target) pair, written atomically: that write is the
+commit; then the renames, then the manifest is removed. A kill before the commit leaves every old
+file (and temporaries, removed by the next writer or reader once their process is gone); a kill
+after it leaves a manifest that the next writer or reader of that folder
+(:func:`complete_pending_writes`, called by ``load_gait_file`` and by every group write) carries
+out first, so each reader sees all the new files or all the old ones, never a mix.
 """
 
 from __future__ import annotations
 
 import errno
+import json
 import os
 import stat
 import tempfile
 from pathlib import Path
+from typing import Mapping
 
 
 def write_text_atomic(path: str | Path, text: str, encoding: str = "utf-8") -> Path:
@@ -50,6 +61,143 @@ def write_text_atomic(path: str | Path, text: str, encoding: str = "utf-8") -> P
             raise OSError(exc.errno, exc.strerror or str(exc), str(path)) from exc
         raise
     return path
+
+
+_MANIFEST = ".gait-tuner-group."        # + pid.random.json: a committed group write's renames
+_GROUP_TMP = ".group-tmp"                # suffix of a group write's temporary files: .NAME.PID.RANDOM.group-tmp
+
+
+def _fsync_dir(directory: Path) -> None:
+    try:
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def _alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:
+        return True
+    return True
+
+
+def complete_pending_writes(directory: str | Path) -> int:
+    """Carry out every committed group write left in ``directory`` by a process that was killed
+    (its manifest's renames, then the manifest removed), and remove the temporaries of group
+    writes that never committed and whose process is gone. Returns the groups completed."""
+    directory = Path(directory)
+    try:
+        names = os.listdir(directory)
+    except OSError:
+        return 0
+    done = 0
+    for name in sorted(n for n in names if n.startswith(_MANIFEST) and n.endswith(".json")):
+        path = directory / name
+        try:
+            pairs = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue                       # being written (not committed yet) or already gone
+        for tmp, final in pairs:
+            try:
+                os.replace(directory / tmp, directory / final)
+            except FileNotFoundError:
+                pass                       # renamed already (by its writer, or another reader)
+        _fsync_dir(directory)
+        try:
+            os.unlink(path)
+            done += 1
+        except FileNotFoundError:
+            pass
+    referenced = set()
+    for name in os.listdir(directory):
+        if name.startswith(_MANIFEST) and name.endswith(".json"):
+            try:
+                referenced |= {tmp for tmp, _ in json.loads((directory / name).read_text(encoding="utf-8"))}
+            except (OSError, ValueError):
+                pass
+    for name in names:
+        if name.startswith(_MANIFEST) and name.endswith(".staged"):      # a manifest never committed
+            parts = name.split(".")
+            if len(parts) >= 3 and parts[2].isdigit() and not _alive(int(parts[2])):
+                try:
+                    os.unlink(directory / name)
+                except OSError:
+                    pass
+        if name.endswith(_GROUP_TMP) and name not in referenced:
+            parts = name.split(".")
+            pid = int(parts[-3]) if len(parts) >= 4 and parts[-3].isdigit() else None
+            if pid is not None and not _alive(pid):
+                try:
+                    os.unlink(directory / name)
+                except OSError:
+                    pass
+    return done
+
+
+def write_files_atomic(files: Mapping[str | Path, str], encoding: str = "utf-8") -> list[Path]:
+    """Write several texts, each to its path, as one (the module docstring): after a kill at any
+    moment every reader that goes through :func:`complete_pending_writes` sees all of them new or
+    all old. The paths must share one folder. On an error nothing is changed and the ``OSError``
+    names the file."""
+    paths = [Path(p) for p in files]
+    folders = {p.parent.resolve() for p in paths}
+    if len(folders) != 1:
+        raise ValueError(f"write_files_atomic: the files must share one folder, got {sorted(map(str, folders))}")
+    directory = paths[0].parent
+    directory.mkdir(parents=True, exist_ok=True)
+    complete_pending_writes(directory)
+    umask = os.umask(0)
+    os.umask(umask)
+    temps: list[Path] = []
+    manifest: Path | None = None
+    try:
+        for path, text in zip(paths, files.values()):
+            fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{os.getpid()}.", suffix=_GROUP_TMP, dir=directory)
+            temps.append(Path(tmp))
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(text.encode(encoding))
+                fh.flush()
+                os.fsync(fh.fileno())
+            mode = path.stat().st_mode & 0o7777 if path.exists() else 0o666 & ~umask
+            os.chmod(tmp, mode)
+        pairs = [[t.name, p.name] for t, p in zip(temps, paths)]
+        fd, staged = tempfile.mkstemp(prefix=f"{_MANIFEST}{os.getpid()}.", suffix=".staged", dir=directory)
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            json.dump(pairs, fh)
+            fh.flush()
+            os.fsync(fh.fileno())
+        manifest = Path(staged).with_suffix(".json")
+        os.replace(staged, manifest)                # the commit
+        _fsync_dir(directory)
+    except BaseException as exc:
+        for t in temps:
+            try:
+                os.unlink(t)
+            except OSError:
+                pass
+        try:
+            os.unlink(staged)                       # type: ignore[possibly-undefined]
+        except (OSError, NameError):
+            pass
+        if isinstance(exc, OSError) and exc.filename is None:
+            raise OSError(exc.errno, exc.strerror or str(exc), str(paths[0])) from exc
+        raise
+    for t, p in zip(temps, paths):
+        os.replace(t, p)
+    _fsync_dir(directory)
+    os.unlink(manifest)
+    return paths
 
 
 #: Largest file of each kind the tool reads (ours: a hundred times the largest real one we know),

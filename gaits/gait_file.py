@@ -17,13 +17,13 @@ import re
 
 import yaml
 
-from .files import MAX_BYTES, read_bytes_checked, write_text_atomic
+from .files import MAX_BYTES, complete_pending_writes, read_bytes_checked, write_text_atomic
 from .engine import EngineParams
 from .imu_stabiliser import StabiliserParams, stabiliser_from_mapping
 from .families import families, family_class, params_from_mapping
 from .params import GaitParams, ParamError, fields_from_mapping
 
-__all__ = ["GaitFile", "read_yaml", "load_gait_file", "save_gait_file", "engine_from_mapping"]
+__all__ = ["GaitFile", "read_yaml", "load_gait_file", "save_gait_file", "gait_file_text", "engine_from_mapping"]
 
 
 @dataclass(frozen=True)
@@ -114,6 +114,7 @@ def load_gait_file(path: str | Path) -> GaitFile:
     """Read and validate a ``{gait, description, params}`` YAML file."""
     path = Path(path)
     source = str(path)
+    complete_pending_writes(path.parent)          # a group write killed after its commit: finish it first
     doc = read_yaml(path, "parameter")
     if not isinstance(doc, Mapping):
         raise ParamError(f"{source}: expected a mapping with keys {', '.join(_TOP_KEYS)}")
@@ -150,12 +151,14 @@ def engine_from_mapping(doc: Any, source: str = "engine") -> EngineParams:
 
 def save_gait_file(path: str | Path, params: GaitParams, description: str = "",
                    stabiliser: StabiliserParams | None = None, engine: EngineParams | None = None) -> Path:
-    """Write a parameter file that :func:`load_gait_file` reads back identically.
+    """Write a parameter file that :func:`load_gait_file` reads back identically (:func:`gait_file_text`)."""
+    return write_text_atomic(Path(path), gait_file_text(params, description, stabiliser, engine))
 
-    Each value carries its unit and meaning as a YAML comment; the IMU stabiliser's gains
-    (``gaits/imu_stabiliser.py`` gives the formula) follow when one is given.
-    """
-    path = Path(path)
+
+def gait_file_text(params: GaitParams, description: str = "", stabiliser: StabiliserParams | None = None,
+                   engine: EngineParams | None = None) -> str:
+    """A parameter file's text. Each value carries its unit and meaning as a YAML comment; the IMU
+    stabiliser's gains (``gaits/imu_stabiliser.py`` gives the formula) follow when one is given."""
     lines = [f"gait: {params.FAMILY}"]
     if description:
         lines.append("description: " + yaml.safe_dump(description, default_style='"',
@@ -170,7 +173,7 @@ def save_gait_file(path: str | Path, params: GaitParams, description: str = "",
     if engine is not None:
         lines.append("engine:  # the online walk engine, ours: see gaits/engine.py")
         lines += _fields(engine)
-    return write_text_atomic(path, "\n".join(lines) + "\n")
+    return "\n".join(lines) + "\n"
 
 
 def _fields(params: GaitParams) -> list[str]:

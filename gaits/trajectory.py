@@ -105,6 +105,10 @@ class GaitTrajectory:
     def to_csv(self, path: str | Path, comment: str | None = None) -> Path:
         """Write the joint table and references as CSV (one row per sample); ``comment`` goes
         first as a ``#`` line (what robot, study and surfaces the table is for)."""
+        return write_text_atomic(path, self.csv_text(comment))
+
+    def csv_text(self, comment: str | None = None) -> str:
+        """The text :meth:`to_csv` writes."""
         cols = self.columns()
         names = list(cols)
         data = np.column_stack([np.asarray(cols[n], dtype=float) for n in names])
@@ -115,7 +119,7 @@ class GaitTrajectory:
         w.writerow(names)
         for row in data:
             w.writerow([f"{v:.9g}" for v in row])
-        return write_text_atomic(path, fh.getvalue())
+        return fh.getvalue()
 
 
 def cart_table_zmp(t: np.ndarray, p_world_com: np.ndarray, g: float = GRAVITY) -> np.ndarray:

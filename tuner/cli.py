@@ -17,7 +17,7 @@ import numpy as np
 
 import gaits
 from gaits import ParamError, UnreachableTargetError, families, family_class, list_baselines, load_baseline
-from gaits.files import write_text_atomic
+from gaits.files import write_files_atomic, write_text_atomic
 
 from .errors import EXIT_INTERNAL, EXIT_SYSTEM, EXIT_USAGE, UserError
 from .params_io import resolve_drive, resolve_params
@@ -135,10 +135,11 @@ CLIP_OPTION = click.option(
          "own joint names.")
 
 
-def write_joint_table(traj: "gaits.GaitTrajectory", robot, path: Path, joint_names: str, comment: str,
-                      table_format: str = "csv", clip: bool = False) -> Path:
-    """The joint table of ``traj`` for ``robot`` as CSV, headed by a comment naming what it is for;
-    ``table_format`` servo: in the map's servo units instead (``<name>.servo.csv``, checked)."""
+def joint_table_file(traj: "gaits.GaitTrajectory", robot, path: Path, joint_names: str, comment: str,
+                     table_format: str = "csv", clip: bool = False) -> tuple[Path, str]:
+    """(path, text) of the joint table of ``traj`` for ``robot`` as CSV, headed by a comment naming
+    what it is for; ``table_format`` servo: in the map's servo units instead (``<name>.servo.csv``,
+    checked). The caller writes it with the files it belongs with (``write_files_atomic``)."""
     from .robots.joint_table import robot_joint_table
     from .robots.servo_table import check_positions, check_table, servo_columns, to_units, too_fast
     if clip and joint_names != "robot":
@@ -166,8 +167,8 @@ def write_joint_table(traj: "gaits.GaitTrajectory", robot, path: Path, joint_nam
                        err=True)
         if joint_names == "robot":
             traj = table
-        return traj.to_csv(path, comment=f"gait-tuner joint table for robot {robot.name} "
-                                         f"({joint_names} joint names and signs; angles in rad); {comment}")
+        return path, traj.csv_text(comment=f"gait-tuner joint table for robot {robot.name} "
+                                           f"({joint_names} joint names and signs; angles in rad); {comment}")
     units = servo_columns(robot.servo_units, names)
     lo, hi = robot.joint_ranges(names)
     q, notes = check_table(table.q_ref, table.t, names, speed, lo, hi, clip)
@@ -185,9 +186,7 @@ def write_joint_table(traj: "gaits.GaitTrajectory", robot, path: Path, joint_nam
                              f"direction {u.direction:+d}, offset {u.offset:g} rad)" for n, u in zip(names, units)),
             "t_s," + ",".join(f"id{u.id}" for u in units)]
     rows += [f"{t:.4f}," + ",".join(str(int(v)) for v in r) for t, r in zip(table.t, ticks)]
-    from gaits.files import write_text_atomic
-    write_text_atomic(out, "\n".join(rows) + "\n")
-    return out
+    return out, "\n".join(rows) + "\n"
 
 
 @cli.command()
@@ -232,10 +231,11 @@ def trajectory(family: str | None, params_spec: str | None, robot_name: str, out
     robot = load_robot(robot_name)
     traj = drive.table(robot, dt)
     out_dir.mkdir(parents=True, exist_ok=True)
-    csv_path = write_joint_table(traj, robot, out_dir / "joints.csv", joint_names,
-                                 f"gait {drive.describe()}", table_format, clip)
-    yaml_path = gaits.save_gait_file(out_dir / "params.yaml", drive.params,
-                                     resolve_params(params_spec, family).description, drive.stabiliser)
+    csv_path, csv_text = joint_table_file(traj, robot, out_dir / "joints.csv", joint_names,
+                                          f"gait {drive.describe()}", table_format, clip)
+    yaml_path = out_dir / "params.yaml"
+    write_files_atomic({csv_path: csv_text, yaml_path: gaits.gait_file_text(
+        drive.params, resolve_params(params_spec, family).description, drive.stabiliser)})
     click.echo(f"{traj.family} for robot {robot.name}: {len(traj.t)} samples every {dt:g} s, "
                f"{traj.duration:.2f} s, walked {traj.p_world_com[-1, 0] - traj.p_world_com[0, 0]:+.3f} m")
     click.echo(f"wrote {csv_path}")
@@ -989,10 +989,12 @@ def export(study_file: str, storage: str | None, runs_dir: Path, number: int | N
     stream = None if commands_file is None else load_stream(commands_file, _tail(duration, commands_file))
     drive = gaits.Drive(params, trial_stabiliser(t), cmd, stream, source=f"study {spec.name} trial {t.number}")
     traj = drive.table(robot, robot.sim.control_period)       # an engine set's table: planned per step
-    table = write_joint_table(traj, robot, out.with_suffix(".joints.csv"), joint_names,
-                              f"set {out.stem} ({drive.describe()}); surfaces {', '.join(spec.surfaces)}",
-                              table_format, clip)
-    gaits.save_gait_file(out, params, desc, trial_stabiliser(t), trial_engine(t))     # after the table's checks
+    table, table_text = joint_table_file(traj, robot, out.with_suffix(".joints.csv"), joint_names,
+                                         f"set {out.stem} ({drive.describe()}); surfaces {', '.join(spec.surfaces)}",
+                                         table_format, clip)
+    # the set and its table as one: after a kill at any moment both are new or both old
+    write_files_atomic({table: table_text, out: gaits.gait_file_text(params, desc, trial_stabiliser(t),
+                                                                     trial_engine(t))})
     click.echo(f"trial {t.number} (score {t.values[0]:.4f}) -> {out} and {table}")
 
 
