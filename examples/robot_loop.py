@@ -23,6 +23,7 @@ core, see ``benchmarks/bench_engine.py``).
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 
 import numpy as np
@@ -95,9 +96,17 @@ def main() -> None:
     ap.add_argument("--dry-run", action="store_true", help="walk the stand-in robot (no hardware)")
     ap.add_argument("--seconds", type=float, default=8.0)
     args = ap.parse_args()
-    gait = gaits.load_gait_file(args.gait)
+    try:
+        gait = gaits.load_gait_file(args.gait)
+    except gaits.ParamError as exc:      # one line, exit 2: a wrong name or a broken file is not a crash
+        hint = (f" (a shipped set is a file here: studies/results/{args.gait}.yaml)"
+                if "/" not in args.gait and not args.gait.endswith((".yaml", ".yml")) else "")
+        print(f"robot_loop: error: {exc}{hint}", file=sys.stderr)
+        raise SystemExit(2) from None
     if gait.engine is None:
-        raise SystemExit(f"{args.gait}: no engine: section (a table set is played from its joint table)")
+        print(f"robot_loop: error: {args.gait}: no engine: section (a table set is played from its joint table)",
+              file=sys.stderr)
+        raise SystemExit(2)
     if not args.dry_run:
         raise SystemExit("connect your robot's driver in place of StandIn, then drop --dry-run")
     robot = StandIn()

@@ -265,7 +265,10 @@ class Drive:
                 else "the online table (re-planned each step)") if self.engine is not None
                else "open-loop table") \
             + (" with the IMU stabiliser" if self.closed_loop else "")
-        what = ("its own walk" if self.command is None and self.stream is None else
+        idle = self.engine is not None and self.command is None and self.stream is None
+        what = (("no command: it steps in place" if self.engine.idle == "step" else
+                 "no command: it stands where it started") if idle else
+                "its own walk" if self.command is None and self.stream is None else
                 (f"command {self.command} (vx m/s, vy m/s, wz rad/s, held {ONLINE_DURATION_S:g} s, then a stop)"
                  if self.online else f"command {self.command} (vx m/s, vy m/s, wz rad/s, ramped)")
                 if self.command is not None else

@@ -69,6 +69,7 @@ STUDY_FIELDS = [
     ("space", {"period": {"low": "a", "high": 0.8}}, "period bounds must be numbers"),
     ("space", {"period": {"low": 0.5}}, "period must be"),
     ("space", {"period": 5}, "period must be"),
+    ("space", {"first_support": {"low": -1, "high": 1}}, "first_support takes one of -1, 1: it is not searched"),
     ("space", {"period": {"low": 0.5, "high": 0.8, "extra": 1}}, "period must be"),
     ("space", {"period": {"low": float("nan"), "high": 0.8}}, "period bounds must be finite"),
     ("space", {"period": {"low": 0.5, "high": float("inf")}}, "period bounds must be finite"),
@@ -471,3 +472,41 @@ def test_a_study_names_its_surfaces_and_overlapping_soles_are_refused(gait_tuner
         r = subprocess.run(gait_tuner_cmd + verb + ["--params", str(params)], capture_output=True, text=True,
                            env=run_env, timeout=120)
         assert r.returncode == 2 and "the soles overlap by 20.0 mm" in r.stderr, r.stderr
+
+
+def test_an_output_path_inside_a_file_or_too_long_is_one_line(capsys, workdir):
+    (workdir / "afile").write_text("x")
+    run_bad(capsys, ["trajectory", "--gait", "tlipfm", "--out", "afile/sub", "--no-plot"],
+            "a part of the path is a file, not a folder")
+    run_bad(capsys, ["trajectory", "--gait", "tlipfm", "--out", "a" * 300, "--no-plot"],
+            "longer than the file system allows")
+
+
+def test_a_stream_cell_past_the_csv_limit_is_one_line(capsys, workdir):
+    (workdir / "big.csv").write_text("t,vx,vy,wz\n0," + "1" * 200_000 + ",0,0\n")
+    run_bad(capsys, ["simulate", "--params", "kidsize-engine-carpet4", "--commands", "big.csv"],
+            "big.csv: line 2: not CSV a stream can hold")
+
+
+def test_robot_loop_given_a_shipped_set_name_is_one_line():
+    r = subprocess.run([os.sys.executable, str(ROOT / "examples" / "robot_loop.py"), "kidsize-engine-carpet4",
+                        "--dry-run"], capture_output=True, text=True)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "Traceback" not in r.stderr
+    assert "studies/results/kidsize-engine-carpet4.yaml" in r.stderr
+
+
+def test_an_engine_set_with_no_command_says_it_stood(capsys, workdir):
+    """It walked nowhere: simulate says so (a note, and its drive line), not a perfect walk only."""
+    assert main(["simulate", "--params", "kidsize-engine-carpet4", "--surface", "rigid", "--duration", "2"]) == 0
+    out = capsys.readouterr()
+    assert "was given no --command or --commands: it stands where it started" in out.err
+    assert "no command: it stands where it started" in out.out
+
+
+def test_compare_of_an_engine_set_compares_its_table(capsys, workdir):
+    """It was an internal error ("give a duration"): an online set is compared as its gait's table."""
+    code = main(["compare", "kidsize-engine-carpet4", "--surfaces", "rigid", "--no-baselines", "--workers", "1",
+                 "--random-rollouts", "0", "--out", "cmp"])
+    out = capsys.readouterr()
+    assert code == 0, out.err
+    assert "kidsize-engine-carpet4 (its table)" in (workdir / "cmp" / "compare.md").read_text()

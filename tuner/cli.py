@@ -280,6 +280,11 @@ def _walk_setup(robot_name: str, surface_name: str, family: str | None, params_s
     if commands_file is None and duration is not None and not 0 < duration <= MAX_DURATION_S:  # NaN fails too
         raise UserError(f"--duration must be in (0, {MAX_DURATION_S:g}] s, got {duration:g} s")
     sim = Simulator(robot, surface)
+    if drive.engine is not None and drive.command is None and drive.stream is None:
+        click.echo(f"note: {drive.source or drive.family} walks online (its engine: section) and was given no "
+                   f"--command or --commands: it " + ("steps in place" if drive.engine.idle == "step" else
+                                                     "stands where it started") +
+                   ", and the walk's figures are of that", err=True)
     if save_scene is not None:
         from .report.video import save_scene as write_scene
         click.echo(f"wrote {write_scene(sim, save_scene)}", err=True)
@@ -1390,6 +1395,8 @@ def params_cmd(family: str) -> None:
 
 
 _SYSTEM_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.EFBIG}
+#: a path that cannot name a file (inside a file, too long, a folder, a link loop): a bad --out or file name
+_PATH_ERRNOS = {errno.ENOTDIR, errno.ENAMETOOLONG, errno.EISDIR, errno.ELOOP}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -1412,6 +1419,13 @@ def main(argv: list[str] | None = None) -> int:
         click.echo(f"gait-tuner: error: {exc}", err=True)
         return EXIT_SYSTEM if type(exc).__name__ == "StorageFull" else EXIT_USAGE
     except OSError as exc:
+        if exc.errno in _PATH_ERRNOS:       # a path the user gave that cannot be a file: their mistake
+            where = f"{exc.filename}: " if exc.filename else ""
+            why = {errno.ENOTDIR: "a part of the path is a file, not a folder",
+                   errno.ENAMETOOLONG: "a name in the path is longer than the file system allows",
+                   errno.EISDIR: "it is a folder, not a file", errno.ELOOP: "too many symbolic links"}[exc.errno]
+            click.echo(f"gait-tuner: error: {where}{why}", err=True)
+            return EXIT_USAGE
         if exc.errno not in _SYSTEM_ERRNOS:
             raise_internal = exc
         else:

@@ -31,8 +31,12 @@ def load_stream(path: str | Path, tail: float | None = None) -> CommandStream:
         text = raw.decode("utf-8-sig")          # a spreadsheet's byte-order mark is not part of the header
     except UnicodeDecodeError as exc:
         raise UserError(f"{path}: is not UTF-8 text (byte {exc.start})") from None
-    rows = [(i + 1, r) for i, r in enumerate(csv.reader(io.StringIO(text)))
-            if r and not r[0].lstrip().startswith("#") and any(c.strip() for c in r)]
+    reader = csv.reader(io.StringIO(text))
+    try:
+        rows = [(i + 1, r) for i, r in enumerate(reader)
+                if r and not r[0].lstrip().startswith("#") and any(c.strip() for c in r)]
+    except csv.Error as exc:                # a cell past the csv module's limit, a stray quote
+        raise UserError(f"{path}: line {reader.line_num}: not CSV a stream can hold ({exc})") from None
     if not rows:
         raise UserError(f"{path}: empty; a command stream is CSV with the header t,vx,vy,wz")
     line, head = rows[0]

@@ -1,5 +1,8 @@
 """``gait-tuner compare``: tuned gaits beside the papers' baselines, on the EROS experiment's grid.
 
+An online set (one with an ``engine:`` section) is compared as its gait's table: with no command the
+engine would stand where it started; the table is labelled "(its table)".
+
 For every parameter set and surface: the set's own walk (pitch vibration as the
 EROS +- figure and RMS, ZMP error, speed, fell) and an EROS-style stability
 matrix: the same set at the paper's step distances (0-24 mm forward, 8-24 mm
@@ -10,6 +13,8 @@ EROS baselines are added as the calibrated experiment walks them (foot lift x
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import warnings
 from pathlib import Path
@@ -61,7 +66,10 @@ def _sets(specs: list[str], baselines: bool) -> list[gaits.Drive]:
     out = []
     families = []
     for s in specs:
-        out.append(gaits.Drive.of(resolve_params(s, None), source=s))
+        d = gaits.Drive.of(resolve_params(s, None), source=s)
+        if d.engine is not None:   # an online set walks its gait's table here: no command, it would stand
+            d = dataclasses.replace(d, engine=None, source=f"{s} (its table)")
+        out.append(d)
         families.append(out[-1].family)
     if baselines:
         for fam in dict.fromkeys(families):
