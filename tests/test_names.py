@@ -7,7 +7,7 @@ import pytest
 
 import gaits
 from gaits import did_you_mean
-from gaits.families import GaitFamily, register
+from gaits.families import register
 
 
 def test_did_you_mean_picks_the_closest_or_nothing():

@@ -270,7 +270,7 @@ def load_study(path_or_name: str) -> StudySpec:
         if meta["choices"] is not None or meta["lo"] is None:
             fail(source, f"space: {name} takes " + (f"one of {', '.join(map(repr, meta['choices']))}"
                                                      if meta["choices"] else "no range") +
-                 f": it is not searched as a range; give it under fixed")
+                 ": it is not searched as a range; give it under fixed")
         if low < meta["lo"] or high > meta["hi"]:
             fail(source, f"space: {name} range [{low}, {high}] leaves the parameter's allowed range "
                           f"[{meta['lo']}, {meta['hi']}] {meta['unit']}")
