@@ -16,31 +16,78 @@ parameters) is a drive too, without a gait set: it walks online and has no joint
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import math
+import signal
+import threading
+import time
 import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Callable, Iterator, Mapping
 
 import numpy as np
 
 from .command_stream import CommandStream
-from .control import Controller, Stabilised, TablePlayer
+from .control import READINGS, Controller, Stabilised, TablePlayer
 from .engine import EngineParams, WalkEngine
 from .online_table import OnlineTable
 from .families import RobotGeometry, command_walk, family_of
 from .gait_file import GaitFile
 from .imu_stabiliser import StabiliserParams
 from .params import GaitParams, ParamError
-from .trajectory import GaitTrajectory
+from .trajectory import JOINT_NAMES, GaitTrajectory
 from .walk_command import WalkCommand
 
-__all__ = ["Drive", "UserController"]
+__all__ = ["Drive", "UserController", "TimeLimits", "time_limit", "TimeLimitExpired"]
 
 #: steps a table may plan for a stream (a 10-minute stream at 0.3 s steps is 2000)
 MAX_STREAM_STEPS = 5000
 #: [s] how long an online controller walks when nothing else says (no stream, no duration given)
 ONLINE_DURATION_S = 10.0
+
+
+@dataclass(frozen=True)
+class TimeLimits:
+    """How long a controller of the user's own may run [s] (ours; the controller file's ``time_limit:``).
+
+    ``tick``: one call of ``start_pose``, ``reset``, ``step`` or ``plan`` (a robot's tick is 10 ms:
+    one second is a hundred ticks, a hung call, not a slow one); ``walk``: all its calls in one walk
+    together; ``import``: importing its file. A call that passes its limit is stopped (SIGALRM, in
+    the process's main thread: studies walk a user's controller on one thread) and is one line
+    naming the controller, the call, the time and the limit."""
+
+    tick: float = 1.0
+    walk: float = 600.0
+    import_: float = 30.0
+
+
+class TimeLimitExpired(BaseException):
+    """Raised into the user's code when its time is up (a BaseException: its ``except Exception``
+    does not swallow it)."""
+
+
+@contextlib.contextmanager
+def time_limit(seconds: float | None, expired: Callable[[], Exception]) -> Iterator[None]:
+    """Run the block for at most ``seconds`` (``ITIMER_REAL``; the main thread only: elsewhere, and
+    for ``None``, nothing is limited); past it the block is interrupted and ``expired()`` raised."""
+    if seconds is None or not hasattr(signal, "setitimer") \
+            or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def ring(signum: int, frame: Any) -> None:
+        raise TimeLimitExpired()
+    previous = signal.signal(signal.SIGALRM, ring)
+    signal.setitimer(signal.ITIMER_REAL, max(float(seconds), 1e-3))
+    try:
+        yield
+    except TimeLimitExpired:
+        raise expired() from None
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
 
 
 @dataclass(frozen=True)
@@ -56,6 +103,7 @@ class UserController:
     params: Mapping[str, float]
     source: str
     ranges: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    limits: TimeLimits = TimeLimits()
 
     def with_params(self, values: Mapping[str, float]) -> "UserController":
         unknown = set(values) - set(self.params)
@@ -65,14 +113,36 @@ class UserController:
         return dataclasses.replace(self, params={**self.params, **values})
 
     def build(self, robot: RobotGeometry, dt: float) -> Controller:
-        """The controller, behind :class:`UserCode` (an exception of its code names the code)."""
-        ctl = UserCode(None, self.source).call(self.cls, "its constructor", dict(self.params), robot, dt)
+        """The controller, behind :class:`UserCode` (an exception of its code names the code; what
+        it builds is checked against the protocol: its methods, ``dt`` the control period, a
+        ``duration`` that is a positive number or None, ``senses`` among the readings)."""
+        ctl = UserCode(None, self.source, self.limits).call(self.cls, "its constructor", dict(self.params),
+                                                            robot, dt)
         missing = [m for m in ("start_pose", "reset", "step", "plan") if not callable(getattr(ctl, m, None))]
         if missing or not hasattr(ctl, "dt"):
             raise ParamError(f"controller {self.source}: the object it builds lacks "
                              f"{', '.join(missing + ([] if hasattr(ctl, 'dt') else ['dt']))} "
                              f"(see gaits/control.py, Controller)")
-        return UserCode(ctl, self.source)
+        bad = f"controller {self.source}: the object it builds has"
+        own_dt = ctl.dt
+        if isinstance(own_dt, bool) or not isinstance(own_dt, (int, float)) or not math.isfinite(own_dt) \
+                or abs(own_dt - dt) > 1e-9 * max(1.0, dt):
+            raise ParamError(f"{bad} dt = {own_dt!r}: expected the control period it was built with, {dt:g} s "
+                             f"(the loop calls step() every {dt:g} s)")
+        duration = getattr(ctl, "duration", None)
+        if duration is not None and (isinstance(duration, bool) or not isinstance(duration, (int, float))
+                                     or not math.isfinite(duration) or duration <= 0):
+            raise ParamError(f"{bad} duration = {duration!r}: expected a positive number of seconds, or None "
+                             f"(it walks as long as it is run)")
+        senses = getattr(ctl, "senses", None)
+        if senses is not None:
+            if isinstance(senses, str) or not all(isinstance(s, str) for s in senses):
+                raise ParamError(f"{bad} senses = {senses!r}: expected names of readings ({', '.join(READINGS)})")
+            unknown = [s for s in senses if s not in READINGS]
+            if unknown:
+                raise ParamError(f"{bad} senses naming {unknown[0]!r}: not a reading (readings: "
+                                 f"{', '.join(READINGS)})")
+        return UserCode(ctl, self.source, self.limits)
 
 
 class UserCode:
@@ -82,9 +152,11 @@ class UserCode:
     the user's code it came from (the command line prints it as one line, exit 2: a mistake in the
     user's code is not one of ours to report)."""
 
-    def __init__(self, ctl: Any, source: str) -> None:
+    def __init__(self, ctl: Any, source: str, limits: TimeLimits = TimeLimits()) -> None:
         self._ctl = ctl
         self.source = source
+        self.limits = limits
+        self.spent = 0.0                       # [s] in its calls this walk (reset() starts a walk)
 
     def __getattr__(self, name: str) -> Any:
         if name == "_ctl":                     # not yet set (a copy being built): no recursion
@@ -92,12 +164,26 @@ class UserCode:
         return getattr(self._ctl, name)
 
     def call(self, fn: Any, what: str, *args: Any) -> Any:
+        left = self.limits.walk - self.spent
+        limit = min(self.limits.tick, left)
+
+        def expired() -> ParamError:
+            which = (f"its limit of {self.limits.tick:g} s a call" if limit == self.limits.tick else
+                     f"its limit of {self.limits.walk:g} s a walk")
+            return ParamError(f"controller {self.source}: {what} ran past {which} (time_limit in its file) "
+                              f"and was stopped")
+        if left <= 0:
+            raise expired()
+        t0 = time.perf_counter()
         try:
-            return fn(*args)
+            with time_limit(limit, expired):
+                return fn(*args)
         except ParamError:
             raise
         except Exception as exc:  # noqa: BLE001 - the user's code may raise anything
             raise self._named(exc, what) from exc
+        finally:
+            self.spent += time.perf_counter() - t0
 
     def _named(self, exc: Exception, what: str) -> ParamError:
         """The error naming the innermost line of the controller's own file (else the innermost
@@ -113,21 +199,33 @@ class UserCode:
                           f"{' '.join(str(exc).split())}{where}")
 
     def start_pose(self) -> Any:
-        return self.call(self._ctl.start_pose, "start_pose()")
+        self.spent = 0.0
+        pose = self.call(self._ctl.start_pose, "start_pose()")
+        q = getattr(pose, "q", None)
+        if q is None or np.shape(q) != (len(JOINT_NAMES),):
+            got = "None" if pose is None else (f"{np.shape(q)[0] if np.ndim(q) == 1 else np.shape(q)} angles"
+                                               if q is not None else type(pose).__name__)
+            raise ParamError(f"controller {self.source}: start_pose() returned {got}: expected "
+                             f"gaits.control.StartPose(q) with {len(JOINT_NAMES)} joint angles (JOINT_NAMES)")
+        return pose
 
     def reset(self, m: Any) -> None:
+        self.spent = 0.0
         self.call(self._ctl.reset, "reset()", m)
 
     def step(self, m: Any, command: Any = None) -> Any:
-        try:
-            return self._ctl.step(m, command)
-        except ParamError:
-            raise
-        except Exception as exc:  # noqa: BLE001 - the user's code may raise anything
-            raise self._named(exc, f"step() at t = {m.t:.2f} s") from exc
+        q = self.call(self._ctl.step, f"step() at t = {m.t:.2f} s", m, command)
+        if np.iscomplexobj(q):
+            raise ParamError(f"controller {self.source}: step() at t = {m.t:.2f} s returned complex targets: "
+                             f"expected real joint angles [rad]")
+        return q
 
     def plan(self, n: int) -> Any:
-        return self.call(self._ctl.plan, "plan()", n)
+        rec = self.call(self._ctl.plan, "plan()", n)
+        if rec is None:
+            raise ParamError(f"controller {self.source}: plan() returned None: expected a "
+                             f"gaits.control.PlanRecord of what it planned over the walk's ticks")
+        return rec
 
 
 @dataclass(frozen=True)

@@ -74,6 +74,11 @@ def _controller_file(folder: Path, cls: str, code: str | None = None, **extra) -
     ("mine.py:C", "class C: pass\n", {"colour": "red"}, "unknown key 'colour'"),
     ("mine.py:C", "class C:\n    def __init__(self, p, r, dt):\n        self.dt = dt\n", {},
      "lacks start_pose, reset, step, plan"),
+    ("mine.py:C", "import sys\nsys.exit(3)\n", {}, "importing mine.py called sys.exit(3)"),
+    ("mine.py:C", "import time\ntime.sleep(60)\n", {"time_limit": {"import": 1}},
+     "importing mine.py ran past its limit of 1 s (time_limit.import in the file) and was stopped"),
+    ("mine.py:C", "class C: pass\n", {"time_limit": {"tick": 0}}, "time_limit.tick = 0: expected a number in [0.01, 60] s"),
+    ("mine.py:C", "class C: pass\n", {"time_limit": {"call": 1}}, "time_limit: unknown key 'call'"),
 ])
 def test_a_bad_controller_file_is_one_line(gait_tuner_cmd, run_env, tmp_path, cls, code, extra, message):
     path = _controller_file(tmp_path, cls, code, **extra)
@@ -94,6 +99,23 @@ _STANDS = ("import numpy as np\nfrom gaits.control import HoldPose\n\n\n"
      "controller {path}:C: start_pose() raised KeyError: 'l_knee' ({path}, line 13)"),
     ("    def step(self, m, command=None):\n        return self.q[:19]\n",
      "the controller ({path}:C) returned targets of shape (19,) at t = 0.00 s; expected (20,)"),
+    ("    def step(self, m, command=None):\n        return self.q + 0j\n",
+     "controller {path}:C: step() at t = 0.00 s returned complex targets"),
+    ("    def start_pose(self):\n        return None\n",
+     "controller {path}:C: start_pose() returned None: expected gaits.control.StartPose(q) with 20 joint angles"),
+    ("    def start_pose(self):\n        from gaits.control import StartPose\n        return StartPose(np.zeros(12))\n",
+     "controller {path}:C: start_pose() returned 12 angles"),
+    ("    def plan(self, n):\n        return None\n", "controller {path}:C: plan() returned None"),
+    ("    dt = 0.02\n    def __init__(self, p, robot, dt):\n        super().__init__(np.zeros(20), dt)\n"
+     "        self.dt = 0.02\n", "has dt = 0.02: expected the control period it was built with, 0.01 s"),
+    ("    def __init__(self, p, robot, dt):\n        super().__init__(np.zeros(20), dt)\n        self.dt = 'fast'\n",
+     "has dt = 'fast'"),
+    ("    def __init__(self, p, robot, dt):\n        super().__init__(np.zeros(20), dt)\n        self.duration = -1.0\n",
+     "has duration = -1.0: expected a positive number of seconds"),
+    ("    senses = ('q', 'lidar')\n", "has senses naming 'lidar': not a reading"),
+    ("    def step(self, m, command=None):\n        import time\n        time.sleep(30)\n        return self.q\n",
+     "controller {path}:C: step() at t = 0.00 s ran past its limit of 1 s a call (time_limit in its file) and was "
+     "stopped"),
 ])
 def test_a_mistake_in_the_controllers_code_is_one_line_naming_it(gait_tuner_cmd, run_env, tmp_path, body, message):
     """An exception the user's code raises while walking, or targets of the wrong shape, is the
@@ -103,6 +125,15 @@ def test_a_mistake_in_the_controllers_code_is_one_line_naming_it(gait_tuner_cmd,
     r = run(gait_tuner_cmd, ["simulate", "--controller", path, "--surface", "rigid", "--duration", "1"], run_env)
     assert r.returncode == 2, r.stderr
     assert message.format(path=tmp_path / "mine.py") in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+
+
+def test_a_walk_past_its_limit_is_stopped_and_named(gait_tuner_cmd, run_env, tmp_path):
+    """Each call within its limit, the walk's calls together past theirs."""
+    body = "    def step(self, m, command=None):\n        import time\n        time.sleep(0.05)\n        return self.q\n"
+    path = _controller_file(tmp_path, "mine.py:C", _STANDS + body, time_limit={"walk": 1})
+    r = run(gait_tuner_cmd, ["simulate", "--controller", path, "--surface", "rigid", "--duration", "5"], run_env)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert "ran past its limit of 1 s a walk (time_limit in its file)" in r.stderr, r.stderr
 
 
 def test_a_target_that_is_not_finite_ends_the_walk_as_diverged(gait_tuner_cmd, run_env, tmp_path):

@@ -10,11 +10,15 @@ A controller file says which class to run and with which parameters::
       lift: 0.03
     ranges:                         # optional: the search range of each tunable parameter
       period: {low: 0.35, high: 0.9}
+    time_limit: {tick: 1.0, walk: 600, import: 30}   # optional [s], these are the defaults
 
 The class implements ``gaits.control.Controller`` (``dt``, ``duration``, ``start_pose``, ``reset``,
 ``step``, ``plan``); ``examples/controllers/`` has one. **Naming a controller file runs its code**,
 in every process of a study (``tune`` and ``worker`` say which file they import). Every mistake
-in the file, and any exception its import raises, is one line naming the file.
+in the file, and any exception its import raises (or a ``sys.exit`` in it), is one line naming the
+file. Its code runs under time limits (``time_limit:``, :class:`gaits.drive.TimeLimits`): one call
+(``start_pose``, ``reset``, ``step``, ``plan``), one walk's calls together, its import; a call past
+its limit is stopped and named in one line.
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from gaits import UserController
+from gaits.drive import TimeLimits, time_limit
 from gaits.files import write_text_atomic
 
 from .errors import UserError
@@ -34,11 +39,17 @@ from .yaml_input import read_yaml_file
 
 __all__ = ["load_controller", "import_class", "save_controller"]
 
-_KEYS = ("class", "description", "params", "ranges")
+_KEYS = ("class", "description", "params", "ranges", "time_limit")
+#: [s] the bounds of each time limit a controller file may set
+_LIMIT_RANGES = {"tick": (0.01, 60.0), "walk": (1.0, 86400.0), "import": (1.0, 3600.0)}
 
 
-def import_class(spec: str, relative_to: Path, source: str) -> tuple[Any, str]:
-    """(class, where it came from) of ``path.py:Class`` (relative to ``relative_to``) or ``module:Class``."""
+def import_class(spec: str, relative_to: Path, source: str, seconds: float | None = None) -> tuple[Any, str]:
+    """(class, where it came from) of ``path.py:Class`` (relative to ``relative_to``) or ``module:Class``;
+    the import runs for at most ``seconds``."""
+    def expired() -> UserError:
+        return UserError(f"{source}: importing {spec.split(':')[0]} ran past its limit of {seconds:g} s "
+                         f"(time_limit.import in the file) and was stopped")
     if not isinstance(spec, str) or spec.count(":") != 1 or not all(spec.split(":")):
         raise UserError(f"{source}: class = {spec!r}: expected path/to/file.py:ClassName or module:ClassName")
     where, name = spec.split(":")
@@ -55,16 +66,20 @@ def import_class(spec: str, relative_to: Path, source: str) -> tuple[Any, str]:
                 module = importlib.util.module_from_spec(loader_spec)
                 sys.modules[mod_name] = module
                 try:
-                    loader_spec.loader.exec_module(module)
+                    with time_limit(seconds, expired):
+                        loader_spec.loader.exec_module(module)
                 except BaseException:
                     del sys.modules[mod_name]
                     raise
             origin = str(path)
         else:
-            module = importlib.import_module(where)
+            with time_limit(seconds, expired):
+                module = importlib.import_module(where)
             origin = getattr(module, "__file__", where) or where
     except UserError:
         raise
+    except SystemExit as exc:     # sys.exit() in its module: one line, not the code's exit status
+        raise UserError(f"{source}: importing {where} called sys.exit({exc.code!r})") from None
     except Exception as exc:  # noqa: BLE001 - the user's code may raise anything on import
         raise UserError(f"{source}: importing {where} failed: {type(exc).__name__}: "
                         f"{' '.join(str(exc).split())}") from None
@@ -111,8 +126,27 @@ def load_controller(path: str | Path) -> UserController:
         if not low <= params[k] <= high:
             raise UserError(f"{source}: params.{k} = {params[k]:g} lies outside its range [{low:g}, {high:g}]")
         ranges[str(k)] = (low, high)
-    cls, origin = import_class(doc["class"], path.parent, source)
-    return UserController(cls, params, origin, ranges)
+    limits = _limits(doc.get("time_limit"), source)
+    cls, origin = import_class(doc["class"], path.parent, source, limits.import_)
+    return UserController(cls, params, origin, ranges, limits)
+
+
+def _limits(doc: Any, source: str) -> TimeLimits:
+    """The file's ``time_limit:`` section (each in its range [s]); the defaults where it says none."""
+    if doc is None:
+        return TimeLimits()
+    if not isinstance(doc, Mapping):
+        raise UserError(f"{source}: time_limit must be a mapping of {', '.join(_LIMIT_RANGES)} [s]")
+    values = {}
+    for k, v in doc.items():
+        if k not in _LIMIT_RANGES:
+            raise UserError(f"{source}: time_limit: unknown key {k!r} (allowed: {', '.join(_LIMIT_RANGES)})")
+        lo, hi = _LIMIT_RANGES[k]
+        v = _number(v, f"time_limit.{k}", source)
+        if not lo <= v <= hi:
+            raise UserError(f"{source}: time_limit.{k} = {v:g}: expected a number in [{lo:g}, {hi:g}] s")
+        values["import_" if k == "import" else k] = v
+    return TimeLimits(**values)
 
 
 def save_controller(path: str | Path, user: UserController, description: str = "") -> Path:
@@ -125,6 +159,8 @@ def save_controller(path: str | Path, user: UserController, description: str = "
            "ranges": {k: {"low": float(lo), "high": float(hi)} for k, (lo, hi) in user.ranges.items()}}
     if not description:
         del doc["description"]
+    if user.limits != TimeLimits():
+        doc["time_limit"] = {"tick": user.limits.tick, "walk": user.limits.walk, "import": user.limits.import_}
     write_text_atomic(path, "# a controller of your own (tuner/controllers.py); naming this file runs its "
                             "class's code\n" + yaml.safe_dump(doc, sort_keys=False))
     return path

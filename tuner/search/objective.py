@@ -43,8 +43,10 @@ class Evaluator:
 
     def __post_init__(self) -> None:
         spec = self.spec
+        # a controller of the user's own walks on the main thread only: its time limits are signals
+        threads = 1 if spec.controller is not None else self.threads
         self.world = World(spec.robot, spec.surfaces, aggregate=spec.aggregate, duration=spec.duration,
-                           threads=self.threads)
+                           threads=threads)
         self.robot, self.sims = self.world.robot, self.world.sims
 
     def evaluate(self, drive: gaits.Drive, report: Callable[[float, int], bool] | None = None) -> TrialResult:
