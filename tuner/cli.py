@@ -226,7 +226,7 @@ def trajectory(family: str | None, params_spec: str | None, robot_name: str, out
                           tail=_tail(duration, commands_file))
     if model is not None:
         if not hasattr(drive.params, "model"):
-            raise UserError(f"--model applies to a family with a CoM model (tlipfm), not {drive.family}")
+            raise UserError(f"--model applies to the tlipfm family only (its CoM model), not {drive.family}")
         drive = drive.with_params(drive.params.replace(model=model))
     robot = load_robot(robot_name)
     traj = drive.table(robot, dt)
