@@ -1,12 +1,35 @@
 """Walks spread over processes: forked workers (a worker starts in milliseconds and inherits
-the parent's loaded robot), results in task order whatever the number of workers."""
+the parent's loaded robot), results in task order whatever the number of workers.
+
+Every worker dies with its parent, whatever ends the parent (SIGKILL included: Linux's
+``PR_SET_PDEATHSIG``), and ignores Ctrl-C: the parent decides what an interrupt stops, ends its
+workers and says so in one line; no worker prints a traceback."""
 
 from __future__ import annotations
 
 import multiprocessing as mp
+import os
+import signal
 from typing import Any, Callable, Sequence
 
-__all__ = ["mp_context", "map_in_order"]
+__all__ = ["mp_context", "map_in_order", "die_with_parent"]
+
+
+def die_with_parent(parent: int) -> None:
+    """Linux: the kernel kills this process when its parent dies (no orphaned workers); a parent
+    already gone ends it at once."""
+    try:
+        import ctypes
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)    # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+    if os.getppid() != parent:
+        os._exit(1)
+
+
+def _pool_worker(parent: int) -> None:
+    die_with_parent(parent)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)       # the parent decides what Ctrl-C stops
 
 
 def mp_context() -> Any:
@@ -19,7 +42,8 @@ def map_in_order(fn: Callable[[Any], Any], tasks: Sequence[Any], workers: int,
     """``[fn(t) for t in tasks]`` on ``workers`` processes; ``progress(1)`` after each result."""
     rows: list[Any] = []
     if workers > 1 and len(tasks) > 1:
-        with mp_context().Pool(min(workers, len(tasks))) as pool:
+        with mp_context().Pool(min(workers, len(tasks)), initializer=_pool_worker,
+                               initargs=(os.getpid(),)) as pool:
             for row in pool.imap(fn, tasks, chunksize=chunksize):
                 rows.append(row)
                 if progress is not None:

@@ -29,10 +29,10 @@ from __future__ import annotations
 
 import functools
 import itertools
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
 from . import experiments as ex
+from ..process_pool import map_in_order
 from ..robots import load_robot
 from ..sim.surfaces import SURFACES, Surface
 
@@ -172,11 +172,8 @@ def calibrate(grid: dict | None = None, gains: tuple = HEEL_GAINS, lift_scale: f
     pedestal with none is left out of the chosen dict (the caller reports it)."""
     tasks = calibration_tasks(grid, gains, lift_scale, layer)
     results: list[Candidate] = []
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        for batch in pool.map(evaluate, tasks):
-            results.extend(batch)
-            if progress is not None:
-                progress(1)
+    for batch in map_in_order(evaluate, tasks, workers, progress):     # workers die with this process
+        results.extend(batch)
 
     simplest = _simplest_key(layer)
     best_gain, best_total, best = gains[0], -1, {}

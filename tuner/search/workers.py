@@ -30,7 +30,7 @@ import gaits
 from gaits import ParamError
 
 from ..errors import UserError
-from ..process_pool import mp_context
+from ..process_pool import die_with_parent, mp_context
 from . import optuna_compat as compat
 from .liveness import Heartbeat, process_identity
 from .history import IndexedMedianPruner, TrialIndex, WindowedTPESampler
@@ -286,20 +286,10 @@ def work(spec: StudySpec, store: StudyStore, budget: int, seed: int,
     finally:
         beat.stop()
 
-def _die_with_parent(parent: int) -> None:
-    """Linux: the kernel kills this process when its parent dies (no orphaned workers)."""
-    try:
-        import ctypes
-        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)    # PR_SET_PDEATHSIG
-    except (OSError, AttributeError):
-        pass
-    if os.getppid() != parent:
-        os._exit(1)
-
 def _worker(spec: StudySpec, store: StudyStore, budget: int, seed: int, parent: int, errors: Any,
             threads: int = 1) -> None:
     """A worker process: :func:`work`; bad input or a full disk goes back to the parent as one line."""
-    _die_with_parent(parent)
+    die_with_parent(parent)
     signal.signal(signal.SIGINT, signal.SIG_IGN)       # the parent decides what Ctrl-C stops
     os.environ.setdefault("MPLBACKEND", "Agg")
     optuna.logging.set_verbosity(optuna.logging.WARNING)

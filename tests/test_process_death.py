@@ -1,0 +1,106 @@
+"""No process of the tool outlives its parent, whatever ends the parent (SIGKILL, SIGTERM, or
+Ctrl-C, which a terminal sends to the whole process group), and an interrupt is one line from
+the parent, nothing from its workers.
+
+Each verb starts in a session of its own; once its workers exist (polled, not waited for), the
+signal goes to the parent (Ctrl-C: to the group), and every process that was its descendant must
+then be gone (polled, with a generous deadline: the kernel's death signal is immediate, so only a
+survivor would take long).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from conftest import ROOT
+
+
+def _children() -> dict[int, int]:
+    """pid -> parent pid of every process."""
+    out = {}
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                stat = (d / "stat").read_text()
+            except OSError:
+                continue
+            out[int(d.name)] = int(stat.rsplit(")", 1)[1].split()[1])
+    return out
+
+
+def _descendants(pid: int) -> set[int]:
+    ppid = _children()
+    found, frontier = set(), {pid}
+    while frontier:
+        frontier = {p for p, pp in ppid.items() if pp in frontier} - found
+        found |= frontier
+    return found
+
+
+def _alive(pid: int) -> bool:
+    try:
+        return "zombie" not in Path(f"/proc/{pid}/status").read_text().split("State:")[1].split("\n")[0].lower() \
+            and Path(f"/proc/{pid}").exists()
+    except (OSError, IndexError):
+        return False
+
+
+def _poll(cond, deadline: float = 120.0) -> bool:
+    end = time.monotonic() + deadline
+    while time.monotonic() < end:
+        if cond():
+            return True
+        time.sleep(0.05)
+    return cond()
+
+
+VERBS = {
+    "tune": (["tune", str(ROOT / "studies" / "quickstart.yaml"), "--workers", "2", "--trials", "500"], 2),
+    "robustness": (["robustness", "--params", "kidsize-robust-grass50", "--surface", "grass50", "--rollouts", "400",
+                    "--workers", "2", "--pushes", ""], 2),
+    "calibrate": (["calibrate", "--workers", "2"], 2),
+    "challenge": (["challenge", "push", "--params", "kidsize-engine-carpet4", "--surface", "carpet4"], 0),
+}
+
+
+@pytest.mark.parametrize("how", ["SIGKILL", "SIGTERM", "ctrl-c"])
+@pytest.mark.parametrize("verb", list(VERBS))
+def test_no_process_outlives_its_parent(tmp_path, gait_tuner_cmd, run_env, verb, how):
+    args, workers = VERBS[verb]
+    p = subprocess.Popen(gait_tuner_cmd + args + (["--runs", str(tmp_path / "runs")] if verb == "tune" else []),
+                         cwd=tmp_path, env=run_env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         start_new_session=True)
+    try:
+        if workers:
+            assert _poll(lambda: len(_descendants(p.pid)) >= workers or p.poll() is not None), "no workers started"
+        else:
+            _poll(lambda: Path(f"/proc/{p.pid}").exists())
+            time.sleep(0.5)                   # let it get going (no workers to wait for)
+        assert p.poll() is None, p.stderr.read()
+        family = _descendants(p.pid)
+        if how == "ctrl-c":
+            os.killpg(p.pid, signal.SIGINT)
+        else:
+            os.kill(p.pid, getattr(signal, how))
+        out, err = p.communicate(timeout=120)
+        assert _poll(lambda: not any(_alive(c) for c in family)), f"left running: {[c for c in family if _alive(c)]}"
+        if how == "ctrl-c":
+            assert p.returncode == 130, (p.returncode, err[-2000:])
+            assert "Traceback" not in err and "KeyboardInterrupt" not in err and "BrokenPipe" not in err, err[-2000:]
+            last = err.rstrip().splitlines()[-1]
+            assert last == "gait-tuner: interrupted" or last.startswith("interrupted: finished trials are kept"), \
+                err[-2000:]
+            assert sum("interrupted" in line for line in err.splitlines()) == 1, err[-2000:]
+        else:
+            assert p.returncode == -getattr(signal, how), (p.returncode, err[-2000:])
+    finally:
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGKILL)
+            p.wait()
