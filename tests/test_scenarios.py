@@ -156,3 +156,17 @@ def test_without_the_registration_its_section_is_an_unknown_key(tmp_path):
     p.write_text(STAND_STUDY)
     with pytest.raises(UserError, match="unknown key 'stand_test'"):
         load_study(str(p))
+
+
+def test_a_randomised_studys_best_trial_is_told_by_its_survival():
+    """The closing line of an engine (match) study said its 90 % survivor "fell" (one walk of ten
+    did) and counted every trial as fallen; it says the survival and the trials below the minimum."""
+    from types import SimpleNamespace
+    from tuner.scenarios.match import ScenarioSpec
+    from tuner.scenarios.robust import RobustSpec
+    t = SimpleNamespace(number=7, values=[3.5], user_attrs={"result": {"fell": True, "survival": 0.9}})
+    line = SCENARIOS["match"].describe_best(ScenarioSpec(walks=10, min_survival=0.8), t, fell=True, falls=12,
+                                           infeasible=3)
+    assert line == ("best trial 7: score 3.500; survival 90% of its match walks (10 a surface) (minimum 80%); "
+                    "trials below the minimum or rejected in study: 3")
+    assert "fell" not in SCENARIOS["robust"].describe_best(RobustSpec(), t, fell=True, falls=1, infeasible=0)

@@ -27,7 +27,7 @@ import numpy as np
 
 from ..errors import UserError
 
-__all__ = ["Scenario", "TrialResult", "register", "SCENARIOS", "scenario_named", "scenario_for_doc",
+__all__ = ["Scenario", "TrialResult", "describe_randomised", "register", "SCENARIOS", "scenario_named", "scenario_for_doc",
            "rollout_score", "invalid_result", "survival_constraint", "FALL_PENALTY_DEG", "PROGRESS_PENALTY_DEG",
            "OBJECTIVES", "MAX_SEED", "fail", "check_section", "number"]
 
@@ -177,6 +177,16 @@ class Scenario:
     def target_label(self, settings: Any) -> str:
         """What the first objective is, for plots."""
         return "pitch score [deg] (minimised)"
+
+
+def describe_randomised(trial: Any, min_survival: float, infeasible: int, walks: str) -> str:
+    """The best trial of a randomised study (robust, match): its survival over its walks, not
+    whether one of them fell (a 90 % survivor did fall, in one walk of ten)."""
+    result = trial.user_attrs.get("result") or {}
+    survival = result.get("survival")
+    shown = "not recorded" if survival is None else f"{survival:.0%}"
+    return (f"best trial {trial.number}: score {trial.values[0]:.3f}; survival {shown} of its {walks} "
+            f"(minimum {min_survival:.0%}); trials below the minimum or rejected in study: {infeasible}")
 
 
 #: name -> the registered scenario, in registration order

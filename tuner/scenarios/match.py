@@ -27,7 +27,7 @@ from ..errors import UserError
 from ..sim.randomisation import draw, randomisation_from_mapping
 from ..sim.robustness import walk_scenario
 from ..sim.scenario import SCENARIO_FIELDS, draw_scenario, scenario_from_mapping
-from .base import (FALL_PENALTY_DEG, Scenario, TrialResult, check_section, fail, register,
+from .base import (FALL_PENALTY_DEG, Scenario, TrialResult, check_section, describe_randomised, fail, register,
                    survival_constraint)
 
 
@@ -99,6 +99,10 @@ class Match(Scenario):
         return TrialResult(score=float(np.mean(scores)), speed=0.0,
                            fall_constraint=-1.0 if constraint is None else constraint, fell=falls > 0,
                            per_surface=per, survival=1.0 - falls / len(scores), hopeless=hopeless)
+
+
+    def describe_best(self, sc: ScenarioSpec, trial: Any, *, fell: bool, falls: int, infeasible: int) -> str:
+        return describe_randomised(trial, sc.min_survival, infeasible, f"match walks ({sc.walks} a surface)")
 
 
 register(Match())

@@ -30,7 +30,7 @@ from ..errors import UserError
 from ..sim.metrics import MIN_PROGRESS, summarize
 from ..sim.randomisation import draw, randomisation_from_mapping
 from .base import (Scenario, TrialResult, check_section, fail, invalid_result, register, rollout_score,
-                   survival_constraint)
+                   survival_constraint, describe_randomised)
 
 RISKS = ("cvar25", "worst", "mean")
 
@@ -116,6 +116,10 @@ class Robust(Scenario):
             constraint = -1.0
         return TrialResult(score=risk, speed=float(np.mean(speeds)) if speeds else 0.0, fall_constraint=constraint,
                            fell=falls > 0, per_surface=per, survival=survival, hopeless=hopeless)
+
+
+    def describe_best(self, rb: RobustSpec, trial: Any, *, fell: bool, falls: int, infeasible: int) -> str:
+        return describe_randomised(trial, rb.min_survival, infeasible, f"randomised walks ({rb.rollouts} a surface)")
 
 
 register(Robust())
