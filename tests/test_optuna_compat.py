@@ -159,3 +159,13 @@ def test_no_private_optuna_import_outside_the_compat_module():
              for p in (ROOT / d).rglob("*.py") if p.name != "optuna_compat.py"]
     found = [f for p in files for f in _private_optuna_imports(p)]
     assert found == []
+
+
+def test_enqueued_params_are_where_enqueue_trial_keeps_them():
+    study = _study()
+    study.enqueue_trial({"x": 0.25})
+    waiting = study.get_trials(deepcopy=False)[0]
+    assert compat.enqueued_params(waiting) == {"x": 0.25} and waiting.params == {}
+    popped = study.ask()                    # pops the waiting one
+    fresh = study.ask()
+    assert popped.number == 0 and compat.enqueued_params(study.get_trials(deepcopy=False)[fresh.number]) == {}

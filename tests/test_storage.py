@@ -571,3 +571,48 @@ def test_pareto_pick_chooses_on_the_front(gait_tuner_cmd, run_env, tmp_path):
     assert r.returncode == 0, r.stderr
     assert (runs / "pp" / "best.yaml").exists()                # the default lands under runs/
     assert f"trial {pareto_pick(s, 'speed').number} " in r.stdout
+
+
+KILL_AFTER_POP = """
+import os, signal, sys
+from pathlib import Path
+from tuner.search import history
+reserve = history.TrialIndex.reserve
+mark = Path(os.environ["KILL_MARK"])
+def killing(self, study, user_attrs=None):
+    waiting = {t.number for t in self.waiting}
+    trial = reserve(self, study, user_attrs)
+    if trial.number in waiting and not mark.exists():      # popped an enqueued trial: die before its params
+        mark.write_text(str(trial.number))
+        os.kill(os.getpid(), signal.SIGKILL)
+    return trial
+history.TrialIndex.reserve = killing
+from tuner.cli import run
+sys.argv = ["gait-tuner"] + sys.argv[1:]
+run()
+"""
+
+
+@pytest.mark.parametrize("kind", ["journal", "postgresql"])
+def test_an_enqueued_trial_popped_by_a_worker_killed_before_its_params_is_walked_again(
+        request, run_env, tmp_path, kind):
+    """The CasADi seed and a baseline are enqueued; the worker that pops the first is killed (from inside, right after the
+    pop: no timing) before it stores the seed's parameters. The seed is enqueued again with its own
+    parameters and walked (it was dropped: its trial had no parameters, and the budget ran out)."""
+    url = request.getfixturevalue("postgres").create_database("popped") if kind == "postgresql" else None
+    study = tmp_path / "popped.yaml"
+    study.write_text(STUDY.format(name="popped", trials=4, surfaces=SHORT))      # enqueues the seed and a baseline
+    runs = tmp_path / "runs"
+    env = {**run_env, "KILL_MARK": str(tmp_path / "killed")}
+    args = ["tune", study, "--workers", "2", "--runs", runs] + (["--storage", url] if url else [])
+    r = subprocess.run([sys.executable, "-c", KILL_AFTER_POP, *map(str, args)], capture_output=True, text=True,
+                       env=env, timeout=600)
+    assert r.returncode == 0, r.stderr[-3000:]
+    popped = int((tmp_path / "killed").read_text())
+    trials = load("popped", url, runs).get_trials(deepcopy=False)
+    dead = trials[popped]
+    assert dead.state == optuna.trial.TrialState.FAIL and dead.params == {}
+    seed = dead.system_attrs["fixed_params"]
+    again = [t for t in trials if t.user_attrs.get("retry_for") == popped]
+    assert len(again) == 1 and again[0].state in DONE, [(t.number, t.state, t.user_attrs) for t in trials]
+    assert again[0].params == seed and again[0].user_attrs.get("start") == dead.user_attrs.get("start") is not None

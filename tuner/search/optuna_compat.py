@@ -37,7 +37,7 @@ from optuna.storages.journal._storage import JournalOperation, JournalStorageRep
 __all__ = [
     "BaseJournalFileLock", "BaseJournalSnapshot", "JournalOperation", "JournalStorageReplayResult",
     "default_gamma", "default_gamma_multiobjective", "tpe_sampler_module", "OVERRIDDEN", "FROZEN_TRIAL_FIELDS",
-    "trial_id", "study_storage", "study_id", "cached_backend", "set_tpe_gamma", "stale_trial_ids", "rdb_models",
+    "trial_id", "study_storage", "study_id", "cached_backend", "enqueued_params", "set_tpe_gamma", "stale_trial_ids", "rdb_models",
     "into_cache", "use_scipy_log_ndtr", "log_ndtr_in_use", "ATTRIBUTES",
 ]
 
@@ -56,6 +56,12 @@ def study_storage(study: Any) -> Any:
 def study_id(study: Any) -> int:
     """The storage's id of a study object."""
     return study._study_id
+
+
+def enqueued_params(trial: Any) -> dict:
+    """The parameters a trial was enqueued with (``Study.enqueue_trial`` keeps them in the system
+    attribute ``fixed_params`` until a ``suggest`` stores each), or {} for a sampled trial."""
+    return dict(trial.system_attrs.get("fixed_params") or {})
 
 
 def set_tpe_gamma(sampler: Any, gamma: Callable[[int], int]) -> None:

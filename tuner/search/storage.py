@@ -89,11 +89,18 @@ def _retries(t: optuna.trial.FrozenTrial) -> int:
     return int(t.user_attrs.get("retries", 1 if t.user_attrs.get("retry_of") is not None else 0))
 
 
+def _planned_params(t: optuna.trial.FrozenTrial) -> dict:
+    """What a trial was to walk: its stored parameters, or, when its worker died between popping it
+    and storing them, the ones it was enqueued with (a start, a retry, the CasADi seed)."""
+    return dict(t.params) or compat.enqueued_params(t)
+
+
 def _not_retried(t: optuna.trial.FrozenTrial) -> str | None:
-    """Why a trial whose worker died is not retried, or None: it had no parameters yet (the
-    worker died between reserving it and sampling), its worker crashed by itself, or its
-    parameters have died :data:`MAX_RETRIES` times."""
-    if not t.params:        # reserved under the lock, its worker died before it sampled: nothing walked
+    """Why a trial whose worker died is not retried, or None: it had no parameters yet (a sampled
+    trial whose worker died between reserving it and sampling; an enqueued one has its enqueued
+    parameters), its worker crashed by itself, or its parameters have died :data:`MAX_RETRIES`
+    times."""
+    if not _planned_params(t):   # reserved under the lock, its worker died before it sampled: nothing walked
         return (f"trial {t.number}'s worker died before it drew the trial's parameters: failed, "
                 f"nothing to walk again")
     how = t.user_attrs.get("died")
@@ -462,7 +469,7 @@ class StudyStore:
             how = a.get("died")
             attrs = {k: v for k, v in a.items() if k not in ("worker", "result", "params", "died", "failed")}
             attrs.update(retry_of=a.get("retry_of", t.number), retry_for=t.number, retries=_retries(t) + 1)
-            study.enqueue_trial(dict(t.params), user_attrs=attrs, skip_if_exists=False)
+            study.enqueue_trial(_planned_params(t), user_attrs=attrs, skip_if_exists=False)
             notes.append(f"trial {t.number} died with its worker{f' ({how})' if how else ''}: "
                          f"failed, enqueued again")
         study.set_user_attr("retried", sorted(done))
