@@ -91,3 +91,11 @@ class CommandStream:
     def per_step(self, step_starts: np.ndarray) -> np.ndarray:
         """The command of each step's start time (n, 3), for a walk planned before it starts."""
         return np.array([self.at(float(s)) for s in step_starts])
+
+    def rows_not_walked(self, step_starts: np.ndarray) -> list[int]:
+        """The rows no step starts in (a row shorter than a step, between two starts): a walk
+        planned per step (:meth:`per_step`) never walks their command."""
+        starts = np.asarray(step_starts, dtype=float)
+        ends = np.append(self.t[1:], self.duration)
+        return [i for i, (a, b) in enumerate(zip(self.t, ends))
+                if not np.any((starts >= a - 1e-12) & (starts < b - 1e-12))]

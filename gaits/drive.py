@@ -304,13 +304,24 @@ class Drive:
 
     def stream_commands(self) -> np.ndarray:
         """The per-step commands a table walks for the stream, ending with a stop step (n, 3)."""
+        starts = self._stream_starts()
+        return np.vstack([self.stream.per_step(starts), np.zeros((1, 3))])
+
+    def _stream_starts(self) -> np.ndarray:
         fam = family_of(self.params)
         starts = fam.step_starts(self.params, MAX_STREAM_STEPS)
         n = int(np.sum(starts[:-1] < self.stream.duration))
         if n >= MAX_STREAM_STEPS:
             raise ParamError(f"the command stream lasts {self.stream.duration:g} s: more than "
                              f"{MAX_STREAM_STEPS} steps of this set")
-        return np.vstack([self.stream.per_step(starts[:n]), np.zeros((1, 3))])
+        return starts[:n]
+
+    def stream_rows_not_walked(self) -> list[int]:
+        """A table walking a stream: the stream's rows no step of it starts in (shorter than a step,
+        so never walked); an online walk reads every row at its tick: none."""
+        if self.stream is None or self.online:
+            return []
+        return self.stream.rows_not_walked(self._stream_starts())
 
     def table(self, robot: RobotGeometry, dt: float) -> GaitTrajectory:
         """The joint table of this walk for a robot (``robot.leg``, ``robot.foot_size``)."""

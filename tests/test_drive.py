@@ -166,3 +166,19 @@ def test_robustness_walks_a_command(gait_tuner_cmd, run_env):
     r = run(gait_tuner_cmd, ["robustness", "--params", "cosine-setiono", "--command", "0,0.05,0",
                              "--rollouts", "2", "--pushes", ""], run_env)
     assert r.returncode == 2 and "forward and backward" in r.stderr
+
+
+def test_a_stream_row_shorter_than_a_step_is_said_not_walked(tmp_path, gait_tuner_cmd, run_env):
+    """A table plans one command per step from the row at its start: a row between two starts was
+    never walked, and nothing said so."""
+    import subprocess
+    stream = tmp_path / "short.csv"
+    stream.write_text("t,vx,vy,wz\n0,0.1,0,0\n2.0,0.2,0,0\n2.05,0,0,0.5\n2.1,0.1,0,0\n")
+    r = subprocess.run(gait_tuner_cmd + ["simulate", "--params", "kidsize-omni-carpet4", "--surface", "rigid",
+                                         "--commands", str(stream)], capture_output=True, text=True, env=run_env)
+    assert r.returncode == 0, r.stderr
+    assert "note: 2 row(s) of the stream last less than a step of this set and are not walked" in r.stderr
+    assert "the rows at 2 s, 2.05 s" in r.stderr
+    from gaits import CommandStream
+    s = CommandStream([0.0, 1.0, 1.1], [[0.1, 0, 0], [0.2, 0, 0], [0.1, 0, 0]], tail=1.0)
+    assert s.rows_not_walked([0.0, 0.6, 1.2, 1.8]) == [1] and s.rows_not_walked([0.0, 1.05]) == [2]

@@ -262,6 +262,16 @@ def _tail(duration: float | None, commands_file) -> float | None:
     return duration
 
 
+def _skipped_rows_note(drive) -> None:
+    """One note line when a table walks a stream some of whose rows no step starts in (never walked)."""
+    skipped = drive.stream_rows_not_walked()
+    if skipped:
+        rows = ", ".join(f"{drive.stream.t[i]:g} s" for i in skipped[:5]) + (", ..." if len(skipped) > 5 else "")
+        click.echo(f"note: {len(skipped)} row(s) of the stream last less than a step of this set and are not "
+                   f"walked (a table plans one command per step, from the row at its start): the rows at {rows}",
+                   err=True)
+
+
 def _walk_setup(robot_name: str, surface_name: str, family: str | None, params_spec: str | None,
                 duration: float | None, command: str | None, commands_file: Path | None, stabiliser: bool | None,
                 save_scene: Path | None = None, controller_file: Path | None = None):
@@ -280,6 +290,7 @@ def _walk_setup(robot_name: str, surface_name: str, family: str | None, params_s
     if commands_file is None and duration is not None and not 0 < duration <= MAX_DURATION_S:  # NaN fails too
         raise UserError(f"--duration must be in (0, {MAX_DURATION_S:g}] s, got {duration:g} s")
     sim = Simulator(robot, surface)
+    _skipped_rows_note(drive)
     if drive.engine is not None and drive.command is None and drive.stream is None:
         click.echo(f"note: {drive.source or drive.family} walks online (its engine: section) and was given no "
                    f"--command or --commands: it " + ("steps in place" if drive.engine.idle == "step" else
@@ -1127,6 +1138,7 @@ def robustness(params_spec: str | None, robot_name: str, surface_name: str, roll
     drive = resolve_drive(params_spec, None, stabiliser=stabiliser, command=_parse_command(command),
                           commands_file=commands_file, tail=_tail(duration, commands_file),
                           controller=controller_file)
+    _skipped_rows_note(drive)
     doc = randomisation_spec if randomisation_spec in (None, "none") else \
         read_yaml_file(Path(randomisation_spec), "randomisation")
     if randomisation_spec not in (None, "none") and doc is None:
