@@ -153,3 +153,28 @@ def test_inconsistent_parameters_are_rejected(changes, match):
 def test_dt_out_of_range():
     with pytest.raises(ParamError, match="dt = 0.5 s"):
         tlipfm.generate(TABLE2, dt=0.5)
+
+
+def test_the_engines_closed_form_is_the_papers():
+    """The LIPM's closed form is evaluated twice: the paper's eqs 23-26 over a step's samples
+    (``tlipfm.com_closed_form``, the tables) and the engine's segment by segment (``lipm.propagate``,
+    ``lipm.dcm_backward``, on the robot every tick). Kept as two evaluations on purpose (either one
+    rewritten on the other changes its results in the last bits: the tables' figures, or the engine's
+    bit-for-bit reference walks), they must agree on the same ZMP profile."""
+    import numpy as np
+
+    from gaits import lipm
+    from gaits.tlipfm import _dcm_backward, com_closed_form
+    T, tail = 0.17, 0.64
+    breaks = np.array([0.0, 0.15, 0.49])
+    L, K = np.array([0.01, -0.02, 0.3]), np.array([0.0, 0.09, -0.5])      # ZMP L + K s on each segment
+    ends = np.append(breaks[1:], tail)
+    knot_t = np.concatenate([[b, e] for b, e in zip(breaks, ends)])
+    knot_p = np.array([[Li + Ki * s, 0.0] for b, e, Li, Ki in zip(breaks, ends, L, K) for s in (b, e)])
+    for s in (0.05, 0.2, 0.49, 0.6):
+        x, v = com_closed_form(np.array([s]), 0.02, 0.1, breaks, L, K, T, 0.004)
+        pos, vel = lipm.propagate(np.array([0.02, 0.0]), np.array([0.1, 0.0]), 0.0, s, knot_t, knot_p,
+                                  np.array([0.004, 0.0]), T)
+        assert abs(pos[0] - x[0]) < 1e-12 and abs(vel[0] - v[0]) < 1e-12, s
+    xi_start = _dcm_backward(0.31, breaks, L, K, tail, T, 0.004)
+    assert abs(lipm.dcm_backward(np.array([0.31, 0.0]), knot_t, knot_p, np.array([0.004, 0.0]), T)[0] - xi_start) < 1e-12
