@@ -95,6 +95,8 @@ def main() -> None:
     ap.add_argument("gait", help="a gait file with an engine: section (e.g. studies/results/kidsize-engine-carpet4.yaml)")
     ap.add_argument("--dry-run", action="store_true", help="walk the stand-in robot (no hardware)")
     ap.add_argument("--seconds", type=float, default=8.0)
+    ap.add_argument("--record", help="record every tick (what the engine read and asked) as an MCAP file "
+                                     "(gaits/recording.py; needs the mcap package)")
     args = ap.parse_args()
     try:
         gait = gaits.load_gait_file(args.gait)
@@ -112,6 +114,13 @@ def main() -> None:
     robot = StandIn()
     geometry = RobotGeometry(gaits.LegGeometry(), (0.10, 0.055))
     engine, walk = controller(gait, geometry, 0.01)
+    recorder = None
+    if args.record:
+        from gaits.recording import Recorder, RecordingController, RecordingMeta
+        recorder = Recorder(args.record, RecordingMeta(robot="stand-in", task="walk", simulated=True,
+                                                       controller=f"walk engine, {args.gait}",
+                                                       notes="examples/robot_loop.py --dry-run"))
+        walk = RecordingController(walk, recorder)
     robot.write_targets(walk.start_pose().q)
     overruns, t, costs = 0, 0.0, []
 
@@ -129,6 +138,8 @@ def main() -> None:
         overruns += cost > engine.dt
         robot.write_targets(q)          # on a robot: convert to servo units with JOINTS and send
         t += engine.dt
+    if recorder is not None:
+        print(f"recorded {recorder.close()}")
     c = np.array(costs) * 1000
     print(f"{len(c)} ticks: {engine.steps_taken} steps, ended {engine.mode}; controller median {np.median(c):.2f} ms, "
           f"p99 {np.percentile(c, 99):.2f} ms, {overruns} tick(s) over {engine.dt * 1000:.0f} ms")

@@ -323,19 +323,34 @@ def _envelope_note(drive, controller) -> None:
                    f"{', '.join(over)}", err=True)
 
 
-def _walk(drive, robot, sim, duration: float | None, record_qpos: bool = False):
-    """The rollout of a drive on the simulator (the controller it names, for ``duration`` or its own length)."""
+def _walk(drive, robot, sim, duration: float | None, record_qpos: bool = False, record: Path | None = None):
+    """The rollout of a drive on the simulator (the controller it names, for ``duration`` or its own
+    length); with ``record`` (a folder) every tick the controller saw and asked is recorded there as
+    an MCAP file (``gaits/recording.py``), whose path is said on stderr."""
     options = drive.run_options()
     if duration is not None:
         options["duration"] = duration
     controller = drive.controller(robot, sim.control_period)
+    recorder = None
+    if record is not None:
+        from gaits.recording import Recorder, RecordingController, RecordingMeta
+        stem = "".join(c if c.isalnum() or c in "-_." else "_" for c in Path(drive.source or drive.family).stem)
+        meta = RecordingMeta(robot=robot.name, task="walk", simulated=True, controller=drive.describe(),
+                             parameters={} if drive.params is None else drive.params.to_mapping(),
+                             surface=sim.surface.name)
+        recorder = Recorder(record / f"{stem}--{sim.surface.name}.mcap", meta)
+        controller = RecordingController(controller, recorder)
     _envelope_note(drive, controller)
     table = getattr(getattr(controller, "inner", controller), "traj", None)    # planned in advance: checked
     if table is not None:
         problem = sim.range_error(table.q_ref, table.t)
         if problem is not None:       # said, not refused: the papers' own EROS tables ask the built-in robot so
             click.echo(f"note: {drive.source}: {problem}", err=True)
-    trace = sim.run(controller, record_qpos=record_qpos, **options)
+    try:
+        trace = sim.run(controller, record_qpos=record_qpos, **options)
+    finally:
+        if recorder is not None:
+            click.echo(f"recorded {recorder.close()}", err=True)
     if drive.online and drive.command is not None:
         # a held command: its velocity is measured from 2 s after the first step to the stop
         start = float(getattr(drive.engine, "t_stand", 0.0) or 0.0) + 2.0
@@ -499,9 +514,13 @@ def view(robot_name: str, surface_name: str, family: str | None, params_spec: st
 @click.option("--plot", "plot_dir", type=OutPath(file_okay=False),
               help="Write pitch.png and zmp.png into this directory.")
 @SAVE_SCENE_OPTION
+@click.option("--record", "record_dir", type=OutPath(file_okay=False),
+              help="Record every tick (what the controller was given and what it asked) into this folder as an "
+                   "MCAP file (gaits/recording.py); `gait-tuner log info FILE` says what it holds.")
 def simulate(robot_name: str, surface_name: str, family: str | None, params_spec: str | None,
              duration: float | None, command: str | None, commands_file: Path | None, stabiliser: bool | None,
-             controller_file: Path | None, as_json: bool, plot_dir: Path | None, save_scene: Path | None) -> None:
+             controller_file: Path | None, as_json: bool, plot_dir: Path | None, save_scene: Path | None,
+             record_dir: Path | None) -> None:
     """Walk a gait on a robot and a surface in MuJoCo and print its metrics.
 
     A parameter file's IMU stabiliser is used unless --no-stabiliser says otherwise. With
@@ -518,7 +537,7 @@ def simulate(robot_name: str, surface_name: str, family: str | None, params_spec
     drive, robot, sim, duration = _walk_setup(robot_name, surface_name, family, params_spec, duration, command,
                                               commands_file, stabiliser, save_scene, controller_file)
     surface = sim.surface
-    trace = _walk(drive, robot, sim, duration)
+    trace = _walk(drive, robot, sim, duration, record=record_dir)
     metrics = summarize(trace)
     label = drive.source
     commanded = None if drive.command is None else {"vx_mps": drive.command.vx, "vy_mps": drive.command.vy,
@@ -1388,6 +1407,45 @@ def sets(as_json: bool) -> None:
     for r in rows:
         how = "engine" if r["online"] else ("table+imu" if r["stabiliser"] else "table")
         click.echo(f"{r['name']:28s} {r['kind']:8s} {r['family']:7s} {how:9s} {r['source'][:80]}")
+
+
+@cli.group()
+def log() -> None:
+    """Recordings of what a robot (or the simulator) did: MCAP files in the RoboCup HumanoidDataset
+    layout (gaits/recording.py)."""
+
+
+@log.command(name="info")
+@click.argument("recording", type=click.Path(dir_okay=False, path_type=Path))
+@JSON_OPTION
+def log_info(recording: Path, as_json: bool) -> None:
+    """Say what RECORDING holds: its robot, task and controller, its duration, and per channel the
+    messages, the rate and the gaps (intervals over three times the median) or times that go back."""
+    import json
+
+    from gaits.files import MAX_BYTES, read_bytes_checked
+    from gaits.recording import read_recording, recording_info
+    read_bytes_checked(recording, "recording", 1000 * MAX_BYTES["csv"], UserError)     # a regular file of a sane size
+    try:
+        info = recording_info(read_recording(recording))
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
+    if as_json:
+        click.echo(json.dumps(info, allow_nan=False))
+        return
+    meta = info["meta"]
+    click.echo(f"{recording}: robot {meta['robot']}, task {meta['task']}, "
+               f"{'simulated' if meta['simulated'] else 'on the robot'}"
+               + (f" on {meta['surface']}" if meta["surface"] else "") + f"; {info['duration_s']:.2f} s"
+               + ("; the file is cut short: what it held up to the cut" if info["truncated"] else ""))
+    if meta["controller"]:
+        click.echo(f"  controller: {meta['controller']}")
+    for topic, c in info["channels"].items():
+        rate = "-" if c["rate_hz"] is None else f"{c['rate_hz']:.1f} Hz"
+        extra = (f"; {len(c['gaps'])} gap(s), the longest {max(g[1] for g in c['gaps']):.3f} s at "
+                 f"{max(c['gaps'], key=lambda g: g[1])[0]:.2f} s" if c["gaps"] else "")
+        extra += f"; time goes back at {c['backwards'][0]:.3f} s" if c["backwards"] else ""
+        click.echo(f"  {topic:18s} {c['messages']:7d} messages  {rate:>9s}{extra}")
 
 
 @cli.command(name="params")

@@ -1,0 +1,260 @@
+"""Recordings of what a robot did, in the layout the RoboCup community proposes (ours, read from the
+HumanoidDataset proposal's description: one MCAP file per robot run, a metadata record saying
+which robot, joints and task, simulated or not, and time-stamped channels).
+
+A recording is written by whoever runs a controller, on the robot or in the simulator, through
+:class:`RecordingController` (a controller wrapped so that every tick's :class:`Measurement`, walk
+command and returned targets are recorded: what the controller saw and asked, not the simulator's
+ground truth). Channels (JSON messages with a JSON schema; time in each message's ``log_time``,
+nanoseconds, and ``t`` [s] since the start; SI units, gait-tuner's joint names and signs):
+
+=====================  ====================================================================
+``/time``              ``unix_ms``: the wall clock's UNIX time [ms] of the tick (the proposal's)
+``/imu/gyro``          ``x, y, z`` [rad/s] body rates
+``/imu/accel``         ``x, y, z`` [m/s^2] specific force (gravity included)
+``/imu/orientation``   ``roll, pitch, yaw`` [rad]
+``/joints/measured``   ``position`` [rad] and ``velocity`` [rad/s] per joint (``names`` in the metadata)
+``/joints/target``     ``position`` [rad] per joint: what the controller asked for the next tick
+``/feet/force``        ``force`` [N], the eight sole readings (``gaits.control.FOOT_FORCE_LABELS``)
+``/walk/command``      ``vx, vy`` [m/s], ``wz`` [rad/s]
+=====================  ====================================================================
+
+A reading the controller was not given (its ``senses``) is not recorded; a missing command is
+none. Writing needs the ``mcap`` package (``pip install mcap``), as reading does; the rest of the
+robot side needs numpy and PyYAML only. A run that is killed keeps what was flushed: MCAP's
+chunks are written as they fill.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .control import FOOT_FORCE_LABELS, Measurement
+from .trajectory import JOINT_NAMES
+
+__all__ = ["RecordingMeta", "Recorder", "RecordingController", "Recording", "read_recording", "recording_info",
+           "CHANNELS", "METADATA_NAME"]
+
+#: the metadata record's name in the MCAP file
+METADATA_NAME = "humanoid_dataset"
+#: channel -> (schema title, JSON schema properties)
+CHANNELS = {
+    "/time": ("UnixTime", {"unix_ms": "number"}),
+    "/imu/gyro": ("Vector3", {"x": "number", "y": "number", "z": "number"}),
+    "/imu/accel": ("Vector3", {"x": "number", "y": "number", "z": "number"}),
+    "/imu/orientation": ("RollPitchYaw", {"roll": "number", "pitch": "number", "yaw": "number"}),
+    "/joints/measured": ("JointState", {"position": "array", "velocity": "array"}),
+    "/joints/target": ("JointTarget", {"position": "array"}),
+    "/feet/force": ("FootForce", {"force": "array"}),
+    "/walk/command": ("WalkCommand", {"vx": "number", "vy": "number", "wz": "number"}),
+}
+
+
+@dataclass
+class RecordingMeta:
+    """What a recording is of (the proposal's metadata: robot, joints, task, simulated or not)."""
+
+    robot: str                                   # the robot's name
+    task: str = "walk"                           # the primary task: walk, match, push-recovery, sweep, ...
+    simulated: bool = True
+    maker: str = ""
+    model: str = ""
+    joints: list[str] = field(default_factory=lambda: list(JOINT_NAMES))
+    foot_force: list[str] = field(default_factory=lambda: list(FOOT_FORCE_LABELS))
+    controller: str = ""                         # what drove the joints
+    parameters: dict = field(default_factory=dict)    # its parameters
+    surface: str = ""
+    location: str = ""
+    notes: str = ""
+
+    def to_strings(self) -> dict[str, str]:
+        """MCAP metadata holds strings: lists and mappings as JSON."""
+        return {k: (v if isinstance(v, str) else json.dumps(v)) for k, v in asdict(self).items()}
+
+    @classmethod
+    def from_strings(cls, d: dict[str, str]) -> "RecordingMeta":
+        """The metadata read back (text fields as they are, the others from JSON; unknown keys kept
+        out); a missing robot name or a field that does not parse is a ValueError."""
+        fields_ = cls.__dataclass_fields__
+        out = {k: (v if fields_[k].type == "str" else json.loads(v)) for k, v in d.items() if k in fields_}
+        if "robot" not in out:
+            raise ValueError("its metadata names no robot")
+        return cls(**out)
+
+
+def _mcap():
+    try:
+        from mcap.writer import CompressionType, Writer
+    except ImportError:
+        raise ImportError("recordings need the mcap package: pip install mcap") from None
+    return Writer, CompressionType
+
+
+def _list(v: Any) -> list[float]:
+    return [float(x) for x in np.asarray(v, dtype=float).ravel()]
+
+
+class Recorder:
+    """Writes one recording (an MCAP file). ``start_ns``: the wall clock of t = 0 [ns since the
+    UNIX epoch] (default: now)."""
+
+    def __init__(self, path: str | Path, meta: RecordingMeta, start_ns: int | None = None) -> None:
+        Writer, Compression = _mcap()
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._fh = open(self.path, "wb")
+        # small chunks (~0.3 s of a 100 Hz walk): a run killed mid-way loses at most the last one
+        self._w = Writer(self._fh, compression=Compression.ZSTD, chunk_size=32 * 1024)
+        self._w.start(profile="", library="gait-tuner")
+        self._w.add_metadata(METADATA_NAME, meta.to_strings())
+        self._ids = {}
+        for topic, (title, props) in CHANNELS.items():
+            schema = {"title": title, "type": "object",
+                      "properties": {"t": {"type": "number"},
+                                     **{k: ({"type": "array", "items": {"type": "number"}} if t == "array"
+                                            else {"type": t}) for k, t in props.items()}}}
+            sid = self._w.register_schema(title, "jsonschema", json.dumps(schema).encode())
+            self._ids[topic] = self._w.register_channel(topic, "json", sid)
+        self.start_ns = time.time_ns() if start_ns is None else int(start_ns)
+        self.messages = 0
+
+    def _put(self, topic: str, t: float, body: dict) -> None:
+        ns = self.start_ns + int(round(t * 1e9))
+        self._w.add_message(self._ids[topic], log_time=ns, publish_time=ns, sequence=self.messages,
+                            data=json.dumps({"t": t, **body}, separators=(",", ":")).encode())
+        self.messages += 1
+
+    def record(self, m: Measurement, command: Any = None, targets: Any = None) -> None:
+        """One tick: what the controller was given (``m``, ``command``) and what it returned."""
+        t = float(m.t)
+        self._put("/time", t, {"unix_ms": (self.start_ns + t * 1e9) / 1e6})
+        if m.gyro is not None:
+            self._put("/imu/gyro", t, dict(zip("xyz", _list(m.gyro))))
+        if m.accel is not None:
+            self._put("/imu/accel", t, dict(zip("xyz", _list(m.accel))))
+        if m.imu_rpy is not None:
+            self._put("/imu/orientation", t, dict(zip(("roll", "pitch", "yaw"), _list(m.imu_rpy))))
+        if m.q is not None:
+            self._put("/joints/measured", t, {"position": _list(m.q),
+                                               "velocity": [] if m.dq is None else _list(m.dq)})
+        if targets is not None:
+            self._put("/joints/target", t, {"position": _list(targets)})
+        if m.foot_force is not None:
+            self._put("/feet/force", t, {"force": _list(m.foot_force)})
+        if command is not None:
+            self._put("/walk/command", t, dict(zip(("vx", "vy", "wz"), _list(command))))
+
+    def close(self) -> Path:
+        self._w.finish()
+        self._fh.close()
+        return self.path
+
+    def __enter__(self) -> "Recorder":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+
+class RecordingController:
+    """A controller whose every tick is recorded (``gaits.control.Controller``: every attribute is
+    the wrapped one's)."""
+
+    def __init__(self, inner: Any, recorder: Recorder) -> None:
+        self.inner = inner
+        self.recorder = recorder
+
+    def __getattr__(self, name: str) -> Any:
+        if name == "inner":
+            raise AttributeError(name)
+        return getattr(self.inner, name)
+
+    def start_pose(self) -> Any:
+        return self.inner.start_pose()
+
+    def reset(self, m: Measurement) -> None:
+        self.inner.reset(m)
+
+    def step(self, m: Measurement, command: Any = None) -> np.ndarray:
+        q = self.inner.step(m, command)
+        self.recorder.record(m, command, q)
+        return q
+
+    def plan(self, n: int) -> Any:
+        return self.inner.plan(n)
+
+
+@dataclass
+class Recording:
+    """A recording read back: its metadata and, per channel, the times [s] and the values (rows)."""
+
+    meta: RecordingMeta
+    channels: dict[str, tuple[np.ndarray, list[dict]]]
+    truncated: bool = False                      # the file was cut short: what it held up to the cut
+
+    def times(self, topic: str) -> np.ndarray:
+        return self.channels.get(topic, (np.zeros(0), []))[0]
+
+    def values(self, topic: str, key: str) -> np.ndarray:
+        """One field of a channel's messages as an array (rows for list fields)."""
+        rows = self.channels.get(topic, (None, []))[1]
+        return np.array([r[key] for r in rows], dtype=float)
+
+
+def read_recording(path: str | Path) -> Recording:
+    """Read a recording written by :class:`Recorder`, record by record: a file cut short (a run that
+    was killed, a disk that filled) gives what it holds up to the cut, ``truncated``; one that is not
+    a recording, or holds none of its metadata and messages, is a ValueError naming why."""
+    _mcap()
+    from mcap.records import Channel, Message, Metadata
+    from mcap.stream_reader import StreamReader
+    path = Path(path)
+    meta, topics, found, truncated = None, {}, {}, False
+    with open(path, "rb") as fh:
+        try:
+            for record in StreamReader(fh, record_size_limit=1 << 28).records:
+                if isinstance(record, Metadata) and record.name == METADATA_NAME:
+                    meta = dict(record.metadata)
+                elif isinstance(record, Channel):
+                    topics[record.id] = record.topic
+                elif isinstance(record, Message):
+                    body = json.loads(record.data)
+                    ts, rows = found.setdefault(topics[record.channel_id], ([], []))
+                    ts.append(float(body.pop("t")))
+                    rows.append(body)
+        except Exception as exc:  # noqa: BLE001 - the reader's errors on a cut or damaged file are many kinds
+            if meta is None or not found:
+                raise ValueError(f"{path}: not a readable recording ({type(exc).__name__}: "
+                                 f"{' '.join(str(exc).split())[:200]})") from None
+            truncated = True
+    if meta is None:
+        raise ValueError(f"{path}: no {METADATA_NAME} metadata: not a recording in this layout")
+    try:
+        info = RecordingMeta.from_strings(meta)
+    except (ValueError, TypeError) as exc:
+        raise ValueError(f"{path}: its {METADATA_NAME} metadata does not read: {exc}") from None
+    return Recording(info, {k: (np.array(ts), rows) for k, (ts, rows) in found.items()}, truncated)
+
+
+def recording_info(rec: Recording, gap_factor: float = 3.0) -> dict[str, Any]:
+    """What a recording holds: its metadata, duration [s], and per channel the messages, the rate
+    [Hz] (median interval) and its gaps (intervals over ``gap_factor`` times the median:
+    (start [s], length [s])); and the time going backwards, where it does."""
+    out: dict[str, Any] = {"meta": asdict(rec.meta), "truncated": rec.truncated, "channels": {}}
+    t_all = [ts for ts, _ in rec.channels.values() if len(ts)]
+    out["duration_s"] = float(max(ts.max() for ts in t_all) - min(ts.min() for ts in t_all)) if t_all else 0.0
+    for topic, (ts, _) in sorted(rec.channels.items()):
+        d = np.diff(ts)
+        med = float(np.median(d)) if len(d) else math.nan
+        gaps = [(float(ts[i]), float(d[i])) for i in np.flatnonzero(d > gap_factor * med)] if len(d) else []
+        back = [float(ts[i + 1]) for i in np.flatnonzero(d < 0)]
+        out["channels"][topic] = {"messages": int(len(ts)), "rate_hz": (1.0 / med) if med and med > 0 else None,
+                                  "gaps": gaps, "backwards": back}
+    return out

@@ -1,0 +1,101 @@
+"""Recordings (gaits/recording.py, `simulate --record`, `gait-tuner log info`): MCAP files in the
+HumanoidDataset layout that read back equal, say what they hold, survive being cut short, and
+refuse to be what they are not in one line."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from conftest import ROOT
+from gaits.control import Measurement
+from gaits.recording import CHANNELS, Recorder, RecordingMeta, read_recording, recording_info
+
+
+def _ticks(n=250, seed=0):
+    rng = np.random.default_rng(seed)
+    for k in range(n):
+        yield (Measurement(k * 0.01, q=rng.normal(size=20), dq=rng.normal(size=20), imu_rpy=rng.normal(size=3),
+                           gyro=rng.normal(size=3), accel=rng.normal(size=3), foot_force=rng.uniform(0, 20, 8)),
+               rng.normal(size=3), rng.normal(size=20))
+
+
+def test_a_recording_reads_back_equal(tmp_path):
+    meta = RecordingMeta(robot="kid", task="match", simulated=False, maker="us", parameters={"period": 0.3},
+                         surface="grass30")
+    with Recorder(tmp_path / "r.mcap", meta, start_ns=1_700_000_000_000_000_000) as rec:
+        ticks = list(_ticks())
+        for m, c, q in ticks:
+            rec.record(m, c, q)
+    back = read_recording(tmp_path / "r.mcap")
+    assert back.meta == meta and not back.truncated and set(back.channels) == set(CHANNELS)
+    assert np.array_equal(back.values("/joints/measured", "position"), np.array([m.q for m, _, _ in ticks]))
+    assert np.array_equal(back.values("/joints/target", "position"), np.array([q for _, _, q in ticks]))
+    assert np.array_equal(back.values("/feet/force", "force"), np.array([m.foot_force for m, _, _ in ticks]))
+    assert np.array_equal(back.values("/walk/command", "wz"), np.array([c[2] for _, c, _ in ticks]))
+    assert np.array_equal(back.values("/imu/orientation", "pitch"), np.array([m.imu_rpy[1] for m, _, _ in ticks]))
+    assert np.array_equal(back.times("/imu/gyro"), np.array([m.t for m, _, _ in ticks]))
+    assert back.values("/time", "unix_ms")[1] == pytest.approx(1_700_000_000_000.0 + 10.0)
+    info = recording_info(back)
+    assert info["duration_s"] == pytest.approx(2.49) and info["channels"]["/imu/gyro"]["rate_hz"] == pytest.approx(100)
+    assert all(c["gaps"] == [] and c["backwards"] == [] for c in info["channels"].values())
+
+
+def test_gaps_and_time_going_back_are_named(tmp_path):
+    with Recorder(tmp_path / "g.mcap", RecordingMeta(robot="kid")) as rec:
+        for t in [0.0, 0.01, 0.02, 0.5, 0.51, 0.505, 0.52]:
+            rec.record(Measurement(t, gyro=np.zeros(3)))
+    c = recording_info(read_recording(tmp_path / "g.mcap"))["channels"]["/imu/gyro"]
+    assert c["gaps"] == [(0.02, pytest.approx(0.48))] and c["backwards"] == [0.505]
+
+
+def test_a_recording_cut_short_gives_what_it_held(tmp_path):
+    path = tmp_path / "r.mcap"
+    with Recorder(path, RecordingMeta(robot="kid")) as rec:
+        for m, c, q in _ticks(1000):
+            rec.record(m, c, q)
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(path.read_bytes()[:path.stat().st_size // 2])
+    back = read_recording(cut)
+    n = len(back.times("/joints/target"))
+    assert back.truncated and 100 < n < 1000
+    assert np.array_equal(back.values("/joints/target", "position"), np.array([q for _, _, q in _ticks(1000)])[:n])
+
+
+@pytest.mark.parametrize("content, words", [(b"", "not a readable recording"), (b"hello world" * 100, "not a readable"),
+                                            ((ROOT / "README.md").read_bytes(), "not a readable recording")])
+def test_what_is_not_a_recording_is_one_line(tmp_path, gait_tuner_cmd, run_env, content, words):
+    bad = tmp_path / "bad.mcap"
+    bad.write_bytes(content)
+    r = subprocess.run(gait_tuner_cmd + ["log", "info", str(bad)], capture_output=True, text=True, env=run_env)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and words in r.stderr, r.stderr
+
+
+def test_simulate_records_and_log_info_says_what_it_holds(tmp_path, gait_tuner_cmd, run_env):
+    r = subprocess.run(gait_tuner_cmd + ["simulate", "--params", "kidsize-engine-carpet4", "--surface", "carpet4",
+                                         "--command", "0.2,0,0", "--duration", "2", "--record", str(tmp_path)],
+                       capture_output=True, text=True, env=run_env)
+    assert r.returncode == 0, r.stderr
+    [path] = tmp_path.glob("*.mcap")
+    assert f"recorded {path}" in r.stderr
+    r = subprocess.run(gait_tuner_cmd + ["log", "info", str(path), "--json"], capture_output=True, text=True,
+                       env=run_env)
+    info = json.loads(r.stdout)
+    assert info["meta"]["robot"] == "kidsize" and info["meta"]["simulated"] and info["meta"]["surface"] == "carpet4"
+    assert set(info["channels"]) == set(CHANNELS) and not info["truncated"]
+    assert {c["messages"] for c in info["channels"].values()} == {200}
+    assert all(c["rate_hz"] == pytest.approx(100.0) for c in info["channels"].values())
+
+
+def test_the_robot_loop_records(tmp_path):
+    out = tmp_path / "loop.mcap"
+    r = subprocess.run([sys.executable, str(ROOT / "examples" / "robot_loop.py"),
+                        str(ROOT / "studies" / "results" / "kidsize-engine-carpet4.yaml"), "--dry-run", "--seconds", "1",
+                        "--record", str(out)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    back = read_recording(out)
+    assert back.meta.robot == "stand-in" and len(back.times("/joints/target")) == 100
