@@ -3,8 +3,9 @@ write the servo targets. It imports numpy and the engine (``gaits``: numpy and P
 
     python examples/robot_loop.py GAIT.yaml --dry-run      # here: a stand-in robot, no hardware
 
-Porting it: replace :class:`StandIn` by your robot's driver (the four methods it has), set
-:data:`JOINTS` to your servos (our joint name -> servo id, sign, zero offset [rad]), and take the
+Porting it: replace :class:`StandIn` by your robot's driver (the four methods it has), give it your
+robot file (``gait-tuner robot export MAP --out robot.yaml``, then ``--robot robot.yaml``: the legs,
+soles and each joint's servo id, units, direction and offset, nothing copied by hand), and take the
 walk command from your behaviour (here: forward for 3 s, turning for 2 s, then stop). The engine
 wants, each tick, the encoders in our joint convention (``gaits.JOINT_NAMES``, signs as
 ``gait-tuner robot check`` lists them), the IMU's roll, pitch, yaw [rad] and rates [rad/s], its
@@ -31,8 +32,6 @@ import numpy as np
 import gaits
 from gaits.control import Measurement, Stabilised
 
-#: our joint name -> (servo id, sign, zero offset [rad]) of your robot (an example layout)
-JOINTS = {name: (i + 1, 1, 0.0) for i, name in enumerate(gaits.JOINT_NAMES)}
 LEGS = {1: slice(gaits.JOINT_NAMES.index("l_hip_yaw"), gaits.JOINT_NAMES.index("l_hip_yaw") + 6),
         -1: slice(gaits.JOINT_NAMES.index("r_hip_yaw"), gaits.JOINT_NAMES.index("r_hip_yaw") + 6)}
 
@@ -95,6 +94,8 @@ def main() -> None:
     ap.add_argument("gait", help="a gait file with an engine: section (e.g. studies/results/kidsize-engine-carpet4.yaml)")
     ap.add_argument("--dry-run", action="store_true", help="walk the stand-in robot (no hardware)")
     ap.add_argument("--seconds", type=float, default=8.0)
+    ap.add_argument("--robot", help="the robot file (gait-tuner robot export MAP --out robot.yaml): its legs, soles "
+                                    "and servos; default: the built-in robot's geometry")
     ap.add_argument("--record", help="record every tick (what the engine read and asked) as an MCAP file "
                                      "(gaits/recording.py; needs the mcap package)")
     args = ap.parse_args()
@@ -112,7 +113,15 @@ def main() -> None:
     if not args.dry_run:
         raise SystemExit("connect your robot's driver in place of StandIn, then drop --dry-run")
     robot = StandIn()
-    geometry = RobotGeometry(gaits.LegGeometry(), (0.10, 0.055))
+    robot_file = None
+    if args.robot:
+        from gaits.robot_file import load_robot_file
+        try:
+            robot_file = load_robot_file(args.robot)
+        except gaits.ParamError as exc:
+            print(f"robot_loop: error: {exc}", file=sys.stderr)
+            raise SystemExit(2) from None
+    geometry = robot_file or RobotGeometry(gaits.LegGeometry(), (0.10, 0.055))
     engine, walk = controller(gait, geometry, 0.01)
     recorder = None
     if args.record:
@@ -122,7 +131,7 @@ def main() -> None:
                                                        notes="examples/robot_loop.py --dry-run"))
         walk = RecordingController(walk, recorder)
     robot.write_targets(walk.start_pose().q)
-    overruns, t, costs = 0, 0.0, []
+    overruns, t, costs, sent = 0, 0.0, [], {}
 
     def measure(t: float) -> Measurement:
         q, dq = robot.read_encoders()
@@ -136,10 +145,15 @@ def main() -> None:
         cost = time.perf_counter() - t0
         costs.append(cost)
         overruns += cost > engine.dt
-        robot.write_targets(q)          # on a robot: convert to servo units with JOINTS and send
+        robot.write_targets(q)          # on a robot: the servo positions below, sent on the bus
+        if robot_file is not None:
+            sent = robot_file.to_servos(q)    # {servo id: position}: what a Dynamixel sync write sends
         t += engine.dt
     if recorder is not None:
         print(f"recorded {recorder.close()}")
+    if robot_file is not None:
+        print(f"robot {robot_file.robot}: {len(sent)} servo position(s) a tick from its robot file "
+              f"({len(robot_file.joints) - len(sent)} joint(s) without a servo id)")
     c = np.array(costs) * 1000
     print(f"{len(c)} ticks: {engine.steps_taken} steps, ended {engine.mode}; controller median {np.median(c):.2f} ms, "
           f"p99 {np.percentile(c, 99):.2f} ms, {overruns} tick(s) over {engine.dt * 1000:.0f} ms")

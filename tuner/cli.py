@@ -1311,6 +1311,42 @@ def robot() -> None:
     """Check a robot before you tune for it (the built-in `kidsize` or your robot map YAML)."""
 
 
+@robot.command(name="export")
+@click.argument("robot_spec", metavar="MAP|NAME")
+@click.option("--out", "out", required=True, type=OutPath(dir_okay=False),
+              help="The robot file to write (YAML, read by gaits.robot_file on the robot).")
+def robot_export(robot_spec: str, out: Path) -> None:
+    """Write the one robot file the robot side needs: leg geometry, soles, mass, joint order and
+    signs, ranges, servo limits, and each joint's servo id, units, direction and offset (the map's
+    servos: section), so the loop on the robot loads no robot model and copies no number by hand."""
+    from gaits.robot_file import JointSpec, RobotFile, save_robot_file
+    from .report.provenance import commit_of
+    from .robots import load_robot
+    robot = load_robot(robot_spec)
+    model = robot.model()
+    names = [theirs for theirs, _ in robot.joint_map.values()]
+    lo, hi = robot.joint_ranges(names)
+    joints = {}
+    for (ours, (theirs, sign)), low, high in zip(robot.joint_map.items(), lo, hi):
+        servo = robot.servos.get(theirs)
+        joints[ours] = JointSpec(theirs, int(sign), float(low) if np.isfinite(low) else -np.pi,
+                                 float(high) if np.isfinite(high) else np.pi,
+                                 float(servo.speed) if servo else 6.5, float(servo.torque) if servo else 6.0,
+                                 robot.servo_units.get(theirs))
+    held = {j: float(v) for j, v in robot.pose.items() if j not in names}
+    rf = RobotFile(robot.name, robot.leg, tuple(float(v) for v in robot.foot_size), joints,
+                   robot.sim.control_period, float(np.sum(model.body_mass)), held)
+    source = robot.map_path or robot_spec
+    save_robot_file(out, rf, f"gait-tuner robot file of {robot.name} (from {source}{commit_of(__file__)}); "
+                             f"read by gaits.robot_file.load_robot_file on the robot")
+    with_servo = sum(j.servo is not None for j in joints.values())
+    click.echo(f"wrote {out}: {len(joints)} joints ({with_servo} with a servo id), {len(held)} held, "
+               f"{rf.mass:.2f} kg")
+    if with_servo < len(joints):
+        click.echo(f"note: {len(joints) - with_servo} joint(s) have no servo id: give the map a servos: section "
+                   f"(id, ticks_per_turn or units_per_rad, centre, direction, offset) to drive them", err=True)
+
+
 @robot.command(name="check")
 @click.argument("robot_spec", metavar="MAP|NAME")
 @JSON_OPTION

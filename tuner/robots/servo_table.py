@@ -16,10 +16,11 @@ tick (``units_per_rad`` may replace ``ticks_per_turn``). Pure numpy; the CLI wri
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import Any, Mapping
 
 import numpy as np
+
+from gaits.robot_file import ServoUnit, from_units, to_units   # the one definition (the robot side's)
 
 from ..errors import UserError
 
@@ -30,17 +31,6 @@ SERVO_UNIT_FIELDS = ("id", "ticks_per_turn", "units_per_rad", "centre", "directi
 #: [ticks] the coarsest servo a table is written for (ours: 1.4 deg a tick; hobby servos give
 #: 1024 over 300 deg, Dynamixel 4096 a turn)
 MIN_TICKS_PER_TURN = 256
-
-
-@dataclass(frozen=True)
-class ServoUnit:
-    """How one joint's servo is addressed and what a unit of its position is."""
-
-    id: int
-    units_per_rad: float = 4096 / (2 * math.pi)   # [ticks/rad] (4096 ticks per turn, Dynamixel)
-    centre: float = 2048.0                        # [ticks] the position sent for the servo's zero
-    direction: int = 1                            # +1 or -1: the servo counts the file's way or against it
-    offset: float = 0.0                           # [rad] added to the file's angle before conversion
 
 
 def _number(v: Any, where: str, lo: float, hi: float, unit: str, strict_low: bool = False) -> float:
@@ -105,17 +95,6 @@ def read_servo_units(doc: Any, joints: tuple[str, ...], source: str) -> dict[str
     if dup:
         raise UserError(f"{source}: servos: id {dup[0]} given to more than one joint")
     return out
-
-
-def to_units(q: np.ndarray, u: ServoUnit) -> np.ndarray:
-    """Angles [rad, the file's convention] -> the servo's integer positions."""
-    return np.rint(u.centre + u.direction * (np.asarray(q, float) + u.offset) * u.units_per_rad).astype(np.int64)
-
-
-def from_units(ticks: np.ndarray, u: ServoUnit) -> np.ndarray:
-    """The servo's positions -> angles [rad, the file's convention] (the inverse of :func:`to_units`
-    up to its rounding: half a tick)."""
-    return (np.asarray(ticks, float) - u.centre) / (u.direction * u.units_per_rad) - u.offset
 
 
 def turn_units(u: ServoUnit) -> int:

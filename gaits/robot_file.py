@@ -1,0 +1,220 @@
+"""One robot file for the robot side (ours): everything the loop on the robot needs, written once by
+``gait-tuner robot export MAP --out robot.yaml`` from the robot's own model and map, read here with
+numpy and PyYAML only (no MuJoCo, no built-in geometry on the robot side)::
+
+    robot: kid3kg                  # its name
+    control_period: 0.01           # [s]
+    mass: 3.154                    # [kg] the whole robot
+    foot_size: [0.127, 0.078]      # [m] the sole's bounding box (length, width)
+    leg: {thigh: 0.11, shank: 0.11, ...}   # [m] gaits.LegGeometry's fields, derived from the joint axes
+    joints:                        # our joint name (gaits.JOINT_NAMES) -> the robot's joint
+      l_knee: {name: Knee_L, sign: 1, lower: -2.6, upper: 0.0, speed: 6.5, torque: 6.0,
+               servo: {id: 14, units_per_rad: 651.9, centre: 2048, direction: -1, offset: 0.05}}
+    held: {HeadPan_C: 0.0}         # joints of the robot not mapped, held at an angle [rad, its convention]
+
+An angle goes from our convention (gaits' joint signs, what the engine returns) to the robot's by
+its ``sign`` (q_robot = sign q_ours), then to the servo's units by ``servo``: ticks = centre +
+direction (q_robot + offset) units_per_rad, rounded (the map's ``servos:`` section, the same formula
+``--format servo`` tables use). Ranges [rad] are the robot's own (``lower``, ``upper``: the robot's
+convention); a target outside is clipped before it is sent.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from .files import MAX_BYTES, read_bytes_checked, write_text_atomic
+from .leg_kinematics import LegGeometry
+from .params import ParamError
+from .trajectory import JOINT_NAMES
+
+__all__ = ["ServoUnit", "JointSpec", "RobotFile", "load_robot_file", "save_robot_file", "to_units", "from_units"]
+
+
+@dataclass(frozen=True)
+class ServoUnit:
+    """How one joint's servo is addressed and what a unit of its position is."""
+
+    id: int
+    units_per_rad: float = 4096 / (2 * math.pi)   # [ticks/rad] (4096 ticks per turn, Dynamixel)
+    centre: float = 2048.0                        # [ticks] the position sent for the servo's zero
+    direction: int = 1                            # +1 or -1: the servo counts the file's way or against it
+    offset: float = 0.0                           # [rad] added to the file's angle before conversion
+
+
+def to_units(q: np.ndarray, u: ServoUnit) -> np.ndarray:
+    """Angles [rad, the robot file's convention] -> the servo's integer positions."""
+    return np.rint(u.centre + u.direction * (np.asarray(q, float) + u.offset) * u.units_per_rad).astype(np.int64)
+
+
+def from_units(ticks: np.ndarray, u: ServoUnit) -> np.ndarray:
+    """The servo's positions -> angles [rad, the robot's convention] (the inverse of :func:`to_units`
+    up to its rounding: half a tick)."""
+    return (np.asarray(ticks, float) - u.centre) / (u.direction * u.units_per_rad) - u.offset
+
+
+@dataclass(frozen=True)
+class JointSpec:
+    """One of our joints on the robot: its name there, its sign, range, servo limits and servo."""
+
+    name: str
+    sign: int = 1
+    lower: float = -math.pi           # [rad] the robot's convention
+    upper: float = math.pi
+    speed: float = 6.5                # [rad/s]
+    torque: float = 6.0               # [N m]
+    servo: ServoUnit | None = None
+
+
+@dataclass(frozen=True)
+class RobotFile:
+    """A robot as its loop sees it (the module docstring); it is a ``gaits.families.RobotGeometry``."""
+
+    robot: str
+    leg: LegGeometry
+    foot_size: tuple[float, float]
+    joints: Mapping[str, JointSpec]
+    control_period: float = 0.01
+    mass: float = 0.0
+    held: Mapping[str, float] = field(default_factory=dict)
+
+    def to_robot(self, q_ours: np.ndarray) -> dict[str, float]:
+        """Our 20 targets [rad] -> {the robot's joint name: angle [rad, its convention]}, clipped into
+        each joint's range (joints the robot lacks are left out)."""
+        q = np.asarray(q_ours, dtype=float)
+        return {j.name: float(min(max(j.sign * q[JOINT_NAMES.index(ours)], j.lower), j.upper))
+                for ours, j in self.joints.items()}
+
+    def to_servos(self, q_ours: np.ndarray) -> dict[int, int]:
+        """Our 20 targets [rad] -> {servo id: position} for the joints that have a servo."""
+        angles = self.to_robot(q_ours)
+        return {j.servo.id: int(to_units(angles[j.name], j.servo)) for j in self.joints.values()
+                if j.servo is not None}
+
+    def from_servos(self, ticks: Mapping[int, int]) -> np.ndarray:
+        """{servo id: position} read from the bus -> our 20 angles [rad] (NaN for a joint not read)."""
+        q = np.full(len(JOINT_NAMES), np.nan)
+        for ours, j in self.joints.items():
+            if j.servo is not None and j.servo.id in ticks:
+                q[JOINT_NAMES.index(ours)] = j.sign * float(from_units(ticks[j.servo.id], j.servo))
+        return q
+
+
+def _num(v: Any, what: str, source: str, lo: float = -math.inf, hi: float = math.inf) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or not lo <= v <= hi:
+        raise ParamError(f"{source}: {what} = {v!r}: expected a finite number in [{lo:g}, {hi:g}]")
+    return float(v)
+
+
+def _mapping(v: Any, what: str, source: str) -> Mapping:
+    if not isinstance(v, Mapping):
+        raise ParamError(f"{source}: {what} must be a mapping")
+    return v
+
+
+def _known(doc: Mapping, allowed: tuple[str, ...], what: str, source: str) -> None:
+    for k in doc:
+        if k not in allowed:
+            raise ParamError(f"{source}: {what}: unknown key {k!r} (allowed: {', '.join(allowed)})")
+
+
+def load_robot_file(path: str | Path) -> RobotFile:
+    """Read and check a robot file (one line naming the file, the field and the value for a mistake)."""
+    import yaml
+    path = Path(path)
+    source = str(path)
+    raw = read_bytes_checked(path, "robot file", MAX_BYTES["yaml"], ParamError)
+    try:
+        doc = yaml.safe_load(raw.decode("utf-8"))
+    except (UnicodeDecodeError, yaml.YAMLError) as exc:
+        raise ParamError(f"{source}: not a YAML robot file ({' '.join(str(exc).split())[:200]})") from None
+    doc = _mapping(doc, "the file", source)
+    _known(doc, ("robot", "control_period", "mass", "foot_size", "leg", "joints", "held"), "the file", source)
+    for k in ("robot", "leg", "foot_size", "joints"):
+        if k not in doc:
+            raise ParamError(f"{source}: missing {k!r} (write it with gait-tuner robot export MAP --out FILE)")
+    leg_doc = _mapping(doc["leg"], "leg", source)
+    leg_fields = tuple(f.name for f in fields(LegGeometry))
+    _known(leg_doc, leg_fields, "leg", source)
+    try:
+        leg = LegGeometry(**{k: _num(v, f"leg.{k}", source) for k, v in leg_doc.items()})
+    except (ValueError, TypeError) as exc:
+        raise ParamError(f"{source}: {exc}") from None
+    fs = doc["foot_size"]
+    if not isinstance(fs, list) or len(fs) != 2:
+        raise ParamError(f"{source}: foot_size = {fs!r}: expected [length, width] [m]")
+    foot = (_num(fs[0], "foot_size[0]", source, 0.01, 1.0), _num(fs[1], "foot_size[1]", source, 0.01, 1.0))
+    joints = {}
+    ids = {}
+    for ours, j in _mapping(doc["joints"], "joints", source).items():
+        if ours not in JOINT_NAMES:
+            raise ParamError(f"{source}: joints: {ours!r} is not one of our joints ({', '.join(JOINT_NAMES)})")
+        j = _mapping(j, f"joints.{ours}", source)
+        _known(j, ("name", "sign", "lower", "upper", "speed", "torque", "servo"), f"joints.{ours}", source)
+        if not isinstance(j.get("name"), str) or not j["name"]:
+            raise ParamError(f"{source}: joints.{ours}.name: the robot's joint name is missing")
+        sign = j.get("sign", 1)
+        if sign not in (1, -1) or isinstance(sign, bool):
+            raise ParamError(f"{source}: joints.{ours}.sign = {sign!r}: must be 1 or -1")
+        lower = _num(j.get("lower", -math.pi), f"joints.{ours}.lower", source)
+        upper = _num(j.get("upper", math.pi), f"joints.{ours}.upper", source)
+        if lower > upper:
+            raise ParamError(f"{source}: joints.{ours}: lower = {lower:g} is above upper = {upper:g} rad")
+        servo = None
+        if j.get("servo") is not None:
+            s = _mapping(j["servo"], f"joints.{ours}.servo", source)
+            _known(s, ("id", "units_per_rad", "centre", "direction", "offset"), f"joints.{ours}.servo", source)
+            sid = s.get("id")
+            if not isinstance(sid, int) or isinstance(sid, bool) or not 0 <= sid <= 253:
+                raise ParamError(f"{source}: joints.{ours}.servo.id = {sid!r}: expected an integer in [0, 253]")
+            if sid in ids:
+                raise ParamError(f"{source}: servo id {sid} given to {ids[sid]} and {ours}")
+            ids[sid] = ours
+            direction = s.get("direction", 1)
+            if direction not in (1, -1) or isinstance(direction, bool):
+                raise ParamError(f"{source}: joints.{ours}.servo.direction = {direction!r}: must be 1 or -1")
+            servo = ServoUnit(sid, _num(s.get("units_per_rad", 4096 / (2 * math.pi)), f"joints.{ours}.servo.units_per_rad",
+                                        source, 1e-3, 1e7),
+                              _num(s.get("centre", 2048.0), f"joints.{ours}.servo.centre", source),
+                              int(direction), _num(s.get("offset", 0.0), f"joints.{ours}.servo.offset", source,
+                                                   -math.pi, math.pi))
+        joints[ours] = JointSpec(j["name"], int(sign), lower, upper,
+                                 _num(j.get("speed", 6.5), f"joints.{ours}.speed", source, 0.01, 100.0),
+                                 _num(j.get("torque", 6.0), f"joints.{ours}.torque", source, 0.01, 1000.0), servo)
+    missing = [n for n in JOINT_NAMES if n[2:] in ("hip_yaw", "hip_roll", "hip_pitch", "knee", "ankle_pitch",
+                                                   "ankle_roll") and n not in joints]
+    if missing:
+        raise ParamError(f"{source}: joints: the leg joints {', '.join(missing)} are missing")
+    held = {str(k): _num(v, f"held.{k}", source) for k, v in _mapping(doc.get("held") or {}, "held", source).items()}
+    name = doc["robot"]
+    if not isinstance(name, str) or not name:
+        raise ParamError(f"{source}: robot = {name!r}: expected the robot's name")
+    return RobotFile(name, leg, foot, joints, _num(doc.get("control_period", 0.01), "control_period", source,
+                                                   1e-4, 1.0), _num(doc.get("mass", 0.0), "mass", source, 0.0, 1000.0),
+                     held)
+
+
+def save_robot_file(path: str | Path, robot: RobotFile, header: str = "") -> Path:
+    """Write a robot file that :func:`load_robot_file` reads back equal."""
+    import yaml
+
+    def r(v: float) -> float:
+        return float(v)
+    doc = {"robot": robot.robot, "control_period": r(robot.control_period), "mass": r(robot.mass),
+           "foot_size": [r(robot.foot_size[0]), r(robot.foot_size[1])],
+           "leg": {f.name: r(getattr(robot.leg, f.name)) for f in fields(LegGeometry)},
+           "joints": {}, "held": {k: r(v) for k, v in robot.held.items()}}
+    for ours, j in robot.joints.items():
+        entry = {"name": j.name, "sign": j.sign, "lower": r(j.lower), "upper": r(j.upper), "speed": r(j.speed),
+                 "torque": r(j.torque)}
+        if j.servo is not None:
+            entry["servo"] = {"id": j.servo.id, "units_per_rad": r(j.servo.units_per_rad), "centre": r(j.servo.centre),
+                              "direction": j.servo.direction, "offset": r(j.servo.offset)}
+        doc["joints"][ours] = entry
+    text = (f"# {header}\n" if header else "") + yaml.safe_dump(doc, sort_keys=False, default_flow_style=None)
+    return write_text_atomic(path, text)
