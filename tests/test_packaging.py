@@ -105,3 +105,43 @@ def test_the_installed_wheel_tunes_a_shipped_study_from_an_empty_folder(installe
     r = _run(installed, "simulate", "--params", "kidsize-engine-carpet4", "--surface", "carpet4",
              "--command", "0.1,0,0", "--duration", "2")
     assert r.returncode == 0, r.stderr[-2000:]
+
+
+def test_the_robot_part_lists_every_package_of_gaits():
+    conf = tomllib.loads((ROOT / "robot" / "pyproject.toml").read_text())
+    listed = set(conf["tool"]["setuptools"]["packages"])
+    tree = {".".join(p.parent.relative_to(ROOT).parts) for p in (ROOT / "gaits").rglob("__init__.py")}
+    assert listed == tree
+    assert conf["project"]["dependencies"] == ["numpy>=1.26", "pyyaml>=6.0"]
+
+
+def test_the_robot_part_installs_and_runs_its_loop_without_the_simulator(tmp_path):
+    """Built from the checkout, installed into a fresh venv with pip (its numpy and PyYAML from the
+    package index or pip's cache), it runs the loop on a robot file; MuJoCo, Optuna, CasADi and the
+    tuner are not there."""
+    src = tmp_path / "src"
+    shutil.copytree(ROOT / "robot", src / "robot")
+    shutil.copytree(ROOT / "gaits", src / "gaits", ignore=shutil.ignore_patterns("__pycache__"))
+    r = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q",
+                        "-w", str(tmp_path / "dist"), str(src / "robot")], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-3000:]
+    wheel = next((tmp_path / "dist").glob("gait_tuner_robot-*.whl"))
+    env_dir = tmp_path / "venv"
+    venv.EnvBuilder(with_pip=True).create(env_dir)
+    r = subprocess.run([str(env_dir / "bin" / "python"), "-m", "pip", "install", "-q", str(wheel)],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-3000:]
+    py = env_dir / "bin" / "python"
+    probe = subprocess.run([str(py), "-c", "import importlib.util as u; print([m for m in ('mujoco', 'optuna', "
+                            "'casadi', 'tuner', 'scipy') if u.find_spec(m)])"], capture_output=True, text=True,
+                           cwd=tmp_path)
+    assert probe.stdout.strip() == "[]", probe.stdout + probe.stderr
+    robot = tmp_path / "robot.yaml"
+    r = subprocess.run([sys.executable, "-m", "tuner.cli", "robot", "export", "kidsize", "--out", str(robot)],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    r = subprocess.run([str(env_dir / "bin" / "gait-tuner-loop"), str(ROOT / "studies" / "results" /
+                        "kidsize-engine-carpet4.yaml"), "--dry-run", "--seconds", "1", "--robot", str(robot)],
+                       capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "100 ticks" in r.stdout and "robot kidsize" in r.stdout

@@ -40,7 +40,7 @@ def test_the_stabiliser_of_a_set_is_in_the_robot_loop():
 
     import gaits
     from gaits.control import Measurement
-    loop = runpy.run_path(str(ROOT / "examples" / "robot_loop.py"))
+    loop = runpy.run_path(str(ROOT / "gaits" / "loop.py"))
     geometry = loop["RobotGeometry"](gaits.LegGeometry(), (0.10, 0.055))
     for name, stabilised in (("kidsize-engine-grass50", True), ("kidsize-engine-carpet4", False)):
         gait = gaits.load_gait_file(ROOT / "studies" / "results" / f"{name}.yaml")

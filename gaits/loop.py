@@ -1,0 +1,167 @@
+"""The loop a team runs on its robot at the control rate: read the sensors, call the walk engine,
+write the servo targets. It imports numpy and the engine (``gaits``: numpy and PyYAML) only.
+
+    gait-tuner-loop GAIT.yaml --dry-run [--robot robot.yaml] [--record run.mcap]   # a stand-in robot, no hardware
+    python examples/robot_loop.py GAIT.yaml --dry-run     # the same from a checkout
+
+Porting it: replace :class:`StandIn` by your robot's driver (the four methods it has), give it your
+robot file (``gait-tuner robot export MAP --out robot.yaml``, then ``--robot robot.yaml``: the legs,
+soles and each joint's servo id, units, direction and offset, nothing copied by hand), and take the
+walk command from your behaviour (here: forward for 3 s, turning for 2 s, then stop). The engine
+wants, each tick, the encoders in our joint convention (``gaits.JOINT_NAMES``, signs as
+``gait-tuner robot check`` lists them), the IMU's roll, pitch, yaw [rad] and rates [rad/s], its
+accelerometer [m/s^2] and the eight sole force readings [N] (left toe-left, toe-right, heel-left,
+heel-right, then the right foot); it returns the 20 targets of the next tick [rad].
+
+A reading that holds a NaN or an infinity (a garbled frame) is not taken: the engine predicts
+from its model for that tick and counts it (``engine.dropped``, printed at the end); a reading of
+the wrong length is a ValueError, a wiring mistake to fix before the robot walks.
+
+The timing is the engine's: it assumes its ``dt``; a tick that overruns is reported, not skipped
+(on a robot, read the clock and log overruns: the engine's p99 is ~1 ms in Python on a laptop
+core, see ``benchmarks/bench_engine.py``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+import numpy as np
+
+import gaits
+from gaits.control import Measurement, Stabilised
+
+LEGS = {1: slice(gaits.JOINT_NAMES.index("l_hip_yaw"), gaits.JOINT_NAMES.index("l_hip_yaw") + 6),
+        -1: slice(gaits.JOINT_NAMES.index("r_hip_yaw"), gaits.JOINT_NAMES.index("r_hip_yaw") + 6)}
+
+
+class StandIn:
+    """A robot that is not there: its servos reach each target by the next tick, its IMU is level
+    and its soles carry the weight evenly. Replace it by your robot's driver."""
+
+    def __init__(self, mass: float = 5.0) -> None:
+        self.q = np.zeros(len(gaits.JOINT_NAMES))
+        self.mass = mass
+
+    def read_encoders(self) -> tuple[np.ndarray, np.ndarray]:
+        """Positions [rad] and velocities [rad/s] in our joint order and signs."""
+        return self.q.copy(), np.zeros_like(self.q)
+
+    def read_imu(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(roll, pitch, yaw) [rad], body rates [rad/s], specific force [m/s^2]."""
+        return np.zeros(3), np.zeros(3), np.array([0.0, 0.0, 9.81])
+
+    def read_soles(self) -> np.ndarray:
+        """The weight on the lower sole (both when within 2 mm), from the legs' kinematics."""
+        z = [float(gaits.leg_fk(self.q[LEGS[side]], gaits.LegGeometry(), side)[0][2]) for side in (1, -1)]
+        down = [zi < min(z) + 0.002 for zi in z]
+        share = self.mass * 9.81 / (4 * sum(down))
+        return np.concatenate([np.full(4, share if down[0] else 0.0), np.full(4, share if down[1] else 0.0)])
+
+    def write_targets(self, q: np.ndarray) -> None:
+        self.q = np.asarray(q, dtype=float).copy()
+
+
+class RobotGeometry:
+    """What the engine needs of the robot: its legs (``gaits.LegGeometry``) and sole size [m]."""
+
+    def __init__(self, leg: gaits.LegGeometry, foot_size: tuple[float, float]) -> None:
+        self.leg, self.foot_size = leg, foot_size
+
+
+def behaviour(t: float) -> np.ndarray:
+    """The walk command (vx [m/s], vy [m/s], wz [rad/s]) of time t: what a team's behaviour sends."""
+    if t < 3.0:
+        return np.array([0.15, 0.0, 0.0])
+    if t < 5.0:
+        return np.array([0.0, 0.0, 0.5])
+    return np.zeros(3)
+
+
+def controller(gait: gaits.GaitFile, geometry: RobotGeometry, dt: float):
+    """(the engine, what the loop calls): the engine, with the set's IMU stabiliser around it when
+    the set has one (its corrections added to the engine's targets, as in the simulator)."""
+    limits = gaits.family("tlipfm").step_limits(gait.params, geometry)
+    engine = gaits.WalkEngine(gait.params, gait.engine, geometry, dt, limits)
+    if gait.stabiliser is not None and gait.stabiliser.enabled:
+        return engine, Stabilised(engine, gait.stabiliser)
+    return engine, engine
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("gait", help="a gait file with an engine: section (e.g. studies/results/kidsize-engine-carpet4.yaml)")
+    ap.add_argument("--dry-run", action="store_true", help="walk the stand-in robot (no hardware)")
+    ap.add_argument("--seconds", type=float, default=8.0)
+    ap.add_argument("--robot", help="the robot file (gait-tuner robot export MAP --out robot.yaml): its legs, soles "
+                                    "and servos; default: the built-in robot's geometry")
+    ap.add_argument("--record", help="record every tick (what the engine read and asked) as an MCAP file "
+                                     "(gaits/recording.py; needs the mcap package)")
+    args = ap.parse_args()
+    try:
+        gait = gaits.load_gait_file(args.gait)
+    except gaits.ParamError as exc:      # one line, exit 2: a wrong name or a broken file is not a crash
+        hint = (f" (a shipped set is a file here: studies/results/{args.gait}.yaml)"
+                if "/" not in args.gait and not args.gait.endswith((".yaml", ".yml")) else "")
+        print(f"robot_loop: error: {exc}{hint}", file=sys.stderr)
+        raise SystemExit(2) from None
+    if gait.engine is None:
+        print(f"robot_loop: error: {args.gait}: no engine: section (a table set is played from its joint table)",
+              file=sys.stderr)
+        raise SystemExit(2)
+    if not args.dry_run:
+        raise SystemExit("connect your robot's driver in place of StandIn, then drop --dry-run")
+    robot = StandIn()
+    robot_file = None
+    if args.robot:
+        from gaits.robot_file import load_robot_file
+        try:
+            robot_file = load_robot_file(args.robot)
+        except gaits.ParamError as exc:
+            print(f"robot_loop: error: {exc}", file=sys.stderr)
+            raise SystemExit(2) from None
+    geometry = robot_file or RobotGeometry(gaits.LegGeometry(), (0.10, 0.055))
+    engine, walk = controller(gait, geometry, 0.01)
+    recorder = None
+    if args.record:
+        from gaits.recording import Recorder, RecordingController, RecordingMeta
+        recorder = Recorder(args.record, RecordingMeta(robot="stand-in", task="walk", simulated=True,
+                                                       controller=f"walk engine, {args.gait}",
+                                                       notes="examples/robot_loop.py --dry-run"))
+        walk = RecordingController(walk, recorder)
+    robot.write_targets(walk.start_pose().q)
+    overruns, t, costs, sent = 0, 0.0, [], {}
+
+    def measure(t: float) -> Measurement:
+        q, dq = robot.read_encoders()
+        rpy, gyro, accel = robot.read_imu()
+        return Measurement(t, q=q, dq=dq, imu_rpy=rpy, gyro=gyro, accel=accel, foot_force=robot.read_soles())
+    walk.reset(measure(0.0))
+    while t < args.seconds:
+        m = measure(t)
+        t0 = time.perf_counter()
+        q = walk.step(m, behaviour(t))
+        cost = time.perf_counter() - t0
+        costs.append(cost)
+        overruns += cost > engine.dt
+        robot.write_targets(q)          # on a robot: the servo positions below, sent on the bus
+        if robot_file is not None:
+            sent = robot_file.to_servos(q)    # {servo id: position}: what a Dynamixel sync write sends
+        t += engine.dt
+    if recorder is not None:
+        print(f"recorded {recorder.close()}")
+    if robot_file is not None:
+        print(f"robot {robot_file.robot}: {len(sent)} servo position(s) a tick from its robot file "
+              f"({len(robot_file.joints) - len(sent)} joint(s) without a servo id)")
+    c = np.array(costs) * 1000
+    print(f"{len(c)} ticks: {engine.steps_taken} steps, ended {engine.mode}; controller median {np.median(c):.2f} ms, "
+          f"p99 {np.percentile(c, 99):.2f} ms, {overruns} tick(s) over {engine.dt * 1000:.0f} ms")
+    dropped = {name: n for name, n in engine.dropped.items() if n}
+    if dropped:
+        print("readings not finite, not taken (ticks): " + ", ".join(f"{k} {n}" for k, n in dropped.items()))
+
+
+if __name__ == "__main__":
+    main()
