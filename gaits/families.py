@@ -72,7 +72,7 @@ class GaitFamily:
     lift_field: str = ""                                  # the field that holds the swing foot's lift [m]
     derived: Callable[[Mapping[str, Any], Any], dict[str, Any]] = _no_derived
     seed_on_own_masses: bool = False                      # the seed's CoM model takes the base's masses
-    engine: str = "table"                                 # online: "feedback" (gaits/engine.py) or
+    engine: str = "table"                                 # online: "feedback" (gaits/engine/) or
                                                           #   "table" (gaits/online_table.py)
 
     # --- walking -------------------------------------------------------------------------

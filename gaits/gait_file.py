@@ -2,7 +2,7 @@
 
 The boundary between a user's files and the typed parameters of ``gaits/params.py`` and the
 IMU stabiliser's gains (``gaits/imu_stabiliser.py``) and the online walk engine's numbers
-(``gaits/engine.py``; a set with an ``engine:`` section walks online): :func:`load_gait_file` validates a file
+(``gaits/engine/``; a set with an ``engine:`` section walks online): :func:`load_gait_file` validates a file
 (every error names the file, the field, the value and the allowed range), :func:`save_gait_file`
 writes one it reads back identically.
 """
@@ -146,7 +146,7 @@ def load_gait_file(path: str | Path) -> GaitFile:
 def engine_from_mapping(doc: Any, source: str = "engine") -> EngineParams:
     """A validated :class:`EngineParams` from a YAML mapping (missing fields take their defaults)."""
     return fields_from_mapping(EngineParams, doc, source, tuple(f["name"] for f in EngineParams.field_table()),
-                               expected="the engine's fields (see gaits/engine.py)")
+                               expected="the engine's fields (see gaits/engine/)")
 
 
 def save_gait_file(path: str | Path, params: GaitParams, description: str = "",
@@ -171,7 +171,7 @@ def gait_file_text(params: GaitParams, description: str = "", stabiliser: Stabil
             text = yaml.safe_dump(value, default_flow_style=True).strip().split("\n")[0]
             lines.append(f"  {name}: {text}")
     if engine is not None:
-        lines.append("engine:  # the online walk engine, ours: see gaits/engine.py")
+        lines.append("engine:  # the online walk engine, ours: see gaits/engine/")
         lines += _fields(engine)
     return "\n".join(lines) + "\n"
 

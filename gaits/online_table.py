@@ -14,7 +14,7 @@ the robot comes to stand; a later command starts a new walk from standing (with 
 start-up).
 
 The cost: each re-plan generates the whole walk so far (EROS: tens of ms for a few dozen steps), at
-step starts only; TLIPFM uses the walk engine (``gaits/engine.py``) instead.
+step starts only; TLIPFM uses the walk engine (``gaits/engine/``) instead.
 """
 
 from __future__ import annotations

@@ -304,7 +304,7 @@ def _walk_setup(robot_name: str, surface_name: str, family: str | None, params_s
 
 def _envelope_note(drive, controller) -> None:
     """One note line when an engine's stream or command asks more than its envelope (the engine walks
-    it clipped there, gaits/engine.py), naming the direction, the asked and the largest speed."""
+    it clipped there, gaits/engine/), naming the direction, the asked and the largest speed."""
     engine = getattr(controller, "inner", controller)
     stream = drive.the_stream()
     if stream is None or not hasattr(engine, "envelope"):
@@ -1495,7 +1495,7 @@ def params_cmd(family: str) -> None:
                    f"{paper:8s} {row['doc']}")
     click.echo(f"walk command (--command): {gaits.family(family).commands_text}")
     click.echo("online (an engine: section): " + ("the walk engine, footsteps and CoM re-planned each step from "
-               "the measured state (gaits/engine.py)" if gaits.family(family).engine == "feedback" else
+               "the measured state (gaits/engine/)" if gaits.family(family).engine == "feedback" else
                "the family's table re-planned at each step start for the current command, no state feedback "
                "(gaits/online_table.py)"))
 

@@ -22,7 +22,7 @@ A study tunes one gait family on one robot against one or several surfaces::
     stabiliser: {enabled: true}    # optional: the IMU stabiliser's fixed values; its gains may be
                                    #   searched as space keys stabiliser.k_ankle_pitch etc.
     engine: {k_vel: 0.8}           # optional (TLIPFM): walk every trial with the online walk engine
-                                   #   (gaits/engine.py), these values fixed; its numbers may be
+                                   #   (gaits/engine/), these values fixed; its numbers may be
                                    #   searched as space keys engine.NAME
     controller: my_controller.yaml # optional, instead of gait/base: a controller of your own
                                    #   (tuner/controllers.py); its parameters are searched as
