@@ -103,3 +103,19 @@ def test_no_process_outlives_its_parent(tmp_path, gait_tuner_cmd, run_env, verb,
         if p.poll() is None:
             os.killpg(p.pid, signal.SIGKILL)
             p.wait()
+
+
+def test_ctrl_c_while_the_libraries_load_is_one_line(tmp_path):
+    """The interrupt lands inside an import (raised there from inside, no timing): one line, 130."""
+    code = ("import builtins, sys\n"
+            "sys.argv = ['/usr/bin/gait-tuner', 'studies']\n"
+            "real = builtins.__import__\n"
+            "def imp(name, *a, **k):\n"
+            "    if name.startswith('mujoco'):\n"
+            "        raise KeyboardInterrupt\n"
+            "    return real(name, *a, **k)\n"
+            "builtins.__import__ = imp\n"
+            "from tuner.cli import run\n"
+            "run()\n")
+    r = subprocess.run([os.sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 130 and r.stderr == "gait-tuner: interrupted\n", (r.returncode, r.stderr[-1500:])

@@ -15,13 +15,21 @@ if ("MUJOCO_GL" not in _os.environ and _sys.platform.startswith("linux")
         and not _os.environ.get("DISPLAY") and not _os.environ.get("WAYLAND_DISPLAY")):
     _os.environ["MUJOCO_GL"] = "egl"
 
-from .errors import UserError
-from .sim.metrics import DEFINITIONS, Metrics, summarize
-from .params_io import resolve_params
-from .sim.randomisation import Randomisation
-from .robots import RobotModel, RobotSpec, ServoSpec, load_robot
-from .sim.rollout import FallCriteria, Simulator, Trace
-from .sim.surfaces import SURFACES, Surface, load_surface
+try:
+    from .errors import UserError
+    from .sim.metrics import DEFINITIONS, Metrics, summarize
+    from .params_io import resolve_params
+    from .sim.randomisation import Randomisation
+    from .robots import RobotModel, RobotSpec, ServoSpec, load_robot
+    from .sim.rollout import FallCriteria, Simulator, Trace
+    from .sim.surfaces import SURFACES, Surface, load_surface
+except KeyboardInterrupt:
+    # Ctrl-C while the command line's libraries load (a second or two): one line and 130, as any
+    # interrupt of `gait-tuner`; imported as a library, the interrupt goes on as it came
+    if _os.path.basename(_sys.argv[0] if _sys.argv else "") != "gait-tuner":
+        raise
+    _sys.stderr.write("gait-tuner: interrupted\n")
+    raise SystemExit(130) from None
 
 __all__ = [
     "DEFINITIONS",
