@@ -25,6 +25,7 @@ core, see ``benchmarks/bench_engine.py``).
 from __future__ import annotations
 
 import argparse
+from typing import Any
 import sys
 import time
 
@@ -90,7 +91,7 @@ def controller(gait: gaits.GaitFile, geometry: RobotGeometry, dt: float):
     return engine, engine
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("gait", help="a gait file with an engine: section (e.g. studies/results/kidsize-engine-carpet4.yaml)")
     ap.add_argument("--dry-run", action="store_true", help="walk the stand-in robot (no hardware)")
@@ -99,7 +100,12 @@ def main() -> None:
                                     "and servos; default: the built-in robot's geometry")
     ap.add_argument("--record", help="record every tick (what the engine read and asked) as an MCAP file "
                                      "(gaits/recording.py; needs the mcap package)")
-    args = ap.parse_args()
+    ap.add_argument("--port", help="the Dynamixel bus (a serial device, or `gait-tuner bus serve`'s pseudo-terminal): "
+                                   "walk the robot on it (needs --robot and dynamixel-sdk)")
+    ap.add_argument("--baud", type=int, default=1_000_000, help="the bus's baud rate")
+    ap.add_argument("--watchdog", type=int, default=5, help="ticks without readings before the safe stop")
+    ap.add_argument("--max-tilt", type=float, default=50.0, help="torso tilt [deg] read as a fall: torque off")
+    args = ap.parse_args(argv)
     try:
         gait = gaits.load_gait_file(args.gait)
     except gaits.ParamError as exc:      # one line, exit 2: a wrong name or a broken file is not a crash
@@ -111,8 +117,8 @@ def main() -> None:
         print(f"robot_loop: error: {args.gait}: no engine: section (a table set is played from its joint table)",
               file=sys.stderr)
         raise SystemExit(2)
-    if not args.dry_run:
-        raise SystemExit("connect your robot's driver in place of StandIn, then drop --dry-run")
+    if not args.dry_run and not args.port:
+        raise SystemExit("give --port (the robot's bus) or --dry-run (the stand-in)")
     robot = StandIn()
     robot_file = None
     if args.robot:
@@ -122,6 +128,11 @@ def main() -> None:
         except gaits.ParamError as exc:
             print(f"robot_loop: error: {exc}", file=sys.stderr)
             raise SystemExit(2) from None
+    if args.port:
+        if robot_file is None:
+            print("robot_loop: error: --port needs --robot (its servo ids, units and signs)", file=sys.stderr)
+            raise SystemExit(2)
+        raise SystemExit(run_on_bus(args, gait, robot_file))
     geometry = robot_file or RobotGeometry(gaits.LegGeometry(), (0.10, 0.055))
     engine, walk = controller(gait, geometry, 0.01)
     recorder = None
@@ -161,6 +172,108 @@ def main() -> None:
     dropped = {name: n for name, n in engine.dropped.items() if n}
     if dropped:
         print("readings not finite, not taken (ticks): " + ", ".join(f"{k} {n}" for k, n in dropped.items()))
+
+
+def run_on_bus(args: Any, gait: gaits.GaitFile, robot_file: Any) -> int:
+    """The loop on a Dynamixel bus (``--port``), as a robot runs it: a monotonic clock at the control
+    rate (overruns counted, tick periods' percentiles printed); a watchdog (no readings for
+    ``--watchdog`` ticks: the safe stop, the standing pose then torque off); a fall (a tilt past
+    ``--max-tilt``: torque off at once); Ctrl-C: a zero command until the engine stands (at most
+    3 s), then torque off. Each ending is one line saying why. Returns the exit code (0 a walk that
+    ended as planned or was stopped, 3 a watchdog or a fall)."""
+    from gaits.dynamixel import BusError, DynamixelBus
+    try:
+        bus = DynamixelBus(args.port, robot_file, args.baud)
+        bus.check()
+    except BusError as exc:
+        print(f"robot_loop: error: {exc}", file=sys.stderr)
+        return 2
+    engine, walk = controller(gait, robot_file, robot_file.control_period)
+    walk.senses = frozenset({"q", "dq", "imu_rpy", "gyro", "accel"})        # no foot sensors on this bus
+    recorder = None
+    if args.record:
+        from gaits.recording import Recorder, RecordingController, RecordingMeta
+        recorder = Recorder(args.record, RecordingMeta(robot=robot_file.robot, task="walk", simulated=False,
+                                                       controller=f"walk engine, {args.gait}", notes=f"bus {args.port}"))
+        walk = RecordingController(walk, recorder)
+    dt = robot_file.control_period
+    stand = walk.start_pose().q
+    bus.write(stand)
+    k, missing, costs, periods, overruns, code, why = 0, 0, [], [], 0, 0, "walked its time"
+    n_ticks = int(round(args.seconds / dt))
+    stop_at = None
+
+    def measure(t: float) -> Measurement | None:
+        got = bus.read()
+        if got is None:
+            return None
+        q, dq, rpy, gyro, accel = got
+        return Measurement(t, q=q, dq=dq, imu_rpy=rpy, gyro=gyro, accel=accel)
+    first, waited = None, time.monotonic()
+    while first is None and time.monotonic() - waited < 5.0:    # the robot may still be taking its start pose
+        first = measure(0.0)
+    if first is None:
+        print(f"robot_loop: error: {args.port}: no readings from the bus within 5 s of the start pose",
+              file=sys.stderr)
+        return 2
+    walk.reset(first)
+    clock = time.monotonic()
+    last = clock
+    try:
+        while True:
+            t = k * dt
+            try:
+                if k >= n_ticks and stop_at is None:
+                    break
+                m = measure(t)
+                if m is None:
+                    missing += 1
+                    if missing >= args.watchdog:
+                        why, code = (f"watchdog: no readings for {missing} ticks ({missing * dt * 1000:.0f} ms) at "
+                                     f"t = {t:.2f} s: the safe stop (standing pose, torque off)"), 3
+                        bus.write(stand)
+                        break
+                else:
+                    missing = 0
+                    tilt = max(abs(m.imu_rpy[0]), abs(m.imu_rpy[1])) * 180 / np.pi if m.imu_rpy is not None else 0
+                    if tilt > args.max_tilt:
+                        why, code = f"fall detected at t = {t:.2f} s (tilt {tilt:.0f} deg): torque off", 3
+                        break
+                    command = np.zeros(3) if stop_at is not None else behaviour(t)
+                    t0 = time.perf_counter()
+                    q = walk.step(m, command)
+                    costs.append(time.perf_counter() - t0)
+                    bus.write(q)
+                    if stop_at is not None and (engine.mode == "stand" or t >= stop_at):
+                        why = f"stopped by Ctrl-C at t = {t:.2f} s, standing" if engine.mode == "stand" else \
+                            f"stopped by Ctrl-C at t = {t:.2f} s, not standing after 3 s"
+                        break
+                k += 1
+                clock += dt
+                now = time.monotonic()
+                if now > clock + dt:
+                    overruns += 1
+                    clock = now                       # late: the next tick from now, not a burst to catch up
+                time.sleep(max(0.0, clock - now))
+                periods.append(time.monotonic() - last)
+                last = time.monotonic()
+            except KeyboardInterrupt:
+                if stop_at is not None:
+                    why = f"stopped by a second Ctrl-C at t = {t:.2f} s"
+                    break
+                stop_at = t + 3.0
+    finally:
+        bus.torque(False)
+        bus.close()
+        if recorder is not None:
+            print(f"recorded {recorder.close()}")
+    c = np.array(costs) * 1000 if costs else np.zeros(1)
+    p = np.array(periods) * 1000 if periods else np.zeros(1)
+    print(f"{len(costs)} ticks on {args.port}: {engine.steps_taken} steps, ended {engine.mode}; controller median "
+          f"{np.median(c):.2f} ms, p99 {np.percentile(c, 99):.2f} ms; tick period median {np.median(p):.1f} ms, "
+          f"p99 {np.percentile(p, 99):.1f} ms, {overruns} overrun(s)")
+    print(why)
+    return code
 
 
 if __name__ == "__main__":

@@ -1311,18 +1311,9 @@ def robot() -> None:
     """Check a robot before you tune for it (the built-in `kidsize` or your robot map YAML)."""
 
 
-@robot.command(name="export")
-@click.argument("robot_spec", metavar="MAP|NAME")
-@click.option("--out", "out", required=True, type=OutPath(dir_okay=False),
-              help="The robot file to write (YAML, read by gaits.robot_file on the robot).")
-def robot_export(robot_spec: str, out: Path) -> None:
-    """Write the one robot file the robot side needs: leg geometry, soles, mass, joint order and
-    signs, ranges, servo limits, and each joint's servo id, units, direction and offset (the map's
-    servos: section), so the loop on the robot loads no robot model and copies no number by hand."""
-    from gaits.robot_file import JointSpec, RobotFile, save_robot_file
-    from .report.provenance import commit_of
-    from .robots import load_robot
-    robot = load_robot(robot_spec)
+def _robot_file_of(robot, spec: str):
+    """The robot side's robot file (gaits.robot_file.RobotFile) of a loaded robot."""
+    from gaits.robot_file import JointSpec, RobotFile
     model = robot.model()
     names = [theirs for theirs, _ in robot.joint_map.values()]
     lo, hi = robot.joint_ranges(names)
@@ -1334,8 +1325,24 @@ def robot_export(robot_spec: str, out: Path) -> None:
                                  float(servo.speed) if servo else 6.5, float(servo.torque) if servo else 6.0,
                                  robot.servo_units.get(theirs))
     held = {j: float(v) for j, v in robot.pose.items() if j not in names}
-    rf = RobotFile(robot.name, robot.leg, tuple(float(v) for v in robot.foot_size), joints,
-                   robot.sim.control_period, float(np.sum(model.body_mass)), held)
+    return RobotFile(robot.name, robot.leg, tuple(float(v) for v in robot.foot_size), joints,
+                     robot.sim.control_period, float(np.sum(model.body_mass)), held)
+
+
+@robot.command(name="export")
+@click.argument("robot_spec", metavar="MAP|NAME")
+@click.option("--out", "out", required=True, type=OutPath(dir_okay=False),
+              help="The robot file to write (YAML, read by gaits.robot_file on the robot).")
+def robot_export(robot_spec: str, out: Path) -> None:
+    """Write the one robot file the robot side needs: leg geometry, soles, mass, joint order and
+    signs, ranges, servo limits, and each joint's servo id, units, direction and offset (the map's
+    servos: section), so the loop on the robot loads no robot model and copies no number by hand."""
+    from gaits.robot_file import save_robot_file
+    from .report.provenance import commit_of
+    from .robots import load_robot
+    robot = load_robot(robot_spec)
+    rf = _robot_file_of(robot, robot_spec)
+    joints, held = rf.joints, rf.held
     source = robot.map_path or robot_spec
     save_robot_file(out, rf, f"gait-tuner robot file of {robot.name} (from {source}{commit_of(__file__)}); "
                              f"read by gaits.robot_file.load_robot_file on the robot")
@@ -1482,6 +1489,48 @@ def log_info(recording: Path, as_json: bool) -> None:
                  f"{max(c['gaps'], key=lambda g: g[1])[0]:.2f} s" if c["gaps"] else "")
         extra += f"; time goes back at {c['backwards'][0]:.3f} s" if c["backwards"] else ""
         click.echo(f"  {topic:18s} {c['messages']:7d} messages  {rate:>9s}{extra}")
+
+
+@cli.group()
+def bus() -> None:
+    """A simulated Dynamixel bus: the robot-side code (gait-tuner-loop) drives the simulated robot
+    through real Protocol 2.0 packets on a pseudo-terminal (tuner/sim/bus.py)."""
+
+
+@bus.command(name="serve")
+@robot_option(help="Built-in robot name or a robot map YAML (with a servos: section).")
+@surface_option()
+@click.option("--link", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Also make this path a link to the bus's pseudo-terminal (a fixed name for the client).")
+@click.option("--baud", default="1000000", show_default=True,
+              type=click.Choice(["57600", "115200", "1000000", "2000000", "3000000", "4000000"]))
+@click.option("--duration", default=600.0, show_default=True, type=Span(0.1, 86400.0),
+              help="Longest walk [s] of simulated time.")
+@click.option("--idle", default=5.0, show_default=True, type=Span(0.5, 600.0),
+              help="End once the client has been silent this long [s].")
+def bus_serve(robot_name: str, surface_name: str, link: Path | None, baud: str, duration: float, idle: float) -> None:
+    """Serve ROBOT's servos and IMU on a pseudo-terminal, answered by MuJoCo in lockstep (a tick of
+    physics per sync write of goal positions). Prints the bus's path, then what the walk did."""
+    from .robots import load_robot
+    from .sim.bus import serve
+    from .sim.rollout import Simulator
+    from .sim.surfaces import load_surface
+    robot = load_robot(robot_name)
+    rf = _robot_file_of(robot, robot_name)
+    missing = [o for o, j in rf.joints.items() if j.servo is None]
+    if missing:
+        raise UserError(f"{robot_name}: no servo id for {', '.join(missing)}: give the map a servos: section")
+    sim = Simulator(robot, load_surface(surface_name))
+
+    def ready(path: str) -> None:
+        click.echo(f"bus of {robot.name} on {sim.surface.name} at {path} ({baud} baud, "
+                   f"{len(rf.joints)} servos, IMU id 200)", err=False)
+        sys.stdout.flush()
+    out = serve(sim, rf, baudrate=int(baud), link=None if link is None else str(link), idle=idle, duration=duration,
+                ready=ready)
+    click.echo(f"served {out['ticks']} ticks ({out['ticks'] * sim.control_period:.2f} s); ended: {out['ended']}"
+               + (f"; the walk: {out['outcome']}" if out["outcome"] else "")
+               + (f"; {out['ignored']} packet(s) not answered" if out["ignored"] else ""))
 
 
 @cli.command(name="params")

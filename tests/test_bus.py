@@ -1,0 +1,123 @@
+"""The robot side on a Dynamixel bus (gaits/dynamixel.py, gaits/loop.py) against the simulated bus
+(tuner/sim/bus.py, `gait-tuner bus serve`): real Protocol 2.0 packets through dynamixel-sdk on a
+pseudo-terminal, answered by MuJoCo in lockstep. Its packets, a walk, and every way the loop stops:
+the watchdog, a fall, Ctrl-C, a servo missing, the wrong baud rate."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from conftest import ROOT
+from gaits.dynamixel import PING, STATUS, SYNC_WRITE, crc16, instruction_packet, parse_packet, status_packet
+
+pytest.importorskip("dynamixel_sdk", reason="the Dynamixel driver's tests need dynamixel-sdk (the dev extra)")
+MAP = ROOT / "examples" / "robots" / "kid3kg" / "kid3kg.yaml"
+SET = ROOT / "studies" / "results" / "kidsize-engine-carpet4.yaml"
+
+
+def test_packets_as_the_protocol_writes_them():
+    assert instruction_packet(1, PING).hex() == "fffffd0001030001194e"       # ROBOTIS' own example
+    p, used = parse_packet(b"noise" + status_packet(7, b"\x01\x02", error=0) + b"tail")
+    assert (p.id, p.instruction, p.params, p.error) == (7, STATUS, b"\x01\x02", 0) and used == 5 + 13
+    stuffed = instruction_packet(3, SYNC_WRITE, b"\x74\x00\x04\x00\x03\xff\xff\xfd\x00")
+    assert b"\xff\xff\xfd\xfd" in stuffed and parse_packet(stuffed)[0].params == b"\x74\x00\x04\x00\x03\xff\xff\xfd\x00"
+    bad = bytearray(stuffed)
+    bad[-1] ^= 0xFF                                                          # a garbled CRC: dropped
+    assert parse_packet(bytes(bad))[0] is None and crc16(b"") == 0
+
+
+@pytest.fixture
+def robot_file(tmp_path):
+    out = tmp_path / "robot.yaml"
+    r = subprocess.run([sys.executable, "-m", "tuner.cli", "robot", "export", str(MAP), "--out", str(out)],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    return out
+
+
+def _serve(tmp_path, *extra):
+    link = tmp_path / "bus"
+    p = subprocess.Popen([sys.executable, "-m", "tuner.cli", "bus", "serve", "--robot", str(MAP), "--surface",
+                          "carpet4", "--link", str(link), *extra], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                         text=True, start_new_session=True)
+    deadline = time.monotonic() + 120
+    while not link.exists() and p.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert link.exists(), p.communicate(timeout=5)
+    return p, link
+
+
+def _loop(robot_file, link, *extra, **kw):
+    return subprocess.Popen([sys.executable, str(ROOT / "examples" / "robot_loop.py"), str(SET), "--robot",
+                             str(robot_file), "--port", str(link), *extra], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, **kw)
+
+
+def _finish(*procs):
+    out = []
+    for p in procs:
+        try:
+            out.append(p.communicate(timeout=120))
+        finally:
+            if p.poll() is None:
+                p.kill()
+    return out
+
+
+def test_the_loop_walks_the_simulated_robot_through_the_bus(tmp_path, robot_file):
+    from gaits.recording import read_recording
+    server, link = _serve(tmp_path)
+    loop = _loop(robot_file, link, "--seconds", "2", "--record", str(tmp_path / "walk.mcap"))
+    (lo, le), (so, se) = _finish(loop, server)
+    assert loop.returncode == 0, le
+    assert "200 ticks on" in lo and "walked its time" in lo
+    assert "served 200 ticks" in so and "the client turned the torque off" in so, so + se
+    rec = read_recording(tmp_path / "walk.mcap")
+    assert len(rec.times("/joints/target")) == 200 and "/feet/force" not in rec.channels and not rec.meta.simulated
+
+
+def test_the_watchdog_stops_to_the_safe_pose_when_the_bus_goes_silent(tmp_path, robot_file):
+    server, link = _serve(tmp_path, "--duration", "0.5")          # the bus ends after 0.5 s of walking
+    loop = _loop(robot_file, link, "--seconds", "5")
+    (lo, le), _ = _finish(loop, server)
+    assert loop.returncode == 3, lo + le
+    assert lo.strip().splitlines()[-1].startswith("watchdog: no readings for 5 ticks (50 ms)"), lo
+
+
+def test_a_fall_turns_the_torque_off(tmp_path, robot_file):
+    server, link = _serve(tmp_path)
+    loop = _loop(robot_file, link, "--seconds", "5", "--max-tilt", "0.5")     # any tilt reads as a fall
+    (lo, le), (so, _) = _finish(loop, server)
+    assert loop.returncode == 3 and "fall detected at t = " in lo.strip().splitlines()[-1], lo + le
+    assert "the client turned the torque off" in so
+
+
+def test_ctrl_c_stops_to_standing(tmp_path, robot_file):
+    server, link = _serve(tmp_path)
+    loop = _loop(robot_file, link, "--seconds", "30", "--record", str(tmp_path / "r.mcap"))
+    deadline = time.monotonic() + 60
+    while not (tmp_path / "r.mcap").exists() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    time.sleep(1.0)
+    loop.send_signal(signal.SIGINT)
+    (lo, le), _ = _finish(loop, server)
+    assert loop.returncode == 0, lo + le
+    assert "stopped by Ctrl-C at t = " in lo and "Traceback" not in le, lo + le
+
+
+@pytest.mark.parametrize("edit, args, words", [
+    ("id", (), "id 99 (l_knee) does not answer at 1000000 baud"),
+    (None, ("--baud", "57600"), "no device answers at 57600 baud"),
+])
+def test_a_bus_that_is_not_the_robot_file_is_one_line(tmp_path, robot_file, edit, args, words):
+    if edit == "id":
+        robot_file.write_text(robot_file.read_text().replace("servo: {id: 4,", "servo: {id: 99,"))
+    server, link = _serve(tmp_path, "--idle", "2")
+    loop = _loop(robot_file, link, "--seconds", "1", *args)
+    (lo, le), _ = _finish(loop, server)
+    assert loop.returncode == 2 and len(le.strip().splitlines()) == 1 and words in le, le

@@ -1,0 +1,220 @@
+"""A simulated Dynamixel bus (ours): the robot-side code talks real Protocol 2.0 packets to the
+simulator, unchanged, through a pseudo-terminal.
+
+:func:`serve` opens a pty pair and answers, on its master side, what the robot's servos and IMU
+would: PING (every servo id of the robot file, and the IMU at ``gaits.dynamixel.IMU_ID``), READ of
+the IMU's nine floats, SYNC_READ of present velocity and position (8 bytes from address 128),
+SYNC_WRITE of goal positions (116), WRITE of torque enable (64). Each servo id is a simulated joint
+with the robot file's units, direction and offset; the IMU's readings are the simulator's (with
+its noise and latency when a randomisation is given). The simulation runs in lockstep with the
+bus: a tick of physics for every sync write of goal positions (the loop's write of a tick), so
+the walk is the same however fast the two processes run; the first sync write places the robot
+(the loop's start pose). Foot sensors are not on the bus (a robot like the OP3 has none).
+
+A client at another baud rate than the bus's gets no answer (as on a real bus); a packet whose CRC
+does not match is ignored. The bus ends when its client has been silent for ``idle`` seconds
+after it started, or has turned the torque off.
+"""
+
+from __future__ import annotations
+
+import os
+import select
+import struct
+import termios
+import time
+import tty
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from gaits.control import Measurement, PlanRecord, StartPose
+from gaits.dynamixel import (ADDR_GOAL_POSITION, ADDR_PRESENT_VELOCITY, ADDR_TORQUE_ENABLE, IMU_BYTES, IMU_ID,
+                             PING, READ, SYNC_READ, SYNC_WRITE, VELOCITY_UNIT, WRITE, parse_packet,
+                             status_packet)
+from gaits.robot_file import RobotFile, from_units
+from gaits.trajectory import JOINT_NAMES
+
+__all__ = ["BusClosed", "BusBridge", "open_pty", "serve"]
+
+#: model number and firmware a simulated servo answers a PING with (an XM430-W350's: 1020, 45)
+MODEL, FIRMWARE = 1020, 45
+
+
+class BusClosed(Exception):
+    """The client went silent (or turned the torque off): the walk on the bus is over."""
+
+
+def open_pty(baudrate: int) -> tuple[int, int, str]:
+    """(master fd, slave fd, slave path) of a raw pseudo-terminal at ``baudrate``."""
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    attrs = termios.tcgetattr(slave)
+    speed = getattr(termios, f"B{baudrate}")
+    attrs[4] = attrs[5] = speed
+    termios.tcsetattr(slave, termios.TCSANOW, attrs)
+    return master, slave, os.ttyname(slave)
+
+
+@dataclass
+class _State:
+    m: Measurement | None = None
+    torque: bool = True
+
+
+class BusBridge:
+    """The controller the simulator runs while a client drives the robot over the bus: each
+    ``step`` publishes the tick's readings to the bus and returns the goal positions the client
+    writes next (a :class:`gaits.control.Controller`)."""
+
+    senses = frozenset({"q", "dq", "imu_rpy", "gyro", "accel"})
+
+    def __init__(self, master: int, robot: RobotFile, dt: float, baudrate: int, *, idle: float = 5.0,
+                 duration: float = 600.0) -> None:
+        self.master, self.robot, self.dt, self.idle = master, robot, float(dt), float(idle)
+        self.duration = float(duration)
+        self.walk_start = 0.0
+        self.speed = getattr(termios, f"B{baudrate}")
+        self.ids = {j.servo.id: ours for ours, j in robot.joints.items() if j.servo is not None}
+        self.state = _State()
+        self.buf = b""
+        self.ticks = 0
+        self.ignored = 0                  # packets at the wrong baud rate, or for no device here
+        self._last = np.zeros(len(JOINT_NAMES))
+
+    # --- the controller protocol ----------------------------------------------------------
+    def start_pose(self) -> StartPose:
+        self._last = self._goal()
+        return StartPose(self._last)
+
+    def reset(self, m: Measurement) -> None:
+        self.state.m = m
+
+    def step(self, m: Measurement, command: Any = None) -> np.ndarray:
+        self.state.m = m
+        self._last = self._goal()
+        self.ticks += 1
+        return self._last
+
+    def plan(self, n: int) -> PlanRecord:
+        return PlanRecord("bus", np.zeros(n, dtype=int), np.zeros((n, 2)), np.zeros((n, 2)), np.zeros((n, 2)))
+
+    # --- the bus ---------------------------------------------------------------------------
+    def _goal(self) -> np.ndarray:
+        """Answer packets until a sync write of goal positions arrives; our 20 targets of it."""
+        waited = time.monotonic()
+        while True:
+            got = False
+            for packet in self._packets(waited, 0.3 if not self.state.torque else self.idle):
+                got = True
+                q = self._answer(packet)
+                if q is not None:
+                    return q
+            if got:
+                waited = time.monotonic()
+
+    def _packets(self, since: float, idle: float):
+        ready, _, _ = select.select([self.master], [], [], 0.05)
+        if not ready:
+            if time.monotonic() - since > idle:
+                raise BusClosed("the client turned the torque off" if not self.state.torque else
+                                f"the client has been silent for {idle:g} s")
+            return
+        try:
+            chunk = os.read(self.master, 4096)
+        except OSError:
+            raise BusClosed("the client closed the bus") from None
+        if termios.tcgetattr(self.master)[4] != self.speed:
+            self.ignored += 1             # another baud rate: a real servo hears noise, answers nothing
+            return
+        self.buf += chunk
+        while True:
+            packet, used = parse_packet(self.buf)
+            self.buf = self.buf[used:]
+            if packet is None:
+                return
+            yield packet
+
+    def _send(self, data: bytes) -> None:
+        os.write(self.master, data)
+
+    def _answer(self, p) -> np.ndarray | None:
+        known = set(self.ids) | {IMU_ID}
+        if p.instruction == PING and p.id in known:
+            self._send(status_packet(p.id, struct.pack("<HB", MODEL, FIRMWARE)))
+        elif p.instruction == READ and p.id == IMU_ID and len(p.params) == 4:
+            m = self.state.m
+            values = np.concatenate([m.imu_rpy, m.gyro, m.accel]) if m is not None else np.zeros(9)
+            self._send(status_packet(IMU_ID, struct.pack("<9f", *values)[:IMU_BYTES]))
+        elif p.instruction == SYNC_READ and len(p.params) >= 4:
+            addr, length = struct.unpack_from("<HH", p.params)
+            if addr == ADDR_PRESENT_VELOCITY and length == 8:
+                for sid in p.params[4:]:
+                    if sid in self.ids:
+                        self._send(status_packet(sid, self._present(sid)))
+        elif p.instruction == SYNC_WRITE and len(p.params) >= 4:
+            addr, length = struct.unpack_from("<HH", p.params)
+            if addr == ADDR_GOAL_POSITION and length == 4:
+                ticks = {}
+                body = p.params[4:]
+                for k in range(0, len(body) - 4, 5):
+                    ticks[body[k]] = struct.unpack_from("<i", body, k + 1)[0]
+                return self._targets(ticks)
+        elif p.instruction == WRITE and p.id in self.ids and len(p.params) >= 3:
+            addr = struct.unpack_from("<H", p.params)[0]
+            if addr == ADDR_TORQUE_ENABLE:
+                self.state.torque = bool(p.params[2])
+                self._send(status_packet(p.id))
+        else:
+            self.ignored += 1
+        return None
+
+    def _present(self, sid: int) -> bytes:
+        """Present velocity and position of servo ``sid`` from the tick's readings (8 bytes)."""
+        m, ours = self.state.m, self.ids[sid]
+        j = self.robot.joints[ours]
+        k = JOINT_NAMES.index(ours)
+        q = np.zeros(len(JOINT_NAMES)) if m is None else m.q
+        dq = 0.0 if m is None or m.dq is None else float(m.dq[k])
+        pos = self.robot.to_servos(q)[sid]
+        vel = int(round(j.sign * j.servo.direction * dq / VELOCITY_UNIT))
+        return struct.pack("<ii", vel, pos)
+
+    def _targets(self, ticks: dict[int, int]) -> np.ndarray:
+        """Goal positions -> our 20 targets [rad] (a servo not written keeps its last target)."""
+        q = self._last.copy()
+        for sid, pos in ticks.items():
+            ours = self.ids.get(sid)
+            if ours is not None:
+                j = self.robot.joints[ours]
+                q[JOINT_NAMES.index(ours)] = j.sign * float(from_units(pos, j.servo))
+        return q
+
+
+def serve(sim: Any, robot: RobotFile, *, baudrate: int = 1_000_000, link: str | None = None, idle: float = 5.0,
+          duration: float = 600.0, perturb: Any = None, ready: Any = None) -> dict[str, Any]:
+    """Serve the robot of ``sim`` on a new pty until its client stops; ``link``: a symbolic link to
+    the pty's path (a fixed name for the client); ``ready(path)`` is called once it listens. Returns
+    what happened: ticks walked, why it ended, the trace's outcome."""
+    master, slave, path = open_pty(baudrate)
+    if link is not None:
+        if os.path.lexists(link):
+            os.unlink(link)
+        os.symlink(path, link)
+    if ready is not None:
+        ready(link or path)
+    bridge = BusBridge(master, robot, sim.control_period, baudrate, idle=idle, duration=duration)
+    why = "the walk's duration ran out"
+    outcome = None
+    try:
+        trace = sim.run(bridge, duration=duration, perturb=perturb)
+        outcome = getattr(trace, "reason", None)
+    except BusClosed as exc:
+        why = str(exc)
+    finally:
+        os.close(master)
+        os.close(slave)
+        if link is not None and os.path.islink(link):
+            os.unlink(link)
+    return {"ticks": bridge.ticks, "ended": why, "outcome": outcome, "ignored": bridge.ignored}
