@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -219,8 +219,3 @@ class DynamixelBus:
             self.port.closePort()
         except Exception:  # noqa: BLE001 - closing a port that is gone
             pass
-
-
-def positions_of(robot: Any) -> Mapping[int, str]:
-    """Servo id -> our joint name, of a robot file."""
-    return {j.servo.id: ours for ours, j in robot.joints.items() if j.servo is not None}
