@@ -20,6 +20,7 @@ not walked; a walk that stayed up but covered less of its planned forward distan
 from __future__ import annotations
 
 import math
+from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import Any, Callable, ClassVar, Mapping
 
@@ -119,7 +120,7 @@ def rollout_score(m: Any, planned: float, plan_dist: float) -> tuple[float, floa
     return score, frac, covered
 
 
-class Scenario:
+class Scenario(ABC):
     """One way a study walks and scores a trial (subclass it; one instance is registered).
 
     ``name``: the registry's name; ``section``: the study file's key that chooses it (None: the
@@ -134,9 +135,9 @@ class Scenario:
     #: the objectives a study of this scenario has when its file names none
     default_objectives: ClassVar[tuple[str, ...]] = ("pitch_rms",)
 
+    @abstractmethod
     def parse(self, sec: Any, doc: Mapping[str, Any], source: str) -> Any:
         """The section's settings (a frozen dataclass), checked; a mistake is :func:`fail`."""
-        raise NotImplementedError(f"scenario {self.name}: parse")
 
     def objectives(self, settings: Any, doc: Mapping[str, Any], source: str) -> tuple[str, ...]:
         """The study's objectives: by default the file's ``objectives``, [pitch_rms] or [pitch_rms, speed]."""
@@ -151,12 +152,12 @@ class Scenario:
         """Checks against the rest of the study (its gait family, its engine section, a controller
         of the user's own); default none."""
 
+    @abstractmethod
     def evaluate(self, settings: Any, drive: Any, world: Any,
                  report: Callable[[float, int], bool] | None = None) -> TrialResult:
         """Walk ``drive`` in ``world`` (:class:`tuner.scenarios.world.World`: the robot, one simulator
         per surface, the study's aggregate and duration) and score it. ``report(value, step)``
         (scenarios that prune): the running aggregate after each surface; True stops the trial."""
-        raise NotImplementedError(f"scenario {self.name}: evaluate")
 
     def min_survival(self, settings: Any) -> float | None:
         """The survival below which a trial is infeasible and stops early (None: no such rule)."""
