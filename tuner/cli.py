@@ -822,7 +822,14 @@ def _run_study_and_report(spec, store, study_file: str, storage: str | None, tot
     if verb == "worker":
         click.echo(f"study {spec.name}: budget reached")
         return
-    t = best_trial(study)
+    try:
+        t = best_trial(study)
+    except KeyError:          # every trial was pruned (a randomised trial stopped at its falls) or failed
+        states = [x.state.name.lower() for x in study.get_trials(deepcopy=False)]
+        counts = ", ".join(f"{states.count(k)} {k}" for k in dict.fromkeys(states))
+        click.echo(f"no trial of study {spec.name} completed yet ({counts}): no best trial to export; give it "
+                   f"more trials (resume with the same command and --trials N), or a wider space")
+        return
     n_fell = sum(1 for x in study.get_trials(deepcopy=False, states=DONE_STATES) if trial_fell(x))
     n_infeasible = sum(1 for x in study.get_trials(deepcopy=False, states=DONE_STATES) if not trial_feasible(x))
     click.echo(spec.scenario_room.describe_best(spec.settings, t, fell=trial_fell(t), falls=n_fell,
@@ -1450,6 +1457,43 @@ def sets(as_json: bool) -> None:
     for r in rows:
         how = "engine" if r["online"] else ("table+imu" if r["stabiliser"] else "table")
         click.echo(f"{r['name']:28s} {r['kind']:8s} {r['family']:7s} {how:9s} {r['source'][:80]}")
+
+
+@cli.command()
+@robot_option(help="Built-in robot name or your robot map YAML.")
+@surface_option()
+@click.option("--for", "purpose", type=click.Choice(["match", "speed", "push"]), default="match", show_default=True,
+              help="What the walk is for: match walks (the online engine), speed staircases (a table), the "
+                   "push-recovery challenge (the engine stepping in place).")
+@click.option("--out", "out_dir", type=OutPath(file_okay=False), default=None,
+              help="Folder for the study and its starting set [default: runs/init/ROBOT-SURFACE-PURPOSE].")
+def init(robot_name: str, surface_name: str, purpose: str, out_dir: Path | None) -> None:
+    """Make a walk for a robot: a starting set whose gait model has the robot's own masses, CoM
+    height, stance and a step its knees' servos can carry, and the study that tunes it on the
+    surface (tune it with `gait-tuner tune`, then `export`). Says where each number came from."""
+    import yaml
+
+    from .robots import BUILTIN_ROBOTS, load_robot
+    from .search.initial import initial_walk
+    from .sim.surfaces import load_surface
+    robot = load_robot(robot_name)
+    surface = load_surface(surface_name)
+    ref = robot_name if robot_name in BUILTIN_ROBOTS else str(Path(robot_name).resolve())
+    name = f"{robot.name}-{surface.name}-{purpose}"
+    out_dir = out_dir or Path("runs") / "init" / name
+    iw = initial_walk(robot, ref, surface, purpose, name=name, start_file=f"{name}-start.yaml")
+    desc = (f"gait-tuner init for {robot.name} on {surface.name} ({purpose}): "
+            + "; ".join(f"{k} {getattr(iw.params, k):g} from {why}" for k, why in iw.sources.items()))
+    start = out_dir / f"{name}-start.yaml"
+    study = out_dir / f"{name}.yaml"
+    write_files_atomic({start: gaits.gait_file_text(iw.params, desc, None, iw.engine),
+                        study: "# written by gait-tuner init; edit the space and the budget as you like\n"
+                               + yaml.safe_dump(iw.study, sort_keys=False)})
+    click.echo(f"{robot.name} on {surface.name}, for {purpose}:")
+    for k, why in iw.sources.items():
+        click.echo(f"  {k:11s} {getattr(iw.params, k):8.4g}  from {why}")
+    click.echo(f"  {'t1, t2':11s} {iw.params.t1:.3g}, {iw.params.t2:.3g}  TKU-X's shares of the step")
+    click.echo(f"wrote {start}\nwrote {study}\ntune it: gait-tuner tune {study} --workers 2")
 
 
 @cli.group()

@@ -1,0 +1,148 @@
+"""A walk made for a team's robot (``gait-tuner init``, ours): the starting set and the study that
+tunes it, from the robot's own model, each number saying where it came from.
+
+The TLIPFM model takes the robot's masses (the paper's three: the upper body, the support leg's
+thigh and its calf with the foot; the upper body is the robot less both legs, as TKU-X's 3.05 +
+2 (0.2 + 0.75) = 4.95 kg), its CoM height at the walking crouch (hips at 0.85 the straight hip
+height, the CoM above them by the model's own masses), a stance with the feet under the hips (at
+least a sole's width and 10 mm apart), and a step no faster than the knees' servos carry: the
+cycloid swing's highest foot speed, pi h_z / t_ssp, asks the knee for about that over the shorter
+leg link, and the rule (ours) keeps it under half the knee servo's speed, so the single support
+is at least pi h_z / (0.5 speed l) and the step that over TKU-X's share of single support
+(0.34 / 0.64). The lift clears the surface's layer by 10 mm (at least 20 mm).
+
+The study searches around those numbers for the purpose asked: ``match`` (the online engine on
+match walks, ``scenario:``), ``speed`` (a table on speed staircases, ``speed:``), ``push`` (the
+engine in the push-recovery challenge, ``challenge:``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from gaits import TlipfmParams
+from gaits.engine import EngineParams
+
+from ..errors import UserError
+
+__all__ = ["InitialWalk", "initial_walk", "PURPOSES", "leg_masses"]
+
+PURPOSES = ("match", "speed", "push")
+#: TKU-X's Table 2 step timing, as shares of the step (t1, t2 of T = 0.64 s)
+T1_SHARE, T2_SHARE = 0.15 / 0.64, 0.49 / 0.64
+#: the knee may be asked half its servo's speed by the swing (ours: headroom for the stance, the sway)
+KNEE_SHARE = 0.5
+
+
+@dataclass
+class InitialWalk:
+    params: TlipfmParams
+    engine: EngineParams | None
+    study: dict
+    sources: dict[str, str]
+
+
+def _subtree(model: Any, body: int) -> list[int]:
+    out, todo = [], [body]
+    while todo:
+        b = todo.pop()
+        out.append(b)
+        todo += [c for c in range(model.nbody) if model.body_parentid[c] == b and c != b]
+    return out
+
+
+def leg_masses(robot: Any) -> tuple[float, float, float, dict[str, str]]:
+    """(upper body, thigh, calf with foot) [kg] of a robot model (means of the two legs), and where
+    each came from."""
+    model = robot.model()
+    total = float(np.sum(model.body_mass))
+    thighs, calves = [], []
+    for side in ("l_", "r_"):
+        hip = model.jnt_bodyid[model.joint(robot.joint_map[side + "hip_yaw"][0]).id]
+        knee = model.jnt_bodyid[model.joint(robot.joint_map[side + "knee"][0]).id]
+        leg = set(_subtree(model, hip))
+        calf = set(_subtree(model, knee))
+        calves.append(float(sum(model.body_mass[b] for b in calf)))
+        thighs.append(float(sum(model.body_mass[b] for b in leg - calf)))
+    m_t, m_c = float(np.mean(thighs)), float(np.mean(calves))
+    upper = total - 2 * (m_t + m_c)
+    return upper, m_t, m_c, {
+        "mass_upper": f"the model's {total:.3f} kg less both legs (2 x {m_t + m_c:.3f} kg)",
+        "mass_thigh": f"the bodies from the hip yaw joint to the knee, mean of both legs ({', '.join(f'{v:.3f}' for v in thighs)} kg)",
+        "mass_calf": f"the bodies from the knee down, foot included, mean of both legs ({', '.join(f'{v:.3f}' for v in calves)} kg)"}
+
+
+def initial_walk(robot: Any, robot_ref: str, surface: Any, purpose: str = "match", name: str | None = None,
+                 start_file: str = "start.yaml") -> InitialWalk:
+    """The starting set (and its engine) and the study document for ``robot`` on ``surface``."""
+    from ..robots.mjcf_geometry import CROUCH
+    if purpose not in PURPOSES:
+        raise UserError(f"--for {purpose!r}: expected one of {', '.join(PURPOSES)}")
+    leg = robot.leg
+    upper, m_t, m_c, sources = leg_masses(robot)
+    if upper <= 0.05:
+        raise UserError(f"robot {robot.name}: its legs weigh as much as the whole robot: the upper body's mass "
+                        f"({upper:.3f} kg) leaves no three-mass model")
+    z_c = CROUCH * leg.max_hip_height + leg.hip_offset_z + leg.com_above_pelvis
+    sources["z_c"] = (f"the hips at {CROUCH} x the straight hip height {leg.max_hip_height * 1000:.0f} mm, the CoM "
+                      f"{(leg.hip_offset_z + leg.com_above_pelvis) * 1000:.0f} mm above them (the model's masses)")
+    width = float(robot.foot_size[1])
+    half = max(leg.hip_offset_y, (width + 0.01) / 2)
+    sources["half_width"] = (f"the feet under the hips ({leg.hip_offset_y * 1000:.0f} mm each side)"
+                             if half == leg.hip_offset_y else
+                             f"the soles {width * 1000:.0f} mm wide and 10 mm apart (wider than the hips)")
+    knee = robot.servos.get(robot.joint_map["l_knee"][0])
+    speed = float(knee.speed) if knee is not None else 6.5
+    layer = float(getattr(surface, "layer_height", 0.0))
+    h_z = max(0.02, layer + 0.01)
+    sources["h_z"] = f"the {surface.name} layer ({layer * 1000:.0f} mm) cleared by 10 mm, at least 20 mm"
+    lever = min(leg.thigh, leg.shank)
+    ssp = math.pi * h_z / (KNEE_SHARE * speed * lever)
+    period = round(max(0.25, ssp / (T2_SHARE - T1_SHARE)), 3)
+    sources["period"] = (f"the knee servo's {speed:g} rad/s: the swing's foot speed pi h_z / t_ssp over the "
+                         f"{lever * 1000:.0f} mm link at most half of it, t_ssp >= {ssp:.3f} s")
+    try:
+        params = TlipfmParams(mass_upper=round(upper, 4), mass_thigh=round(m_t, 4), mass_calf=round(m_c, 4),
+                              z_c=round(z_c, 4), half_width=round(half, 4), h_z=round(h_z, 4), period=period,
+                              t1=round(T1_SHARE * period, 4), t2=round(T2_SHARE * period, 4), step_length=0.0,
+                              d1=0.0, d2=0.0, a=0.004)
+    except Exception as exc:  # noqa: BLE001 - the derived numbers outside TLIPFM's ranges
+        raise UserError(f"robot {robot.name}: its walk model does not fit TLIPFM's ranges: {exc}") from None
+    engine = None if purpose == "speed" else EngineParams(idle="step" if purpose == "push" else "stand")
+    name = name or f"{robot.name}-{surface.name}-{purpose}"
+    space = {"period": _around(period, 0.6, 1.6, 0.1, 3.0), "t1": _around(params.t1, 0.4, 2.0, 0.01, 0.5),
+             "t2": _around(params.t2, 0.7, 1.5, 0.02, 2.5), "h_z": _around(h_z, 0.6, 1.8, 0.005, 0.1),
+             "z_c": _around(z_c, 0.85, 1.05, 0.08, 0.5), "half_width": _around(half, 0.9, 1.3, 0.02, 0.12)}
+    study: dict[str, Any] = {
+        "name": name,
+        "description": f"made by gait-tuner init for {robot.name} on {surface.name} ({purpose}): the starting "
+                       f"set's numbers from the robot's own model (see the set's description)",
+        "robot": robot_ref, "surfaces": [surface.name], "gait": "tlipfm", "base": start_file}
+    if purpose == "match":
+        space.update({"engine.k_vel": {"low": 0.0, "high": 1.0}, "engine.replan_error": {"low": 0.03, "high": 0.15},
+                      "engine.step_weight": {"low": 0.001, "high": 1.0, "log": True},
+                      "engine.accel_vx": {"low": 0.2, "high": 1.5}})
+        study.update({"engine": {}, "space": space,
+                      "scenario": {"walks": 6, "min_survival": 0.8, "duration": 12.0, "forward": 0.25,
+                                   "backward": 0.15, "sideways": 0.08, "turn": 0.8}})
+    elif purpose == "push":
+        space.update({"engine.k_vel": {"low": 0.0, "high": 1.0}, "engine.replan_error": {"low": 0.03, "high": 0.15},
+                      "engine.step_weight": {"low": 0.001, "high": 1.0, "log": True}})
+        study.update({"engine": {"idle": "step"}, "space": space, "challenge": {"seeds": [0, 1, 2]}})
+    else:
+        study.update({"space": space, "speed": {"directions": {"forward": {"top": 0.3, "weight": 1.0},
+                                                               "backward": {"top": 0.2, "weight": 1.0},
+                                                               "left": {"top": 0.1, "weight": 2.0},
+                                                               "turn_left": {"top": 1.0, "weight": 0.2}}}})
+    study.update({"trials": 200, "enqueue": ["casadi", "baselines"], "sampler_seed": 0})
+    return InitialWalk(params, engine, study, sources)
+
+
+def _around(value: float, lo: float, hi: float, floor: float, ceil: float) -> dict[str, float]:
+    """A search range from ``lo`` to ``hi`` times ``value``, within the parameter's [floor, ceil]."""
+    low, high = max(floor, value * lo), min(ceil, value * hi)
+    return {"low": round(low, 4), "high": round(max(high, low * 1.05), 4)}
