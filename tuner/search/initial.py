@@ -117,7 +117,9 @@ def initial_walk(robot: Any, robot_ref: str, surface: Any, purpose: str = "match
     # timing ranges narrow enough that most draws keep t1 < t2 < period (a draw that does not is a rejected trial)
     space = {"period": _around(period, 0.75, 1.3, 0.1, 3.0), "t1": _around(params.t1, 0.5, 1.5, 0.01, 0.5),
              "t2": _around(params.t2, 0.85, 1.15, 0.02, 2.5), "h_z": _around(h_z, 0.6, 1.8, 0.005, 0.1),
-             "z_c": _around(z_c, 0.85, 1.05, 0.08, 0.5), "half_width": _around(half, 0.9, 1.3, 0.02, 0.12)}
+             "z_c": _around(z_c, 0.85, 1.05, 0.08, 0.5), "half_width": _around(half, 0.9, 1.3, 0.02, 0.12),
+             # the longest step [leg lengths] sets the envelope's forward speed (reach / period): searched
+             "reach_forward": {"low": 0.45, "high": 0.7}}
     study: dict[str, Any] = {
         "name": name,
         "description": f"made by gait-tuner init for {robot.name} on {surface.name} ({purpose}): the starting "
