@@ -163,14 +163,17 @@ class UserCode:
             raise AttributeError(name)
         return getattr(self._ctl, name)
 
-    def call(self, fn: Any, what: str, *args: Any) -> Any:
+    def call(self, fn: Any, what: str | Callable[[], str], *args: Any) -> Any:
+        """``fn(*args)`` under the time limits, its exceptions named; ``what`` names the call (a
+        callable: built only when it is needed, so the per-tick ``step`` formats nothing)."""
         left = self.limits.walk - self.spent
         limit = min(self.limits.tick, left)
 
         def expired() -> ParamError:
             which = (f"its limit of {self.limits.tick:g} s a call" if limit == self.limits.tick else
                      f"its limit of {self.limits.walk:g} s a walk")
-            return ParamError(f"controller {self.source}: {what} ran past {which} (time_limit in its file) "
+            label = what() if callable(what) else what
+            return ParamError(f"controller {self.source}: {label} ran past {which} (time_limit in its file) "
                               f"and was stopped")
         if left <= 0:
             raise expired()
@@ -181,7 +184,7 @@ class UserCode:
         except ParamError:
             raise
         except Exception as exc:  # noqa: BLE001 - the user's code may raise anything
-            raise self._named(exc, what) from exc
+            raise self._named(exc, what() if callable(what) else what) from exc
         finally:
             self.spent += time.perf_counter() - t0
 
@@ -214,7 +217,7 @@ class UserCode:
         self.call(self._ctl.reset, "reset()", m)
 
     def step(self, m: Any, command: Any = None) -> Any:
-        q = self.call(self._ctl.step, f"step() at t = {m.t:.2f} s", m, command)
+        q = self.call(self._ctl.step, lambda: f"step() at t = {m.t:.2f} s", m, command)
         if np.iscomplexobj(q):
             raise ParamError(f"controller {self.source}: step() at t = {m.t:.2f} s returned complex targets: "
                              f"expected real joint angles [rad]")

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from .params import ParamError
+from .trajectory import JOINT_NAMES
 
 __all__ = ["crc16", "stuff", "unstuff", "instruction_packet", "status_packet", "parse_packet", "Packet",
            "PING", "READ", "WRITE", "SYNC_READ", "SYNC_WRITE", "STATUS", "ADDR_GOAL_POSITION",
@@ -176,7 +177,6 @@ class DynamixelBus:
     def _read_once(self):
         if self._read.txRxPacket() != self.sdk.COMM_SUCCESS:
             return None
-        from .trajectory import JOINT_NAMES
         ticks = {}
         dq = np.full(len(JOINT_NAMES), np.nan)
         for ours, j in self.joints:

@@ -189,7 +189,6 @@ def run_on_bus(args: Any, gait: gaits.GaitFile, robot_file: Any) -> int:
         print(f"robot_loop: error: {exc}", file=sys.stderr)
         return 2
     engine, walk = controller(gait, robot_file, robot_file.control_period)
-    walk.senses = frozenset({"q", "dq", "imu_rpy", "gyro", "accel"})        # no foot sensors on this bus
     recorder = None
     if args.record:
         from gaits.recording import Recorder, RecordingController, RecordingMeta

@@ -47,11 +47,15 @@ class InitialWalk:
 
 
 def _subtree(model: Any, body: int) -> list[int]:
+    """``body`` and every body below it."""
+    children: dict[int, list[int]] = {}
+    for c in range(1, model.nbody):
+        children.setdefault(int(model.body_parentid[c]), []).append(c)
     out, todo = [], [body]
     while todo:
         b = todo.pop()
         out.append(b)
-        todo += [c for c in range(model.nbody) if model.body_parentid[c] == b and c != b]
+        todo += children.get(b, [])
     return out
 
 

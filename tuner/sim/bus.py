@@ -77,6 +77,7 @@ class BusBridge:
         self.walk_start = 0.0
         self.speed = getattr(termios, f"B{baudrate}")
         self.ids = {j.servo.id: ours for ours, j in robot.joints.items() if j.servo is not None}
+        self.known = set(self.ids) | {IMU_ID}
         self.state = _State()
         self.buf = b""
         self.ticks = 0
@@ -140,8 +141,7 @@ class BusBridge:
         os.write(self.master, data)
 
     def _answer(self, p) -> np.ndarray | None:
-        known = set(self.ids) | {IMU_ID}
-        if p.instruction == PING and p.id in known:
+        if p.instruction == PING and p.id in self.known:
             self._send(status_packet(p.id, struct.pack("<HB", MODEL, FIRMWARE)))
         elif p.instruction == READ and p.id == IMU_ID and len(p.params) == 4:
             m = self.state.m
