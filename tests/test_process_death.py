@@ -51,6 +51,13 @@ def _alive(pid: int) -> bool:
         return False
 
 
+def _maps_mujoco(pid: int) -> bool:
+    try:
+        return "mujoco" in Path(f"/proc/{pid}/maps").read_text()
+    except OSError:
+        return False
+
+
 def _poll(cond, deadline: float = 120.0) -> bool:
     end = time.monotonic() + deadline
     while time.monotonic() < end:
@@ -80,8 +87,8 @@ def test_no_process_outlives_its_parent(tmp_path, gait_tuner_cmd, run_env, verb,
         if workers:
             assert _poll(lambda: len(_descendants(p.pid)) >= workers or p.poll() is not None), "no workers started"
         else:
-            _poll(lambda: Path(f"/proc/{p.pid}").exists())
-            time.sleep(0.5)                   # let it get going (no workers to wait for)
+            # no workers to wait for: wait until it loads MuJoCo (its command line is loading)
+            assert _poll(lambda: _maps_mujoco(p.pid) or p.poll() is not None), "MuJoCo never loaded"
         assert p.poll() is None, p.stderr.read()
         family = _descendants(p.pid)
         if how == "ctrl-c":
@@ -105,17 +112,40 @@ def test_no_process_outlives_its_parent(tmp_path, gait_tuner_cmd, run_env, verb,
             p.wait()
 
 
-def test_ctrl_c_while_the_libraries_load_is_one_line(tmp_path):
-    """The interrupt lands inside an import (raised there from inside, no timing): one line, 130."""
-    code = ("import builtins, sys\n"
+@pytest.mark.parametrize("module", ["mujoco", "click", "optuna"])
+def test_ctrl_c_while_the_libraries_load_is_one_line(tmp_path, module):
+    """A real SIGINT sent to itself while the libraries load (inside the package's own imports,
+    the command line's, a verb's lazy one): one line, 130, whichever module it lands in. No timing: the signal
+    is sent from the import itself."""
+    code = ("import builtins, os, signal, sys\n"
             "sys.argv = ['/usr/bin/gait-tuner', 'studies']\n"
             "real = builtins.__import__\n"
             "def imp(name, *a, **k):\n"
-            "    if name.startswith('mujoco'):\n"
-            "        raise KeyboardInterrupt\n"
+            f"    if name.startswith({module!r}):\n"
+            "        os.kill(os.getpid(), signal.SIGINT)\n"
             "    return real(name, *a, **k)\n"
             "builtins.__import__ = imp\n"
             "from tuner.cli import run\n"
             "run()\n")
     r = subprocess.run([os.sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path)
-    assert r.returncode == 130 and r.stderr == "gait-tuner: interrupted\n", (r.returncode, r.stderr[-1500:])
+    # (after loading, click ends the terminal's "^C" line first: a newline, then the one line)
+    assert r.returncode == 130 and r.stderr.strip() == "gait-tuner: interrupted", (r.returncode, r.stderr[-1500:])
+
+
+def test_ctrl_c_after_loading_is_pythons_again(tmp_path):
+    """Once the command line runs, Ctrl-C is Python's KeyboardInterrupt again (the verbs tidy up
+    their work on it), and a library import of the package never touches the handler."""
+    code = ("import signal, sys\n"
+            "sys.argv = ['/usr/bin/gait-tuner', '--version']\n"
+            "import tuner\n"
+            "assert signal.getsignal(signal.SIGINT) is tuner._interrupted_while_loading\n"
+            "from tuner.cli import main\n"
+            "main(['--version'])\n"
+            "assert signal.getsignal(signal.SIGINT) is signal.default_int_handler\n"
+            "print('ok')\n")
+    r = subprocess.run([os.sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 0 and r.stdout.strip().endswith("ok"), (r.returncode, r.stdout, r.stderr[-1500:])
+    r = subprocess.run([os.sys.executable, "-c", "import signal, tuner\n"
+                        "assert signal.getsignal(signal.SIGINT) is signal.default_int_handler"],
+                       capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr[-1500:]

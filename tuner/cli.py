@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import errno
 import os
+import signal
 import sys
 from pathlib import Path
 
@@ -1600,6 +1601,9 @@ _PATH_ERRNOS = {errno.ENOTDIR, errno.ENAMETOOLONG, errno.EISDIR, errno.ELOOP}
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point: run the CLI, turn bad input into one line on stderr and exit code 2."""
+    import tuner
+    if signal.getsignal(signal.SIGINT) is tuner._interrupted_while_loading:
+        signal.signal(signal.SIGINT, signal.default_int_handler)     # loaded: Ctrl-C is ours to handle
     try:
         cli.main(args=argv, prog_name="gait-tuner", standalone_mode=False)
     except click.exceptions.Exit as exc:
