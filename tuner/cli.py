@@ -1536,6 +1536,149 @@ def log_info(recording: Path, as_json: bool) -> None:
         click.echo(f"  {topic:18s} {c['messages']:7d} messages  {rate:>9s}{extra}")
 
 
+def _robot_map_path(robot_name: str) -> Path | None:
+    """The robot map file behind ``--robot`` (None for a built-in robot)."""
+    from .robots import BUILTIN_ROBOTS
+    return None if robot_name in BUILTIN_ROBOTS else Path(robot_name)
+
+
+@cli.command()
+@robot_option(help="Built-in robot name or a robot map YAML.")
+@click.option("--out", required=True, type=OutPath(dir_okay=False), metavar="SWEEP.csv",
+              help="Where to write the sweep: t, then target.<joint> per servo joint [rad, our names and signs].")
+@click.option("--duration", default=30.0, show_default=True, type=Span(5.0, 600.0), help="Length of the sweep [s].")
+@click.option("--f-max", default=2.5, show_default=True, type=Span(0.5, 20.0),
+              help="Highest frequency of the chirp [Hz] (it rises from 0.2 Hz).")
+@click.option("--amplitude", default=0.4, show_default=True, type=Span(0.01, 1.5),
+              help="Largest swing of a joint about the middle of its range [rad].")
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(0, 2**31 - 1),
+              help="The joints' phases.")
+@click.option("--simulate", "simulate_to", type=OutPath(dir_okay=False), metavar="REC.mcap",
+              help="Also play the sweep on the simulated robot in its harness and write the recording "
+                   "a robot would make of it (the map's servos, 1 mrad encoder noise).")
+@JSON_OPTION
+def excite(robot_name: str, out: Path, duration: float, f_max: float, amplitude: float, seed: int,
+           simulate_to: Path | None, as_json: bool) -> None:
+    """Write the joint sweep to play on the robot hanging in a harness (feet off the ground), the
+    recording to identify its servos from: a chirp per joint within its range, at most 60 % of its
+    servo's speed and, played on the simulated harness, 80 % of its torque. Play it with
+    `gait-tuner-loop --sweep SWEEP.csv --port ... --robot robot.yaml --record sweep.mcap`."""
+    import json
+
+    from gaits.files import write_text_atomic
+
+    from .robots import load_robot
+    from .sim.harness import Harness, excitation, record_sweep
+    robot = load_robot(robot_name)
+    h = Harness(robot)
+    try:
+        t, targets = excitation(h, duration=duration, f1=f_max, amplitude=amplitude, seed=seed)
+    except ValueError as exc:
+        raise UserError(f"excite: {exc}") from None
+    header = "t," + ",".join(f"target.{j}" for j in h.joint_names)
+    rows = "\n".join(",".join([f"{t[k]:.4f}"] + [f"{v:.6f}" for v in targets[k]]) for k in range(len(t)))
+    write_text_atomic(out, header + "\n" + rows + "\n")
+    s = h.servo_arrays()
+    lo, hi = h.range_ours()
+    speed = np.abs(np.diff(targets, axis=0)).max(axis=0) / h.control_period
+    info = {"robot": robot.name, "sweep": str(out), "seconds": float(t[-1]), "joints": list(h.joint_names),
+            "amplitude_rad": dict(zip(h.joint_names, np.round((targets.max(0) - targets.min(0)) / 2, 4).tolist())),
+            "speed_share": float(np.max(speed / s.speed))}
+    if simulate_to is not None:
+        record_sweep(h, targets, s, simulate_to, seed=seed, notes=f"gait-tuner excite --robot {robot_name}")
+        info["recording"] = str(simulate_to)
+    if as_json:
+        click.echo(json.dumps(info, allow_nan=False))
+        return
+    click.echo(f"{robot.name}: a {t[-1]:.0f} s sweep of {h.n} joints at {0.2:g}-{f_max:g} Hz, at most "
+               f"{info['speed_share'] * 100:.0f} % of a servo's speed; wrote {out}")
+    if simulate_to is not None:
+        click.echo(f"wrote {simulate_to} (the sweep on the simulated robot in its harness)")
+
+
+@cli.group()
+def identify() -> None:
+    """Fit the simulator to recordings of your robot: its servos (a sweep in a harness), then its
+    ground (walks on the field). MuJoCo's system identification toolbox (mujoco[sysid])."""
+
+
+RECORDING_OPTION = click.option("--recording", "recordings", multiple=True, required=True,
+                                type=click.Path(path_type=Path), metavar="FILE",
+                                help="A recording: gait-tuner's .mcap, a ROS 2 bag (folder, .mcap or .db3) "
+                                     "or a .csv (tuner/recordings.py); repeat for several.")
+TOPICS_OPTION = click.option("--topics", "topics_file", type=click.Path(dir_okay=False, path_type=Path),
+                             help="A ROS 2 bag's topics and joint names (YAML; tuner/recordings.py).")
+
+
+@identify.command(name="servos")
+@robot_option(default=None, help="The robot map YAML (or a built-in robot name).")
+@RECORDING_OPTION
+@TOPICS_OPTION
+@click.option("--out", "out_dir", required=True, type=OutPath(file_okay=False), metavar="DIR",
+              help="Where to write robot.yaml (your map with the servos identified), servos.yaml, fit.json "
+                   "and report.txt.")
+@click.option("--by", type=click.Choice(["groups", "joints"]), default="groups", show_default=True,
+              help="Share the servo's numbers over hips, knees, ankles, arms and head, or fit each joint.")
+@click.option("--noise", default=0.001, show_default=True, type=Span(1e-6, 0.1),
+              help="The encoders' noise [rad]: the residual's unit.")
+@click.option("--fit", "fit_fields", default="kp,damping,armature,frictionloss,torque,speed,backlash,latency",
+              show_default=True, metavar="FIELD,...", help="What to fit; the others keep the map's values.")
+@click.option("--max-iters", default=40, show_default=True, type=click.IntRange(1, 500))
+@JSON_OPTION
+def identify_servos_cmd(robot_name: str | None, recordings: tuple[Path, ...], topics_file: Path | None,
+                        out_dir: Path, by: str, noise: float, fit_fields: str, max_iters: int, as_json: bool) -> None:
+    """Identify the robot's servos from recordings of its joints (commanded and measured angles; best a
+    sweep from `gait-tuner excite` on the robot hanging in a harness): per group or joint the gain,
+    damping, armature, friction loss, torque and speed limits and backlash, and the latency."""
+    import json
+
+    from tqdm import tqdm
+
+    from .recordings import RecordingError, read_field_recording
+    from .report.identification import fit_json, summary_lines, write_servo_fit
+    from .robots import load_robot
+    from .sim.harness import Harness
+    from .sim.identify import JointLog, identify_servos
+    if robot_name is None:
+        raise UserError("identify servos: give --robot (your robot map)")
+    robot = load_robot(robot_name)
+    h = Harness(robot)
+    logs = []
+    for path in recordings:
+        try:
+            rec = read_field_recording(path, topics=topics_file, robot_joints=robot.joint_map)
+            t, targets, measured = rec.on_grid(h.control_period, h.joint_names)
+        except RecordingError as exc:
+            raise UserError(str(exc)) from None
+        for gap in rec.gaps[:3]:
+            click.echo(f"note: {path}: {gap}", err=True)
+        logs.append(JointLog(str(path), h.control_period, tuple(h.joint_names), targets, measured))
+    bar = tqdm(desc="identify servos", unit=" rollouts", disable=None, leave=False)
+    seen = [0]
+
+    def progress(n: int) -> None:
+        bar.update(n - seen[0])
+        seen[0] = n
+    try:
+        fit = identify_servos(h, logs, by=by, noise=noise, max_iters=max_iters, progress=progress,
+                              fit=tuple(f.strip() for f in fit_fields.split(",") if f.strip()))
+    finally:
+        bar.close()
+    a = float(np.sqrt(np.mean(np.square(list(fit.rms_after.values())))))
+    b = float(np.sqrt(np.mean(np.square(list(fit.rms_before.values())))))
+    if not fit.converged or not a < b * 1.0001:
+        raise UserError(f"identify servos: the fit did not converge (residual RMS {b * 1000:.2f} -> "
+                        f"{a * 1000:.2f} mrad); nothing written. Check the recordings' joint names and signs")
+    written = write_servo_fit(fit, _robot_map_path(robot_name), out_dir, noise)
+    if as_json:
+        click.echo(json.dumps({**fit_json(fit), "written": [str(p) for p in written]}, allow_nan=False))
+        return
+    for line in summary_lines(fit, noise):
+        click.echo(line)
+    for p in written:
+        click.echo(f"wrote {p}")
+
+
 @cli.group()
 def bus() -> None:
     """A simulated Dynamixel bus: the robot-side code (gait-tuner-loop) drives the simulated robot

@@ -48,7 +48,7 @@ from ..errors import UserError
 from ..yaml_input import read_yaml_file
 from .mjcf_geometry import (CROUCH, axis_line_distance, body_chain, com_offset, crouch_angles, foot_geoms,
                             self_overlaps, sole_polygon)
-from .robot_model import GROUPS, RobotModel, SimOptions, joint_group
+from .robot_model import FINE_GROUPS, GROUPS, RobotModel, SimOptions, fine_group, joint_group
 from .servo import SERVO_FIELDS, SERVO_PRESETS, servo_from_file, servo_from_mapping
 from .servo_table import read_servo_units
 from .urdf import UrdfRobot, compile_checked, mujoco_message, urdf_to_mjcf
@@ -479,8 +479,11 @@ def _servos(model: mujoco.MjModel, final: Mapping[str, tuple[str, int]], doc: An
     _require(isinstance(doc, Mapping), source, f"servo must be a mapping with keys {', '.join(GROUPS)}")
     if doc and set(doc) <= set(SERVO_FIELDS) | {"preset"}:
         doc = {"legs": dict(doc)}            # the first map format: flat fields meant the legs
+    joints_ours = set(final)
     for k in doc:
-        _require(k in GROUPS, source, f"servo: unknown group {k!r} (allowed: {', '.join(GROUPS)})")
+        _require(k in GROUPS or k in FINE_GROUPS or k in joints_ours, source,
+                 f"servo: unknown group {k!r} (allowed: {', '.join(GROUPS + FINE_GROUPS)}, or one of the "
+                 f"map's joints by our name)")
     ours_of = {theirs: ours for ours, (theirs, _) in final.items()}
     servos: dict[str, Any] = {}
     # per group: joints whose gains came from the file; why the others took the preset; URDF limits used
@@ -517,6 +520,12 @@ def _servos(model: mujoco.MjModel, final: Mapping[str, tuple[str, int]], doc: An
                 spec = dataclasses.replace(spec, **lim)
         if group in doc:
             spec = servo_from_mapping(doc[group], f"servo.{group}", spec)
+        ours = ours_of.get(theirs)
+        fine = fine_group(ours) if ours is not None else None
+        if fine is not None and fine in doc:                 # then the finer group (an identification's)
+            spec = servo_from_mapping(doc[fine], f"servo.{fine}", spec)
+        if ours is not None and ours in doc:                 # then the joint itself
+            spec = servo_from_mapping(doc[ours], f"servo.{ours}", spec)
         servos[theirs] = spec
     sources = {}
     for g in GROUPS:
@@ -553,6 +562,10 @@ def _servos(model: mujoco.MjModel, final: Mapping[str, tuple[str, int]], doc: An
         over = [f for f in map_fields if f != "speed"]
         tail = f"; map servo.{g} sets {', '.join(over)}" if over else ""
         sources[f"servos.{g}"] = "; ".join(parts) + f"; {speed_src}{tail}"
+    finer = [k for k in doc if k not in GROUPS]
+    if finer:
+        sources["servos.finer"] = (f"the map's servo.{', servo.'.join(finer)} over their group's "
+                                   f"(joint groups, then joints: an identification's overlay)")
     return servos, sources
 
 

@@ -21,6 +21,19 @@ __all__ = ["RobotModel", "SimOptions", "joint_group", "GROUPS"]
 GROUPS = ("legs", "arms", "head", "other")
 
 
+#: Finer servo groups a map can configure over the legs (an identification fits these): a
+#: joint's ``servo:`` entry is its group's, then its finer group's, then its own (our joint name).
+FINE_GROUPS = ("hips", "knees", "ankles")
+
+
+def fine_group(ours: str) -> str | None:
+    """The finer servo group of one of our leg joint names (None for arms, head, others)."""
+    tail = ours[2:]
+    if ours[:2] in ("l_", "r_") and tail in LEG_JOINTS:
+        return "hips" if tail.startswith("hip_") else "knees" if tail == "knee" else "ankles"
+    return None
+
+
 def joint_group(ours: str | None) -> str:
     """The servo group of one of our joint names (None: a joint the map does not name)."""
     if ours is None:

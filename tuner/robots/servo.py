@@ -2,7 +2,10 @@
 
 A servo here is MuJoCo's position actuator (torque = kp (q_cmd - q) - kv q', clipped to
 +-torque) on a joint with armature, damping and friction loss, plus a limit on how fast the
-commanded target may move (``speed``), which the simulator applies every control tick.
+commanded target may move (``speed``), which the simulator applies every control tick, and, where
+identified from a recording (``gait-tuner identify servos``), a gearbox dead band (``backlash``)
+and a command latency (``latency``; the simulator delays every command by the largest servo's,
+in whole control ticks).
 
 Presets (``SERVO_PRESETS``): stall torque and no-load speed are ROBOTIS e-manual figures at
 12 V (MX-28: 2.5 N m, 55 rpm; MX-64: 6.0 N m, 63 rpm; MX-106: 8.4 N m, 45 rpm; XM430-W350:
@@ -30,7 +33,7 @@ __all__ = ["ServoSpec", "SERVO_PRESETS", "SERVO_FIELDS", "servo_from_mapping", "
 _RANGES = {"kp": (0.0, 1000.0, "N m/rad"), "kv": (0.0, 100.0, "N m s/rad"),
            "torque": (0.0, 200.0, "N m"), "speed": (0.0, 100.0, "rad/s"),
            "armature": (0.0, 1.0, "kg m^2"), "damping": (0.0, 100.0, "N m s/rad"),
-           "frictionloss": (0.0, 100.0, "N m")}
+           "frictionloss": (0.0, 100.0, "N m"), "backlash": (0.0, 0.2, "rad"), "latency": (0.0, 0.2, "s")}
 _STRICTLY_POSITIVE = ("kp", "torque", "speed")
 
 
@@ -45,6 +48,8 @@ class ServoSpec:
     armature: float = 0.008     # [kg m^2] reflected rotor inertia
     damping: float = 0.2        # [N m s/rad] gearbox viscous friction
     frictionloss: float = 0.03  # [N m] gearbox dry friction
+    backlash: float = 0.0       # [rad] gearbox dead band, full width (identified; the presets state none)
+    latency: float = 0.0        # [s] from a command to the servo acting on it (identified; one per robot)
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):

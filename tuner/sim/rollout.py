@@ -238,6 +238,9 @@ class Simulator:
         self._q_hi = np.where(limited, jr[:, 1], np.inf)
         speeds = np.array([r.servos[t].speed for t in theirs])
         self._max_step = speeds * self.control_period
+        # an identified servo's latency (one queue: the largest, in whole ticks) and dead band
+        self._latency = int(round(max((r.servos[t].latency for t in theirs), default=0.0) / self.control_period))
+        self._backlash = np.array([r.servos[t].backlash for t in theirs])
         half = [np.array(r.foot_size_of(i)) / 2 for i in range(2)]            # each foot's own sole
         self._corners = np.stack([r.sole_points(i, [[sx * half[i][0], sy * half[i][1], 0.0] for sx, sy in CORNERS])
                                   for i in range(2)])  # (2, 4, 3) in foot frame
@@ -433,8 +436,8 @@ class Simulator:
         z0 = self._place(q0, np.asarray(pose.p_world_pelvis_xy, dtype=float))
         cmd = q0.copy()
         step = self._max_step
-        latency = 0
-        backlash = None
+        latency = self._latency
+        backlash = self._backlash / 2 if np.any(self._backlash > 0) else None
         kicks: dict[int, np.ndarray] = {}
         for t_push, impulse in pushes:
             kicks[int(round(t_push / dt))] = np.asarray(impulse, dtype=float) / dt
@@ -442,8 +445,9 @@ class Simulator:
             step = step * pert.speed
             d.qpos[self._qadr] += pert.initial_pose
             mujoco.mj_forward(m, d)
-            latency = pert.latency
-            backlash = pert.backlash / 2 if np.any(pert.backlash > 0) else None
+            latency = self._latency + pert.latency
+            band = self._backlash + pert.backlash
+            backlash = band / 2 if np.any(band > 0) else None
             if pert.push_impulse > 0:
                 first = int(round(getattr(controller, "walk_start", 0.0) / dt)) or 1
                 tick = first + int(pert.push_time * max(n_ticks - 1 - first, 1))

@@ -1,0 +1,140 @@
+"""What an identification writes: the robot map with its servos identified, the overlay alone, the
+fit's numbers (JSON) and a one-screen summary; each names the recordings, the fit's residuals and
+the commit of the tool that made it.
+
+The map (``robot.yaml``) is the team's own map with its ``servo:`` section extended by the fitted
+groups (hips, knees, ankles, arms, head) or joints (our names), absolute values in SI, and its file
+paths rewritten relative to the output folder: pass it as ``--robot`` to any verb. A parameter the
+recordings could not tell keeps the map's value and is not written.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from gaits.files import write_files_atomic
+
+from ..errors import UserError
+from ..sim.identify import SCALED, ServoFit
+from .provenance import commit_of
+
+__all__ = ["servo_overlay", "write_servo_fit", "summary_lines", "fit_json"]
+
+_FIELDS = ("kp", "damping", "armature", "frictionloss", "torque", "speed", "backlash")
+
+
+def servo_overlay(fit: ServoFit, base: Any) -> dict[str, dict[str, float]]:
+    """The map's ``servo:`` entries the fit sets: per fitted unit (group or joint) the fields it
+    identified (a unit whose joints differ in a field gets that field per joint), and the latency."""
+    from ..sim.identify import group_of
+    units: dict[str, list[int]] = {}
+    for i, j in enumerate(fit.joints):
+        units.setdefault(group_of(j) if fit.by == "groups" else j, []).append(i)
+    out: dict[str, dict[str, float]] = {}
+    for u, idx in units.items():
+        for f in _FIELDS:
+            if not fit.identifiable.get(f"{u}.{f}", False):
+                continue
+            vals = np.asarray(getattr(fit.servos, f))[idx]
+            if np.allclose(vals, vals[0], rtol=1e-9, atol=0):
+                out.setdefault(u, {})[f] = float(f"{vals[0]:.6g}")
+            else:
+                for i, v in zip(idx, vals):
+                    out.setdefault(fit.joints[i], {})[f] = float(f"{v:.6g}")
+        if fit.identifiable.get("latency", False):
+            out.setdefault(u, {})["latency"] = float(f"{fit.servos.latency:.6g}")
+    return out
+
+
+def fit_json(fit: ServoFit) -> dict[str, Any]:
+    def num(x: float) -> float | None:
+        return float(x) if math.isfinite(x) else None
+    return {"by": fit.by, "joints": list(fit.joints), "recordings": fit.recordings,
+            "parameters": {k: {"value": fit.values[k], "interval95": num(fit.intervals[k]),
+                               "unit": "mrad" if k.endswith(".backlash") else "ticks" if k == "latency"
+                               else "factor of the map's",
+                               "fitted": k in fit.fitted, "identifiable": fit.identifiable[k]} for k in fit.values},
+            "rms_before_rad": fit.rms_before, "rms_after_rad": fit.rms_after,
+            "entangled": fit.entangled, "rollouts": fit.rollouts, "seconds": round(fit.seconds, 1), "iterations": fit.iterations}
+
+
+def summary_lines(fit: ServoFit, noise: float) -> list[str]:
+    b = np.sqrt(np.mean(np.square(list(fit.rms_before.values()))))
+    a = np.sqrt(np.mean(np.square(list(fit.rms_after.values()))))
+    lines = [f"servos identified by {fit.by} from {len(fit.recordings)} recording(s): joint angle residual RMS "
+             f"{b * 1000:.2f} -> {a * 1000:.2f} mrad ({a / noise:.2f}x the {noise * 1000:g} mrad sensor noise); "
+             f"{fit.rollouts} rollouts, {fit.seconds:.0f} s"]
+    units = list(dict.fromkeys(k.rsplit(".", 1)[0] for k in fit.values if k != "latency"))
+    head = f"  {'':8s}" + "".join(f"{f:>16s}" for f in SCALED + ("backlash",))
+    lines.append(head + "   (factor of the map's value +- 95 %; backlash mrad; - : not identifiable; (map): not fitted)")
+    for u in units:
+        cells = []
+        for f in SCALED + ("backlash",):
+            k = f"{u}.{f}"
+            if k not in fit.fitted:
+                cells.append(f"{'(map)':>16s}")
+            elif not fit.identifiable[k]:
+                cells.append(f"{'-':>16s}")
+            else:
+                cells.append(f"{fit.values[k]:>9.3g} +-{fit.intervals[k]:<5.2g}")
+        lines.append(f"  {u:8s}" + "".join(cells))
+    lat = "latency " + (f"{fit.values['latency']:.2f} ticks +- {fit.intervals['latency']:.2g}"
+                        if fit.identifiable["latency"] else "not identifiable" if "latency" in fit.fitted
+                        else "not fitted (none)")
+    lines.append("  " + lat)
+    worst = sorted(fit.rms_after.items(), key=lambda kv: -kv[1])[:3]
+    lines.append("  largest residuals after: " + ", ".join(f"{j} {v * 1000:.2f} mrad" for j, v in worst))
+    for group in fit.entangled:
+        lines.append(f"  estimates that move together (correlation past 0.995; each +- says how well it is fixed "
+                     f"alone): {', '.join(group)}")
+    if fit.not_identifiable:
+        lines.append(f"  not identifiable from these recordings (the map's value kept): "
+                     f"{', '.join(fit.not_identifiable)}")
+    return lines
+
+
+def write_servo_fit(fit: ServoFit, robot_map: Path | None, out_dir: Path, noise: float,
+                    servos_base: Any = None) -> list[Path]:
+    """Write ``robot.yaml`` (when the robot came from a map), ``servos.yaml``, ``fit.json`` and
+    ``report.txt`` into ``out_dir``, all or none."""
+    import tuner
+    commit = commit_of(tuner.__file__).strip(" ()") or "unknown commit"
+    overlay = servo_overlay(fit, servos_base)
+    a = np.sqrt(np.mean(np.square(list(fit.rms_after.values()))))
+    header = (f"# servos identified by gait-tuner identify servos ({commit})\n"
+              f"# from: {', '.join(fit.recordings)}\n"
+              f"# joint angle residual RMS after the fit: {a * 1000:.3f} mrad; per joint in fit.json\n")
+    files: dict[Path, str] = {}
+    files[out_dir / "servos.yaml"] = header + yaml.safe_dump({"servo": overlay}, sort_keys=False)
+    if robot_map is not None:
+        from ..yaml_input import read_yaml_file
+        doc = read_yaml_file(robot_map, "robot map")
+        if not isinstance(doc, dict):
+            raise UserError(f"{robot_map}: not a robot map")
+        doc = dict(doc)
+        here = robot_map.resolve().parent
+        for key in ("mjcf", "urdf"):
+            if isinstance(doc.get(key), str):
+                doc[key] = os.path.relpath(here / doc[key], out_dir.resolve())
+        if isinstance(doc.get("packages"), dict):
+            doc["packages"] = {k: os.path.relpath(here / v, out_dir.resolve()) for k, v in doc["packages"].items()}
+        servo = dict(doc.get("servo") or {})
+        for k, v in overlay.items():
+            entry = servo.get(k)
+            merged = {"preset": entry} if isinstance(entry, str) else dict(entry or {})
+            merged.update(v)
+            servo[k] = merged
+        doc["servo"] = servo
+        doc.setdefault("name", robot_map.stem)
+        files[out_dir / "robot.yaml"] = header + yaml.safe_dump(doc, sort_keys=False)
+    files[out_dir / "fit.json"] = json.dumps(fit_json(fit), indent=1, allow_nan=False) + "\n"
+    files[out_dir / "report.txt"] = "\n".join(summary_lines(fit, noise)) + "\n"
+    out_dir.mkdir(parents=True, exist_ok=True)
+    return write_files_atomic(files)

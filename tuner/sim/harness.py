@@ -1,0 +1,300 @@
+"""The robot hung in a harness by its torso: the servo model alone, for sweeps and identification.
+
+A team identifies its servos on the robot hanging in a harness (the feet off the ground) while
+the joints play a sweep (``gait-tuner excite``); :class:`Harness` is that robot in MuJoCo: the
+robot's own model with its free joint removed (the torso fixed in the world, 1 m up, so no foot
+reaches the floor), the same servo model as :class:`tuner.sim.rollout.Simulator` (a position
+actuator per servo with its gain ``kp``, velocity feedback ``kv`` and torque limit; the joint's
+armature, damping and friction loss), and the same command path, in the same order: the
+targets rate-limited to the servo's speed and clipped to the joint's range, then the latency,
+then the backlash dead band against the joint's position (``rollout.dead_band``).
+
+Ours, for identification: the latency is a real number of seconds; a fraction of a tick
+interpolates between the commands of the neighbouring ticks (a Catmull-Rom spline through them:
+at whole ticks it is the simulator's queue exactly, and the command and its slope in the latency
+are continuous across ticks), so that a fit can move it smoothly. Each servo's numbers are arrays
+over the servo joints (:class:`ServoArrays`), so a fit can change them per joint or per group.
+
+Joint angles in and out are gait-tuner's (``gaits.JOINT_NAMES`` signs, the held pose as zero for
+arms and head), as in recordings; the MJCF's own frame only inside.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from ..robots.robot_model import RobotModel
+from .rollout import dead_band, rate_limited
+from .scene import PREFIX, build_scene
+from .surfaces import SURFACES
+
+__all__ = ["Harness", "ServoArrays", "HANG_HEIGHT"]
+
+HANG_HEIGHT = 1.0       # [m] how far the torso is lifted above its standing place (ours: no foot reaches the floor)
+
+
+@dataclass
+class ServoArrays:
+    """Every servo's numbers as arrays over the harness' servo joints (SI), plus the latency.
+
+    kp [N m/rad], kv [N m s/rad], torque [N m], speed [rad/s], armature [kg m^2], damping
+    [N m s/rad], frictionloss [N m], backlash [rad] (the dead band's full width); latency [s]."""
+
+    kp: np.ndarray
+    kv: np.ndarray
+    torque: np.ndarray
+    speed: np.ndarray
+    armature: np.ndarray
+    damping: np.ndarray
+    frictionloss: np.ndarray
+    backlash: np.ndarray
+    latency: float = 0.0
+
+    def copy(self) -> "ServoArrays":
+        return ServoArrays(**{f.name: (np.array(getattr(self, f.name), dtype=float) if f.name != "latency"
+                                       else float(self.latency)) for f in dataclasses.fields(self)})
+
+
+class Harness:
+    """One robot in its harness: the editable model (``spec``), its servo joints and the command path."""
+
+    def __init__(self, robot: RobotModel) -> None:
+        self.robot = robot
+        spec, layout = build_scene(robot, SURFACES["rigid"])
+        for j in list(spec.joints):
+            if j.type == mujoco.mjtJoint.mjJNT_FREE:
+                root = j.parent
+                spec.delete(j)
+                root.pos = [root.pos[0], root.pos[1], root.pos[2] + HANG_HEIGHT]
+        for sn in list(spec.sensors):
+            spec.delete(sn)
+        for key in list(spec.keys):
+            spec.delete(key)
+        self.joint_names = layout.servo_joints                      # ours, in the servos' order
+        self.theirs = tuple(robot.joint_map[n][0] for n in self.joint_names)
+        for ours, theirs in zip(self.joint_names, self.theirs):
+            spec.add_sensor(name=f"q/{ours}", type=mujoco.mjtSensor.mjSENS_JOINTPOS,
+                            objtype=mujoco.mjtObj.mjOBJ_JOINT, objname=theirs)
+        self.held = layout.held_joints
+        self.spec = spec
+        self.n = len(self.joint_names)
+        self.control_period = robot.sim.control_period
+        self.nstep = int(round(robot.sim.control_period / robot.sim.timestep))
+        model = spec.compile()
+        self.model = model
+        self._sign = np.array([robot.joint_map[j][1] for j in self.joint_names], dtype=float)
+        self._offset = np.array([robot.pose.get(t, 0.0) for t in self.theirs])
+        jid = [model.joint(t).id for t in self.theirs]
+        self._qadr = np.array([model.jnt_qposadr[i] for i in jid])
+        self._dofadr = np.array([model.jnt_dofadr[i] for i in jid])
+        limited = model.jnt_limited[jid].astype(bool)
+        self.q_lo = np.where(limited, model.jnt_range[jid, 0], -np.inf)     # MJCF frame
+        self.q_hi = np.where(limited, model.jnt_range[jid, 1], np.inf)
+        self._held_qadr = np.array([model.jnt_qposadr[model.joint(t).id] for t in self.held], dtype=int)
+        self._held_pose = np.array([robot.pose.get(t, 0.0) for t in self.held])
+        self._actuator = [spec.actuator(PREFIX + f"servo/{n}") for n in self.joint_names]
+        self._joint = [spec.joint(t) for t in self.theirs]
+
+    # --- frames -----------------------------------------------------------------------
+    def to_robot(self, q: np.ndarray) -> np.ndarray:
+        """gait-tuner's angles (..., n) of the servo joints -> the MJCF's."""
+        return np.asarray(q, dtype=float) * self._sign + self._offset
+
+    def from_robot(self, q: np.ndarray) -> np.ndarray:
+        return (np.asarray(q, dtype=float) - self._offset) * self._sign
+
+    def range_ours(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each servo joint's range in gait-tuner's frame (lo, hi) [rad] (+-inf where unlimited)."""
+        a, b = self.from_robot(self.q_lo), self.from_robot(self.q_hi)
+        with np.errstate(invalid="ignore"):
+            return np.where(np.isnan(a), -np.inf, np.minimum(a, b)), np.where(np.isnan(b), np.inf, np.maximum(a, b))
+
+    # --- servos -----------------------------------------------------------------------
+    def servo_arrays(self) -> ServoArrays:
+        """The robot's servos as its map gives them (no backlash, no latency)."""
+        s = [self.robot.servos[t] for t in self.theirs]
+        return ServoArrays(**{f: np.array([getattr(x, f) for x in s]) for f in
+                              ("kp", "kv", "torque", "speed", "armature", "damping", "frictionloss")},
+                           backlash=np.zeros(self.n), latency=0.0)
+
+    def write_spec(self, spec: mujoco.MjSpec, s: ServoArrays) -> None:
+        """The parts of the servos that live in the model (gain, feedback, torque, the joint's
+        armature, damping and friction loss) written into ``spec`` (this harness' or a copy)."""
+        for i, (ours, theirs) in enumerate(zip(self.joint_names, self.theirs)):
+            act = spec.actuator(PREFIX + f"servo/{ours}")
+            act.gainprm[0] = s.kp[i]
+            act.biasprm[1] = -s.kp[i]
+            act.biasprm[2] = -s.kv[i]
+            act.forcerange = [-s.torque[i], s.torque[i]]
+            j = spec.joint(theirs)
+            j.armature = s.armature[i]
+            j.damping = [s.damping[i], 0.0, 0.0]
+            j.frictionloss = s.frictionloss[i]
+
+    def compile(self, s: ServoArrays) -> mujoco.MjModel:
+        self.write_spec(self.spec, s)
+        return self.spec.compile()
+
+    # --- a sweep ------------------------------------------------------------------------
+    def sent(self, targets: np.ndarray, s: ServoArrays, q0: np.ndarray | None = None) -> np.ndarray:
+        """The commands (N, n) [MJCF frame] that reach the servos for targets (N, n) [ours], before
+        the backlash: rate-limited to ``s.speed`` from row 0 (the start, held), clipped to the
+        joint ranges, delayed by ``s.latency`` (fractions of a tick interpolated)."""
+        t = self.to_robot(targets)
+        c0 = t[0] if q0 is None else self.to_robot(q0)
+        cmd = rate_limited(t, np.clip(c0, self.q_lo, self.q_hi), np.asarray(s.speed) * self.control_period,
+                           self.q_lo, self.q_hi)
+        lag = max(float(s.latency), 0.0) / self.control_period
+        n_whole, u = int(math.floor(lag)), lag - math.floor(lag)
+        if u == 0.0:
+            return cmd[np.maximum(np.arange(len(cmd)) - n_whole, 0)]
+        # between the commands of ticks k - n and k - n - 1: a Catmull-Rom spline through the ticks,
+        # so that the delayed command and its slope in the latency are continuous across whole ticks
+        k = np.arange(len(cmd))
+        p0, p1, p2, p3 = (cmd[np.clip(k - n_whole + 1 - i, 0, len(cmd) - 1)] for i in range(4))
+        return p1 + 0.5 * u * ((p2 - p0) + u * ((2 * p0 - 5 * p1 + 4 * p2 - p3) + u * (3 * (p1 - p2) + p3 - p0)))
+
+    def run(self, model: mujoco.MjModel, targets: np.ndarray, s: ServoArrays, q0: np.ndarray | None = None,
+            data: mujoco.MjData | None = None, state: bool = False, limits: dict | None = None):
+        """Play ``targets`` (N, n) [rad, ours], one row per control tick (row k asked at tick k,
+        acting over the tick that follows), from rest at ``q0`` (default: row 0). Returns the
+        measured angles (N, n) [rad, ours] at the ticks (row 0: the start), and with ``state``
+        also MuJoCo's full physics state at each tick (N, nstate). ``limits``, a dict, is filled
+        with the ticks (n,) each servo's speed limit and its torque limit bound ("speed",
+        "torque"): a limit that never binds cannot be read off the recording."""
+        d = mujoco.MjData(model) if data is None else data
+        targets = np.asarray(targets, dtype=float)
+        start = targets[0] if q0 is None else np.asarray(q0, dtype=float)
+        mujoco.mj_resetData(model, d)
+        d.qpos[self._qadr] = np.clip(self.to_robot(start), self.q_lo, self.q_hi)
+        d.qpos[self._held_qadr] = self._held_pose
+        d.ctrl[:] = 0.0
+        d.ctrl[self.n:self.n + len(self.held)] = self._held_pose
+        mujoco.mj_forward(model, d)
+        sent = self.sent(targets, s, start)
+        half = np.asarray(s.backlash, dtype=float) / 2
+        use_band = bool(np.any(half > 0))
+        N = len(targets)
+        out = np.empty((N, self.n))
+        out[0] = d.qpos[self._qadr]
+        full = mujoco.mjtState.mjSTATE_FULLPHYSICS.value
+        states = None
+        if state:
+            states = np.empty((N, mujoco.mj_stateSize(model, full)))
+            mujoco.mj_getState(model, d, states[0], full)
+        qadr, n, nstep = self._qadr, self.n, self.nstep
+        ctrl, qpos = d.ctrl, d.qpos
+        at_torque = np.zeros(n, dtype=int)
+        tau_lim = 0.999 * np.asarray(s.torque, dtype=float)
+        for k in range(1, N):
+            u = sent[k - 1]
+            ctrl[:n] = dead_band(u, qpos[qadr], half) if use_band else u
+            if limits is None:
+                mujoco.mj_step(model, d, nstep=nstep)
+            else:
+                for _ in range(nstep):
+                    mujoco.mj_step(model, d)
+                    at_torque += np.abs(d.actuator_force[:n]) >= tau_lim
+            out[k] = qpos[qadr]
+            if states is not None:
+                mujoco.mj_getState(model, d, states[k], full)
+        if limits is not None:
+            asked = np.clip(self.to_robot(targets), self.q_lo, self.q_hi)
+            limits["torque"] = at_torque
+            limits["speed"] = (np.abs(np.diff(asked, axis=0)) > np.asarray(s.speed) * self.control_period
+                               * (1 + 1e-9)).sum(axis=0)
+        q = self.from_robot(out)
+        return (q, states) if state else q
+
+    def probe(self, model: mujoco.MjModel, targets: np.ndarray, s: ServoArrays) -> tuple[np.ndarray, np.ndarray]:
+        """What a sweep asks of the robot: the largest actuator torque per servo [N m] (a saturated
+        servo reads its limit) and, per servo, whether its limb touches another part of the robot
+        (a contact below the joint; a sweep must not knock the robot's feet or hands together)."""
+        d = mujoco.MjData(model)
+        targets = np.asarray(targets, dtype=float)
+        mujoco.mj_resetData(model, d)
+        d.qpos[self._qadr] = np.clip(self.to_robot(targets[0]), self.q_lo, self.q_hi)
+        d.qpos[self._held_qadr] = self._held_pose
+        d.ctrl[self.n:self.n + len(self.held)] = self._held_pose
+        mujoco.mj_forward(model, d)
+        sent = self.sent(targets, s)
+        tau = np.zeros(self.n)
+        bodies: set[int] = set()
+        for k in range(1, len(targets)):
+            d.ctrl[:self.n] = sent[k - 1]
+            for _ in range(self.nstep):
+                mujoco.mj_step(model, d)
+                for c in d.contact[:d.ncon]:
+                    bodies.update((int(model.geom_bodyid[c.geom1]), int(model.geom_bodyid[c.geom2])))
+            np.maximum(tau, np.abs(d.actuator_force[:self.n]), out=tau)
+        touching = np.zeros(self.n, dtype=bool)
+        for i, t in enumerate(self.theirs):            # a joint whose body is the touching body or above it
+            jb = int(model.jnt_bodyid[model.joint(t).id])
+            for b in bodies:
+                while b > 0 and b != jb:
+                    b = int(model.body_parentid[b])
+                touching[i] |= b == jb
+        return tau, touching
+
+def excitation(h: Harness, duration: float = 30.0, f0: float = 0.2, f1: float = 2.5, amplitude: float = 0.4,
+               speed_margin: float = 0.6, torque_margin: float = 0.8, range_margin: float = 0.05,
+               seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """A joint sweep for the robot hanging in its harness (ours): every servo joint plays a chirp
+    (a sine whose frequency rises from ``f0`` to ``f1`` [Hz] over ``duration`` [s], faded in and out
+    over a second), each joint with its own phase, about the middle of its range within
+    ``amplitude`` [rad] of the held pose. Kept inside every servo's limits: ``range_margin`` [rad]
+    from each end of the joint's range, the peak speed at most ``speed_margin`` of the servo's,
+    and, played on the harness with the map's servos, every torque below ``torque_margin`` of the
+    servo's limit and no limb touching another (the robot's own contacts make a recording that
+    no fit can follow, and knock its feet together): a joint over a limit, or above a touching
+    part, plays a smaller amplitude, until none does. Returns (t (N,),
+    targets (N, n) [rad, ours, columns ``h.joint_names``])."""
+    if not (0 < f0 < f1) or duration <= 2.0:
+        raise ValueError("excitation needs 0 < f0 < f1 and a duration over 2 s")
+    dt = h.control_period
+    t = np.arange(int(round(duration / dt)) + 1) * dt
+    lo, hi = h.range_ours()
+    lo_m, hi_m = lo + range_margin, hi - range_margin
+    centre = np.clip(np.zeros(h.n), lo_m, hi_m)
+    room = np.minimum(centre - lo_m, hi_m - centre)
+    room = np.where(np.isfinite(room), room, amplitude)
+    s = h.servo_arrays()
+    k = (f1 - f0) / duration                                   # linear chirp: f(t) = f0 + k t
+    phase = 2 * np.pi * (f0 * t + 0.5 * k * t ** 2)
+    fade = np.clip(np.minimum(t, duration - t), 0.0, 1.0)
+    offsets = np.random.default_rng(seed).uniform(0, 2 * np.pi, h.n)
+    # the peak speed of A fade sin(phase): A 2 pi f1 (the fade's own slope adds A per second)
+    a = np.minimum(np.minimum(room, amplitude), speed_margin * s.speed / (2 * np.pi * f1 + 1.0))
+    model = h.compile(s)
+    for _ in range(12):
+        targets = centre + a * fade[:, None] * np.sin(phase[:, None] + offsets)
+        tau, touching = h.probe(model, targets, s)
+        over = tau > torque_margin * s.torque
+        if not over.any() and not touching.any():
+            return t, targets
+        a = np.where(over | touching, a * 0.8, a)
+    raise ValueError("no sweep keeps the servos under their torque limits and the limbs apart (a servo too weak "
+                     "to move its own limb, or limbs that touch at the held pose?)")
+
+
+def record_sweep(h: Harness, targets: np.ndarray, s: ServoArrays, path, *, noise: float = 1e-3, seed: int = 0,
+                 task: str = "sweep", notes: str = "") -> np.ndarray:
+    """Play ``targets`` on the harness with servos ``s`` and write what a robot's loop would record
+    (``gaits.recording``, simulated): per tick the encoders (with Gaussian ``noise`` [rad]) and the
+    targets asked then, for the tick that follows (row k of ``targets``). Returns the measured angles (N, n) as recorded."""
+    from gaits.control import Measurement
+    from gaits.recording import Recorder, RecordingMeta
+    model = h.compile(s)
+    q = h.run(model, targets, s)
+    q = q + np.random.default_rng(seed).normal(0.0, noise, q.shape) if noise > 0 else q
+    meta = RecordingMeta(robot=h.robot.name, task=task, simulated=True, joints=list(h.joint_names),
+                         controller="joint sweep (gait-tuner excite), robot in a harness", notes=notes)
+    with Recorder(path, meta, start_ns=0) as rec:
+        for k in range(len(targets)):       # row k: read at tick k, and asked then for the tick after
+            rec.record(Measurement(k * h.control_period, q=q[k], joint_names=h.joint_names), None, targets[k])
+    return q

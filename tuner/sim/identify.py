@@ -1,0 +1,361 @@
+"""The robot's servos identified from recordings, with MuJoCo's system identification toolbox.
+
+``mujoco.sysid`` (the ``mujoco[sysid]`` extra; our one adapter to it) gives the parameters (a
+``ParameterDict`` of bounded ``Parameter``s, the model-side ones written into the robot's MjSpec by
+their modifiers and compiled by ``apply_param_modifiers``), the optimiser (``optimize``: MuJoCo's
+box-bounded Levenberg-Marquardt, finite differences batched) and the confidence intervals
+(``calculate_intervals``). What it has no piece for is ours: the rollout, because a servo's command
+path (rate limit, latency, backlash dead band: :mod:`tuner.sim.harness`) runs between the
+recording's targets and MuJoCo's controls, tick by tick.
+
+What is fitted (ours): per joint group (hips, knees, ankles, arms, head; or per joint) the
+position gain ``kp``, the joint's ``damping``, ``armature`` and ``frictionloss``, the servo's
+``torque`` and ``speed`` limits and the ``backlash`` (dead band width), and one ``latency`` for the
+robot (one bus). The velocity feedback ``kv`` is held at the map's value: it and the joint's
+damping are one viscous torque on the same joint velocity, which no recording can tell apart.
+Gains, damping, armature, friction and limits are fitted as factors of the map's values
+(bounded 0.2-5x: a fit that wants more says so); the backlash in mrad and the latency in ticks.
+
+The residual: measured minus predicted joint angles at every tick after the first, over every
+recording, in units of ``noise`` [rad] (the encoders' resolution; so a residual RMS of 1 is a fit
+down to the sensor noise). A parameter is *identified* from the recordings when its 95 % interval
+(``calculate_intervals``, which accounts for the others) is finite and narrow (:data:`NARROW`)
+and, for a torque or speed limit, the limit binds somewhere in the recordings at the fitted value.
+Estimates that move together (correlation past :data:`ENTANGLED`: what the recordings fix is
+their combination) are named. One that
+is not keeps the map's value and is named so; the residual reported is the one of what is kept.
+"""
+
+from __future__ import annotations
+
+import io
+import logging
+import math
+import os
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+
+from ..errors import UserError
+from ..robots.robot_model import fine_group, joint_group
+from .harness import Harness, ServoArrays
+
+__all__ = ["JointLog", "ServoFit", "identify_servos", "FIT_GROUPS", "group_of", "SCALED", "sysid_available"]
+
+#: joint groups a fit shares parameters over (ours: a robot's servos are usually one model per group)
+FIT_GROUPS = ("hips", "knees", "ankles", "arms", "head")
+#: fields fitted as factors of the map's servo
+SCALED = ("kp", "damping", "armature", "frictionloss", "torque", "speed")
+FACTOR_BOUNDS = (0.2, 5.0)
+#: the servo's limits: fitted in a second stage, kept where they lower the misfit by LIMIT_GAIN (ours)
+LIMITS = ("torque", "speed")
+LIMIT_GAIN = 0.02
+#: the finite-difference step of the Jacobian, on parameters of order one (factors, mrad, ticks) (ours:
+#: MuJoCo's constraint solver stops at a tolerance, so a step near the machine's precision differences noise)
+FD_STEP = 1e-4
+BACKLASH_MAX_MRAD = 60.0
+LATENCY_MAX_TICKS = 8.0
+
+
+def sysid_available() -> bool:
+    try:
+        from mujoco import sysid
+        return hasattr(sysid, "optimize")
+    except ImportError:
+        return False
+
+
+def _sysid():
+    try:
+        from mujoco import sysid
+    except ImportError:
+        sysid = None
+    if sysid is None or not hasattr(sysid, "optimize"):
+        raise UserError("identification needs MuJoCo's system identification toolbox: "
+                        "pip install 'mujoco[sysid]'")
+    return sysid
+
+
+def group_of(ours: str) -> str:
+    """The fit group of one of our joint names: the map's finer leg groups (hips, knees, ankles),
+    else its group (arms, head)."""
+    return fine_group(ours) or joint_group(ours)
+
+
+@dataclass
+class JointLog:
+    """One recording's joints on the control period's grid: ``targets`` (N, n) what the controller
+    asked at each tick, ``measured`` (N, n) the encoders at each tick [rad, gait-tuner's frame],
+    columns ``joints`` (ours). ``name``: where it came from."""
+
+    name: str
+    dt: float
+    joints: tuple[str, ...]
+    targets: np.ndarray
+    measured: np.ndarray
+
+    def columns(self, names) -> tuple[np.ndarray, np.ndarray]:
+        idx = [self.joints.index(n) for n in names]
+        return self.targets[:, idx], self.measured[:, idx]
+
+
+@dataclass
+class ServoFit:
+    """An identification's result: the servos per joint (``servos``, the harness' order), the
+    parameters with their intervals, and the residuals before and after [rad RMS, per joint]."""
+
+    servos: ServoArrays
+    joints: tuple[str, ...]
+    by: str                                    # "groups" or "joints"
+    values: dict[str, float]                   # parameter -> fitted value (factor, mrad or ticks)
+    intervals: dict[str, float]                # parameter -> 95 % half-width (inf: not identifiable)
+    identifiable: dict[str, bool]
+    rms_before: dict[str, float]               # joint -> RMS [rad]
+    rms_after: dict[str, float]
+    rollouts: int
+    seconds: float
+    iterations: int
+    converged: bool
+    recordings: list[str] = field(default_factory=list)
+    entangled: list[list[str]] = field(default_factory=list)    # estimates that move together
+    fitted: list[str] = field(default_factory=list)              # the parameters fitted (the others: the map's)
+
+    @property
+    def not_identifiable(self) -> list[str]:
+        """Fitted parameters the recordings could not fix (they keep the map's value)."""
+        return [k for k in self.fitted if not self.identifiable[k]]
+
+
+def _unit(name: str) -> str:
+    return "mrad" if name.endswith(".backlash") else "ticks" if name == "latency" else "x"
+
+
+#: what a fit can set: the scaled fields, the backlash and the latency
+FITTABLE = SCALED + ("backlash", "latency")
+
+
+def identify_servos(harness: Harness, logs: list[JointLog], *, by: str = "groups", noise: float = 1e-3,
+                    max_iters: int = 40, threads: int | None = None, progress=None,
+                    fit: tuple[str, ...] = FITTABLE) -> ServoFit:
+    """Fit the harness robot's servos to ``logs`` (see the module's docstring). ``by``: "groups"
+    (:data:`FIT_GROUPS`) or "joints". ``noise`` [rad]: the encoders' noise, the residual's unit.
+    ``fit``: the fields fitted (:data:`FITTABLE`); the others keep the map's values (and no
+    backlash, no latency). ``progress(evaluations)`` is called after each batch of rollouts."""
+    bad = [f for f in fit if f not in FITTABLE]
+    if bad or not fit:
+        raise UserError(f"--fit {','.join(fit)}: expected some of {', '.join(FITTABLE)}")
+    sysid = _sysid()
+    if by not in ("groups", "joints"):
+        raise UserError(f"--by {by!r}: expected groups or joints")
+    if not logs:
+        raise UserError("no recordings to identify from")
+    h = harness
+    dt = h.control_period
+    for log in logs:
+        if abs(log.dt - dt) > 1e-9:
+            raise UserError(f"{log.name}: its ticks are {log.dt * 1000:g} ms apart; the robot's control period "
+                            f"is {dt * 1000:g} ms")
+        missing = [j for j in h.joint_names if j not in log.joints]
+        if missing:
+            raise UserError(f"{log.name}: no measured and commanded angles for {', '.join(missing[:4])}"
+                            f"{' ...' if len(missing) > 4 else ''}")
+    data = [log.columns(h.joint_names) for log in logs]
+    base = h.servo_arrays()
+    keys = [group_of(j) for j in h.joint_names] if by == "groups" else list(h.joint_names)
+    units = list(dict.fromkeys(keys))                           # the fitted units, in order
+    member = {u: np.array([k == u for k in keys]) for u in units}
+    params = sysid.ParameterDict()
+
+    def scale_modifier(unit: str, fname: str):
+        cols = np.flatnonzero(member[unit])
+
+        def modify(spec: mujoco.MjSpec, p) -> None:
+            f = float(p.value[0])
+            for i in cols:
+                ours, theirs = h.joint_names[i], h.theirs[i]
+                if fname in ("kp", "torque"):
+                    act = spec.actuator(f"gt/servo/{ours}")
+                    if fname == "kp":
+                        act.gainprm[0] = base.kp[i] * f
+                        act.biasprm[1] = -base.kp[i] * f
+                    else:
+                        act.forcerange = [-base.torque[i] * f, base.torque[i] * f]
+                elif fname == "damping":
+                    spec.joint(theirs).damping = [base.damping[i] * f, 0.0, 0.0]
+                elif fname == "armature":
+                    spec.joint(theirs).armature = base.armature[i] * f
+                elif fname == "frictionloss":
+                    spec.joint(theirs).frictionloss = base.frictionloss[i] * f
+        return modify
+
+    lo, hi = FACTOR_BOUNDS
+    for u in units:
+        for fname in SCALED:
+            params.add(sysid.Parameter(f"{u}.{fname}", nominal=1.0, min_value=lo, max_value=hi,
+                                       frozen=fname in LIMITS or fname not in fit,
+                                       modifier=None if fname == "speed" else scale_modifier(u, fname)))
+        params.add(sysid.Parameter(f"{u}.backlash", nominal=2.0 if "backlash" in fit else 0.0, min_value=0.0,
+                                   max_value=BACKLASH_MAX_MRAD, frozen="backlash" not in fit))
+    params.add(sysid.Parameter("latency", nominal=1.0 if "latency" in fit else 0.0, min_value=0.0,
+                               max_value=LATENCY_MAX_TICKS, frozen="latency" not in fit))
+
+    def arrays(p) -> ServoArrays:
+        s = base.copy()
+        for u in units:
+            m = member[u]
+            s.speed[m] = base.speed[m] * float(p[f"{u}.speed"].value[0])
+            s.backlash[m] = float(p[f"{u}.backlash"].value[0]) / 1000.0
+            for fname in ("kp", "damping", "armature", "frictionloss", "torque"):
+                getattr(s, fname)[m] = getattr(base, fname)[m] * float(p[f"{u}.{fname}"].value[0])
+        s.latency = float(p["latency"].value[0]) * dt
+        return s
+
+    n_threads = max(1, min(threads or os.cpu_count() or 1, 8))
+    pool = ThreadPoolExecutor(n_threads) if n_threads > 1 else None
+    counter = {"rollouts": 0}
+
+    def one(model: mujoco.MjModel, s: ServoArrays) -> np.ndarray:
+        out = []
+        for targets, measured in data:
+            q = h.run(model, targets, s, q0=measured[0])
+            out.append(((measured[1:] - q[1:]) / noise).ravel())
+        return np.concatenate(out)
+
+    def residual_fn(x: np.ndarray, p):
+        cols = x.reshape(len(x), -1) if x.ndim > 1 else x.reshape(-1, 1)
+        jobs = []
+        for c in range(cols.shape[1]):
+            p.update_from_vector(cols[:, c])
+            model = sysid.apply_param_modifiers(p, h.spec)
+            jobs.append((model, arrays(p)))
+        rows = list(pool.map(lambda a: one(*a), jobs)) if pool is not None and len(jobs) > 1 else \
+            [one(*a) for a in jobs]
+        counter["rollouts"] += len(jobs) * len(data)
+        if progress is not None:
+            progress(counter["rollouts"])
+        r = np.stack(rows, axis=1)
+        return [r if x.ndim > 1 else r[:, 0]], None, None
+
+    def solve(p, iters: int):
+        absl = logging.getLogger("absl")
+        level = absl.level
+        absl.setLevel(logging.ERROR)
+        try:                     # the optimiser's own log goes to a buffer (ours: progress() says enough)
+            opt, result = sysid.optimize(initial_params=p, residual_fn=residual_fn, optimizer="mujoco",
+                                         verbose=False, max_iters=iters, eps=FD_STEP, output=(sys.stderr if os.environ.get("GT_SYSID_DEBUG") else io.StringIO()))
+        finally:
+            absl.setLevel(level)
+        x = np.asarray(result.x, dtype=float)
+        opt.update_from_vector(x)
+        r = residual_fn(x, opt.copy())[0][0]
+        return opt, result, r
+
+    t0 = time.monotonic()
+    try:
+        r0 = residual_fn(params.as_vector(), params.copy())[0][0]
+        # stage 1: the limits held at the map's; stage 2: the limits let go from there, kept only
+        # where that lowers the misfit by LIMIT_GAIN (a limit that never binds changes nothing)
+        opt, result, r1 = solve(params, max_iters)
+        limits = [k for k in LIMITS if k in fit]
+        if limits:
+            free = opt.copy()
+            for u in units:
+                for k in limits:
+                    free[f"{u}.{k}"].frozen = False
+            opt2, result2, r2 = solve(free, max(5, max_iters // 3))
+            if np.dot(r2, r2) < (1.0 - LIMIT_GAIN) * np.dot(r1, r1):
+                opt, result, r1 = opt2, result2, r2
+        fitted = opt
+        names = fitted.get_non_frozen_parameter_names()
+        J = np.asarray(result.jac)
+        cov, half = sysid.calculate_intervals([r1], J)
+        values = {n: float(fitted[n].value[0]) for n in fitted.keys()}
+        intervals = {n: math.inf for n in fitted.keys()}
+        intervals.update({n: float(w) for n, w in zip(names, half)})
+        identifiable = {n: _narrow(n, values[n], w) for n, w in intervals.items()}
+        # parameters whose estimates move together (reported; each one's interval already says how
+        # well it is fixed on its own)
+        apart = _entangled(names, cov, identifiable)
+        # a limit is read off a recording only where it binds at the fitted value
+        model = sysid.apply_param_modifiers(fitted, h.spec)
+        binds = {"torque": np.zeros(h.n, int), "speed": np.zeros(h.n, int)}
+        for targets, measured in data:
+            lim: dict = {}
+            h.run(model, targets, arrays(fitted), q0=measured[0], limits=lim)
+            for k in binds:
+                binds[k] += lim[k]
+        total = sum(len(m) - 1 for _, m in data)
+        asked = [n for n in values if n.rsplit(".", 1)[-1] in fit]
+        for n in values:
+            if n not in asked or fitted[n].frozen:    # not fitted: the map's value
+                identifiable[n] = False
+        for u in units:
+            for k in LIMITS:
+                if binds[k][member[u]].max() < max(3, 0.002 * total * (h.nstep if k == "torque" else 1)):
+                    identifiable[f"{u}.{k}"] = False
+        # what is written: a parameter the recordings cannot tell keeps the map's value (a factor 1,
+        # no backlash added, no latency); its residual is the one reported
+        kept = fitted.copy()
+        for n, ok in identifiable.items():
+            if not ok:
+                kept[n].value[:] = 1.0 if _unit(n) == "x" else 0.0
+        for n in kept.keys():
+            kept[n].frozen = False
+        r_kept = residual_fn(kept.as_vector(), kept.copy())[0][0]
+        servos = arrays(kept)
+    finally:
+        if pool is not None:
+            pool.shutdown()
+    n_res = [len(m) - 1 for _, m in data]
+
+    def per_joint(r: np.ndarray) -> dict[str, float]:
+        parts, o = [], 0
+        for k in n_res:
+            parts.append(r[o:o + k * h.n].reshape(k, h.n))
+            o += k * h.n
+        a = np.concatenate(parts)
+        return {j: float(np.sqrt(np.mean(a[:, i] ** 2))) for i, j in enumerate(h.joint_names)}
+    iters = len(result.extras.get("objective", [])) if getattr(result, "extras", None) else 0
+    return ServoFit(servos=servos, joints=tuple(h.joint_names), by=by, values=values, intervals=intervals,
+                    identifiable=identifiable, rms_before=per_joint(r0.reshape(-1) * noise),
+                    rms_after=per_joint(r_kept.reshape(-1) * noise), rollouts=counter["rollouts"],
+                    seconds=time.monotonic() - t0, iterations=iters,
+                    converged=bool(np.all(np.isfinite(r_kept))),
+                    recordings=[log.name for log in logs], entangled=apart, fitted=asked)
+
+
+#: how narrow a 95 % interval must be for a parameter to count as identified (ours): a factor to
+#: within 25 % of its value, the backlash to within 1 mrad, the latency to within a quarter tick
+NARROW = {"x": 0.25, "mrad": 1.0, "ticks": 0.25}
+#: estimates more correlated than this cannot be told apart (ours)
+ENTANGLED = 0.995
+
+
+def _narrow(name: str, value: float, half: float) -> bool:
+    unit = _unit(name)
+    if not math.isfinite(half):
+        return False
+    return half < (NARROW["x"] * abs(value) if unit == "x" else NARROW[unit])
+
+
+def _entangled(names: list[str], cov: np.ndarray, identifiable: dict[str, bool]) -> list[list[str]]:
+    """Groups of parameters whose estimates correlate past :data:`ENTANGLED` (only among those that
+    otherwise look identified)."""
+    if cov.size == 0:
+        return []
+    sd = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
+    corr = cov / np.outer(sd, sd)
+    live = [i for i, n in enumerate(names) if identifiable[n]]
+    groups: list[set[int]] = []
+    for a in live:
+        for b in live:
+            if b <= a or not abs(corr[a, b]) > ENTANGLED:
+                continue
+            hit = [g for g in groups if a in g or b in g]
+            merged = set().union(*hit, {a, b}) if hit else {a, b}
+            groups = [g for g in groups if g not in hit] + [merged]
+    return [[names[i] for i in sorted(g)] for g in groups]
