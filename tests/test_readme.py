@@ -2,9 +2,9 @@
 
 The block is read from README.md itself, so an example that stops working fails here. Run in
 order in a scratch directory (``studies/`` and ``examples/`` linked in), so that ``export`` finds
-what ``tune`` made and ``compare`` what ``export`` wrote. In the default run three long commands
-get a smaller budget, appended and listed in ``BUDGET`` (the same command, fewer trials or
-rollouts), and ``calibrate`` (~10 minutes) runs only in the slow suite, where every line runs
+what ``tune`` made and ``compare`` what ``export`` wrote. In the default run four long commands
+get a smaller budget, appended and listed in ``BUDGET`` (the same command, fewer trials,
+rollouts or iterations), and ``calibrate`` (~10 minutes) runs only in the slow suite, where every line runs
 exactly as written (``pytest -m slow tests/test_readme.py``). ``worker`` joins the study
 ``tune`` just finished (it says so and stops), and ``view``, on a machine without a display,
 must fail in one line with exit 2: the README says it needs one.
@@ -19,7 +19,8 @@ import pytest
 
 from conftest import ROOT
 
-BUDGET = {"tune": ["--trials", "2"], "robustness": ["--rollouts", "4", "--push-rollouts", "2"]}
+BUDGET = {"tune": ["--trials", "2"], "robustness": ["--rollouts", "4", "--push-rollouts", "2"],
+          "identify": ["--max-iters", "3"]}
 SLOW_ONLY = {"calibrate"}
 
 
@@ -66,7 +67,7 @@ def _run_block(gait_tuner_cmd, run_env, tmp_path, literal: bool):
         assert r.returncode == 0, (shown, r.stdout[-2000:], r.stderr[-2000:])
     # what the examples say they write is there
     for path in ("runs/tk", "runs/sim/pitch.png", "runs/walk.mp4", "runs/tlipfm-robust/best.yaml",
-                 "runs/cmp", "runs/turn"):
+                 "runs/cmp", "runs/turn", "runs/sweep.csv", "runs/servos/robot.yaml"):
         assert (tmp_path / path).exists(), path
 
 

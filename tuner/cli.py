@@ -1664,11 +1664,12 @@ def identify_servos_cmd(robot_name: str | None, recordings: tuple[Path, ...], to
                               fit=tuple(f.strip() for f in fit_fields.split(",") if f.strip()))
     finally:
         bar.close()
-    a = float(np.sqrt(np.mean(np.square(list(fit.rms_after.values())))))
-    b = float(np.sqrt(np.mean(np.square(list(fit.rms_before.values())))))
-    if not fit.converged or not a < b * 1.0001:
-        raise UserError(f"identify servos: the fit did not converge (residual RMS {b * 1000:.2f} -> "
-                        f"{a * 1000:.2f} mrad); nothing written. Check the recordings' joint names and signs")
+    lost = fit.unfollowed(noise)
+    if not fit.converged or lost:
+        j = lost[0] if lost else None
+        why = (f"it does not follow {j} (residual RMS {fit.rms_before[j] * 1000:.2f} -> {fit.rms_after[j] * 1000:.2f} "
+               f"mrad): a wrong sign or joint name in the recording, or contacts in it" if j else "not a number")
+        raise UserError(f"identify servos: the fit did not converge: {why}; nothing written")
     written = write_servo_fit(fit, _robot_map_path(robot_name), out_dir, noise)
     if as_json:
         click.echo(json.dumps({**fit_json(fit), "written": [str(p) for p in written]}, allow_nan=False))

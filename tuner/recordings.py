@@ -236,11 +236,12 @@ def load_topics(path: str | Path | None) -> dict[str, Any]:
     return out
 
 
-def _stamp(msg: Any, t_bag: int) -> float:
+def _stamp(msg: Any, t_bag: int) -> int:
+    """The message's time [ns] (an integer: seconds since 1970 as a float keep only ~0.2 us)."""
     h = getattr(msg, "header", None)
     if h is not None and (h.stamp.sec or h.stamp.nanosec):
-        return h.stamp.sec + h.stamp.nanosec * 1e-9
-    return t_bag * 1e-9
+        return int(h.stamp.sec) * 1_000_000_000 + int(h.stamp.nanosec)
+    return int(t_bag)
 
 
 def _bag(path: Path, topics: dict[str, Any], robot_joints) -> FieldRecording:
@@ -277,6 +278,9 @@ def _bag(path: Path, topics: dict[str, Any], robot_joints) -> FieldRecording:
         return their_to_ours.get(n, n)
 
     states = rows["joint_states"]
+    if not states:
+        raise RecordingError(f"{name}: no messages on {topics['joint_states']} (the measured joint angles)")
+    t0 = states[0][1]
     first_names = list(states[0][2].name) if states else []
     joints = tuple(ours(n) for n in first_names)
     if robot_joints is not None:
@@ -305,20 +309,17 @@ def _bag(path: Path, topics: dict[str, Any], robot_joints) -> FieldRecording:
                 raise RecordingError(f"{name}: channel {channel} is a {msgtype}; expected sensor_msgs/JointState, "
                                      f"std_msgs/Float64MultiArray or trajectory_msgs/JointTrajectory")
             if len(pos) != len(names):
-                raise RecordingError(f"{name}: channel {channel} at t = {stamp:.3f} s: {len(pos)} positions "
+                raise RecordingError(f"{name}: channel {channel} at t = {(stamp - t0) * 1e-9:.3f} s: {len(pos)} positions "
                                      f"for {len(names)} names")
             row = np.full(len(joints), np.nan)
             where = {n: i for i, n in enumerate(names)}
             for i, j in enumerate(joints):
                 if j in where:
                     row[i] = pos[where[j]]
-            t.append(stamp)
+            t.append((stamp - t0) * 1e-9)
             q.append(row * sign)
         return np.array(t), (np.array(q) if q else np.zeros((0, len(joints))))
 
-    if not states:
-        raise RecordingError(f"{name}: no messages on {topics['joint_states']} (the measured joint angles)")
-    t0 = states[0][1]
     tm, qm = table(states, topics["joint_states"])
     target = None
     if rows["joint_command"]:
@@ -332,11 +333,11 @@ def _bag(path: Path, topics: dict[str, Any], robot_joints) -> FieldRecording:
             idx = np.maximum.accumulate(np.where(ok, np.arange(len(col)), 0))
             idx[: int(np.argmax(ok))] = int(np.argmax(ok))
             qt[:, i] = col[idx]
-        target = (tt - t0, qt)
+        target = (tt, qt)
     imu = {}
     if rows["imu"]:
         from gaits.control import rpy_from_quat
-        t = np.array([s for _, s, _ in rows["imu"]]) - t0
+        t = (np.array([s for _, s, _ in rows["imu"]], dtype=np.int64) - t0) * 1e-9
         quat = np.array([[m.orientation.w, m.orientation.x, m.orientation.y, m.orientation.z] for _, _, m in rows["imu"]])
         imu["rpy"] = (t, np.asarray(rpy_from_quat(quat)))
         imu["gyro"] = (t, np.array([[m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z]
@@ -345,9 +346,9 @@ def _bag(path: Path, topics: dict[str, Any], robot_joints) -> FieldRecording:
                                      for _, _, m in rows["imu"]]))
     walk = None
     if rows["walk_command"]:
-        walk = (np.array([s for _, s, _ in rows["walk_command"]]) - t0,
+        walk = ((np.array([s for _, s, _ in rows["walk_command"]], dtype=np.int64) - t0) * 1e-9,
                 np.array([[m.linear.x, m.linear.y, m.angular.z] for _, _, m in rows["walk_command"]]))
-    return _finish(FieldRecording(name, joints, (tm - t0, qm), target, imu, walk), robot_joints)
+    return _finish(FieldRecording(name, joints, (tm, qm), target, imu, walk), robot_joints)
 
 
 # --- CSV -----------------------------------------------------------------------------------------

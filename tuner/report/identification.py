@@ -40,7 +40,7 @@ def servo_overlay(fit: ServoFit, base: Any) -> dict[str, dict[str, float]]:
     out: dict[str, dict[str, float]] = {}
     for u, idx in units.items():
         for f in _FIELDS:
-            if not fit.identifiable.get(f"{u}.{f}", False):
+            if not (fit.identifiable.get(f"{u}.{f}", False) or f"{u}.{f}" in fit.loose):
                 continue
             vals = np.asarray(getattr(fit.servos, f))[idx]
             if np.allclose(vals, vals[0], rtol=1e-9, atol=0):
@@ -60,7 +60,8 @@ def fit_json(fit: ServoFit) -> dict[str, Any]:
             "parameters": {k: {"value": fit.values[k], "interval95": num(fit.intervals[k]),
                                "unit": "mrad" if k.endswith(".backlash") else "ticks" if k == "latency"
                                else "factor of the map's",
-                               "fitted": k in fit.fitted, "identifiable": fit.identifiable[k]} for k in fit.values},
+                               "fitted": k in fit.fitted, "identifiable": fit.identifiable[k],
+                               "loose": k in fit.loose} for k in fit.values},
             "rms_before_rad": fit.rms_before, "rms_after_rad": fit.rms_after,
             "entangled": fit.entangled, "rollouts": fit.rollouts, "seconds": round(fit.seconds, 1), "iterations": fit.iterations}
 
@@ -73,15 +74,17 @@ def summary_lines(fit: ServoFit, noise: float) -> list[str]:
              f"{fit.rollouts} rollouts, {fit.seconds:.0f} s"]
     units = list(dict.fromkeys(k.rsplit(".", 1)[0] for k in fit.values if k != "latency"))
     head = f"  {'':8s}" + "".join(f"{f:>16s}" for f in SCALED + ("backlash",))
-    lines.append(head + "   (factor of the map's value +- 95 %; backlash mrad; - : not identifiable; (map): not fitted)")
+    lines.append(head + "   (factor of the map's +- 95 %; backlash mrad; ~ loose; - not identifiable; (map) not fitted)")
     for u in units:
         cells = []
         for f in SCALED + ("backlash",):
             k = f"{u}.{f}"
             if k not in fit.fitted:
                 cells.append(f"{'(map)':>16s}")
-            elif not fit.identifiable[k]:
+            elif not fit.identifiable[k] and k not in fit.loose:
                 cells.append(f"{'-':>16s}")
+            elif k in fit.loose:
+                cells.append(f"{fit.values[k]:>8.3g}~+-{fit.intervals[k]:<5.2g}")
             else:
                 cells.append(f"{fit.values[k]:>9.3g} +-{fit.intervals[k]:<5.2g}")
         lines.append(f"  {u:8s}" + "".join(cells))
@@ -94,9 +97,12 @@ def summary_lines(fit: ServoFit, noise: float) -> list[str]:
     for group in fit.entangled:
         lines.append(f"  estimates that move together (correlation past 0.995; each +- says how well it is fixed "
                      f"alone): {', '.join(group)}")
-    if fit.not_identifiable:
-        lines.append(f"  not identifiable from these recordings (the map's value kept): "
-                     f"{', '.join(fit.not_identifiable)}")
+    if fit.loose:
+        lines.append(f"  ~ fixed only loosely (95 % interval over 10 %; kept as fitted, their combination is what "
+                     f"the recordings fix): {', '.join(fit.loose)}")
+    flat = [k for k in fit.not_identifiable if k not in fit.loose]
+    if flat:
+        lines.append(f"  not identifiable from these recordings (the map's value kept): {', '.join(flat)}")
     return lines
 
 

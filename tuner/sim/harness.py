@@ -246,8 +246,8 @@ def excitation(h: Harness, duration: float = 30.0, f0: float = 0.2, f1: float = 
                seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """A joint sweep for the robot hanging in its harness (ours): every servo joint plays a chirp
     (a sine whose frequency rises from ``f0`` to ``f1`` [Hz] over ``duration`` [s], faded in and out
-    over a second), each joint with its own phase, about the middle of its range within
-    ``amplitude`` [rad] of the held pose. Kept inside every servo's limits: ``range_margin`` [rad]
+    over a second), each joint with its own phase, swinging ``amplitude`` [rad] (or half its range
+    where that is narrower) about the held pose, moved inward as far as the swing needs. Kept inside every servo's limits: ``range_margin`` [rad]
     from each end of the joint's range, the peak speed at most ``speed_margin`` of the servo's,
     and, played on the harness with the map's servos, every torque below ``torque_margin`` of the
     servo's limit and no limb touching another (the robot's own contacts make a recording that
@@ -260,16 +260,18 @@ def excitation(h: Harness, duration: float = 30.0, f0: float = 0.2, f1: float = 
     t = np.arange(int(round(duration / dt)) + 1) * dt
     lo, hi = h.range_ours()
     lo_m, hi_m = lo + range_margin, hi - range_margin
-    centre = np.clip(np.zeros(h.n), lo_m, hi_m)
-    room = np.minimum(centre - lo_m, hi_m - centre)
-    room = np.where(np.isfinite(room), room, amplitude)
+    # the swing: ``amplitude``, or half the range where it is narrower; about the held pose moved
+    # just far enough inward for the swing to fit (a knee that bends one way swings bent)
+    room = np.minimum(amplitude, np.where(np.isfinite(hi_m - lo_m), (hi_m - lo_m) / 2, amplitude))
+    room = np.maximum(room, 0.0)
+    centre = np.clip(np.zeros(h.n), lo_m + room, hi_m - room)
     s = h.servo_arrays()
     k = (f1 - f0) / duration                                   # linear chirp: f(t) = f0 + k t
     phase = 2 * np.pi * (f0 * t + 0.5 * k * t ** 2)
     fade = np.clip(np.minimum(t, duration - t), 0.0, 1.0)
     offsets = np.random.default_rng(seed).uniform(0, 2 * np.pi, h.n)
     # the peak speed of A fade sin(phase): A 2 pi f1 (the fade's own slope adds A per second)
-    a = np.minimum(np.minimum(room, amplitude), speed_margin * s.speed / (2 * np.pi * f1 + 1.0))
+    a = np.minimum(room, speed_margin * s.speed / (2 * np.pi * f1 + 1.0))
     model = h.compile(s)
     for _ in range(12):
         targets = centre + a * fade[:, None] * np.sin(phase[:, None] + offsets)

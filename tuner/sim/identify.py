@@ -23,7 +23,9 @@ down to the sensor noise). A parameter is *identified* from the recordings when 
 and, for a torque or speed limit, the limit binds somewhere in the recordings at the fitted value.
 Estimates that move together (correlation past :data:`ENTANGLED`: what the recordings fix is
 their combination) are named. One that
-is not keeps the map's value and is named so; the residual reported is the one of what is kept.
+is not is named so: where the recordings do not move it at all it keeps the map's value, where
+they fix it loosely (a light head's gain, armature and damping: only their ratios show) it keeps
+its fitted value. The residual reported is the one of what is written.
 """
 
 from __future__ import annotations
@@ -54,9 +56,12 @@ FACTOR_BOUNDS = (0.2, 5.0)
 #: the servo's limits: fitted in a second stage, kept where they lower the misfit by LIMIT_GAIN (ours)
 LIMITS = ("torque", "speed")
 LIMIT_GAIN = 0.02
+LIMIT_MISFIT = 1.2         # ... and only tried where the first stage leaves a misfit over this many noises
 #: the finite-difference step of the Jacobian, on parameters of order one (factors, mrad, ticks) (ours:
 #: MuJoCo's constraint solver stops at a tolerance, so a step near the machine's precision differences noise)
 FD_STEP = 1e-4
+#: a joint whose residual stays over this many times the sensor noise is one the fit does not follow
+FOLLOW_NOISE = 5.0
 BACKLASH_MAX_MRAD = 60.0
 LATENCY_MAX_TICKS = 8.0
 
@@ -123,6 +128,14 @@ class ServoFit:
     recordings: list[str] = field(default_factory=list)
     entangled: list[list[str]] = field(default_factory=list)    # estimates that move together
     fitted: list[str] = field(default_factory=list)              # the parameters fitted (the others: the map's)
+    loose: list[str] = field(default_factory=list)               # fitted, kept, but fixed only loosely
+
+    def unfollowed(self, noise: float) -> list[str]:
+        """Joints the fit does not follow (ours: a residual RMS after the fit over ``FOLLOW_NOISE``
+        times the sensor noise and over half the one before it): a recording the model cannot
+        be fitted to there (a sign or name wrong, contacts), not a servo to identify."""
+        return [j for j in self.joints if self.rms_after[j] > FOLLOW_NOISE * noise
+                and self.rms_after[j] > 0.5 * self.rms_before[j]]
 
     @property
     def not_identifiable(self) -> list[str]:
@@ -261,7 +274,7 @@ def identify_servos(harness: Harness, logs: list[JointLog], *, by: str = "groups
         # where that lowers the misfit by LIMIT_GAIN (a limit that never binds changes nothing)
         opt, result, r1 = solve(params, max_iters)
         limits = [k for k in LIMITS if k in fit]
-        if limits:
+        if limits and np.sqrt(np.mean(r1 ** 2)) > LIMIT_MISFIT:
             free = opt.copy()
             for u in units:
                 for k in limits:
@@ -297,12 +310,16 @@ def identify_servos(harness: Harness, logs: list[JointLog], *, by: str = "groups
             for k in LIMITS:
                 if binds[k][member[u]].max() < max(3, 0.002 * total * (h.nstep if k == "torque" else 1)):
                     identifiable[f"{u}.{k}"] = False
-        # what is written: a parameter the recordings cannot tell keeps the map's value (a factor 1,
-        # no backlash added, no latency); its residual is the one reported
+        # what is written: a parameter the recordings do not move at all (an infinite interval, a
+        # limit that never binds) keeps the map's value (a factor 1, no backlash, no latency); one
+        # they fix only loosely keeps its fitted value (the recordings fix its combination with
+        # others) and is named; the residual reported is the one of what is written
         kept = fitted.copy()
         for n, ok in identifiable.items():
-            if not ok:
+            if not ok and (not math.isfinite(intervals[n]) or n.rsplit(".", 1)[-1] in LIMITS):
                 kept[n].value[:] = 1.0 if _unit(n) == "x" else 0.0
+        loose = [n for n in asked if not identifiable[n] and kept[n].value[0] == values[n]
+                 and math.isfinite(intervals[n])]
         for n in kept.keys():
             kept[n].frozen = False
         r_kept = residual_fn(kept.as_vector(), kept.copy())[0][0]
@@ -325,12 +342,13 @@ def identify_servos(harness: Harness, logs: list[JointLog], *, by: str = "groups
                     rms_after=per_joint(r_kept.reshape(-1) * noise), rollouts=counter["rollouts"],
                     seconds=time.monotonic() - t0, iterations=iters,
                     converged=bool(np.all(np.isfinite(r_kept))),
-                    recordings=[log.name for log in logs], entangled=apart, fitted=asked)
+                    recordings=[log.name for log in logs], entangled=apart, fitted=asked,
+                    loose=loose)
 
 
 #: how narrow a 95 % interval must be for a parameter to count as identified (ours): a factor to
-#: within 25 % of its value, the backlash to within 1 mrad, the latency to within a quarter tick
-NARROW = {"x": 0.25, "mrad": 1.0, "ticks": 0.25}
+#: within 10 % of its value, the backlash to within 1 mrad, the latency to within a quarter tick
+NARROW = {"x": 0.10, "mrad": 1.0, "ticks": 0.25}
 #: estimates more correlated than this cannot be told apart (ours)
 ENTANGLED = 0.995
 

@@ -1,0 +1,187 @@
+"""Servo identification (tuner/sim/harness.py, tuner/sim/identify.py, `gait-tuner excite`,
+`gait-tuner identify servos`): the harness' command path, sweeps inside every servo's limits, and
+hidden servos recovered from recordings the tests simulate in a world of their own."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+
+import numpy as np
+import pytest
+import yaml
+
+from conftest import ROOT
+from tuner.robots import load_robot
+from tuner.sim.harness import Harness, excitation, record_sweep
+from tuner.sim.identify import JointLog, group_of, identify_servos
+
+KID3KG = ROOT / "examples" / "robots" / "kid3kg" / "kid3kg.yaml"
+ROBOTS = {"built-in": "kidsize", "map": str(KID3KG)}
+
+
+@pytest.fixture(scope="module")
+def kid3kg():
+    return Harness(load_robot(KID3KG))
+
+
+def test_a_latency_of_whole_ticks_is_the_simulators_queue(kid3kg):
+    h = kid3kg
+    s = h.servo_arrays()
+    targets = np.cumsum(np.random.default_rng(0).normal(0, 0.002, (60, h.n)), axis=0)
+    s.latency = 0.0
+    plain = h.sent(targets, s)
+    for ticks in (1, 2, 3):
+        s.latency = ticks * h.control_period
+        assert np.array_equal(h.sent(targets, s)[ticks:], plain[:-ticks])
+        assert np.array_equal(h.sent(targets, s)[:ticks], np.repeat(plain[:1], ticks, axis=0))
+
+
+def test_a_fraction_of_a_tick_moves_the_command_smoothly(kid3kg):
+    """Continuous in the latency, and so is its slope across a whole tick (a fit can cross it)."""
+    h = kid3kg
+    s = h.servo_arrays()
+    targets = np.sin(np.linspace(0, 6, 80))[:, None] * np.ones(h.n) * 0.2
+
+    def at(lat):
+        s.latency = lat
+        return h.sent(targets, s)
+    eps = 1e-7
+    L = 2 * h.control_period
+    left = (at(L) - at(L - eps)) / eps
+    right = (at(L + eps) - at(L)) / eps
+    assert np.abs(at(L + 1e-9) - at(L)).max() < 1e-8
+    assert np.allclose(left, right, atol=1e-3 * np.abs(left).max())
+
+
+@pytest.mark.parametrize("kind", list(ROBOTS))
+def test_a_sweep_stays_within_every_servos_range_speed_and_torque(kind):
+    h = Harness(load_robot(ROBOTS[kind]))
+    t, targets = excitation(h, duration=12.0)
+    s = h.servo_arrays()
+    lo, hi = h.range_ours()
+    assert np.all(targets >= lo + 0.05 - 1e-12) and np.all(targets <= hi - 0.05 + 1e-12)
+    speed = np.abs(np.diff(targets, axis=0)) / h.control_period
+    assert np.all(speed.max(axis=0) <= 0.6 * s.speed)
+    tau, touching = h.probe(h.compile(s), targets, s)
+    assert np.all(tau <= 0.8 * s.torque) and not touching.any()
+    swing = (targets.max(axis=0) - targets.min(axis=0)) / 2
+    assert np.all(swing > 0.02), dict(zip(h.joint_names, swing))       # every joint moves
+
+
+def _hidden(h: Harness) -> tuple:
+    """A world of the test's own: servos 20-50 % off the map's in gain, damping and friction loss
+    (per group), a 20 ms latency and a 6 mrad backlash."""
+    truth = h.servo_arrays()
+    gain = {"hips": 1.3, "knees": 0.7, "ankles": 1.45, "arms": 0.75, "head": 1.25}
+    damp = {"hips": 0.75, "knees": 1.4, "ankles": 0.65, "arms": 1.35, "head": 0.8}
+    fric = {"hips": 0.7, "knees": 1.3, "ankles": 0.55, "arms": 1.25, "head": 0.75}
+    for i, j in enumerate(h.joint_names):
+        g = group_of(j)
+        truth.kp[i] *= gain[g]
+        truth.damping[i] *= damp[g]
+        truth.frictionloss[i] *= fric[g]
+    truth.backlash[:] = 0.006
+    truth.latency = 0.02
+    return truth, gain, damp, fric
+
+
+@pytest.mark.slow
+def test_hidden_servos_are_recovered(kid3kg):
+    """The issue's bar: gain, latency and backlash within 10 %, the rest within 20 % or named as not
+    identifiable (and then checked: its true value changes the misfit by less than the noise);
+    the residual after the fit within 1.2x the sensor noise."""
+    h = kid3kg
+    truth, gain, damp, fric = _hidden(h)
+    _, targets = excitation(h, duration=20.0)
+    q = h.run(h.compile(truth), targets, truth) + np.random.default_rng(3).normal(0, 1e-3, targets.shape)
+    fit = identify_servos(Harness(load_robot(KID3KG)), [JointLog("hidden", h.control_period, h.joint_names,
+                                                                   targets, q)])
+    rms = np.sqrt(np.mean(np.square(list(fit.rms_after.values()))))
+    assert rms <= 1.2e-3, fit.rms_after
+    assert fit.identifiable["latency"] and abs(fit.values["latency"] - 2.0) <= 0.2
+    for g in gain:
+        if fit.identifiable[f"{g}.backlash"]:
+            assert abs(fit.values[f"{g}.backlash"] - 6.0) <= 0.6, (g, fit.values[f"{g}.backlash"])
+        for field, true, tol in (("kp", gain[g], 0.10), ("damping", damp[g], 0.20), ("frictionloss", fric[g], 0.20),
+                                 ("armature", 1.0, 0.20)):
+            k = f"{g}.{field}"
+            if fit.identifiable[k]:
+                assert abs(fit.values[k] / true - 1) <= tol, (k, fit.values[k], true)
+            elif k in fit.loose:            # named as fixed only loosely: its interval holds the truth
+                assert abs(fit.values[k] - true) <= 1.5 * fit.intervals[k], (k, fit.values[k], fit.intervals[k], true)
+    assert sum(fit.identifiable[f"{g}.kp"] for g in gain) >= 4           # the limbs' gains at least
+    # what the fit names as not identifiable is so: its true value changes the misfit by little
+    for k in fit.not_identifiable:
+        g, field = k.split(".")
+        if field in ("torque", "speed"):
+            s = fit.servos.copy()
+            idx = [i for i, j in enumerate(h.joint_names) if group_of(j) == g]
+            getattr(s, field)[idx] *= 1.5
+            q1 = h.run(h.compile(s), targets, s, q0=q[0])
+            q0 = h.run(h.compile(fit.servos), targets, fit.servos, q0=q[0])
+            assert np.sqrt(np.mean((q1 - q0) ** 2)) < 1e-4, k
+
+
+def _cli(gait_tuner_cmd, run_env, *args, cwd):
+    return subprocess.run(gait_tuner_cmd + [str(a) for a in args], capture_output=True, text=True, env=run_env,
+                          cwd=cwd)
+
+
+def test_excite_then_identify_writes_a_map_the_tool_walks(tmp_path, gait_tuner_cmd, run_env):
+    """End to end through the command line, on a recording of hidden servos (kp 30 % up, 20 ms,
+    6 mrad): the gains, latency and backlash recovered within 10 %, and the written map loads with
+    them (the simulator then delays by two ticks)."""
+    r = _cli(gait_tuner_cmd, run_env, "excite", "--robot", KID3KG, "--out", "sweep.csv", "--duration", "10",
+             "--json", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    info = json.loads(r.stdout)
+    assert info["speed_share"] <= 0.6
+    head = (tmp_path / "sweep.csv").read_text().splitlines()
+    h = Harness(load_robot(KID3KG))
+    assert head[0] == "t," + ",".join(f"target.{j}" for j in h.joint_names)
+    targets = np.loadtxt(tmp_path / "sweep.csv", delimiter=",", skiprows=1)[:, 1:]
+    truth = h.servo_arrays()
+    truth.kp *= 1.3
+    truth.latency, truth.backlash[:] = 0.02, 0.006
+    record_sweep(h, targets, truth, tmp_path / "sweep.mcap", noise=1e-3, seed=1)
+    r = _cli(gait_tuner_cmd, run_env, "identify", "servos", "--robot", KID3KG, "--recording", "sweep.mcap",
+             "--out", "fit", "--fit", "kp,latency,backlash", "--json", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    p = out["parameters"]
+    assert abs(p["latency"]["value"] - 2.0) <= 0.2
+    for g in ("hips", "knees", "ankles", "arms"):
+        assert abs(p[f"{g}.kp"]["value"] - 1.3) <= 0.13, (g, p[f"{g}.kp"])
+        assert abs(p[f"{g}.backlash"]["value"] - 6.0) <= 0.6, (g, p[f"{g}.backlash"])
+        assert not p[f"{g}.damping"]["fitted"]
+    assert sorted(x.name for x in (tmp_path / "fit").iterdir()) == ["fit.json", "report.txt", "robot.yaml", "servos.yaml"]
+    robot = load_robot(tmp_path / "fit" / "robot.yaml")
+    knee = robot.servos[robot.joint_map["l_knee"][0]]
+    base = load_robot(KID3KG).servos[robot.joint_map["l_knee"][0]]
+    assert knee.kp == pytest.approx(base.kp * p["knees.kp"]["value"], rel=1e-5)
+    assert knee.latency == pytest.approx(0.02, rel=0.1) and knee.backlash == pytest.approx(0.006, rel=0.1)
+    from tuner.sim.rollout import Simulator
+    from tuner.sim.surfaces import SURFACES
+    assert Simulator(robot, SURFACES["rigid"])._latency == 2
+    text = (tmp_path / "fit" / "robot.yaml").read_text()
+    assert "sweep.mcap" in text.splitlines()[1] and "residual RMS" in text
+
+
+def test_a_recording_the_fit_cannot_follow_writes_nothing(tmp_path, gait_tuner_cmd, run_env, kid3kg):
+    h = kid3kg
+    _, targets = excitation(h, duration=8.0)
+    s = h.servo_arrays()
+    q = h.run(h.compile(s), targets, s)
+    i = h.joint_names.index("l_knee")
+    q[:, i] = -q[:, i]                                       # the recording's sign of one joint is wrong
+    from gaits.control import Measurement
+    from gaits.recording import Recorder, RecordingMeta
+    with Recorder(tmp_path / "bad.mcap", RecordingMeta(robot="kid3kg", joints=list(h.joint_names))) as rec:
+        for k in range(len(q)):
+            rec.record(Measurement(k * h.control_period, q=q[k], joint_names=h.joint_names), None, targets[k])
+    r = _cli(gait_tuner_cmd, run_env, "identify", "servos", "--robot", KID3KG, "--recording", "bad.mcap",
+             "--out", "fit", "--fit", "kp", "--max-iters", "5", cwd=tmp_path)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert "does not follow l_knee" in r.stderr and "nothing written" in r.stderr
+    assert not (tmp_path / "fit").exists()
