@@ -9,7 +9,6 @@ import subprocess
 
 import numpy as np
 import pytest
-import yaml
 
 from conftest import ROOT
 from tuner.robots import load_robot
