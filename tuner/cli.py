@@ -1680,6 +1680,74 @@ def identify_servos_cmd(robot_name: str | None, recordings: tuple[Path, ...], to
         click.echo(f"wrote {p}")
 
 
+@identify.command(name="ground")
+@robot_option(default=None, help="The robot map YAML (its servos identified: identify servos' robot.yaml).")
+@surface_option(default="grass30", help="The surface to start from: rigid, carpet4, grass10, grass30, grass50 "
+                                        "or a surface YAML.")
+@RECORDING_OPTION
+@TOPICS_OPTION
+@click.option("--out", "out_dir", required=True, type=OutPath(file_okay=False), metavar="DIR",
+              help="Where to write surface.yaml (the ground identified), fit.json and report.txt.")
+@click.option("--max-iters", default=25, show_default=True, type=click.IntRange(1, 500))
+@JSON_OPTION
+def identify_ground_cmd(robot_name: str | None, surface_name: str, recordings: tuple[Path, ...],
+                        topics_file: Path | None, out_dir: Path, max_iters: int, as_json: bool) -> None:
+    """Identify the ground from recordings of the robot walking on it: the simulated walk replays
+    each recording's joint targets on the surface, whose layer (stiffness, damping, friction, drag)
+    is fitted until the replay's roll, pitch, gyro and encoders match the robot's."""
+    import json
+
+    from tqdm import tqdm
+
+    from .recordings import RecordingError, read_field_recording
+    from .report.identification import ground_lines, write_ground_fit
+    from .robots import load_robot
+    from .sim.identify_ground import identify_ground, walk_log
+    from .sim.surfaces import load_surface
+    if robot_name is None:
+        raise UserError("identify ground: give --robot (your robot map, its servos identified)")
+    robot = load_robot(robot_name)
+    start = load_surface(surface_name)
+    dt = robot.sim.control_period
+    logs = []
+    for path in recordings:
+        try:
+            rec = read_field_recording(path, topics=topics_file, robot_joints=robot.joint_map)
+            joints = [j for j in rec.joints if j in robot.joint_map]
+            grid = rec.on_grid(dt, joints)
+            imu = rec.imu_on_grid(grid[0], rec.grid_start)
+        except RecordingError as exc:
+            raise UserError(str(exc)) from None
+        for gap in rec.gaps[:3]:
+            click.echo(f"note: {path}: {gap}", err=True)
+        logs.append(walk_log(str(path), dt, grid, imu["rpy"], imu["gyro"], imu["accel"], joints))
+    bar = tqdm(desc="identify ground", unit=" replays", disable=None, leave=False)
+    seen = [0]
+
+    def progress(n: int) -> None:
+        bar.update(n - seen[0])
+        seen[0] = n
+    try:
+        fit = identify_ground(robot, start, logs, max_iters=max_iters, progress=progress)
+    finally:
+        bar.close()
+    worse = [k for k in fit.rms_after if not np.isfinite(fit.rms_after[k])]
+    if worse or sum(fit.rms_after.values()) > sum(fit.rms_before.values()) * 1.0001:
+        raise UserError("identify ground: the fit did not converge (its replays match the recordings no better than "
+                        f"{start.name} does); nothing written")
+    written = write_ground_fit(fit, out_dir)
+    if as_json:
+        click.echo(json.dumps({"surface": str(written[0]), "values": fit.values,
+                               "intervals": {k: (v if np.isfinite(v) else None) for k, v in fit.intervals.items()},
+                               "identifiable": fit.identifiable, "rms_before": fit.rms_before,
+                               "rms_after": fit.rms_after, "replays": fit.rollouts}, allow_nan=False))
+        return
+    for line in ground_lines(fit):
+        click.echo(line)
+    for p in written:
+        click.echo(f"wrote {p}")
+
+
 @cli.group()
 def bus() -> None:
     """A simulated Dynamixel bus: the robot-side code (gait-tuner-loop) drives the simulated robot

@@ -73,6 +73,7 @@ class FieldRecording:
     robot: str = ""
     surface: str = ""
     gaps: list[str] = field(default_factory=list)
+    grid_start: float = 0.0                    # [s] where the last on_grid began
 
     @property
     def duration(self) -> float:
@@ -100,7 +101,26 @@ class FieldRecording:
         t = t0 + np.arange(int(math.floor((t1 - t0) / dt + 1e-9)) + 1) * dt
         meas = np.stack([np.interp(t, tm, qm[:, i]) for i in idx], axis=1)
         k = np.clip(np.searchsorted(tt, t + 1e-9, side="right") - 1, 0, len(tt) - 1)
+        self.grid_start = float(t0)
         return t - t0, qt[k][:, idx], meas
+
+
+    def imu_on_grid(self, t: np.ndarray, t_start: float) -> dict[str, np.ndarray | None]:
+        """The IMU's ``rpy``, ``gyro`` and ``accel`` at ``t`` [s after ``t_start``] (linear
+        interpolation; None where not recorded); roll, pitch and gyro are required."""
+        out: dict[str, np.ndarray | None] = {}
+        for key, what in (("rpy", "orientation"), ("gyro", "gyro"), ("accel", "accelerometer")):
+            if key not in self.imu:
+                if key == "accel":
+                    out[key] = None
+                    continue
+                raise RecordingError(f"{self.name}: no IMU {what} channel: identifying the ground needs the "
+                                     f"torso's orientation and rates")
+            ti, v = self.imu[key]
+            if key == "rpy":
+                v = np.unwrap(v, axis=0)
+            out[key] = np.stack([np.interp(t + t_start, ti, v[:, i]) for i in range(3)], axis=1)
+        return out
 
 
 # --- checks ----------------------------------------------------------------------------------------

@@ -10,6 +10,7 @@ recordings could not tell keeps the map's value and is not written.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -144,3 +145,65 @@ def write_servo_fit(fit: ServoFit, robot_map: Path | None, out_dir: Path, noise:
     files[out_dir / "report.txt"] = "\n".join(summary_lines(fit, noise)) + "\n"
     out_dir.mkdir(parents=True, exist_ok=True)
     return write_files_atomic(files)
+
+
+def ground_lines(fit: Any) -> list[str]:
+    """The one-screen summary of a ground identification."""
+    b = fit.rms_before
+    a = fit.rms_after
+    lines = [f"ground identified on {fit.start.name} from {len(fit.recordings)} recording(s): residual RMS in sensor "
+             f"noises, before -> after: " + ", ".join(f"{k} {b[k]:.2f} -> {a[k]:.2f}" for k in a)
+             + f"; {fit.rollouts} replays, {fit.seconds:.0f} s"]
+    for f, v in fit.values.items():
+        start = getattr(fit.start, f)
+        if fit.identifiable[f]:
+            lines.append(f"  {f:16s} {start:10.4g} -> {getattr(fit.surface, f):10.4g}   (x {v:.3f} +- {fit.intervals[f]:.2g})")
+        else:
+            lines.append(f"  {f:16s} {start:10.4g}    kept: the recordings cannot tell it (x {v:.3f} +- "
+                         f"{fit.intervals[f]:.2g}){f' (a loaded sole slips {fit.slips} tick(s) in them)' if f == 'friction' else ''}")
+    for group in fit.entangled:
+        lines.append(f"  cannot be told apart (estimates correlated past 0.995): {', '.join(group)}")
+    rec, bef, aft = fit.stats["recorded"], fit.stats["before"], fit.stats["after"]
+    lines.append(f"  {'':20s}{'recorded':>10s}{'before':>10s}{'after':>10s}")
+    for k in rec:
+        lines.append(f"  {k:20s}{rec[k]:10.3f}{bef.get(k, math.nan):10.3f}{aft.get(k, math.nan):10.3f}")
+    return lines
+
+
+def write_ground_fit(fit: Any, out_dir: Path) -> list[Path]:
+    """Write ``surface.yaml`` (the fitted surface: pass it as ``--surface``), ``fit.json`` and
+    ``report.txt`` into ``out_dir``, all or none."""
+    import tuner
+
+    from .calibration import surface_yaml
+    commit = commit_of(tuner.__file__).strip(" ()") or "unknown commit"
+    a = fit.rms_after
+    header = (f"{fit.surface.name}: {fit.start.name} with its ground identified by gait-tuner identify ground "
+              f"({commit})\nfrom: {', '.join(fit.recordings)}\nresidual RMS after the fit, in sensor noises: "
+              + ", ".join(f"{k} {v:.2f}" for k, v in a.items())
+              + ("\nnot identifiable (kept as on " + fit.start.name + "): " + ", ".join(fit.not_identifiable)
+                 if fit.not_identifiable else ""))
+    surface = dataclasses.replace(fit.surface, description=f"identified from {len(fit.recordings)} recording(s) "
+                                                           f"({commit}); see fit.json")
+    doc = {"surface": fit.surface.name, "start": fit.start.name, "recordings": fit.recordings,
+           "parameters": {f: {"factor": v, "interval95": (fit.intervals[f] if math.isfinite(fit.intervals[f]) else None),
+                              "start": getattr(fit.start, f), "fitted": getattr(fit.surface, f),
+                              "identifiable": fit.identifiable[f]} for f, v in fit.values.items()},
+           "entangled": fit.entangled, "rms_before": fit.rms_before, "rms_after": fit.rms_after,
+           "statistics": fit.stats, "slip_ticks": fit.slips, "replays": fit.rollouts, "seconds": round(fit.seconds, 1)}
+    files = {out_dir / "surface.yaml": surface_yaml(surface, header),
+             out_dir / "fit.json": json.dumps(_finite(doc), indent=1, allow_nan=False) + "\n",
+             out_dir / "report.txt": "\n".join(ground_lines(fit)) + "\n"}
+    out_dir.mkdir(parents=True, exist_ok=True)
+    return write_files_atomic(files)
+
+
+def _finite(x: Any) -> Any:
+    """``x`` with every non-finite number as None (strict JSON)."""
+    if isinstance(x, dict):
+        return {k: _finite(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_finite(v) for v in x]
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    return x

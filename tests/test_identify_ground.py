@@ -1,0 +1,85 @@
+"""Ground identification (tuner/sim/identify_ground.py, `gait-tuner identify ground`): walks the
+tests record on a hidden surface of their own (grass30 with its layer 30 % slower and 25 % less
+drag) with the randomisation's sensor noise; the fit recovers the layer's time constant and drag
+within 15 % and its residuals come down to the noise; friction is read only from a walk that slips."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import subprocess
+
+import pytest
+
+from gaits import parse_command
+from gaits.recording import Recorder, RecordingController, RecordingMeta
+from tuner.params_io import resolve_drive
+from tuner.robots import load_robot
+from tuner.sim.randomisation import NONE, draw
+from tuner.sim.rollout import Simulator
+from tuner.sim.surfaces import SURFACES, load_surface
+
+NOISE = dataclasses.replace(NONE, imu_noise_deg=0.5, gyro_noise=0.05, accel_noise=0.05, encoder_noise=0.001,
+                            encoder_rate_noise=0.05, force_noise=0.5)
+BASE = SURFACES["grass30"]
+HIDDEN = dataclasses.replace(BASE, name="hidden", layer_timeconst=BASE.layer_timeconst * 1.3, drag=BASE.drag * 0.75)
+
+
+def record_walk(path, command: str, seconds: float, surface=HIDDEN, seed: int = 7):
+    robot = load_robot("kidsize")
+    drive = resolve_drive("kidsize-engine-carpet4", None, command=parse_command(command))
+    sim = Simulator(robot, surface)
+    options = drive.run_options()
+    options["duration"] = seconds
+    rec = Recorder(path, RecordingMeta(robot=robot.name, task="walk", simulated=True, surface=surface.name), start_ns=0)
+    try:
+        trace = sim.run(RecordingController(drive.controller(robot, sim.control_period), rec),
+                        perturb=draw(NOISE, seed, *sim.n_random()), **options)
+    finally:
+        rec.close()
+    assert trace.completed
+    return path
+
+
+def _identify(gait_tuner_cmd, run_env, tmp_path, recording, out):
+    r = subprocess.run(gait_tuner_cmd + ["identify", "ground", "--robot", "kidsize", "--surface", "grass30",
+                                         "--recording", str(recording), "--out", str(tmp_path / out), "--json"],
+                       capture_output=True, text=True, env=run_env)
+    assert r.returncode == 0, r.stderr
+    return json.loads(r.stdout)
+
+
+def test_a_hidden_layer_is_recovered_from_a_walk(tmp_path, gait_tuner_cmd, run_env):
+    walk = record_walk(tmp_path / "walk.mcap", "0.15,0,0", 3.0)
+    out = _identify(gait_tuner_cmd, run_env, tmp_path, walk, "ground")
+    v = out["values"]
+    assert abs(v["layer_timeconst"] / 1.3 - 1) <= 0.15 and abs(v["drag"] / 0.75 - 1) <= 0.15, v
+    assert out["identifiable"]["layer_timeconst"] and out["identifiable"]["drag"]
+    assert all(x <= 1.2 for x in out["rms_after"].values()), out["rms_after"]
+    assert all(out["rms_before"][k] > out["rms_after"][k] for k in ("gyro", "encoders"))
+    fitted = load_surface(str(tmp_path / "ground" / "surface.yaml"))
+    assert fitted.layer_timeconst == pytest.approx(BASE.layer_timeconst * v["layer_timeconst"], rel=1e-6)
+    assert fitted.name == "grass30-identified" and fitted.layer_height == BASE.layer_height
+    report = (tmp_path / "ground" / "report.txt").read_text()
+    assert "layer_timeconst" in report and "accel_peak_mps2" in report and "step_period_s" in report
+
+
+def test_friction_is_not_read_from_a_robot_that_does_not_slip(tmp_path, gait_tuner_cmd, run_env):
+    stand = record_walk(tmp_path / "stand.mcap", "0,0,0", 2.0)
+    out = _identify(gait_tuner_cmd, run_env, tmp_path, stand, "ground")
+    assert not out["identifiable"]["friction"]
+    doc = json.loads((tmp_path / "ground" / "fit.json").read_text())
+    assert doc["slip_ticks"] < 3 and doc["parameters"]["friction"]["fitted"] == BASE.friction
+    assert "cannot tell it" in (tmp_path / "ground" / "report.txt").read_text()
+
+
+def test_a_walk_without_an_imu_is_one_line(tmp_path, gait_tuner_cmd, run_env):
+    from gaits.control import Measurement
+    with Recorder(tmp_path / "r.mcap", RecordingMeta(robot="kidsize")) as rec:
+        for k in range(100):
+            rec.record(Measurement(k * 0.01, q=[0.0] * 20), None, [0.0] * 20)
+    r = subprocess.run(gait_tuner_cmd + ["identify", "ground", "--robot", "kidsize", "--recording",
+                                         str(tmp_path / "r.mcap"), "--out", str(tmp_path / "g")],
+                       capture_output=True, text=True, env=run_env)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert "no IMU orientation channel" in r.stderr and not (tmp_path / "g").exists()
