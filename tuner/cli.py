@@ -1610,6 +1610,18 @@ TOPICS_OPTION = click.option("--topics", "topics_file", type=click.Path(dir_okay
                              help="A ROS 2 bag's topics and joint names (YAML; tuner/recordings.py).")
 
 
+def _running_total(desc: str, unit: str):
+    """A progress bar of a count that a callback reports as a running total (on a terminal only)."""
+    from tqdm import tqdm
+    bar = tqdm(desc=desc, unit=f" {unit}", disable=None, leave=False)
+    seen = [0]
+
+    def progress(n: int) -> None:
+        bar.update(n - seen[0])
+        seen[0] = n
+    return bar, progress
+
+
 @identify.command(name="servos")
 @robot_option(default=None, help="The robot map YAML (or a built-in robot name).")
 @RECORDING_OPTION
@@ -1632,8 +1644,6 @@ def identify_servos_cmd(robot_name: str | None, recordings: tuple[Path, ...], to
     damping, armature, friction loss, torque and speed limits and backlash, and the latency."""
     import json
 
-    from tqdm import tqdm
-
     from .recordings import RecordingError, read_field_recording
     from .report.identification import fit_json, summary_lines, write_servo_fit
     from .robots import load_robot
@@ -1653,12 +1663,7 @@ def identify_servos_cmd(robot_name: str | None, recordings: tuple[Path, ...], to
         for gap in rec.gaps[:3]:
             click.echo(f"note: {path}: {gap}", err=True)
         logs.append(JointLog(str(path), h.control_period, tuple(h.joint_names), targets, measured))
-    bar = tqdm(desc="identify servos", unit=" rollouts", disable=None, leave=False)
-    seen = [0]
-
-    def progress(n: int) -> None:
-        bar.update(n - seen[0])
-        seen[0] = n
+    bar, progress = _running_total("identify servos", "rollouts")
     try:
         fit = identify_servos(h, logs, by=by, noise=noise, max_iters=max_iters, progress=progress,
                               fit=tuple(f.strip() for f in fit_fields.split(",") if f.strip()))
@@ -1697,8 +1702,6 @@ def identify_ground_cmd(robot_name: str | None, surface_name: str, recordings: t
     is fitted until the replay's roll, pitch, gyro and encoders match the robot's."""
     import json
 
-    from tqdm import tqdm
-
     from .recordings import RecordingError, read_field_recording
     from .report.identification import ground_lines, write_ground_fit
     from .robots import load_robot
@@ -1721,12 +1724,7 @@ def identify_ground_cmd(robot_name: str | None, surface_name: str, recordings: t
         for gap in rec.gaps[:3]:
             click.echo(f"note: {path}: {gap}", err=True)
         logs.append(walk_log(str(path), dt, grid, imu["rpy"], imu["gyro"], imu["accel"], joints))
-    bar = tqdm(desc="identify ground", unit=" replays", disable=None, leave=False)
-    seen = [0]
-
-    def progress(n: int) -> None:
-        bar.update(n - seen[0])
-        seen[0] = n
+    bar, progress = _running_total("identify ground", "replays")
     try:
         fit = identify_ground(robot, start, logs, max_iters=max_iters, progress=progress)
     finally:
