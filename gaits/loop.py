@@ -25,6 +25,7 @@ core, see ``benchmarks/bench_engine.py``).
 from __future__ import annotations
 
 import argparse
+import signal
 from typing import Any
 import sys
 import time
@@ -81,6 +82,68 @@ def behaviour(t: float) -> np.ndarray:
     return np.zeros(3)
 
 
+class SweepPlayer:
+    """Plays a joint sweep (``gait-tuner excite``'s CSV: ``t``, then ``target.<joint>`` [rad] per
+    joint, our names and signs) row by row on the robot hanging in a harness, so that the loop's
+    recording (``--record``) is what ``gait-tuner identify servos`` fits. A joint the sweep does
+    not name holds 0 (its held pose). :meth:`stop` (Ctrl-C) eases back to the first row over a
+    second; at the end, or back there, its ``mode`` is "stand"."""
+
+    senses = frozenset({"q", "dq"})
+
+    def __init__(self, path: str, dt: float) -> None:
+        import csv
+        with open(path, newline="") as fh:
+            rows = [r for r in csv.reader(fh) if r]
+        if len(rows) < 3 or rows[0][0].strip() != "t":
+            raise gaits.ParamError(f"{path}: not a sweep (a header t,target.<joint>,... then rows)")
+        names = [h.strip().removeprefix("target.") for h in rows[0][1:]]
+        unknown = [n for n in names if n not in gaits.JOINT_NAMES]
+        if unknown:
+            raise gaits.ParamError(f"{path}: {unknown[0]!r} is not one of our joint names ({', '.join(gaits.JOINT_NAMES[:4])} ...)")
+        try:
+            data = np.array([[float(x) for x in r] for r in rows[1:]])
+        except ValueError as exc:
+            raise gaits.ParamError(f"{path}: a value that is not a number ({exc})") from None
+        if data.shape[1] != len(names) + 1 or not np.all(np.isfinite(data)):
+            raise gaits.ParamError(f"{path}: rows of {len(names) + 1} finite numbers expected")
+        step = np.diff(data[:, 0])
+        if np.any(np.abs(step - dt) > 1e-6):
+            raise gaits.ParamError(f"{path}: its rows are not {dt * 1000:g} ms apart (the robot's control period)")
+        self.rows = np.zeros((len(data), len(gaits.JOINT_NAMES)))
+        for i, n in enumerate(names):
+            self.rows[:, gaits.JOINT_NAMES.index(n)] = data[:, i + 1]
+        self.dt = dt
+        self.duration = len(data) * dt
+        self.mode, self.steps_taken, self.dropped = "sweep", 0, {}
+        self._k, self._stop_from, self._last = 0, None, self.rows[0]
+
+    def start_pose(self) -> Any:
+        from gaits.control import StartPose
+        return StartPose(self.rows[0].copy(), np.zeros(2))
+
+    def reset(self, m: Measurement) -> None:
+        self._k, self._stop_from, self.mode = 0, None, "sweep"
+
+    def stop(self) -> None:
+        if self._stop_from is None:
+            self._stop_from = (self._k, self._last.copy())
+
+    def step(self, m: Measurement, command: Any = None) -> np.ndarray:
+        if self._stop_from is not None:
+            k0, q0 = self._stop_from
+            a = min(1.0, (self._k - k0) * self.dt / 1.0)
+            q = q0 + a * (self.rows[0] - q0)
+            self.mode = "stand" if a >= 1.0 else "stopping"
+        else:
+            q = self.rows[min(self._k, len(self.rows) - 1)]
+            if self._k >= len(self.rows) - 1:
+                self.mode = "stand"
+        self._k += 1
+        self._last = q
+        return q
+
+
 def controller(gait: gaits.GaitFile, geometry: RobotGeometry, dt: float):
     """(the engine, what the loop calls): the engine, with the set's IMU stabiliser around it when
     the set has one (its corrections added to the engine's targets, as in the simulator)."""
@@ -93,9 +156,12 @@ def controller(gait: gaits.GaitFile, geometry: RobotGeometry, dt: float):
 
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("gait", help="a gait file with an engine: section (e.g. studies/results/kidsize-engine-carpet4.yaml)")
+    ap.add_argument("gait", nargs="?", help="a gait file with an engine: section (e.g. "
+                                            "studies/results/kidsize-engine-carpet4.yaml); not with --sweep")
+    ap.add_argument("--sweep", help="play this joint sweep (gait-tuner excite's CSV) on the robot hanging in a "
+                                    "harness instead of walking: record it (--record) to identify the servos")
     ap.add_argument("--dry-run", action="store_true", help="walk the stand-in robot (no hardware)")
-    ap.add_argument("--seconds", type=float, default=8.0)
+    ap.add_argument("--seconds", type=float, default=None, help="how long [s] (default 8; a sweep: its length)")
     ap.add_argument("--robot", help="the robot file (gait-tuner robot export MAP --out robot.yaml): its legs, soles "
                                     "and servos; default: the built-in robot's geometry")
     ap.add_argument("--record", help="record every tick (what the engine read and asked) as an MCAP file "
@@ -106,6 +172,13 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--watchdog", type=int, default=5, help="ticks without readings before the safe stop")
     ap.add_argument("--max-tilt", type=float, default=50.0, help="torso tilt [deg] read as a fall: torque off")
     args = ap.parse_args(argv)
+    if (args.gait is None) == (args.sweep is None):
+        print("robot_loop: error: give a gait file to walk, or --sweep SWEEP.csv to play (not both)", file=sys.stderr)
+        raise SystemExit(2)
+    if args.sweep is not None:
+        raise SystemExit(run_sweep(args))
+    if args.seconds is None:
+        args.seconds = 8.0
     try:
         gait = gaits.load_gait_file(args.gait)
     except gaits.ParamError as exc:      # one line, exit 2: a wrong name or a broken file is not a crash
@@ -174,7 +247,53 @@ def main(argv: list[str] | None = None) -> None:
         print("readings not finite, not taken (ticks): " + ", ".join(f"{k} {n}" for k, n in dropped.items()))
 
 
-def run_on_bus(args: Any, gait: gaits.GaitFile, robot_file: Any) -> int:
+def run_sweep(args: Any) -> int:
+    """``--sweep``: the sweep played on the bus (``--port``, with ``--robot``) as the walk would be,
+    the clock, watchdog and Ctrl-C the same; or with ``--dry-run`` on the stand-in robot."""
+    robot_file = None
+    if args.robot:
+        from gaits.robot_file import load_robot_file
+        try:
+            robot_file = load_robot_file(args.robot)
+        except gaits.ParamError as exc:
+            print(f"robot_loop: error: {exc}", file=sys.stderr)
+            return 2
+    dt = robot_file.control_period if robot_file is not None else 0.01
+    try:
+        player = SweepPlayer(args.sweep, dt)
+    except (OSError, gaits.ParamError) as exc:
+        print(f"robot_loop: error: {exc}", file=sys.stderr)
+        return 2
+    if args.seconds is None:
+        args.seconds = player.duration
+    if args.port:
+        if robot_file is None:
+            print("robot_loop: error: --port needs --robot (its servo ids, units and signs)", file=sys.stderr)
+            return 2
+        return run_on_bus(args, None, robot_file, player)
+    if not args.dry_run:
+        print("robot_loop: error: give --port (the robot's bus) or --dry-run (the stand-in)", file=sys.stderr)
+        return 2
+    robot = StandIn()
+    recorder = None
+    walk: Any = player
+    if args.record:
+        from gaits.recording import Recorder, RecordingController, RecordingMeta
+        recorder = Recorder(args.record, RecordingMeta(robot="stand-in", task="sweep", simulated=True,
+                                                       controller=f"joint sweep {args.sweep}"))
+        walk = RecordingController(player, recorder)
+    robot.write_targets(player.start_pose().q)
+    walk.reset(Measurement(0.0, q=robot.read_encoders()[0]))
+    for k in range(int(round(args.seconds / dt))):
+        q, dq = robot.read_encoders()
+        robot.write_targets(walk.step(Measurement(k * dt, q=q, dq=dq)))
+    if recorder is not None:
+        print(f"recorded {recorder.close()}")
+    print(f"{int(round(args.seconds / dt))} ticks of the sweep on the stand-in, ended {player.mode}")
+    return 0
+
+
+def run_on_bus(args: Any, gait: gaits.GaitFile | None, robot_file: Any, sweep: SweepPlayer | None = None) -> int:
     """The loop on a Dynamixel bus (``--port``), as a robot runs it: a monotonic clock at the control
     rate (overruns counted, tick periods' percentiles printed); a watchdog (no readings for
     ``--watchdog`` ticks: the safe stop, the standing pose then torque off); a fall (a tilt past
@@ -188,12 +307,18 @@ def run_on_bus(args: Any, gait: gaits.GaitFile, robot_file: Any) -> int:
     except BusError as exc:
         print(f"robot_loop: error: {exc}", file=sys.stderr)
         return 2
-    engine, walk = controller(gait, robot_file, robot_file.control_period)
+    if sweep is not None:
+        engine = walk = sweep
+        task, what = "sweep", f"joint sweep {args.sweep}"
+    else:
+        engine, walk = controller(gait, robot_file, robot_file.control_period)
+        task, what = "walk", f"walk engine, {args.gait}"
     recorder = None
     if args.record:
         from gaits.recording import Recorder, RecordingController, RecordingMeta
-        recorder = Recorder(args.record, RecordingMeta(robot=robot_file.robot, task="walk", simulated=False,
-                                                       controller=f"walk engine, {args.gait}", notes=f"bus {args.port}"))
+        recorder = Recorder(args.record, RecordingMeta(robot=robot_file.robot, task=task, simulated=False,
+                                                       joints=list(gaits.JOINT_NAMES), controller=what,
+                                                       notes=f"bus {args.port}"))
         walk = RecordingController(walk, recorder)
     dt = robot_file.control_period
     stand = walk.start_pose().q
@@ -218,50 +343,56 @@ def run_on_bus(args: Any, gait: gaits.GaitFile, robot_file: Any) -> int:
     walk.reset(first)
     clock = time.monotonic()
     last = clock
+    # Ctrl-C is taken between ticks, never inside a bus transaction (a packet cut in half would
+    # leave the port's stream out of step): the handler only counts, the tick reads the count
+    interrupts = [0]
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: interrupts.__setitem__(0, interrupts[0] + 1))
     try:
         while True:
             t = k * dt
-            try:
-                if k >= n_ticks and stop_at is None:
-                    break
-                m = measure(t)
-                if m is None:
-                    missing += 1
-                    if missing >= args.watchdog:
-                        why, code = (f"watchdog: no readings for {missing} ticks ({missing * dt * 1000:.0f} ms) at "
-                                     f"t = {t:.2f} s: the safe stop (standing pose, torque off)"), 3
-                        bus.write(stand)
-                        break
-                else:
-                    missing = 0
-                    tilt = max(abs(m.imu_rpy[0]), abs(m.imu_rpy[1])) * 180 / np.pi if m.imu_rpy is not None else 0
-                    if tilt > args.max_tilt:
-                        why, code = f"fall detected at t = {t:.2f} s (tilt {tilt:.0f} deg): torque off", 3
-                        break
-                    command = np.zeros(3) if stop_at is not None else behaviour(t)
-                    t0 = time.perf_counter()
-                    q = walk.step(m, command)
-                    costs.append(time.perf_counter() - t0)
-                    bus.write(q)
-                    if stop_at is not None and (engine.mode == "stand" or t >= stop_at):
-                        why = f"stopped by Ctrl-C at t = {t:.2f} s, standing" if engine.mode == "stand" else \
-                            f"stopped by Ctrl-C at t = {t:.2f} s, not standing after 3 s"
-                        break
-                k += 1
-                clock += dt
-                now = time.monotonic()
-                if now > clock + dt:
-                    overruns += 1
-                    clock = now                       # late: the next tick from now, not a burst to catch up
-                time.sleep(max(0.0, clock - now))
-                periods.append(time.monotonic() - last)
-                last = time.monotonic()
-            except KeyboardInterrupt:
-                if stop_at is not None:
-                    why = f"stopped by a second Ctrl-C at t = {t:.2f} s"
-                    break
+            if interrupts[0] >= 2:
+                why = f"stopped by a second Ctrl-C at t = {t:.2f} s"
+                break
+            if interrupts[0] == 1 and stop_at is None:
                 stop_at = t + 3.0
+                if sweep is not None:
+                    sweep.stop()                   # back to the sweep's first pose
+            if k >= n_ticks and stop_at is None:
+                break
+            m = measure(t)
+            if m is None:
+                missing += 1
+                if missing >= args.watchdog:
+                    why, code = (f"watchdog: no readings for {missing} ticks ({missing * dt * 1000:.0f} ms) at "
+                                 f"t = {t:.2f} s: the safe stop (standing pose, torque off)"), 3
+                    bus.write(stand)
+                    break
+            else:
+                missing = 0
+                tilt = max(abs(m.imu_rpy[0]), abs(m.imu_rpy[1])) * 180 / np.pi if m.imu_rpy is not None else 0
+                if tilt > args.max_tilt:
+                    why, code = f"fall detected at t = {t:.2f} s (tilt {tilt:.0f} deg): torque off", 3
+                    break
+                command = None if sweep is not None else np.zeros(3) if stop_at is not None else behaviour(t)
+                t0 = time.perf_counter()
+                q = walk.step(m, command)
+                costs.append(time.perf_counter() - t0)
+                bus.write(q)
+                if stop_at is not None and (engine.mode == "stand" or t >= stop_at):
+                    why = f"stopped by Ctrl-C at t = {t:.2f} s, standing" if engine.mode == "stand" else \
+                        f"stopped by Ctrl-C at t = {t:.2f} s, not standing after 3 s"
+                    break
+            k += 1
+            clock += dt
+            now = time.monotonic()
+            if now > clock + dt:
+                overruns += 1
+                clock = now                       # late: the next tick from now, not a burst to catch up
+            time.sleep(max(0.0, clock - now))
+            periods.append(time.monotonic() - last)
+            last = time.monotonic()
     finally:
+        signal.signal(signal.SIGINT, previous)
         bus.torque(False)
         bus.close()
         if recorder is not None:

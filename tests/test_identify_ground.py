@@ -83,3 +83,22 @@ def test_a_walk_without_an_imu_is_one_line(tmp_path, gait_tuner_cmd, run_env):
                        capture_output=True, text=True, env=run_env)
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert "no IMU orientation channel" in r.stderr and not (tmp_path / "g").exists()
+
+
+def test_transfer_walks_a_set_in_both_worlds(tmp_path, gait_tuner_cmd, run_env):
+    """`transfer` on an identified surface file: both worlds walked, the default one named from the
+    identified file's start; a file whose name does not say it is one line asking for it."""
+    from tuner.report.calibration import surface_yaml
+    (tmp_path / "s.yaml").write_text(surface_yaml(dataclasses.replace(HIDDEN, name="grass30-identified"), "test"))
+    r = subprocess.run(gait_tuner_cmd + ["transfer", "kidsize-engine-carpet4", "--robot", "kidsize", "--surface",
+                                         str(tmp_path / "s.yaml"), "--walks", "2", "--json"],
+                       capture_output=True, text=True, env=run_env)
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert out["default"]["world"] == "kidsize on grass30" and out["identified"]["world"] == "kidsize on grass30-identified"
+    assert all(out[k]["walks"] == 2 and 0.0 <= out[k]["survival"] <= 1.0 for k in out)
+    (tmp_path / "t.yaml").write_text(surface_yaml(dataclasses.replace(HIDDEN, name="field-a"), "test"))
+    r = subprocess.run(gait_tuner_cmd + ["transfer", "kidsize-engine-carpet4", "--robot", "kidsize", "--surface",
+                                         str(tmp_path / "t.yaml"), "--walks", "2"], capture_output=True, text=True,
+                       env=run_env)
+    assert r.returncode == 2 and "give --default-surface" in r.stderr and len(r.stderr.strip().splitlines()) == 1

@@ -1746,6 +1746,64 @@ def identify_ground_cmd(robot_name: str | None, surface_name: str, recordings: t
         click.echo(f"wrote {p}")
 
 
+@cli.command()
+@click.argument("params_spec", metavar="SET")
+@robot_option(default=None, help="The identified robot map (identify servos' robot.yaml).")
+@click.option("--surface", "surface_name", required=True, metavar="SURFACE.yaml",
+              help="The identified ground (identify ground's surface.yaml).")
+@click.option("--default-robot", "default_robot", metavar="NAME|PATH",
+              help="The robot as the tool knew it before (default: the same map).")
+@click.option("--default-surface", "default_surface", metavar="NAME|PATH",
+              help="The surface as the tool knew it before (default: the one the identification started "
+                   "from, when its name says it: grass30-identified -> grass30).")
+@click.option("--walks", default=20, show_default=True, type=click.IntRange(1, 10_000),
+              help="Randomised match walks per world.")
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(0, 2**31 - 1))
+@workers_option()
+@JSON_OPTION
+def transfer(params_spec: str, robot_name: str | None, surface_name: str, default_robot: str | None,
+             default_surface: str | None, walks: int, seed: int, workers: int, as_json: bool) -> None:
+    """The gap before the match: SET's randomised match walks (commands every 1-3 s, the default
+    randomisation, tuner/sim/scenario.py) in the identified world beside the default one: survival,
+    torso pitch and tracking, so a team sees what its field will do to its walk before it tunes."""
+    import json
+
+    from tqdm import tqdm
+
+    from .report.transfer import transfer_lines, world_summary
+    from .robots import BUILTIN_ROBOTS, load_robot
+    from .sim.robustness import scenario_walks
+    from .sim.scenario import MatchDistribution
+    from .sim.surfaces import SURFACES, load_surface
+    if robot_name is None:
+        raise UserError("transfer: give --robot (the identified robot map)")
+    identified = load_surface(surface_name)
+    if default_surface is None:
+        stem = identified.name.removesuffix("-identified")
+        if stem not in SURFACES:
+            raise UserError(f"transfer: --surface {surface_name}'s name ({identified.name}) does not say which "
+                            f"surface it started from; give --default-surface")
+        default_surface = stem
+    load_surface(default_surface)
+    default_robot = default_robot or robot_name
+    for name in (robot_name, default_robot):
+        if name not in BUILTIN_ROBOTS:
+            load_robot(name)
+    drive = resolve_drive(params_spec, None)
+    worlds = {"default": (default_robot, default_surface), "identified": (robot_name, surface_name)}
+    out = {}
+    with tqdm(total=2 * walks, desc="transfer", unit="walk", **_bar_options()) as bar:
+        for key, (robot, surface) in worlds.items():
+            rows = scenario_walks(robot, surface, drive, MatchDistribution(), walks=walks, seed=seed,
+                                  workers=workers, progress=bar.update)
+            out[key] = (f"{load_robot(robot).name} on {load_surface(surface).name}", world_summary(rows))
+    if as_json:
+        click.echo(json.dumps({k: {"world": w, **s} for k, (w, s) in out.items()}, allow_nan=False))
+        return
+    for line in transfer_lines(drive.source or params_spec, out):
+        click.echo(line)
+
+
 @cli.group()
 def bus() -> None:
     """A simulated Dynamixel bus: the robot-side code (gait-tuner-loop) drives the simulated robot
@@ -1763,9 +1821,13 @@ def bus() -> None:
               help="Longest walk [s] of simulated time.")
 @click.option("--idle", default=5.0, show_default=True, type=Span(0.5, 600.0),
               help="End once the client has been silent this long [s].")
-def bus_serve(robot_name: str, surface_name: str, link: Path | None, baud: str, duration: float, idle: float) -> None:
+@click.option("--hang", is_flag=True, help="The robot hangs in a harness (for a sweep: gait-tuner-loop --sweep).")
+def bus_serve(robot_name: str, surface_name: str, link: Path | None, baud: str, duration: float, idle: float,
+              hang: bool) -> None:
     """Serve ROBOT's servos and IMU on a pseudo-terminal, answered by MuJoCo in lockstep (a tick of
-    physics per sync write of goal positions). Prints the bus's path, then what the walk did."""
+    physics per sync write of goal positions). Prints the bus's path, then what the walk did.
+    With --hang the robot hangs in a harness (its torso held, feet off the ground): play a sweep
+    on it (gait-tuner-loop --sweep) and record what identify servos fits."""
     from .robots import load_robot
     from .sim.bus import serve
     from .sim.rollout import Simulator
@@ -1775,7 +1837,11 @@ def bus_serve(robot_name: str, surface_name: str, link: Path | None, baud: str, 
     missing = [o for o, j in rf.joints.items() if j.servo is None]
     if missing:
         raise UserError(f"{robot_name}: no servo id for {', '.join(missing)}: give the map a servos: section")
-    sim = Simulator(robot, load_surface(surface_name))
+    if hang:
+        from .sim.harness import Harness, HangingSim
+        sim = HangingSim(Harness(robot))
+    else:
+        sim = Simulator(robot, load_surface(surface_name))
 
     def ready(path: str) -> None:
         click.echo(f"bus of {robot.name} on {sim.surface.name} at {path} ({baud} baud, "

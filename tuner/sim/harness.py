@@ -116,11 +116,12 @@ class Harness:
 
     # --- servos -----------------------------------------------------------------------
     def servo_arrays(self) -> ServoArrays:
-        """The robot's servos as its map gives them (no backlash, no latency)."""
+        """The robot's servos as its map gives them (the latency: the largest servo's, as the
+        simulator takes it)."""
         s = [self.robot.servos[t] for t in self.theirs]
         return ServoArrays(**{f: np.array([getattr(x, f) for x in s]) for f in
-                              ("kp", "kv", "torque", "speed", "armature", "damping", "frictionloss")},
-                           backlash=np.zeros(self.n), latency=0.0)
+                              ("kp", "kv", "torque", "speed", "armature", "damping", "frictionloss", "backlash")},
+                           latency=max((x.latency for x in s), default=0.0))
 
     def write_spec(self, spec: mujoco.MjSpec, s: ServoArrays) -> None:
         """The parts of the servos that live in the model (gain, feedback, torque, the joint's
@@ -300,3 +301,55 @@ def record_sweep(h: Harness, targets: np.ndarray, s: ServoArrays, path, *, noise
         for k in range(len(targets)):       # row k: read at tick k, and asked then for the tick after
             rec.record(Measurement(k * h.control_period, q=q[k], joint_names=h.joint_names), None, targets[k])
     return q
+
+
+class HangingSim:
+    """The harness as the simulated bus' simulator (``gait-tuner bus serve --hang``): a controller's
+    targets (``gaits.JOINT_NAMES`` order) played tick by tick through the servo path, in lockstep;
+    it reads the encoders and a level IMU (the torso is held). The latency in whole ticks, as the
+    simulator takes it. Duck-types what :func:`tuner.sim.bus.serve` uses of a ``Simulator``."""
+
+    def __init__(self, h: Harness, s: ServoArrays | None = None) -> None:
+        from gaits import JOINT_NAMES
+        self.h = h
+        self.s = h.servo_arrays() if s is None else s
+        self.control_period = h.control_period
+        self.surface = type("Harness", (), {"name": "a harness"})()
+        self._cols = np.array([JOINT_NAMES.index(j) for j in h.joint_names])
+        self._n = len(JOINT_NAMES)
+
+    def run(self, controller, duration: float, perturb=None):
+        from collections import deque
+
+        from gaits.control import Measurement
+        h, s = self.h, self.s
+        model = h.compile(s)
+        d = mujoco.MjData(model)
+        q0 = np.asarray(controller.start_pose().q, dtype=float)[self._cols]
+        mujoco.mj_resetData(model, d)
+        d.qpos[h._qadr] = np.clip(h.to_robot(q0), h.q_lo, h.q_hi)
+        d.qpos[h._held_qadr] = h._held_pose
+        d.ctrl[h.n:h.n + len(h.held)] = h._held_pose
+        mujoco.mj_forward(model, d)
+        cmd = d.qpos[h._qadr].copy()
+        step = np.asarray(s.speed) * h.control_period
+        queue = deque(cmd.copy() for _ in range(int(round(s.latency / h.control_period))))
+        half = np.asarray(s.backlash) / 2
+        level = (np.zeros(3), np.zeros(3), np.array([0.0, 0.0, 9.81]))
+
+        def read(t: float) -> Measurement:
+            q = np.zeros(self._n)
+            dq = np.zeros(self._n)
+            q[self._cols] = h.from_robot(d.qpos[h._qadr])
+            dq[self._cols] = d.qvel[h._dofadr] * h._sign
+            return Measurement(t, q=q, dq=dq, imu_rpy=level[0], gyro=level[1], accel=level[2])
+        controller.reset(read(0.0))
+        for k in range(1, int(round(duration / h.control_period)) + 1):
+            target = np.asarray(controller.step(read((k - 1) * h.control_period)), dtype=float)
+            want = h.to_robot(target[self._cols])
+            cmd = np.clip(cmd + np.clip(want - cmd, -step, step), h.q_lo, h.q_hi)
+            queue.append(cmd.copy())
+            out = queue.popleft()
+            d.ctrl[:h.n] = dead_band(out, d.qpos[h._qadr], half) if np.any(half > 0) else out
+            mujoco.mj_step(model, d, nstep=h.nstep)
+        return type("HangingTrace", (), {"reason": "completed"})()

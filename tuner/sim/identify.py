@@ -23,7 +23,8 @@ down to the sensor noise). A parameter is *identified* from the recordings when 
 and, for a torque or speed limit, the limit binds somewhere in the recordings at the fitted value.
 Estimates that move together (correlation past :data:`ENTANGLED`: what the recordings fix is
 their combination) are named. One that
-is not is named so: where the recordings do not move it at all it keeps the map's value, where
+is not is named so: where the recordings do not move it at all it keeps the map's value (a
+factor 1; the map's backlash and latency, none unless an earlier identification wrote them), where
 they fix it loosely (a light head's gain, armature and damping: only their ratios show) it keeps
 its fitted value. The residual reported is the one of what is written.
 """
@@ -156,8 +157,7 @@ def identify_servos(harness: Harness, logs: list[JointLog], *, by: str = "groups
                     fit: tuple[str, ...] = FITTABLE) -> ServoFit:
     """Fit the harness robot's servos to ``logs`` (see the module's docstring). ``by``: "groups"
     (:data:`FIT_GROUPS`) or "joints". ``noise`` [rad]: the encoders' noise, the residual's unit.
-    ``fit``: the fields fitted (:data:`FITTABLE`); the others keep the map's values (and no
-    backlash, no latency). ``progress(evaluations)`` is called after each batch of rollouts."""
+    ``fit``: the fields fitted (:data:`FITTABLE`); the others keep the map's values. ``progress(evaluations)`` is called after each batch of rollouts."""
     bad = [f for f in fit if f not in FITTABLE]
     if bad or not fit:
         raise UserError(f"--fit {','.join(fit)}: expected some of {', '.join(FITTABLE)}")
@@ -206,15 +206,20 @@ def identify_servos(harness: Harness, logs: list[JointLog], *, by: str = "groups
         return modify
 
     lo, hi = FACTOR_BOUNDS
+    mapped: dict[str, float] = {}          # the map's backlash [mrad] and latency [ticks]
     for u in units:
         for fname in SCALED:
             params.add(sysid.Parameter(f"{u}.{fname}", nominal=1.0, min_value=lo, max_value=hi,
                                        frozen=fname in LIMITS or fname not in fit,
                                        modifier=None if fname == "speed" else scale_modifier(u, fname)))
-        params.add(sysid.Parameter(f"{u}.backlash", nominal=2.0 if "backlash" in fit else 0.0, min_value=0.0,
-                                   max_value=BACKLASH_MAX_MRAD, frozen="backlash" not in fit))
-    params.add(sysid.Parameter("latency", nominal=1.0 if "latency" in fit else 0.0, min_value=0.0,
-                               max_value=LATENCY_MAX_TICKS, frozen="latency" not in fit))
+        b_map = float(np.mean(base.backlash[member[u]])) * 1000.0
+        mapped[f"{u}.backlash"] = b_map
+        params.add(sysid.Parameter(f"{u}.backlash", nominal=(b_map or 2.0) if "backlash" in fit else b_map,
+                                   min_value=0.0, max_value=max(BACKLASH_MAX_MRAD, b_map), frozen="backlash" not in fit))
+    mapped["latency"] = base.latency / dt
+    params.add(sysid.Parameter("latency", nominal=(mapped["latency"] or 1.0) if "latency" in fit else mapped["latency"],
+                               min_value=0.0, max_value=max(LATENCY_MAX_TICKS, mapped["latency"]),
+                               frozen="latency" not in fit))
 
     def arrays(p) -> ServoArrays:
         s = base.copy()
@@ -317,7 +322,7 @@ def identify_servos(harness: Harness, logs: list[JointLog], *, by: str = "groups
         kept = fitted.copy()
         for n, ok in identifiable.items():
             if not ok and (not math.isfinite(intervals[n]) or n.rsplit(".", 1)[-1] in LIMITS):
-                kept[n].value[:] = 1.0 if _unit(n) == "x" else 0.0
+                kept[n].value[:] = 1.0 if _unit(n) == "x" else mapped[n]
         loose = [n for n in asked if not identifiable[n] and kept[n].value[0] == values[n]
                  and math.isfinite(intervals[n])]
         for n in kept.keys():
