@@ -5,8 +5,8 @@
 A hidden world of its own (kid3kg with servos 30-40 % off the map's, a 20 ms latency and a 6 mrad
 backlash, on grass30 with its layer 40 % slower and 40 % more drag), and what a team would do in it:
 
-1. record a 30 s sweep (`gait-tuner excite`) on the hidden robot hanging in its harness, and two
-   walks of the robot on the hidden ground (the init set, forward and turning, sensor noise);
+1. record a 30 s sweep (`gait-tuner excite`) on the hidden robot hanging in its harness, and three
+   4 s walks of the robot on the hidden ground (the init set: forward, turning, sideways; sensor noise);
 2. `identify servos`, then `identify ground` with the identified servos;
 3. tune init's match study twice, same budget and seed: on the default world (the map, grass30) and
    on the identified one (the written robot.yaml and surface.yaml); export both best sets;
@@ -116,8 +116,9 @@ def main() -> None:
     record_sweep(h, targets, h.servo_arrays(), out / "sweep.mcap", noise=1e-3, seed=1)
     sh(out, "init", "--robot", str(KID3KG), "--surface", "grass30", "--for", "match", "--out", "init")
     start_set = out / "init" / "kid3kg-grass30-match-start.yaml"
-    fig["recorded_walks"] = [record_walk(hidden_robot, hidden_surface, start_set, c, 6.0, out / f"walk{i}.mcap", i)
-                             for i, c in enumerate(("0.1,0,0", "0.05,0,0.3"))]
+    walks = ("0.15,0,0", "0.05,0,0.3", "0,0.05,0")           # forward, turning, sideways: 4 s each
+    fig["recorded_walks"] = [record_walk(hidden_robot, hidden_surface, start_set, c, 4.0, out / f"walk{i}.mcap", i)
+                             for i, c in enumerate(walks)]
 
     # 2. identification
     t, text = sh(out, "identify", "servos", "--robot", str(KID3KG), "--recording", "sweep.mcap", "--out", "servos",
@@ -126,7 +127,7 @@ def main() -> None:
     fig["identify_servos"] = {"seconds": round(t, 1), "rollouts": servos["rollouts"],
                               "rms_after_rad": float(np.sqrt(np.mean(np.square(list(servos["rms_after_rad"].values())))))}
     t, text = sh(out, "identify", "ground", "--robot", "servos/robot.yaml", "--surface", "grass30",
-                 "--recording", "walk0.mcap", "--recording", "walk1.mcap", "--out", "ground", "--json")
+                 *[a for i in range(len(walks)) for a in ("--recording", f"walk{i}.mcap")], "--out", "ground", "--json")
     ground = json.loads(text)
     fig["identify_ground"] = {"seconds": round(t, 1), "replays": ground["replays"], "values": ground["values"],
                               "rms_after": ground["rms_after"]}

@@ -1693,10 +1693,12 @@ def identify_servos_cmd(robot_name: str | None, recordings: tuple[Path, ...], to
 @TOPICS_OPTION
 @click.option("--out", "out_dir", required=True, type=OutPath(file_okay=False), metavar="DIR",
               help="Where to write surface.yaml (the ground identified), fit.json and report.txt.")
+@click.option("--horizon", default=3.0, show_default=True, type=Span(0.5, 60.0),
+              help="Seconds of each recording fitted (a replay is open loop: record several short walks).")
 @click.option("--max-iters", default=25, show_default=True, type=click.IntRange(1, 500))
 @JSON_OPTION
 def identify_ground_cmd(robot_name: str | None, surface_name: str, recordings: tuple[Path, ...],
-                        topics_file: Path | None, out_dir: Path, max_iters: int, as_json: bool) -> None:
+                        topics_file: Path | None, out_dir: Path, horizon: float, max_iters: int, as_json: bool) -> None:
     """Identify the ground from recordings of the robot walking on it: the simulated walk replays
     each recording's joint targets on the surface, whose layer (stiffness, damping, friction, drag)
     is fitted until the replay's roll, pitch, gyro and encoders match the robot's."""
@@ -1726,7 +1728,7 @@ def identify_ground_cmd(robot_name: str | None, surface_name: str, recordings: t
         logs.append(walk_log(str(path), dt, grid, imu["rpy"], imu["gyro"], imu["accel"], joints))
     bar, progress = _running_total("identify ground", "replays")
     try:
-        fit = identify_ground(robot, start, logs, max_iters=max_iters, progress=progress)
+        fit = identify_ground(robot, start, logs, max_iters=max_iters, progress=progress, horizon=horizon)
     finally:
         bar.close()
     worse = [k for k in fit.rms_after if not np.isfinite(fit.rms_after[k])]
