@@ -1636,9 +1636,11 @@ def _running_total(desc: str, unit: str):
 @click.option("--fit", "fit_fields", default="kp,damping,armature,frictionloss,torque,speed,backlash,latency",
               show_default=True, metavar="FIELD,...", help="What to fit; the others keep the map's values.")
 @click.option("--max-iters", default=40, show_default=True, type=click.IntRange(1, 500))
+@click.option("--trace", is_flag=True, help="Print the optimiser's iterations on stderr.")
 @JSON_OPTION
 def identify_servos_cmd(robot_name: str | None, recordings: tuple[Path, ...], topics_file: Path | None,
-                        out_dir: Path, by: str, noise: float, fit_fields: str, max_iters: int, as_json: bool) -> None:
+                        out_dir: Path, by: str, noise: float, fit_fields: str, max_iters: int, trace: bool,
+                        as_json: bool) -> None:
     """Identify the robot's servos from recordings of its joints (commanded and measured angles; best a
     sweep from `gait-tuner excite` on the robot hanging in a harness): per group or joint the gain,
     damping, armature, friction loss, torque and speed limits and backlash, and the latency."""
@@ -1666,7 +1668,8 @@ def identify_servos_cmd(robot_name: str | None, recordings: tuple[Path, ...], to
     bar, progress = _running_total("identify servos", "rollouts")
     try:
         fit = identify_servos(h, logs, by=by, noise=noise, max_iters=max_iters, progress=progress,
-                              fit=tuple(f.strip() for f in fit_fields.split(",") if f.strip()))
+                              fit=tuple(f.strip() for f in fit_fields.split(",") if f.strip()),
+                              trace=sys.stderr if trace else None)
     finally:
         bar.close()
     lost = fit.unfollowed(noise)
@@ -1696,9 +1699,11 @@ def identify_servos_cmd(robot_name: str | None, recordings: tuple[Path, ...], to
 @click.option("--horizon", default=3.0, show_default=True, type=Span(0.5, 60.0),
               help="Seconds of each recording fitted (a replay is open loop: record several short walks).")
 @click.option("--max-iters", default=25, show_default=True, type=click.IntRange(1, 500))
+@click.option("--trace", is_flag=True, help="Print the optimiser's iterations on stderr.")
 @JSON_OPTION
 def identify_ground_cmd(robot_name: str | None, surface_name: str, recordings: tuple[Path, ...],
-                        topics_file: Path | None, out_dir: Path, horizon: float, max_iters: int, as_json: bool) -> None:
+                        topics_file: Path | None, out_dir: Path, horizon: float, max_iters: int, trace: bool,
+                        as_json: bool) -> None:
     """Identify the ground from recordings of the robot walking on it: the simulated walk replays
     each recording's joint targets on the surface, whose layer (stiffness, damping, friction, drag)
     is fitted until the replay's roll, pitch, gyro and encoders match the robot's."""
@@ -1728,7 +1733,8 @@ def identify_ground_cmd(robot_name: str | None, surface_name: str, recordings: t
         logs.append(walk_log(str(path), dt, grid, imu["rpy"], imu["gyro"], imu["accel"], joints))
     bar, progress = _running_total("identify ground", "replays")
     try:
-        fit = identify_ground(robot, start, logs, max_iters=max_iters, progress=progress, horizon=horizon)
+        fit = identify_ground(robot, start, logs, max_iters=max_iters, progress=progress, horizon=horizon,
+                              trace=sys.stderr if trace else None)
     finally:
         bar.close()
     worse = [k for k in fit.rms_after if not np.isfinite(fit.rms_after[k])]

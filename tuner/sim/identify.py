@@ -35,7 +35,6 @@ import io
 import logging
 import math
 import os
-import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -154,10 +153,12 @@ FITTABLE = SCALED + ("backlash", "latency")
 
 def identify_servos(harness: Harness, logs: list[JointLog], *, by: str = "groups", noise: float = 1e-3,
                     max_iters: int = 40, threads: int | None = None, progress=None,
-                    fit: tuple[str, ...] = FITTABLE) -> ServoFit:
+                    fit: tuple[str, ...] = FITTABLE, trace=None) -> ServoFit:
     """Fit the harness robot's servos to ``logs`` (see the module's docstring). ``by``: "groups"
     (:data:`FIT_GROUPS`) or "joints". ``noise`` [rad]: the encoders' noise, the residual's unit.
-    ``fit``: the fields fitted (:data:`FITTABLE`); the others keep the map's values. ``progress(evaluations)`` is called after each batch of rollouts."""
+    ``fit``: the fields fitted (:data:`FITTABLE`); the others keep the map's values.
+    ``progress(evaluations)`` is called after each batch of rollouts; ``trace`` (a text stream)
+    gets the optimiser's iterations."""
     bad = [f for f in fit if f not in FITTABLE]
     if bad or not fit:
         raise UserError(f"--fit {','.join(fit)}: expected some of {', '.join(FITTABLE)}")
@@ -264,7 +265,7 @@ def identify_servos(harness: Harness, logs: list[JointLog], *, by: str = "groups
         absl.setLevel(logging.ERROR)
         try:                     # the optimiser's own log goes to a buffer (ours: progress() says enough)
             opt, result = sysid.optimize(initial_params=p, residual_fn=residual_fn, optimizer="mujoco",
-                                         verbose=False, max_iters=iters, eps=FD_STEP, output=(sys.stderr if os.environ.get("GT_SYSID_DEBUG") else io.StringIO()))
+                                         verbose=False, max_iters=iters, eps=FD_STEP, output=trace or io.StringIO())
         finally:
             absl.setLevel(level)
         x = np.asarray(result.x, dtype=float)

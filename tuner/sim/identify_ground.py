@@ -34,7 +34,6 @@ import io
 import logging
 import math
 import os
-import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -220,9 +219,10 @@ def _channels(r: np.ndarray, log: WalkLog) -> dict[str, float]:
 
 
 def identify_ground(robot: RobotModel, start: Surface, logs: list[WalkLog], *, max_iters: int = 25,
-                    threads: int | None = None, progress=None, horizon: float = HORIZON) -> GroundFit:
+                    threads: int | None = None, progress=None, horizon: float = HORIZON,
+                    trace=None) -> GroundFit:
     """Fit ``start``'s :func:`ground_fields` to the walks in ``logs`` (the module's docstring), each
-    over its first ``horizon`` seconds."""
+    over its first ``horizon`` seconds; ``trace`` (a text stream) gets the optimiser's iterations."""
     sysid = _sysid()
     if not logs:
         raise UserError("no recordings to identify from")
@@ -287,7 +287,7 @@ def identify_ground(robot: RobotModel, start: Surface, logs: list[WalkLog], *, m
         try:
             opt, result = sysid.optimize(initial_params=params, residual_fn=residual_fn, optimizer="mujoco",
                                          verbose=False, max_iters=max_iters, eps=FD_STEP,
-                                         output=sys.stderr if os.environ.get("GT_SYSID_DEBUG") else io.StringIO())
+                                         output=trace or io.StringIO())
         finally:
             absl.setLevel(level)
         x = np.asarray(result.x, dtype=float)
