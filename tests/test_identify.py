@@ -154,7 +154,10 @@ def test_excite_then_identify_writes_a_map_the_tool_walks(tmp_path, gait_tuner_c
         assert abs(p[f"{g}.kp"]["value"] - 1.3) <= 0.13, (g, p[f"{g}.kp"])
         assert abs(p[f"{g}.backlash"]["value"] - 6.0) <= 0.6, (g, p[f"{g}.backlash"])
         assert not p[f"{g}.damping"]["fitted"]
-    assert sorted(x.name for x in (tmp_path / "fit").iterdir()) == ["fit.json", "report.txt", "robot.yaml", "servos.yaml"]
+    assert sorted(x.name for x in (tmp_path / "fit").iterdir()) == ["fit.json", "report.html", "report.txt", "robot.yaml",
+                                                                   "servos.yaml"]
+    html = (tmp_path / "fit" / "report.html").read_text()           # mujoco.sysid's own report of the fit
+    assert "hips.kp" in html and "Parameter Distribution" in html
     robot = load_robot(tmp_path / "fit" / "robot.yaml")
     knee = robot.servos[robot.joint_map["l_knee"][0]]
     base = load_robot(KID3KG).servos[robot.joint_map["l_knee"][0]]

@@ -62,6 +62,7 @@ def test_a_hidden_layer_is_recovered_from_a_walk(tmp_path, gait_tuner_cmd, run_e
     assert fitted.name == "grass30-identified" and fitted.layer_height == BASE.layer_height
     report = (tmp_path / "ground" / "report.txt").read_text()
     assert "layer_timeconst" in report and "accel_peak_mps2" in report and "step_period_s" in report
+    assert "layer_timeconst" in (tmp_path / "ground" / "report.html").read_text()
 
 
 def test_friction_is_not_read_from_a_robot_that_does_not_slip(tmp_path, gait_tuner_cmd, run_env):

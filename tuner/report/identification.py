@@ -26,7 +26,31 @@ from ..errors import UserError
 from ..sim.identify import SCALED, ServoFit
 from .provenance import commit_of
 
-__all__ = ["servo_overlay", "write_servo_fit", "summary_lines", "fit_json"]
+__all__ = ["servo_overlay", "write_servo_fit", "summary_lines", "fit_json", "write_ground_fit", "ground_lines",
+           "sysid_html"]
+
+
+def sysid_html(title: str, sysid: dict) -> str:
+    """``mujoco.sysid``'s own HTML report of a fit: its automated insights, the parameter table
+    (initial and fitted, with bounds), the parameters' distributions with their 95 % intervals,
+    and the covariance and correlation (its sections; the signal and video sections need its own
+    rollout, which ours replaces)."""
+    from mujoco.sysid.report.builder import ReportBuilder
+    from mujoco.sysid.report.sections.covariance import Covariance
+    from mujoco.sysid.report.sections.insights import AutomatedInsights
+    from mujoco.sysid.report.sections.parameter_distribution import ParameterDistribution
+    from mujoco.sysid.report.sections.parameters import ParametersTable
+    initial, fitted = sysid["initial"], sysid["fitted"]
+    for p in list(fitted.keys()):         # the parameters fitted (a second stage may have freed some)
+        initial[p].frozen = fitted[p].frozen
+    rb = ReportBuilder(title)
+    rb.add_section(AutomatedInsights("Automated Insights", fitted))
+    rb.add_section(ParametersTable("Parameters", fitted, initial, anchor="Parameters"))
+    rb.add_section(ParameterDistribution(title="Parameter Distribution", opt_params=fitted, initial_params=initial,
+                                         confidence_intervals=np.asarray(sysid["half"]), anchor="param_dist"))
+    rb.add_section(Covariance(title="Covariance and Correlation", anchor="cov", covariance=np.asarray(sysid["cov"]),
+                              parameter_dict=fitted))
+    return rb.build()
 
 _FIELDS = ("kp", "damping", "armature", "frictionloss", "torque", "speed", "backlash")
 
@@ -143,6 +167,8 @@ def write_servo_fit(fit: ServoFit, robot_map: Path | None, out_dir: Path, noise:
         files[out_dir / "robot.yaml"] = header + yaml.safe_dump(doc, sort_keys=False)
     files[out_dir / "fit.json"] = json.dumps(fit_json(fit), indent=1, allow_nan=False) + "\n"
     files[out_dir / "report.txt"] = "\n".join(summary_lines(fit, noise)) + "\n"
+    if fit.sysid:
+        files[out_dir / "report.html"] = sysid_html(f"gait-tuner identify servos ({commit})", fit.sysid)
     out_dir.mkdir(parents=True, exist_ok=True)
     return write_files_atomic(files)
 
@@ -194,6 +220,8 @@ def write_ground_fit(fit: Any, out_dir: Path) -> list[Path]:
     files = {out_dir / "surface.yaml": surface_yaml(surface, header),
              out_dir / "fit.json": json.dumps(_finite(doc), indent=1, allow_nan=False) + "\n",
              out_dir / "report.txt": "\n".join(ground_lines(fit)) + "\n"}
+    if fit.sysid:
+        files[out_dir / "report.html"] = sysid_html(f"gait-tuner identify ground ({commit})", fit.sysid)
     out_dir.mkdir(parents=True, exist_ok=True)
     return write_files_atomic(files)
 

@@ -129,6 +129,7 @@ class ServoFit:
     entangled: list[list[str]] = field(default_factory=list)    # estimates that move together
     fitted: list[str] = field(default_factory=list)              # the parameters fitted (the others: the map's)
     loose: list[str] = field(default_factory=list)               # fitted, kept, but fixed only loosely
+    sysid: dict = field(default_factory=dict)    # mujoco.sysid's own: initial and fitted ParameterDict, cov, half
 
     def unfollowed(self, noise: float) -> list[str]:
         """Joints the fit does not follow (ours: a residual RMS after the fit over ``FOLLOW_NOISE``
@@ -274,6 +275,7 @@ def identify_servos(harness: Harness, logs: list[JointLog], *, by: str = "groups
         return opt, result, r
 
     t0 = time.monotonic()
+    initial = params.copy()
     try:
         r0 = residual_fn(params.as_vector(), params.copy())[0][0]
         # stage 1: the limits held at the map's; stage 2: the limits let go from there, kept only
@@ -349,7 +351,7 @@ def identify_servos(harness: Harness, logs: list[JointLog], *, by: str = "groups
                     seconds=time.monotonic() - t0, iterations=iters,
                     converged=bool(np.all(np.isfinite(r_kept))),
                     recordings=[log.name for log in logs], entangled=apart, fitted=asked,
-                    loose=loose)
+                    loose=loose, sysid={"initial": initial, "fitted": fitted, "cov": cov, "half": half})
 
 
 #: how narrow a 95 % interval must be for a parameter to count as identified (ours): a factor to

@@ -204,6 +204,7 @@ class GroundFit:
     seconds: float
     recordings: list[str] = field(default_factory=list)
     slips: int = 0                         # ticks a loaded sole slid in the replays of the fitted ground
+    sysid: dict = field(default_factory=dict)    # mujoco.sysid's own: initial and fitted ParameterDict, cov, half
 
     @property
     def not_identifiable(self) -> list[str]:
@@ -264,6 +265,7 @@ def identify_ground(robot: RobotModel, start: Surface, logs: list[WalkLog], *, m
         return [r if x.ndim > 1 else r[:, 0]], None, None
 
     t0 = time.monotonic()
+    initial = params.copy()
     try:
         r0 = residual_fn(params.as_vector(), params.copy())[0][0]
         # the misfit is rough at small scales (module docstring): first the two main fields on a
@@ -338,7 +340,8 @@ def identify_ground(robot: RobotModel, start: Surface, logs: list[WalkLog], *, m
     return GroundFit(surface=fitted, start=start, values=values, intervals=intervals, identifiable=identifiable,
                      entangled=entangled, rms_before=split(r0), rms_after=split(r_kept), stats=stats,
                      rollouts=counter["rollouts"], seconds=time.monotonic() - t0,
-                     recordings=[log.name for log in logs], slips=slips)
+                     recordings=[log.name for log in logs], slips=slips,
+                     sysid={"initial": initial, "fitted": opt, "cov": cov, "half": half})
 
 
 def walk_log(name: str, dt: float, t_targets_q, rpy, gyro, accel, joints) -> WalkLog:
