@@ -131,7 +131,7 @@ def test_excite_then_identify_writes_a_map_the_tool_walks(tmp_path, gait_tuner_c
     """End to end through the command line, on a recording of hidden servos (kp 30 % up, 20 ms,
     6 mrad): the gains, latency and backlash recovered within 10 %, and the written map loads with
     them (the simulator then delays by two ticks)."""
-    r = _cli(gait_tuner_cmd, run_env, "excite", "--robot", KID3KG, "--out", "sweep.csv", "--duration", "10",
+    r = _cli(gait_tuner_cmd, run_env, "excite", "--robot", KID3KG, "--out", "sweep.csv", "--duration", "7",
              "--json", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     info = json.loads(r.stdout)
@@ -172,7 +172,7 @@ def test_excite_then_identify_writes_a_map_the_tool_walks(tmp_path, gait_tuner_c
 
 def test_a_recording_the_fit_cannot_follow_writes_nothing(tmp_path, gait_tuner_cmd, run_env, kid3kg):
     h = kid3kg
-    _, targets = excitation(h, duration=8.0)
+    _, targets = excitation(h, duration=5.0)
     s = h.servo_arrays()
     q = h.run(h.compile(s), targets, s)
     i = h.joint_names.index("l_knee")
@@ -183,7 +183,7 @@ def test_a_recording_the_fit_cannot_follow_writes_nothing(tmp_path, gait_tuner_c
         for k in range(len(q)):
             rec.record(Measurement(k * h.control_period, q=q[k], joint_names=h.joint_names), None, targets[k])
     r = _cli(gait_tuner_cmd, run_env, "identify", "servos", "--robot", KID3KG, "--recording", "bad.mcap",
-             "--out", "fit", "--fit", "kp", "--max-iters", "5", cwd=tmp_path)
+             "--out", "fit", "--fit", "kp", "--max-iters", "2", cwd=tmp_path)
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert "does not follow l_knee" in r.stderr and "nothing written" in r.stderr
     assert not (tmp_path / "fit").exists()

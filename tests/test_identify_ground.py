@@ -65,6 +65,7 @@ def test_a_hidden_layer_is_recovered_from_a_walk(tmp_path, gait_tuner_cmd, run_e
     assert "layer_timeconst" in (tmp_path / "ground" / "report.html").read_text()
 
 
+@pytest.mark.slow
 def test_friction_is_not_read_from_a_robot_that_does_not_slip(tmp_path, gait_tuner_cmd, run_env):
     stand = record_walk(tmp_path / "stand.mcap", "0,0,0", 2.0)
     out = _identify(gait_tuner_cmd, run_env, tmp_path, stand, "ground")

@@ -51,6 +51,14 @@ def _alive(pid: int) -> bool:
         return False
 
 
+def _as_a_terminal_starts_it() -> None:
+    """In the child before it runs: Ctrl-C as a shell gives it to a program it starts (default,
+    unblocked), whatever this test process inherited or had changed by an earlier test or library
+    (a full run once left SIGINT ignored in the children of this process, not reproducible alone)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, [signal.SIGINT])
+
+
 def _maps_mujoco(pid: int) -> bool:
     try:
         return "mujoco" in Path(f"/proc/{pid}/maps").read_text()
@@ -82,7 +90,7 @@ def test_no_process_outlives_its_parent(tmp_path, gait_tuner_cmd, run_env, verb,
     args, workers = VERBS[verb]
     p = subprocess.Popen(gait_tuner_cmd + args + (["--runs", str(tmp_path / "runs")] if verb == "tune" else []),
                          cwd=tmp_path, env=run_env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                         start_new_session=True)
+                         start_new_session=True, preexec_fn=_as_a_terminal_starts_it)
     try:
         if workers:
             assert _poll(lambda: len(_descendants(p.pid)) >= workers or p.poll() is not None), "no workers started"
@@ -127,7 +135,8 @@ def test_ctrl_c_while_the_libraries_load_is_one_line(tmp_path, module):
             "builtins.__import__ = imp\n"
             "from tuner.cli import run\n"
             "run()\n")
-    r = subprocess.run([os.sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path)
+    r = subprocess.run([os.sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path,
+                       preexec_fn=_as_a_terminal_starts_it)
     # (after loading, click ends the terminal's "^C" line first: a newline, then the one line)
     assert r.returncode == 130 and r.stderr.strip() == "gait-tuner: interrupted", (r.returncode, r.stderr[-1500:])
 
@@ -143,9 +152,10 @@ def test_ctrl_c_after_loading_is_pythons_again(tmp_path):
             "main(['--version'])\n"
             "assert signal.getsignal(signal.SIGINT) is signal.default_int_handler\n"
             "print('ok')\n")
-    r = subprocess.run([os.sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path)
+    r = subprocess.run([os.sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path,
+                       preexec_fn=_as_a_terminal_starts_it)
     assert r.returncode == 0 and r.stdout.strip().endswith("ok"), (r.returncode, r.stdout, r.stderr[-1500:])
     r = subprocess.run([os.sys.executable, "-c", "import signal, tuner\n"
                         "assert signal.getsignal(signal.SIGINT) is signal.default_int_handler"],
-                       capture_output=True, text=True, cwd=tmp_path)
+                       capture_output=True, text=True, cwd=tmp_path, preexec_fn=_as_a_terminal_starts_it)
     assert r.returncode == 0, r.stderr[-1500:]
