@@ -193,14 +193,7 @@ def main(argv: list[str] | None = None) -> None:
     if not args.dry_run and not args.port:
         raise SystemExit("give --port (the robot's bus) or --dry-run (the stand-in)")
     robot = StandIn()
-    robot_file = None
-    if args.robot:
-        from gaits.robot_file import load_robot_file
-        try:
-            robot_file = load_robot_file(args.robot)
-        except gaits.ParamError as exc:
-            print(f"robot_loop: error: {exc}", file=sys.stderr)
-            raise SystemExit(2) from None
+    robot_file = _robot_file(args)
     if args.port:
         if robot_file is None:
             print("robot_loop: error: --port needs --robot (its servo ids, units and signs)", file=sys.stderr)
@@ -247,17 +240,22 @@ def main(argv: list[str] | None = None) -> None:
         print("readings not finite, not taken (ticks): " + ", ".join(f"{k} {n}" for k, n in dropped.items()))
 
 
+def _robot_file(args: Any) -> Any:
+    """The robot file of ``--robot`` (None without one); a bad one is one line, exit 2."""
+    if not args.robot:
+        return None
+    from gaits.robot_file import load_robot_file
+    try:
+        return load_robot_file(args.robot)
+    except gaits.ParamError as exc:
+        print(f"robot_loop: error: {exc}", file=sys.stderr)
+        raise SystemExit(2) from None
+
+
 def run_sweep(args: Any) -> int:
     """``--sweep``: the sweep played on the bus (``--port``, with ``--robot``) as the walk would be,
     the clock, watchdog and Ctrl-C the same; or with ``--dry-run`` on the stand-in robot."""
-    robot_file = None
-    if args.robot:
-        from gaits.robot_file import load_robot_file
-        try:
-            robot_file = load_robot_file(args.robot)
-        except gaits.ParamError as exc:
-            print(f"robot_loop: error: {exc}", file=sys.stderr)
-            return 2
+    robot_file = _robot_file(args)
     dt = robot_file.control_period if robot_file is not None else 0.01
     try:
         player = SweepPlayer(args.sweep, dt)
