@@ -335,6 +335,7 @@ class HangingSim:
         step = np.asarray(s.speed) * h.control_period
         queue = deque(cmd.copy() for _ in range(int(round(s.latency / h.control_period))))
         half = np.asarray(s.backlash) / 2
+        band = bool(np.any(half > 0))
         level = (np.zeros(3), np.zeros(3), np.array([0.0, 0.0, 9.81]))
 
         def read(t: float) -> Measurement:
@@ -350,6 +351,6 @@ class HangingSim:
             cmd = np.clip(cmd + np.clip(want - cmd, -step, step), h.q_lo, h.q_hi)
             queue.append(cmd.copy())
             out = queue.popleft()
-            d.ctrl[:h.n] = dead_band(out, d.qpos[h._qadr], half) if np.any(half > 0) else out
+            d.ctrl[:h.n] = dead_band(out, d.qpos[h._qadr], half) if band else out
             mujoco.mj_step(model, d, nstep=h.nstep)
         return type("HangingTrace", (), {"reason": "completed"})()

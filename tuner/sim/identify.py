@@ -46,7 +46,7 @@ from ..errors import UserError
 from ..robots.robot_model import fine_group, joint_group
 from .harness import Harness, ServoArrays
 
-__all__ = ["JointLog", "ServoFit", "identify_servos", "FIT_GROUPS", "group_of", "SCALED", "sysid_available"]
+__all__ = ["JointLog", "ServoFit", "identify_servos", "FIT_GROUPS", "group_of", "SCALED"]
 
 #: joint groups a fit shares parameters over (ours: a robot's servos are usually one model per group)
 FIT_GROUPS = ("hips", "knees", "ankles", "arms", "head")
@@ -64,14 +64,6 @@ FD_STEP = 1e-4
 FOLLOW_NOISE = 5.0
 BACKLASH_MAX_MRAD = 60.0
 LATENCY_MAX_TICKS = 8.0
-
-
-def sysid_available() -> bool:
-    try:
-        from mujoco import sysid
-        return hasattr(sysid, "optimize")
-    except ImportError:
-        return False
 
 
 def _sysid():
