@@ -10,7 +10,8 @@ import pytest
 
 from conftest import ROOT
 from tuner.robots import load_robot
-from tuner.search.initial import leg_masses
+from tuner.search.initial import GAIN_MARGIN, REACH_MAX, SPEED_MARGIN, initial_walk, leg_gains, leg_masses
+from tuner.sim.surfaces import load_surface
 from tuner.search.study import load_study
 
 MAP = ROOT / "examples" / "robots" / "kid3kg" / "kid3kg.yaml"
@@ -35,7 +36,10 @@ def test_init_writes_a_study_and_a_start_that_walk_the_robot(tmp_path, gait_tune
     r = subprocess.run(gait_tuner_cmd + ["init", "--robot", str(MAP), "--surface", "grass30", "--out", str(out)],
                        capture_output=True, text=True, env=run_env)
     assert r.returncode == 0, r.stderr
-    assert "mass_upper" in r.stdout and "from the model's" in r.stdout and "knee servo's 6.5 rad/s" in r.stdout
+    assert "mass_upper" in r.stdout and "from the model's" in r.stdout and "servo's 6.5 rad/s" in r.stdout
+    # kid3kg's MJCF states its servos' gains: init keeps them and writes no robot file of its own
+    assert "the robot's own (its file or its map states them)" in r.stdout
+    assert not (out / "kid3kg-grass30-match-robot.yaml").exists()
     study = out / "kid3kg-grass30-match.yaml"
     spec = load_study(str(study))
     assert spec.kind == "match" and spec.base.mass_upper == pytest.approx(1.96, abs=0.01)
@@ -64,3 +68,61 @@ def test_init_for_speed_and_push(tmp_path, gait_tuner_cmd, run_env, purpose, kin
                        capture_output=True, text=True, env=run_env)
     assert r.returncode == 0, r.stderr
     assert load_study(str(out / f"kidsize-carpet4-{purpose}.yaml")).kind == kind
+
+
+def test_gains_are_sized_to_the_weight_only_where_nothing_states_them(tmp_path):
+    """A URDF has no servo gains: the legs' kp is GAIN_MARGIN x m g z_c, kv keeps the preset's damping
+    ratio; a map that states the legs' kp (or a preset) keeps it; the built-in robot keeps its own."""
+    import test_urdf as U
+    path = U.workspace(tmp_path, U.mesh_urdf())
+    robot = load_robot(str(path))
+    assert "legs" in robot.preset_gains
+    mass = float(np.sum(robot.model().body_mass))
+    gains, why = leg_gains(robot, mass, 0.2)
+    expected = 5.0 * round(GAIN_MARGIN * mass * 9.81 * 0.2 / 5.0)
+    assert gains["kp"] == expected and gains["kv"] == pytest.approx(0.5 * np.sqrt(expected / 40.0), abs=0.005)
+    assert f"{mass:.2f} kg x 9.81 x 0.200 m" in why
+    stated = U.workspace(tmp_path / "stated", U.mesh_urdf(), extra="servo: {knees: {kp: 70}}\n")
+    assert "legs" not in load_robot(str(stated)).preset_gains
+    assert leg_gains(load_robot(str(stated)), mass, 0.2)[0] == {}
+    assert leg_gains(load_robot("kidsize"), 4.95, 0.19)[0] == {}
+    assert load_robot(str(MAP)).preset_gains == ()
+
+
+def test_init_writes_the_sized_gains_into_a_copy_of_the_map(tmp_path, gait_tuner_cmd, run_env):
+    """The study walks a copy of the team's map (paths rebased) with the legs' gains in its servo:
+    section; the team's own map is not touched."""
+    import test_urdf as U
+    path = U.workspace(tmp_path, U.mesh_urdf())
+    before = path.read_text()
+    out = tmp_path / "elsewhere" / "init"
+    r = subprocess.run(gait_tuner_cmd + ["init", "--robot", str(path), "--surface", "rigid", "--out", str(out)],
+                       capture_output=True, text=True, env=run_env)
+    assert r.returncode == 0, r.stderr
+    assert "legs kp" in r.stdout and "sized to the weight" in r.stdout
+    copy = out / f"{load_robot(str(path)).name}-rigid-match-robot.yaml"
+    spec = load_study(str(next(out.glob("*-match.yaml"))))
+    assert spec.robot == str(copy.resolve())
+    robot = load_robot(str(copy))
+    knee = robot.servos[robot.joint_map["l_knee"][0]]
+    assert knee.kp > 5 and knee.kp % 5 == 0 and knee.kp != 40.0
+    assert "legs" not in robot.preset_gains
+    assert path.read_text() == before
+
+
+def test_the_start_period_gives_the_top_speed_within_its_reach():
+    """A period the knee rule would make too long for the top speed's steps is shortened to
+    REACH_MAX leg lengths at SPEED_MARGIN x the speed, and says what share of the knee it asks; the
+    envelope then reaches the speed; a speed the knee cannot give is one line."""
+    from tuner.errors import UserError
+    robot = load_robot(str(MAP))
+    legs = robot.leg.thigh + robot.leg.shank
+    iw = initial_walk(robot, str(MAP), load_surface("grass30"), top_speed=0.2)
+    assert iw.params.period == pytest.approx(REACH_MAX * legs / (SPEED_MARGIN * 0.2), abs=1e-3)
+    assert "of its servo's 6.5 rad/s" in iw.sources["period"]
+    assert iw.params.reach_forward * legs / iw.params.period >= 0.2 * SPEED_MARGIN - 1e-3
+    assert iw.study["scenario"]["forward"] == 0.2
+    slow = initial_walk(robot, str(MAP), load_surface("grass30"), top_speed=0.1)
+    assert slow.params.period > iw.params.period and "at most half of it" in slow.sources["period"]
+    with pytest.raises(UserError, match="asks the knee servo for"):
+        initial_walk(robot, str(MAP), load_surface("grass30"), top_speed=0.6)

@@ -99,3 +99,45 @@ def test_the_robot_loop_records(tmp_path):
     assert r.returncode == 0, r.stderr
     back = read_recording(out)
     assert back.meta.robot == "stand-in" and len(back.times("/joints/target")) == 100
+
+
+def test_robustness_records_every_walk(tmp_path, gait_tuner_cmd, run_env):
+    """`robustness --record DIR`: one file per randomised walk (its rollout and push in the notes),
+    each the same walk the report counts (its last tick at the walk's end, its fall included)."""
+    r = subprocess.run(gait_tuner_cmd + ["robustness", "--params", "kidsize-engine-carpet4", "--surface", "carpet4",
+                                         "--rollouts", "2", "--pushes", "1", "--push-rollouts", "1", "--command",
+                                         "0.1,0,0", "--workers", "2", "--json", "--record",
+                                         str(tmp_path / "rec")], capture_output=True, text=True, env=run_env)
+    assert r.returncode == 0, r.stderr
+    assert "recorded 3 walk(s) into" in r.stderr
+    files = sorted((tmp_path / "rec").glob("*.mcap"))
+    assert [f.name for f in files] == ["kidsize-engine-carpet4--carpet4--000.mcap",
+                                       "kidsize-engine-carpet4--carpet4--001.mcap",
+                                       "kidsize-engine-carpet4--carpet4--push1Ns-000.mcap"]
+    report = json.loads(r.stdout)
+    ends = []
+    for f in files:
+        rec = read_recording(f)
+        assert rec.meta.task == "walk" and rec.meta.simulated and rec.meta.surface == "carpet4"
+        assert "rollout" in rec.meta.notes and ("1 N s push" in rec.meta.notes) == ("push1Ns" in f.name)
+        t = rec.times("/joints/target")
+        assert not rec.truncated and len(t) > 100
+        ends.append(t[-1])
+    # the walks the report counts: as many ended early as fell
+    assert sum(e < max(ends) - 0.5 for e in ends[:2]) == report["falls"]
+
+
+def test_a_challenge_trial_records_its_walk(tmp_path):
+    """push_trial(record=...) writes the trial's walk with its pushes named in the notes."""
+    from tuner.robots import load_robot
+    from tuner.params_io import resolve_drive
+    from tuner.sim.challenge import push_trial
+    from tuner.sim.rollout import Simulator
+    from tuner.sim.surfaces import load_surface
+    sim = Simulator(load_robot("kidsize"), load_surface("carpet4"), pendulum=1.5)
+    drive = resolve_drive("kidsize-engine-carpet4", None)
+    out = push_trial(sim, drive, 0.1, 0, pushes=[(3.0, 180.0)], record=tmp_path / "trial.mcap")
+    rec = read_recording(tmp_path / "trial.mcap")
+    assert rec.meta.task == "push-recovery" and "D 0.1 m" in rec.meta.notes and "180 deg" in rec.meta.notes
+    t = rec.times("/joints/target")
+    assert len(t) > 500 and (out["success"] or t[-1] < 6.0)

@@ -88,6 +88,10 @@ PARAMS_OPTION = click.option("--params", "params_spec", metavar="PATH|NAME",
                              help="Parameter YAML file, shipped baseline or tuned set (`gait-tuner sets`). "
                                   "Default: the family's paper baseline.")
 JSON_OPTION = click.option("--json", "as_json", is_flag=True, help="Print the result as strict JSON.")
+RECORD_OPTION = click.option(
+    "--record", "record_dir", type=OutPath(file_okay=False),
+    help="Record every tick of every walk (what the controller was given and what it asked) into this folder, an "
+         "MCAP file per walk (gaits/recording.py); `gait-tuner log info FILE` says what one holds.")
 RUNS_OPTION = click.option("--runs", "runs_dir", default="runs", show_default=True,
                            type=OutPath(file_okay=False), help="Folder of the journal files.")
 STABILISER_OPTION = click.option(
@@ -331,27 +335,20 @@ def _walk(drive, robot, sim, duration: float | None, record_qpos: bool = False, 
     options = drive.run_options()
     if duration is not None:
         options["duration"] = duration
-    controller = drive.controller(robot, sim.control_period)
-    recorder = None
-    if record is not None:
-        from gaits.recording import Recorder, RecordingController, RecordingMeta
-        stem = "".join(c if c.isalnum() or c in "-_." else "_" for c in Path(drive.source or drive.family).stem)
-        meta = RecordingMeta(robot=robot.name, task="walk", simulated=True, controller=drive.describe(),
-                             parameters={} if drive.params is None else drive.params.to_mapping(),
-                             surface=sim.surface.name)
-        recorder = Recorder(record / f"{stem}--{sim.surface.name}.mcap", meta)
-        controller = RecordingController(controller, recorder)
-    _envelope_note(drive, controller)
-    table = getattr(getattr(controller, "inner", controller), "traj", None)    # planned in advance: checked
-    if table is not None:
-        problem = sim.range_error(table.q_ref, table.t)
-        if problem is not None:       # said, not refused: the papers' own EROS tables ask the built-in robot so
-            click.echo(f"note: {drive.source}: {problem}", err=True)
+    from .sim.recorded import recording, recording_stem
+    path = None if record is None else record / f"{recording_stem(drive)}--{sim.surface.name}.mcap"
     try:
-        trace = sim.run(controller, record_qpos=record_qpos, **options)
+        with recording(drive.controller(robot, sim.control_period), sim, drive, path, "walk") as controller:
+            _envelope_note(drive, controller)
+            table = getattr(getattr(controller, "inner", controller), "traj", None)    # planned in advance: checked
+            if table is not None:
+                problem = sim.range_error(table.q_ref, table.t)
+                if problem is not None:   # said, not refused: the papers' own EROS tables ask the built-in robot so
+                    click.echo(f"note: {drive.source}: {problem}", err=True)
+            trace = sim.run(controller, record_qpos=record_qpos, **options)
     finally:
-        if recorder is not None:
-            click.echo(f"recorded {recorder.close()}", err=True)
+        if path is not None and path.exists():
+            click.echo(f"recorded {path}", err=True)
     if drive.online and drive.command is not None:
         # a held command: its velocity is measured from 2 s after the first step to the stop
         start = float(getattr(drive.engine, "t_stand", 0.0) or 0.0) + 2.0
@@ -515,9 +512,7 @@ def view(robot_name: str, surface_name: str, family: str | None, params_spec: st
 @click.option("--plot", "plot_dir", type=OutPath(file_okay=False),
               help="Write pitch.png and zmp.png into this directory.")
 @SAVE_SCENE_OPTION
-@click.option("--record", "record_dir", type=OutPath(file_okay=False),
-              help="Record every tick (what the controller was given and what it asked) into this folder as an "
-                   "MCAP file (gaits/recording.py); `gait-tuner log info FILE` says what it holds.")
+@RECORD_OPTION
 def simulate(robot_name: str, surface_name: str, family: str | None, params_spec: str | None,
              duration: float | None, command: str | None, commands_file: Path | None, stabiliser: bool | None,
              controller_file: Path | None, as_json: bool, plot_dir: Path | None, save_scene: Path | None,
@@ -1140,10 +1135,12 @@ def compare(params_specs: tuple[str, ...], robot_name: str | None, surface_names
 @JSON_OPTION
 @click.option("--plot", "plot_dir", type=OutPath(file_okay=False),
               help="Write robustness.png into this directory.")
+@RECORD_OPTION
 def robustness(params_spec: str | None, robot_name: str, surface_name: str, rollouts: int, seed: int,
                randomisation_spec: str | None, pushes: str, push_rollouts: int, command: str | None,
                commands_file: Path | None, duration: float | None, stabiliser: bool | None,
-               controller_file: Path | None, workers: int, as_json: bool, plot_dir: Path | None) -> None:
+               controller_file: Path | None, workers: int, as_json: bool, plot_dir: Path | None,
+               record_dir: Path | None) -> None:
     """Does a gait survive what differs between our model and your robot and field?
 
     Walks it ROLLOUTS times with masses, servos, backlash, latencies, sensor noise, friction, turf
@@ -1186,7 +1183,10 @@ def robustness(params_spec: str | None, robot_name: str, surface_name: str, roll
     total = rollouts + len(sizes) * push_rollouts
     with tqdm(total=total, desc="robustness", unit="rollout", **_bar_options()) as bar:
         report = evaluate(robot_name, surface_name, drive, rollouts=rollouts, seed=seed, randomisation=rnd,
-                          pushes=sizes, push_rollouts=push_rollouts, workers=workers, progress=bar.update)
+                          pushes=sizes, push_rollouts=push_rollouts, workers=workers, progress=bar.update,
+                          record=record_dir)
+    if record_dir is not None:
+        click.echo(f"recorded {total} walk(s) into {record_dir}", err=True)
     if as_json:
         click.echo(json.dumps(report.to_dict(), indent=2, allow_nan=False))
     else:
@@ -1224,9 +1224,10 @@ def challenge() -> None:
                    "(0 the way it faces, 90 to its left).")
 @STABILISER_OPTION
 @JSON_OPTION
+@RECORD_OPTION
 def challenge_push(params_spec: str | None, controller_file: Path | None, robot_name: str, surface_name: str,
                    rope: float, seed: int, step: float, by_direction: bool, directions: str, stabiliser: bool | None,
-                   as_json: bool) -> None:
+                   as_json: bool, record_dir: Path | None) -> None:
     """The push-recovery challenge: a 1 kg pendulum released from a growing distance D.
 
     The robot walks in place; a trial is three pushes from random directions, fully successful
@@ -1254,11 +1255,15 @@ def challenge_push(params_spec: str | None, controller_file: Path | None, robot_
             click.echo(f"  D {trial['distance_m']:.2f} m: {'fully successful' if trial['success'] else trial['reason']}"
                        f" (pushes {', '.join('-' if j is None else f'{j:.2f}' for j in J)} N s measured)")
     if by_direction:
+        if record_dir is not None:
+            raise UserError("--record is for the rules' trial (each trial's walk one file), not --by-direction")
         _challenge_by_direction(sim, drive, directions, step, as_json)
         return
     if not as_json:
         click.echo(f"push-recovery challenge: {drive.describe()} on {sim.robot.name} / {sim.surface.name}, rope {rope:g} m")
-    report = run_challenge(sim, drive, seed=seed, step=step, progress=shown)
+    report = run_challenge(sim, drive, seed=seed, step=step, progress=shown, record=record_dir)
+    if record_dir is not None:
+        click.echo(f"recorded {len(report['trials'])} trial(s) into {record_dir}", err=True)
     if as_json:
         click.echo(json.dumps({"robot": sim.robot.name, "surface": sim.surface.name, "params": drive.source,
                                "drive": drive.describe(), **report}, indent=2, allow_nan=False))
@@ -1466,9 +1471,12 @@ def sets(as_json: bool) -> None:
 @click.option("--for", "purpose", type=click.Choice(["match", "speed", "push"]), default="match", show_default=True,
               help="What the walk is for: match walks (the online engine), speed staircases (a table), the "
                    "push-recovery challenge (the engine stepping in place).")
+@click.option("--speed", "top_speed", type=float, default=0.2, show_default=True,
+              help="The fastest forward walk asked of the robot [m/s]: the starting steps and the study's walks "
+                   "reach it.")
 @click.option("--out", "out_dir", type=OutPath(file_okay=False), default=None,
               help="Folder for the study and its starting set [default: runs/init/ROBOT-SURFACE-PURPOSE].")
-def init(robot_name: str, surface_name: str, purpose: str, out_dir: Path | None) -> None:
+def init(robot_name: str, surface_name: str, purpose: str, top_speed: float, out_dir: Path | None) -> None:
     """Make a walk for a robot: a starting set whose gait model has the robot's own masses, CoM
     height, stance and a step its knees' servos can carry, and the study that tunes it on the
     surface (tune it with `gait-tuner tune`, then `export`). Says where each number came from."""
@@ -1482,19 +1490,33 @@ def init(robot_name: str, surface_name: str, purpose: str, out_dir: Path | None)
     ref = robot_name if robot_name in BUILTIN_ROBOTS else str(Path(robot_name).resolve())
     name = f"{robot.name}-{surface.name}-{purpose}"
     out_dir = out_dir or Path("runs") / "init" / name
-    iw = initial_walk(robot, ref, surface, purpose, name=name, start_file=f"{name}-start.yaml")
+    iw = initial_walk(robot, ref, surface, purpose, name=name, start_file=f"{name}-start.yaml", top_speed=top_speed)
     desc = (f"gait-tuner init for {robot.name} on {surface.name} ({purpose}): "
             + "; ".join(f"{k} {getattr(iw.params, k):g} from {why}" for k, why in iw.sources.items()))
     start = out_dir / f"{name}-start.yaml"
     study = out_dir / f"{name}.yaml"
-    write_files_atomic({start: gaits.gait_file_text(iw.params, desc, None, iw.engine),
-                        study: "# written by gait-tuner init; edit the space and the budget as you like\n"
-                               + yaml.safe_dump(iw.study, sort_keys=False)})
+    files = {start: gaits.gait_file_text(iw.params, desc, None, iw.engine)}
+    if iw.servo and robot.map_path:
+        # the weight-sized gains go into a copy of the team's map beside the study, which walks it
+        from .robots.robot_map import map_with_servo
+        robot_file = out_dir / f"{name}-robot.yaml"
+        files[robot_file] = (f"# {Path(robot.map_path).name} with the legs' servo gains sized to the robot's weight by "
+                             f"gait-tuner init\n# ({iw.servo_source})\n"
+                             + yaml.safe_dump(map_with_servo(Path(robot.map_path), out_dir, {"legs": iw.servo}),
+                                              sort_keys=False))
+        iw.study["robot"] = robot_file.name
+    files[study] = ("# written by gait-tuner init; edit the space and the budget as you like\n"
+                    + yaml.safe_dump(iw.study, sort_keys=False))
+    write_files_atomic(files)
     click.echo(f"{robot.name} on {surface.name}, for {purpose}:")
     for k, why in iw.sources.items():
         click.echo(f"  {k:11s} {getattr(iw.params, k):8.4g}  from {why}")
     click.echo(f"  {'t1, t2':11s} {iw.params.t1:.3g}, {iw.params.t2:.3g}  TKU-X's shares of the step")
-    click.echo(f"wrote {start}\nwrote {study}\ntune it: gait-tuner tune {study} --workers 2")
+    if iw.servo:
+        click.echo(f"  {'legs kp':11s} {iw.servo['kp']:8.4g}  {iw.servo_source}")
+    else:
+        click.echo(f"  {'servo gains':11s} {'':8s}  {iw.servo_source}")
+    click.echo("".join(f"wrote {p}\n" for p in files) + f"tune it: gait-tuner tune {study} --workers 2")
 
 
 @cli.group()

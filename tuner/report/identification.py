@@ -13,7 +13,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import os
 from pathlib import Path
 from typing import Any
 
@@ -22,7 +21,6 @@ import yaml
 
 from gaits.files import write_files_atomic
 
-from ..errors import UserError
 from ..sim.identify import SCALED, ServoFit
 from .provenance import commit_of
 
@@ -145,25 +143,8 @@ def write_servo_fit(fit: ServoFit, robot_map: Path | None, out_dir: Path, noise:
     files: dict[Path, str] = {}
     files[out_dir / "servos.yaml"] = header + yaml.safe_dump({"servo": overlay}, sort_keys=False)
     if robot_map is not None:
-        from ..yaml_input import read_yaml_file
-        doc = read_yaml_file(robot_map, "robot map")
-        if not isinstance(doc, dict):
-            raise UserError(f"{robot_map}: not a robot map")
-        doc = dict(doc)
-        here = robot_map.resolve().parent
-        for key in ("mjcf", "urdf"):
-            if isinstance(doc.get(key), str):
-                doc[key] = os.path.relpath(here / doc[key], out_dir.resolve())
-        if isinstance(doc.get("packages"), dict):
-            doc["packages"] = {k: os.path.relpath(here / v, out_dir.resolve()) for k, v in doc["packages"].items()}
-        servo = dict(doc.get("servo") or {})
-        for k, v in overlay.items():
-            entry = servo.get(k)
-            merged = {"preset": entry} if isinstance(entry, str) else dict(entry or {})
-            merged.update(v)
-            servo[k] = merged
-        doc["servo"] = servo
-        doc.setdefault("name", robot_map.stem)
+        from ..robots.robot_map import map_with_servo
+        doc = map_with_servo(robot_map, out_dir, overlay)
         files[out_dir / "robot.yaml"] = header + yaml.safe_dump(doc, sort_keys=False)
     files[out_dir / "fit.json"] = json.dumps(fit_json(fit), indent=1, allow_nan=False) + "\n"
     files[out_dir / "report.txt"] = "\n".join(summary_lines(fit, noise)) + "\n"

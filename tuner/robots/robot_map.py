@@ -53,7 +53,7 @@ from .servo import SERVO_FIELDS, SERVO_PRESETS, servo_from_file, servo_from_mapp
 from .servo_table import read_servo_units
 from .urdf import UrdfRobot, compile_checked, mujoco_message, urdf_to_mjcf
 
-__all__ = ["load_map", "LEG_AXES", "MAP_KEYS", "AXIS_TOLERANCE"]
+__all__ = ["load_map", "map_with_servo", "LEG_AXES", "MAP_KEYS", "AXIS_TOLERANCE"]
 
 #: Expected joint axis of each leg joint in the torso frame at the zero pose.
 LEG_AXES = {"hip_yaw": (0, 0, 1), "hip_roll": (1, 0, 0), "hip_pitch": (0, 1, 0),
@@ -65,6 +65,34 @@ MAP_KEYS = ("mjcf", "urdf", "packages", "ranges", "balance_inertia", "name", "to
 AXIS_TOLERANCE = 0.005
 _DEFAULT_PRESET = {"legs": "MX-64", "arms": "MX-28", "head": "MX-28", "other": "MX-28"}
 _SIDES = (("left", "l_", 1), ("right", "r_", -1))
+
+
+def map_with_servo(robot_map: Path, out_dir: Path, overlay: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
+    """The map ``robot_map`` as a document to write into ``out_dir``: its paths (``mjcf``, ``urdf``,
+    ``packages``) made relative to ``out_dir``, its ``name`` kept (the file's stem when unnamed), and
+    ``overlay`` (servo group or joint -> fields) merged over its ``servo:`` entries."""
+    import os
+    doc = read_yaml_file(robot_map, "robot map")
+    if not isinstance(doc, Mapping):
+        raise UserError(f"{robot_map}: not a robot map (expected a mapping of {', '.join(MAP_KEYS)})")
+    doc = dict(doc)
+    here, there = robot_map.resolve().parent, out_dir.resolve()
+    for key in ("mjcf", "urdf"):
+        if isinstance(doc.get(key), str):
+            doc[key] = os.path.relpath(here / doc[key], there)
+    if isinstance(doc.get("packages"), Mapping):
+        doc["packages"] = {k: os.path.relpath(here / v, there) for k, v in doc["packages"].items()}
+    servo = dict(doc.get("servo") or {})
+    if servo and set(servo) <= set(SERVO_FIELDS) | {"preset"}:
+        servo = {"legs": servo}            # the first map format: flat fields meant the legs
+    for k, v in overlay.items():
+        entry = servo.get(k)
+        merged = {"preset": entry} if isinstance(entry, str) else dict(entry or {})
+        merged.update(v)
+        servo[k] = merged
+    doc["servo"] = servo
+    doc.setdefault("name", robot_map.stem)
+    return doc
 
 
 def _require(cond: bool, source: str, msg: str) -> None:
@@ -262,7 +290,7 @@ def load_map(path: Path) -> RobotModel:
     except UserError as exc:
         raise UserError(f"{source}: {exc}") from None
 
-    servos, servo_sources = _servos(model, final, doc.get("servo"), source, urdf_limits)
+    servos, servo_sources, preset_gains = _servos(model, final, doc.get("servo"), source, urdf_limits)
     units = read_servo_units(doc.get("servos"), tuple(servos), source)
     sources.update(servo_sources)
     pose, pose_source = _pose(model, final, servos, doc.get("pose"), source)
@@ -291,7 +319,7 @@ def load_map(path: Path) -> RobotModel:
                       tuple(notes), sim, None if is_urdf else str(mjcf), str(path.resolve()), tuple(axes),
                       tuple(bodies), urdf_path=str(mjcf) if is_urdf else None, servo_units=units,
                       foot_sizes=(tuple(sizes[0]), tuple(sizes[1])), balance_inertia=balance and not is_urdf,
-                      exclude=tuple((a, b) for a, b, _ in overlaps))
+                      exclude=tuple((a, b) for a, b, _ in overlaps), preset_gains=preset_gains)
 
 
 #: attributes that name things (a joint may be called "inf"), never checked as numbers
@@ -470,11 +498,13 @@ def _signs(model: mujoco.MjModel, d: mujoco.MjData, jmap: Mapping[str, tuple[str
 
 
 def _servos(model: mujoco.MjModel, final: Mapping[str, tuple[str, int]], doc: Any,
-            source: str, urdf: UrdfRobot | None = None) -> tuple[dict[str, Any], dict[str, str]]:
+            source: str, urdf: UrdfRobot | None = None) -> tuple[dict[str, Any], dict[str, str], tuple[str, ...]]:
     """A servo for every hinge joint but the free one: the file's own position actuator, else
     the group's default preset (for a URDF with its torque and speed from the joint's ``<limit
     effort velocity>`` where stated), then the map's ``servo:`` fields on top. The sources say,
-    per group, where each field came from (the file, a preset and why, the URDF, the map)."""
+    per group, where each field came from (the file, a preset and why, the URDF, the map). The third
+    value names the groups whose gains are a preset's with nothing stating any (no file actuator on
+    any of their joints, no ``kp`` or preset in the map's entries for them)."""
     doc = doc or {}
     _require(isinstance(doc, Mapping), source, f"servo must be a mapping with keys {', '.join(GROUPS)}")
     if doc and set(doc) <= set(SERVO_FIELDS) | {"preset"}:
@@ -562,11 +592,17 @@ def _servos(model: mujoco.MjModel, final: Mapping[str, tuple[str, int]], doc: An
         over = [f for f in map_fields if f != "speed"]
         tail = f"; map servo.{g} sets {', '.join(over)}" if over else ""
         sources[f"servos.{g}"] = "; ".join(parts) + f"; {speed_src}{tail}"
+    def states_gains(entry: Any) -> bool:
+        return isinstance(entry, str) or (isinstance(entry, Mapping) and ("kp" in entry or "preset" in entry))
+
+    stated = {g for g in GROUPS if states_gains(doc.get(g))}
+    stated |= {"legs" if k in FINE_GROUPS else joint_group(k) for k in doc if k not in GROUPS and states_gains(doc[k])}
+    preset_gains = tuple(g for g in GROUPS if count[g] and not from_file[g] and g not in stated)
     finer = [k for k in doc if k not in GROUPS]
     if finer:
         sources["servos.finer"] = (f"the map's servo.{', servo.'.join(finer)} over their group's "
                                    f"(joint groups, then joints: an identification's overlay)")
-    return servos, sources
+    return servos, sources, preset_gains
 
 
 def _pose(model: mujoco.MjModel, final: Mapping[str, tuple[str, int]], servos: Mapping[str, Any], doc: Any,

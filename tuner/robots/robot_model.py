@@ -114,6 +114,9 @@ class RobotModel:
     #: body pairs that do not collide with each other (their shapes interpenetrate at the zero pose
     #: or the walking crouch: ``mjcf_geometry.self_overlaps``), added to the file's own exclusions
     exclude: tuple[tuple[str, str], ...] = ()
+    #: joint groups (``GROUPS``) whose gains (kp, kv) are a preset's because neither the file nor the
+    #: map states any (a URDF's servos): ``gait-tuner init`` sizes the legs' to the robot's weight
+    preset_gains: tuple[str, ...] = ()
 
     def foot_size_of(self, side: int) -> tuple[float, float]:
         """The sole bounding box (length, width) [m] of foot ``side`` (0 left, 1 right)."""

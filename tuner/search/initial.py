@@ -11,6 +11,13 @@ leg link, and the rule (ours) keeps it under half the knee servo's speed, so the
 is at least pi h_z / (0.5 speed l) and the step that over TKU-X's share of single support
 (0.34 / 0.64). The lift clears the surface's layer by 10 mm (at least 20 mm).
 
+Servo gains, when nothing states them (a URDF has none; ``RobotModel.preset_gains``): a position
+servo gives way by torque / kp, and the stance ankle holds the whole robot as an inverted pendulum
+whose toppling stiffness is m g z_c [N m/rad]. The legs' kp is ``GAIN_MARGIN`` times that (ours:
+TKU-X's MX-64 at 40 N m/rad is 4.3 times the built-in robot's 4.95 kg x g x 0.19 m; Rhoban's 7.6 kg
+Sigmaban, 4 x 23.4 = 94, walks placo's example at 80 and falls at the MX-64 preset's 40), kv keeps
+the preset's damping ratio (it grows as the square root of kp), rounded to 5 and 0.05.
+
 The study searches around those numbers for the purpose asked: ``match`` (the online engine on
 match walks, ``scenario:``), ``speed`` (a table on speed staircases, ``speed:``), ``push`` (the
 engine in the push-recovery challenge, ``challenge:``).
@@ -19,7 +26,7 @@ engine in the push-recovery challenge, ``challenge:``).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -29,13 +36,19 @@ from gaits.engine import EngineParams
 
 from ..errors import UserError
 
-__all__ = ["InitialWalk", "initial_walk", "PURPOSES", "leg_masses"]
+__all__ = ["InitialWalk", "initial_walk", "PURPOSES", "leg_masses", "leg_gains", "GAIN_MARGIN"]
 
 PURPOSES = ("match", "speed", "push")
 #: TKU-X's Table 2 step timing, as shares of the step (t1, t2 of T = 0.64 s)
 T1_SHARE, T2_SHARE = 0.15 / 0.64, 0.49 / 0.64
 #: the knee may be asked half its servo's speed by the swing (ours: headroom for the stance, the sway)
 KNEE_SHARE = 0.5
+#: the longest step the start set plans for the top speed [thigh + shank] and the margin on that speed (ours)
+REACH_MAX, SPEED_MARGIN = 0.6, 1.1
+#: the most of the knee servo's speed a swing may ask when the top speed needs short periods (ours)
+KNEE_MAX = 0.9
+#: the legs' kp as a multiple of the robot's toppling stiffness m g z_c (ours, see the module docstring)
+GAIN_MARGIN = 4.0
 
 
 @dataclass
@@ -44,6 +57,9 @@ class InitialWalk:
     engine: EngineParams | None
     study: dict
     sources: dict[str, str]
+    #: the legs' servo fields to write into the robot's map (empty: the file's or the map's own are kept)
+    servo: dict[str, float] = field(default_factory=dict)
+    servo_source: str = ""
 
 
 def _subtree(model: Any, body: int) -> list[int]:
@@ -81,8 +97,11 @@ def leg_masses(robot: Any) -> tuple[float, float, float, dict[str, str]]:
 
 
 def initial_walk(robot: Any, robot_ref: str, surface: Any, purpose: str = "match", name: str | None = None,
-                 start_file: str = "start.yaml") -> InitialWalk:
-    """The starting set (and its engine) and the study document for ``robot`` on ``surface``."""
+                 start_file: str = "start.yaml", top_speed: float = 0.2) -> InitialWalk:
+    """The starting set (and its engine) and the study document for ``robot`` on ``surface``;
+    ``top_speed`` [m/s] the fastest forward walk asked of it (the study's walks ask it too)."""
+    if not (math.isfinite(top_speed) and 0.05 <= top_speed <= 1.0):
+        raise UserError(f"--speed {top_speed!r} m/s: expected a number in [0.05, 1.0] m/s")
     from ..robots.mjcf_geometry import CROUCH
     if purpose not in PURPOSES:
         raise UserError(f"--for {purpose!r}: expected one of {', '.join(PURPOSES)}")
@@ -109,21 +128,42 @@ def initial_walk(robot: Any, robot_ref: str, surface: Any, purpose: str = "match
     period = round(max(0.25, ssp / (T2_SHARE - T1_SHARE)), 3)
     sources["period"] = (f"the knee servo's {speed:g} rad/s: the swing's foot speed pi h_z / t_ssp over the "
                          f"{lever * 1000:.0f} mm link at most half of it, t_ssp >= {ssp:.3f} s")
+    legs = leg.thigh + leg.shank
+    longest = round(REACH_MAX * legs / (SPEED_MARGIN * top_speed), 3)
+    if period > longest:
+        # the walk's top speed needs shorter steps than the knee rule's: the swing asks more of the knee
+        share = KNEE_SHARE * period / longest
+        if share > KNEE_MAX:
+            raise UserError(f"robot {robot.name}: {top_speed:g} m/s forward needs a step every {longest:.3f} s "
+                            f"(steps of {REACH_MAX:g} leg lengths, {legs * 1000:.0f} mm), whose {h_z * 1000:.0f} mm "
+                            f"lift asks the knee servo for {share * speed:.1f} rad/s of its {speed:g}: ask less "
+                            f"speed of the walk, or say the servos' speed in the map (servo: {{legs: {{speed: ...}}}})")
+        period = longest
+        sources["period"] = (f"steps of at most {REACH_MAX:g} leg lengths at {SPEED_MARGIN:g} x the walk's "
+                             f"{top_speed:g} m/s top speed; its swing (pi h_z / t_ssp over the {lever * 1000:.0f} mm "
+                             f"link) asks the knee for {share:.0%} of its servo's {speed:g} rad/s")
+    reach = min(0.8, max(0.45, round(SPEED_MARGIN * top_speed * period / legs, 3)))
+    sources["reach_forward"] = (f"the longest step ahead, {SPEED_MARGIN:g} x {top_speed:g} m/s x the period over "
+                                f"the legs' {legs * 1000:.0f} mm (at least TKU-X's 0.45)")
     try:
         params = TlipfmParams(mass_upper=round(upper, 4), mass_thigh=round(m_t, 4), mass_calf=round(m_c, 4),
                               z_c=round(z_c, 4), half_width=round(half, 4), h_z=round(h_z, 4), period=period,
                               t1=round(T1_SHARE * period, 4), t2=round(T2_SHARE * period, 4), step_length=0.0,
-                              d1=0.0, d2=0.0, a=0.004)
+                              d1=0.0, d2=0.0, a=0.004, reach_forward=reach)
     except Exception as exc:  # noqa: BLE001 - the derived numbers outside TLIPFM's ranges
         raise UserError(f"robot {robot.name}: its walk model does not fit TLIPFM's ranges: {exc}") from None
+    servo, servo_source = leg_gains(robot, upper + 2 * (m_t + m_c), z_c)
     engine = None if purpose == "speed" else EngineParams(idle="step" if purpose == "push" else "stand")
     name = name or f"{robot.name}-{surface.name}-{purpose}"
     # timing ranges narrow enough that most draws keep t1 < t2 < period (a draw that does not is a rejected trial)
-    space = {"period": _around(period, 0.75, 1.3, 0.1, 3.0), "t1": _around(params.t1, 0.5, 1.5, 0.01, 0.5),
-             "t2": _around(params.t2, 0.85, 1.15, 0.02, 2.5), "h_z": _around(h_z, 0.6, 1.8, 0.005, 0.1),
+    # the shortest period searched still asks the knee at most KNEE_MAX of its speed for the start's lift
+    fastest = math.pi * h_z / (KNEE_MAX * speed * lever) / (T2_SHARE - T1_SHARE)
+    space = {"period": _around(period, max(0.75, min(1.0, fastest / period)), 1.1, 0.1, 3.0), "t1": _around(params.t1, 0.5, 1.5, 0.01, 0.5),
+             "t2": _around(params.t2, 0.85, 1.15, 0.02, 2.5), "h_z": _around(h_z, 0.6, 1.3, 0.005, 0.1),
              "z_c": _around(z_c, 0.85, 1.05, 0.08, 0.5), "half_width": _around(half, 0.9, 1.3, 0.02, 0.12),
-             # the longest step [leg lengths] sets the envelope's forward speed (reach / period): searched
-             "reach_forward": {"low": 0.45, "high": 0.7}}
+             # the longest step [leg lengths] sets the envelope's forward speed (reach / period): searched,
+             # never below what the top speed needs at the starting period
+             "reach_forward": {"low": min(reach, 0.76), "high": 0.8}}
     study: dict[str, Any] = {
         "name": name,
         "description": f"made by gait-tuner init for {robot.name} on {surface.name} ({purpose}): the starting "
@@ -136,7 +176,7 @@ def initial_walk(robot: Any, robot_ref: str, surface: Any, purpose: str = "match
         study.update({"engine": {}, "space": space,
                       # a first study's match walks, milder than the shipped ones' and with room to fall
                       # (a trial below min_survival stops at once and teaches the sampler nothing)
-                      "scenario": {"walks": 6, "min_survival": 0.5, "duration": 12.0, "forward": 0.2,
+                      "scenario": {"walks": 6, "min_survival": 0.5, "duration": 12.0, "forward": top_speed,
                                    "backward": 0.1, "sideways": 0.05, "turn": 0.5}})
     elif purpose == "push":
         space.update({"engine.k_vel": {"low": 0.0, "high": 1.0}, "engine.replan_error": {"low": 0.03, "high": 0.15},
@@ -148,7 +188,22 @@ def initial_walk(robot: Any, robot_ref: str, surface: Any, purpose: str = "match
                                                                "left": {"top": 0.1, "weight": 2.0},
                                                                "turn_left": {"top": 1.0, "weight": 0.2}}}})
     study.update({"trials": 200, "enqueue": ["casadi", "baselines"], "sampler_seed": 0})
-    return InitialWalk(params, engine, study, sources)
+    return InitialWalk(params, engine, study, sources, servo, servo_source)
+
+
+def leg_gains(robot: Any, mass: float, z_c: float) -> tuple[dict[str, float], str]:
+    """The legs' kp and kv [N m/rad, N m s/rad] sized to the robot's weight when its gains are a
+    preset's (see the module docstring), with the sentence saying so; ({}, why not) otherwise."""
+    if "legs" not in getattr(robot, "preset_gains", ()):
+        return {}, "the robot's own (its file or its map states them)"
+    preset = robot.servos[robot.joint_map["l_knee"][0]]
+    stiffness = mass * 9.81 * z_c
+    kp = max(5.0, 5.0 * round(GAIN_MARGIN * stiffness / 5.0))
+    kv = round(preset.kv * math.sqrt(kp / preset.kp), 2)
+    why = (f"sized to the weight (nothing states the legs' gains): {GAIN_MARGIN:g} x the toppling stiffness "
+           f"m g z_c = {mass:.2f} kg x 9.81 x {z_c:.3f} m = {stiffness:.1f} N m/rad; kv {kv:g} keeps the "
+           f"preset's damping ratio (its kp {preset.kp:g}, kv {preset.kv:g})")
+    return {"kp": float(kp), "kv": float(kv)}, why
 
 
 def _around(value: float, lo: float, hi: float, floor: float, ceil: float) -> dict[str, float]:

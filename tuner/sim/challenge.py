@@ -22,6 +22,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from typing import Any, Callable, Sequence
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -30,6 +31,7 @@ from scipy.special import ellipk
 import gaits
 from gaits import CommandStream
 
+from .recorded import recording, recording_stem
 from .rollout import Simulator
 from .scene import BOTTLE_LENGTH, BOTTLE_MASS, BOTTLE_RADIUS, PREFIX
 
@@ -80,9 +82,10 @@ def _reach(m: mujoco.MjModel, d: mujoco.MjData, sim: Simulator, u: np.ndarray, z
 
 
 def push_trial(sim: Simulator, drive: gaits.Drive, distance: float, seed: int, keep_trace: bool = False,
-               pushes: Sequence[tuple[float, float]] | None = None) -> dict[str, Any]:
+               pushes: Sequence[tuple[float, float]] | None = None, record: Path | None = None) -> dict[str, Any]:
     """One trial of three pushes at ``distance`` [m]; returns success and each push's record
-    (``keep_trace``: and the walk's trace, under ``trace``).
+    (``keep_trace``: and the walk's trace, under ``trace``; ``record``: an MCAP file the walk is
+    recorded into, ``recorded.py``).
 
     ``pushes`` (ours, for analysis; not the rules' trial): the pushes as (time [s], direction [deg]
     against the robot's heading, 0 the bottle moving the way the robot faces, 90 to its left)
@@ -145,8 +148,10 @@ def push_trial(sim: Simulator, drive: gaits.Drive, distance: float, seed: int, k
         hooks[k] = release(i)
         hooks[int(round((t + 1.5) / dt))] = park
     walk = _in_place(drive, duration)
-    controller = walk.controller(sim.robot, dt)
-    trace = sim.run(controller, hooks=hooks, record_qpos=True, **{**walk.run_options(), "duration": duration})
+    notes = (f"gait-tuner challenge push: D {distance:g} m, rope {rope:g} m, pushes at "
+             f"{', '.join(f'{t:g} s' for t in times)} from {', '.join(f'{math.degrees(r) % 360:.0f}' for r in rel)} deg")
+    with recording(walk.controller(sim.robot, dt), sim, walk, record, "push-recovery", notes) as controller:
+        trace = sim.run(controller, hooks=hooks, record_qpos=True, **{**walk.run_options(), "duration": duration})
     # the bottle's speed before it met the robot: its fastest over the swing (the drop's energy, less
     # nothing until contact), from the recorded joint angle about the known pivot
     for i, rec in enumerate(records):
@@ -185,8 +190,9 @@ def _in_place(drive: gaits.Drive, duration: float = TRIAL_S) -> gaits.Drive:
 
 
 def challenge(sim: Simulator, drive: gaits.Drive, *, seed: int = 0, start: float = 0.05, step: float = 0.05,
-              progress: Callable[[dict], None] | None = None) -> dict[str, Any]:
-    """Raise D from ``start`` by ``step`` [m] until a trial fails (module docstring)."""
+              progress: Callable[[dict], None] | None = None, record: Path | None = None) -> dict[str, Any]:
+    """Raise D from ``start`` by ``step`` [m] until a trial fails (module docstring); with ``record``
+    (a folder) each trial's walk is recorded there, one MCAP file per trial."""
     rope = sim.rope
     robot_mass = float(sim.model.body_subtreemass[sim._torso])
     trials = []
@@ -194,7 +200,9 @@ def challenge(sim: Simulator, drive: gaits.Drive, *, seed: int = 0, start: float
     distance = start
     com_height = None
     while distance < 0.95 * rope + 1e-9:
-        trial = push_trial(sim, drive, round(distance, 4), seed)
+        path = None if record is None else \
+            Path(record) / f"{recording_stem(drive)}--{sim.surface.name}--D{round(distance, 4):.2f}.mcap"
+        trial = push_trial(sim, drive, round(distance, 4), seed, record=path)
         com_height = trial["com_height_m"]
         trials.append(trial)
         if progress is not None:

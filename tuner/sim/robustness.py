@@ -21,6 +21,7 @@ many there are.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
@@ -77,10 +78,19 @@ def _controller(sim: Simulator, drive: gaits.Drive):
 
 
 def _one(task: tuple) -> dict[str, Any]:
-    robot, surface, drive, randomisation, seed, push = task
+    robot, surface, drive, randomisation, seed, push, record = task
     sim = simulator(robot, surface)
     p = draw(randomisation.with_push(push), seed, *sim.n_random(), namespace=EVALUATE)
-    trace = sim.run(_controller(sim, drive), perturb=p, **drive.run_options())
+    path, notes = None, ""
+    if record is not None:
+        from .recorded import recording_stem
+        kind = f"push{push:g}Ns-{seed[1] - 1_000_000:03d}" if push else f"{seed[1]:03d}"
+        path = Path(record) / f"{recording_stem(drive)}--{sim.surface.name}--{kind}.mcap"
+        notes = (f"gait-tuner robustness: randomised walk, evaluation seed {seed[0]}, rollout {seed[1]}"
+                 + (f", a {push:g} N s push" if push else ""))
+    from .recorded import recording
+    with recording(_controller(sim, drive), sim, drive, path, "walk", notes) as controller:
+        trace = sim.run(controller, perturb=p, **drive.run_options())
     m = summarize(trace)
     row = {"push": push, "seed": list(seed), "fell": m.fell, "outcome": m.outcome, "survived": m.survived,
            "t_fall_s": m.t_fall_s,
@@ -189,14 +199,16 @@ class RobustnessReport:
 def evaluate(robot: str, surface: str, drive: gaits.Drive, *, rollouts: int, seed: int,
              randomisation: Randomisation = Randomisation(), pushes: tuple[float, ...] = DEFAULT_PUSHES,
              push_rollouts: int = 20, workers: int = 2,
-             progress: Callable[[int], None] | None = None) -> RobustnessReport:
-    """Walk what ``drive`` asks under randomisation; see the module docstring."""
+             progress: Callable[[int], None] | None = None, record: Path | None = None) -> RobustnessReport:
+    """Walk what ``drive`` asks under randomisation; see the module docstring. With ``record`` (a
+    folder) every walk is recorded there (``recorded.py``), one MCAP file per walk."""
     load_robot(robot)                       # a bad robot fails here, once, in the parent
     load_surface(surface)
     base = (robot, surface, drive, randomisation)
-    tasks = [base + ((seed, i), 0.0) for i in range(rollouts)]
+    rec = None if record is None else str(record)
+    tasks = [base + ((seed, i), 0.0, rec) for i in range(rollouts)]
     for size in pushes:
-        tasks += [base + ((seed, 1_000_000 + i), float(size)) for i in range(push_rollouts)]
+        tasks += [base + ((seed, 1_000_000 + i), float(size), rec) for i in range(push_rollouts)]
     rows = map_in_order(_one, tasks, workers, progress, chunksize=4)
     plain = rows[:rollouts]
     by_push: dict[float, list] = {}
