@@ -82,6 +82,7 @@ class RobotFile:
     control_period: float = 0.01
     mass: float = 0.0
     held: Mapping[str, float] = field(default_factory=dict)
+    foot_sensors: bool = True          # the soles measure force (eight readings); false: the engine walks without
 
     def to_robot(self, q_ours: np.ndarray) -> dict[str, float]:
         """Our 20 targets [rad] -> {the robot's joint name: angle [rad, its convention]}, clipped into
@@ -134,7 +135,11 @@ def load_robot_file(path: str | Path) -> RobotFile:
     except (UnicodeDecodeError, yaml.YAMLError) as exc:
         raise ParamError(f"{source}: not a YAML robot file ({' '.join(str(exc).split())[:200]})") from None
     doc = _mapping(doc, "the file", source)
-    _known(doc, ("robot", "control_period", "mass", "foot_size", "leg", "joints", "held"), "the file", source)
+    _known(doc, ("robot", "control_period", "mass", "foot_size", "leg", "joints", "held", "foot_sensors"), "the file",
+           source)
+    foot_sensors = doc.get("foot_sensors", True)
+    if not isinstance(foot_sensors, bool):
+        raise ParamError(f"{source}: foot_sensors = {foot_sensors!r}: expected true or false")
     for k in ("robot", "leg", "foot_size", "joints"):
         if k not in doc:
             raise ParamError(f"{source}: missing {k!r} (write it with gait-tuner robot export MAP --out FILE)")
@@ -196,7 +201,7 @@ def load_robot_file(path: str | Path) -> RobotFile:
         raise ParamError(f"{source}: robot = {name!r}: expected the robot's name")
     return RobotFile(name, leg, foot, joints, _num(doc.get("control_period", 0.01), "control_period", source,
                                                    1e-4, 1.0), _num(doc.get("mass", 0.0), "mass", source, 0.0, 1000.0),
-                     held)
+                     held, foot_sensors)
 
 
 def save_robot_file(path: str | Path, robot: RobotFile, header: str = "") -> Path:
@@ -208,7 +213,7 @@ def save_robot_file(path: str | Path, robot: RobotFile, header: str = "") -> Pat
     doc = {"robot": robot.robot, "control_period": r(robot.control_period), "mass": r(robot.mass),
            "foot_size": [r(robot.foot_size[0]), r(robot.foot_size[1])],
            "leg": {f.name: r(getattr(robot.leg, f.name)) for f in fields(LegGeometry)},
-           "joints": {}, "held": {k: r(v) for k, v in robot.held.items()}}
+           "joints": {}, "held": {k: r(v) for k, v in robot.held.items()}, "foot_sensors": bool(robot.foot_sensors)}
     for ours, j in robot.joints.items():
         entry = {"name": j.name, "sign": j.sign, "lower": r(j.lower), "upper": r(j.upper), "speed": r(j.speed),
                  "torque": r(j.torque)}

@@ -1339,7 +1339,8 @@ def _robot_file_of(robot, spec: str):
                                  robot.servo_units.get(theirs))
     held = {j: float(v) for j, v in robot.pose.items() if j not in names}
     return RobotFile(robot.name, robot.leg, tuple(float(v) for v in robot.foot_size), joints,
-                     robot.sim.control_period, float(np.sum(model.body_mass)), held)
+                     robot.sim.control_period, float(np.sum(model.body_mass)), held,
+                     bool(getattr(robot, "foot_sensors", True)))
 
 
 @robot.command(name="export")

@@ -84,7 +84,10 @@ def robot_report(robot: RobotModel, *, stand: bool = True, duration: float = 2.0
                        "size_mm": [round(1000 * length, 1), round(1000 * width, 1)],
                        "hull_mm": [[round(1000 * x, 2), round(1000 * y, 2)] for x, y in hull],
                        "source": robot.sources.get(f"sole.{side}", "built-in sole box"),
-                       "touch_sensors": "4 quadrants of the sole's bounding box, 2.5 mm past each edge"}
+                       "touch_sensors": ("4 quadrants of the sole's bounding box, 2.5 mm past each edge"
+                                         if getattr(robot, "foot_sensors", True) else
+                                         "none on this robot (the map's foot_sensors: false): a controller gets "
+                                         "no foot_force; the simulator's touch sites feed only its metrics")}
     report: dict[str, Any] = {
         "robot": robot.name, "map": robot.map_path,
         "mjcf": robot.mjcf_path or ("built-in" if robot.urdf_path is None else None), "urdf": robot.urdf_path,

@@ -8,6 +8,8 @@ Format (paths relative to the map file)::
     ranges: {HeadPan: [-2.5, 2.5]}  # URDF only: [rad] ranges of continuous joints (or over the file's)
     balance_inertia: false        # optional: let MuJoCo raise principal moments that break A + B >= C
                                   #   (else such a body is one line naming it; urdf.compile_checked)
+    foot_sensors: false           # optional: the soles measure no force (default true): a controller
+                                  #   gets no foot_force reading, in the simulator as on the robot
     name: my_robot                # optional; default: the map file's stem
     torso: base_link              # the body with the free joint; its frame is the IK's pelvis frame
     feet: {left: l_foot, right: r_foot}
@@ -58,7 +60,7 @@ __all__ = ["load_map", "map_with_servo", "LEG_AXES", "MAP_KEYS", "AXIS_TOLERANCE
 #: Expected joint axis of each leg joint in the torso frame at the zero pose.
 LEG_AXES = {"hip_yaw": (0, 0, 1), "hip_roll": (1, 0, 0), "hip_pitch": (0, 1, 0),
             "knee": (0, 1, 0), "ankle_pitch": (0, 1, 0), "ankle_roll": (1, 0, 0)}
-MAP_KEYS = ("mjcf", "urdf", "packages", "ranges", "balance_inertia", "name", "torso", "feet", "joints", "leg",
+MAP_KEYS = ("mjcf", "urdf", "packages", "ranges", "balance_inertia", "foot_sensors", "name", "torso", "feet", "joints", "leg",
             "servo", "servos", "pose", "sim")
 #: How far apart two axis lines that must meet may be, and how far the straight leg's
 #: centres may stray from a vertical line [m] (ours).
@@ -135,6 +137,9 @@ def load_map(path: Path) -> RobotModel:
     _xml_finite(raw, mjcf.name, source)
     balance = doc.get("balance_inertia", False)
     _require(isinstance(balance, bool), source, f"balance_inertia = {balance!r}: expected true or false")
+    foot_sensors = doc.get("foot_sensors", True)
+    _require(isinstance(foot_sensors, bool), source, f"foot_sensors = {foot_sensors!r}: expected true (the soles "
+             f"measure force, as the built-in robot's) or false (none, as an OP3's or a Darwin-OP's)")
     urdf_limits = None
     load_notes: list[str] = []
     try:
@@ -319,7 +324,8 @@ def load_map(path: Path) -> RobotModel:
                       tuple(notes), sim, None if is_urdf else str(mjcf), str(path.resolve()), tuple(axes),
                       tuple(bodies), urdf_path=str(mjcf) if is_urdf else None, servo_units=units,
                       foot_sizes=(tuple(sizes[0]), tuple(sizes[1])), balance_inertia=balance and not is_urdf,
-                      exclude=tuple((a, b) for a, b, _ in overlaps), preset_gains=preset_gains)
+                      exclude=tuple((a, b) for a, b, _ in overlaps), preset_gains=preset_gains,
+                      foot_sensors=foot_sensors)
 
 
 #: attributes that name things (a joint may be called "inf"), never checked as numbers

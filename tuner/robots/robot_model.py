@@ -117,6 +117,8 @@ class RobotModel:
     #: joint groups (``GROUPS``) whose gains (kp, kv) are a preset's because neither the file nor the
     #: map states any (a URDF's servos): ``gait-tuner init`` sizes the legs' to the robot's weight
     preset_gains: tuple[str, ...] = ()
+    #: the soles measure force (the map's ``foot_sensors``; a controller of a robot without gets none)
+    foot_sensors: bool = True
 
     def foot_size_of(self, side: int) -> tuple[float, float]:
         """The sole bounding box (length, width) [m] of foot ``side`` (0 left, 1 right)."""

@@ -55,6 +55,8 @@ class SensorReader:
         self.sim, self.d = sim, sim.data
         self.senses = senses
         self._want = {name: name in senses for name in READINGS}
+        # a robot without sole sensors gives no foot_force reading, whatever the controller would use
+        self._want["foot_force"] &= bool(getattr(sim.robot, "foot_sensors", True))
         self._imu = self._want["imu_rpy"] or self._want["gyro"] or self._want["accel"]
         self._noise = pert is not None
         self._latency = pert.imu_latency if pert is not None else 0
