@@ -3,7 +3,7 @@
 Rows (t [s], vx [m/s], vy [m/s], wz [rad/s]): each row's command holds from its t until the next
 row's t; the walk lasts until the last row's t plus ``tail`` (2 s unless a file says otherwise).
 The first row must be at t = 0. A stream file is CSV with the header ``t,vx,vy,wz``
-(``tuner/streams.py`` reads it).
+(:func:`read_command_stream` reads it).
 
 An online controller reads the stream tick by tick (:meth:`CommandStream.at`) and knows nothing
 of the rows to come. A joint table can only be planned per step, before the walk:
@@ -13,15 +13,19 @@ open-loop set walks for a stream (and why its CoM already knows the next steps' 
 
 from __future__ import annotations
 
+import csv
+import io
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
+from .files import MAX_BYTES, read_bytes_checked
 from .params import ParamError
 from .walk_command import WalkCommand
 
-__all__ = ["CommandStream"]
+__all__ = ["CommandStream", "read_command_stream", "MAX_STREAM_BYTES"]
 
 MAX_ROWS = 100_000
 MAX_T = 600.0               # [s] the last row's t at most (a RoboCup half is ten minutes; the tail adds)
@@ -99,3 +103,47 @@ class CommandStream:
         ends = np.append(self.t[1:], self.duration)
         return [i for i, (a, b) in enumerate(zip(self.t, ends))
                 if not np.any((starts >= a - 1e-12) & (starts < b - 1e-12))]
+
+
+#: a 10-minute stream at 100 Hz is ~2 MB
+MAX_STREAM_BYTES = MAX_BYTES["csv"]
+STREAM_HEADER = ["t", "vx", "vy", "wz"]
+
+
+def read_command_stream(path: str | Path, tail: float | None = None, error: type[Exception] = ParamError) -> CommandStream:
+    """A command stream file (CSV with the header ``t,vx,vy,wz``; ``#`` comments; a UTF-8 byte-order
+    mark skipped) read and checked; every way it can be wrong is one ``error`` naming the file and
+    the line. ``tail`` [s]: walked after the last row (default 2)."""
+    path = Path(path)
+    raw = read_bytes_checked(path, "command stream", MAX_STREAM_BYTES, error)
+    try:
+        text = raw.decode("utf-8-sig")          # a spreadsheet's byte-order mark is not part of the header
+    except UnicodeDecodeError as exc:
+        raise error(f"{path}: is not UTF-8 text (byte {exc.start})") from None
+    reader = csv.reader(io.StringIO(text))
+    try:
+        rows = [(i + 1, r) for i, r in enumerate(reader)
+                if r and not r[0].lstrip().startswith("#") and any(c.strip() for c in r)]
+    except csv.Error as exc:                # a cell past the csv module's limit, a stray quote
+        raise error(f"{path}: line {reader.line_num}: not CSV a stream can hold ({exc})") from None
+    if not rows:
+        raise error(f"{path}: empty; a command stream is CSV with the header t,vx,vy,wz")
+    line, head = rows[0]
+    if [c.strip() for c in head] != STREAM_HEADER:
+        raise error(f"{path}: line {line}: the header must be t,vx,vy,wz, got {','.join(head)!r}")
+    t, cmds = [], []
+    for line, r in rows[1:]:
+        if len(r) != 4:
+            raise error(f"{path}: line {line}: expected 4 values t,vx,vy,wz, got {len(r)}")
+        try:
+            vals = [float(c) for c in r]
+        except ValueError:
+            raise error(f"{path}: line {line}: {','.join(r)!r} is not four numbers") from None
+        t.append(vals[0])
+        cmds.append(vals[1:])
+    if not t:
+        raise error(f"{path}: the header has no rows below it")
+    try:
+        return CommandStream(t, cmds, tail=2.0 if tail is None else tail)
+    except ParamError as exc:
+        raise error(f"{path}: {exc}") from None
