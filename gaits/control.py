@@ -29,6 +29,7 @@ from .imu_stabiliser import StabiliserParams, stabiliser_corrections
 from .trajectory import JOINT_NAMES, GaitTrajectory
 
 __all__ = ["READINGS", "Measurement", "PlanRecord", "StartPose", "Controller", "TablePlayer", "Stabilised", "HoldPose",
+           "Wrapped", "WithoutReadings",
            "FOOT_FORCE_LABELS", "rpy_from_quat", "GRAVITY_ACCEL", "finite_readings"]
 
 GRAVITY_ACCEL = 9.81  # [m/s^2] what a resting accelerometer reads, upward
@@ -286,6 +287,44 @@ class Stabilised:
 
     def plan(self, n: int) -> PlanRecord:
         return self.inner.plan(n)
+
+
+class Wrapped:
+    """A controller around another (``inner``): every call and attribute is the inner one's unless a
+    subclass says otherwise (a recording, fewer readings)."""
+
+    def __init__(self, inner: Any) -> None:
+        self.inner = inner
+
+    def __getattr__(self, name: str) -> Any:
+        if name == "inner":
+            raise AttributeError(name)
+        return getattr(self.inner, name)
+
+    def start_pose(self) -> StartPose:
+        return self.inner.start_pose()
+
+    def reset(self, m: Measurement) -> None:
+        self.inner.reset(m)
+
+    def step(self, m: Measurement, command: Any = None) -> np.ndarray:
+        return self.inner.step(m, command)
+
+    def plan(self, n: int) -> PlanRecord:
+        return self.inner.plan(n)
+
+
+class WithoutReadings(Wrapped):
+    """A controller on a robot that lacks some sensors: it is given none of ``readings`` (they
+    arrive as None, as for a reading it does not use), every other attribute is the wrapped one's.
+    The walk engine then estimates from kinematics and the IMU (``gaits/engine``)."""
+
+    def __init__(self, inner: Any, readings: Any) -> None:
+        unknown = set(readings) - set(READINGS)
+        if unknown:
+            raise ValueError(f"unknown readings {sorted(unknown)}: a robot senses {', '.join(READINGS)}")
+        super().__init__(inner)
+        self.senses = frozenset(getattr(inner, "senses", READINGS)) - set(readings)
 
 
 class HoldPose:

@@ -7,7 +7,9 @@ write the servo targets. It imports numpy and the engine (``gaits``: numpy and P
 Porting it: replace :class:`StandIn` by your robot's driver (the four methods it has), give it your
 robot file (``gait-tuner robot export MAP --out robot.yaml``, then ``--robot robot.yaml``: the legs,
 soles and each joint's servo id, units, direction and offset, nothing copied by hand), and take the
-walk command from your behaviour (here: forward for 3 s, turning for 2 s, then stop). The engine
+walk command from your behaviour: a function of time (:func:`behaviour` here: forward for 3 s, turning for
+2 s, then stop), a command stream file (``--commands STREAM.csv``) or a UDP/JSON socket on the loopback
+(``--udp 5005``; ``gaits/command_source.py``). The engine
 wants, each tick, the encoders in our joint convention (``gaits.JOINT_NAMES``, signs as
 ``gait-tuner robot check`` lists them), the IMU's roll, pitch, yaw [rad] and rates [rad/s], its
 accelerometer [m/s^2] and the eight sole force readings [N] (left toe-left, toe-right, heel-left,
@@ -171,14 +173,25 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--baud", type=int, default=1_000_000, help="the bus's baud rate")
     ap.add_argument("--watchdog", type=int, default=5, help="ticks without readings before the safe stop")
     ap.add_argument("--max-tilt", type=float, default=50.0, help="torso tilt [deg] read as a fall: torque off")
+    ap.add_argument("--commands", metavar="STREAM.csv", help="walk this command stream (t,vx,vy,wz CSV) instead of "
+                                                          "the built-in behaviour; --seconds defaults to its length")
+    ap.add_argument("--udp", metavar="[HOST:]PORT", help="take the walk command from UDP datagrams of JSON "
+                                                      "{\"vx\": .., \"vy\": .., \"wz\": ..} (bound to 127.0.0.1 "
+                                                      "unless HOST says otherwise); --seconds defaults to 600")
+    ap.add_argument("--udp-timeout", type=float, default=0.5, help="seconds without a UDP command before a stop")
     args = ap.parse_args(argv)
     if (args.gait is None) == (args.sweep is None):
         print("robot_loop: error: give a gait file to walk, or --sweep SWEEP.csv to play (not both)", file=sys.stderr)
         raise SystemExit(2)
     if args.sweep is not None:
         raise SystemExit(run_sweep(args))
+    try:
+        source = command_source(args)
+    except (OSError, gaits.ParamError) as exc:
+        print(f"robot_loop: error: {exc}", file=sys.stderr)
+        raise SystemExit(2) from None
     if args.seconds is None:
-        args.seconds = 8.0
+        args.seconds = getattr(source, "duration", None) or (600.0 if args.udp else 8.0)
     try:
         gait = gaits.load_gait_file(args.gait)
     except gaits.ParamError as exc:      # one line, exit 2: a wrong name or a broken file is not a crash
@@ -198,7 +211,7 @@ def main(argv: list[str] | None = None) -> None:
         if robot_file is None:
             print("robot_loop: error: --port needs --robot (its servo ids, units and signs)", file=sys.stderr)
             raise SystemExit(2)
-        raise SystemExit(run_on_bus(args, gait, robot_file))
+        raise SystemExit(run_on_bus(args, gait, robot_file, source=source))
     geometry = robot_file or RobotGeometry(gaits.LegGeometry(), (0.10, 0.055))
     engine, walk = controller(gait, geometry, 0.01)
     recorder = None
@@ -206,7 +219,8 @@ def main(argv: list[str] | None = None) -> None:
         from gaits.recording import Recorder, RecordingController, RecordingMeta
         recorder = Recorder(args.record, RecordingMeta(robot="stand-in", task="walk", simulated=True,
                                                        controller=f"walk engine, {args.gait}",
-                                                       notes="examples/robot_loop.py --dry-run"))
+                                                       notes=f"gait-tuner-loop --dry-run; commands from "
+                                                             f"{source.describe()}"))
         walk = RecordingController(walk, recorder)
     robot.write_targets(walk.start_pose().q)
     overruns, t, costs, sent = 0, 0.0, [], {}
@@ -214,12 +228,13 @@ def main(argv: list[str] | None = None) -> None:
     def measure(t: float) -> Measurement:
         q, dq = robot.read_encoders()
         rpy, gyro, accel = robot.read_imu()
-        return Measurement(t, q=q, dq=dq, imu_rpy=rpy, gyro=gyro, accel=accel, foot_force=robot.read_soles())
+        soles = robot.read_soles() if robot_file is None or robot_file.foot_sensors else None
+        return Measurement(t, q=q, dq=dq, imu_rpy=rpy, gyro=gyro, accel=accel, foot_force=soles)
     walk.reset(measure(0.0))
     while t < args.seconds:
         m = measure(t)
         t0 = time.perf_counter()
-        q = walk.step(m, behaviour(t))
+        q = walk.step(m, source(t))
         cost = time.perf_counter() - t0
         costs.append(cost)
         overruns += cost > engine.dt
@@ -238,6 +253,20 @@ def main(argv: list[str] | None = None) -> None:
     dropped = {name: n for name, n in engine.dropped.items() if n}
     if dropped:
         print("readings not finite, not taken (ticks): " + ", ".join(f"{k} {n}" for k, n in dropped.items()))
+
+
+def command_source(args: Any) -> Any:
+    """The walk command's source of ``--commands``, ``--udp`` or the built-in :func:`behaviour`
+    (``gaits/command_source.py``); a mistake is a ParamError (or OSError) naming it."""
+    from gaits.command_source import FromStream, Scripted, UdpCommands, parse_udp_address
+    if args.commands and args.udp:
+        raise gaits.ParamError("give --commands or --udp, not both")
+    if args.commands:
+        return FromStream(args.commands)
+    if args.udp:
+        host, port = parse_udp_address(args.udp)
+        return UdpCommands(host, port, args.udp_timeout)
+    return Scripted(behaviour)
 
 
 def _robot_file(args: Any) -> Any:
@@ -291,7 +320,8 @@ def run_sweep(args: Any) -> int:
     return 0
 
 
-def run_on_bus(args: Any, gait: gaits.GaitFile | None, robot_file: Any, sweep: SweepPlayer | None = None) -> int:
+def run_on_bus(args: Any, gait: gaits.GaitFile | None, robot_file: Any, sweep: SweepPlayer | None = None,
+               source: Any = None) -> int:
     """The loop on a Dynamixel bus (``--port``), as a robot runs it: a monotonic clock at the control
     rate (overruns counted, tick periods' percentiles printed); a watchdog (no readings for
     ``--watchdog`` ticks: the safe stop, the standing pose then torque off); a fall (a tilt past
@@ -310,7 +340,7 @@ def run_on_bus(args: Any, gait: gaits.GaitFile | None, robot_file: Any, sweep: S
         task, what = "sweep", f"joint sweep {args.sweep}"
     else:
         engine, walk = controller(gait, robot_file, robot_file.control_period)
-        task, what = "walk", f"walk engine, {args.gait}"
+        task, what = "walk", f"walk engine, {args.gait}; commands from {source.describe()}"
     recorder = None
     if args.record:
         from gaits.recording import Recorder, RecordingController, RecordingMeta
@@ -322,6 +352,7 @@ def run_on_bus(args: Any, gait: gaits.GaitFile | None, robot_file: Any, sweep: S
     stand = walk.start_pose().q
     bus.write(stand)
     k, missing, costs, periods, overruns, code, why = 0, 0, [], [], 0, 0, "walked its time"
+    unread = 0                                    # ticks without readings, over the whole walk
     n_ticks = int(round(args.seconds / dt))
     stop_at = None
 
@@ -360,6 +391,7 @@ def run_on_bus(args: Any, gait: gaits.GaitFile | None, robot_file: Any, sweep: S
             m = measure(t)
             if m is None:
                 missing += 1
+                unread += 1
                 if missing >= args.watchdog:
                     why, code = (f"watchdog: no readings for {missing} ticks ({missing * dt * 1000:.0f} ms) at "
                                  f"t = {t:.2f} s: the safe stop (standing pose, torque off)"), 3
@@ -371,7 +403,7 @@ def run_on_bus(args: Any, gait: gaits.GaitFile | None, robot_file: Any, sweep: S
                 if tilt > args.max_tilt:
                     why, code = f"fall detected at t = {t:.2f} s (tilt {tilt:.0f} deg): torque off", 3
                     break
-                command = None if sweep is not None else np.zeros(3) if stop_at is not None else behaviour(t)
+                command = None if sweep is not None else np.zeros(3) if stop_at is not None else source(t)
                 t0 = time.perf_counter()
                 q = walk.step(m, command)
                 costs.append(time.perf_counter() - t0)
@@ -399,7 +431,7 @@ def run_on_bus(args: Any, gait: gaits.GaitFile | None, robot_file: Any, sweep: S
     p = np.array(periods) * 1000 if periods else np.zeros(1)
     print(f"{len(costs)} ticks on {args.port}: {engine.steps_taken} steps, ended {engine.mode}; controller median "
           f"{np.median(c):.2f} ms, p99 {np.percentile(c, 99):.2f} ms; tick period median {np.median(p):.1f} ms, "
-          f"p99 {np.percentile(p, 99):.1f} ms, {overruns} overrun(s)")
+          f"p99 {np.percentile(p, 99):.1f} ms, {overruns} overrun(s), {unread} tick(s) without readings")
     print(why)
     return code
 

@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from .control import FOOT_FORCE_LABELS, Measurement
+from .control import FOOT_FORCE_LABELS, Measurement, Wrapped
 from .trajectory import JOINT_NAMES
 
 __all__ = ["RecordingMeta", "Recorder", "RecordingController", "Recording", "read_recording", "recording_info",
@@ -163,32 +163,18 @@ class Recorder:
         self.close()
 
 
-class RecordingController:
+class RecordingController(Wrapped):
     """A controller whose every tick is recorded (``gaits.control.Controller``: every attribute is
     the wrapped one's)."""
 
     def __init__(self, inner: Any, recorder: Recorder) -> None:
-        self.inner = inner
+        super().__init__(inner)
         self.recorder = recorder
-
-    def __getattr__(self, name: str) -> Any:
-        if name == "inner":
-            raise AttributeError(name)
-        return getattr(self.inner, name)
-
-    def start_pose(self) -> Any:
-        return self.inner.start_pose()
-
-    def reset(self, m: Measurement) -> None:
-        self.inner.reset(m)
 
     def step(self, m: Measurement, command: Any = None) -> np.ndarray:
         q = self.inner.step(m, command)
         self.recorder.record(m, command, q)
         return q
-
-    def plan(self, n: int) -> Any:
-        return self.inner.plan(n)
 
 
 @dataclass

@@ -172,6 +172,7 @@ SCENARIO_FIELDS = [
     ("scenario.segment_min", 4.0, "scenario: segment_min = 4 s exceeds segment_max = 3 s"),
     ("scenario.bogus", 1, "unknown key 'bogus'"), ("scenario", [1], "scenario must be a mapping"),
     ("scenario.randomisation", {"mass_scale": -1}, "scenario.randomisation"),
+    ("scenario.servo_share", 0.0, "scenario: servo_share = 0.0: expected a share of the servos' speed"),
 ]
 
 

@@ -175,3 +175,88 @@ def test_a_sweep_that_is_not_one_is_one_line(tmp_path, robot_file):
     r = subprocess.run([sys.executable, str(ROOT / "examples" / "robot_loop.py"), str(SET), "--sweep", str(bad),
                         "--dry-run"], capture_output=True, text=True)
     assert r.returncode == 2 and "not both" in r.stderr
+
+
+def test_a_randomised_walk_of_a_stream_through_the_bus(tmp_path, robot_file):
+    """`bus serve --randomisation default --seed S --walk I` perturbs the robot as robustness's rollout
+    I of seed S; the loop walks a stream file (--commands); the server says what the packets cost on a
+    real wire."""
+    stream = tmp_path / "s.csv"
+    stream.write_text("t,vx,vy,wz\n0,0.1,0,0\n0.5,0,0,0.3\n")
+    server, link = _serve(tmp_path, "--randomisation", "default", "--seed", "1", "--walk", "3")
+    loop = _loop(robot_file, link, "--commands", str(stream))
+    (lo, le), (so, se) = _finish(loop, server)
+    assert loop.returncode == 0, lo + le
+    ticks = int(re.search(r"(\d+) ticks on", lo).group(1))
+    assert 0 < ticks <= 250 and "walked its time" in lo        # the stream's 0.5 s and its 2 s tail
+    assert "randomised: seed 1, walk 3" in so, so + se
+    wire = re.search(r"on the wire: (\d+) bytes a tick, ([\d.]+) ms at 1000000 baud", so)
+    # a tick: a sync read of 20 servos and their 20 replies, the IMU's read and reply, a sync write
+    assert wire and 500 < int(wire.group(1)) < 700 and float(wire.group(2)) == pytest.approx(
+        int(wire.group(1)) * 10 / 1000, abs=0.01), so
+
+
+def test_garbled_replies_end_in_the_safe_stop(tmp_path, robot_file):
+    """A bus whose replies arrive garbled after 50 good ticks (a CRC that does not match): no
+    reading is taken; the watchdog stops to the standing pose, torque off on every servo, one line."""
+    import os
+    import struct
+    import threading
+
+    from gaits.dynamixel import PING, READ, SYNC_READ, WRITE, parse_packet, status_packet
+    from tuner.sim.bus import open_pty
+    master, slave, path = open_pty(1_000_000)
+    stop = threading.Event()
+    torque_off, reads = [], []
+
+    def fake_bus():
+        buf = b""
+        while not stop.is_set():
+            import select
+            if not select.select([master], [], [], 0.05)[0]:
+                continue
+            try:
+                buf += os.read(master, 4096)
+            except OSError:
+                return
+            while True:
+                p, used = parse_packet(buf)
+                buf = buf[used:]
+                if p is None:
+                    break
+                if p.instruction == PING:
+                    os.write(master, status_packet(p.id, b"\xfc\x03\x2d"))
+                elif p.instruction in (SYNC_READ, READ):
+                    reads.append(p.instruction)
+                    if p.instruction == SYNC_READ:
+                        replies = [status_packet(sid, struct.pack("<ii", 0, 2048)) for sid in p.params[4:]]
+                    else:
+                        replies = [status_packet(p.id, struct.pack("<9f", 0, 0, 0, 0, 0, 0, 0, 0, 9.81))]
+                    if len(reads) > 100:                      # after 50 ticks, every reply's CRC garbled
+                        replies = [r[:-1] + bytes([r[-1] ^ 0xFF]) for r in replies]
+                    os.write(master, b"".join(replies))
+                elif p.instruction == WRITE:
+                    torque_off.append(p.id)
+                    os.write(master, status_packet(p.id))
+    th = threading.Thread(target=fake_bus, daemon=True)
+    th.start()
+    try:
+        loop = _loop(robot_file, path, "--seconds", "3", "--watchdog", "5")
+        (lo, le), = _finish(loop)
+    finally:
+        stop.set()
+        th.join(timeout=5)
+        os.close(master)
+        os.close(slave)
+    assert loop.returncode == 3, lo + le
+    said = lo.strip().splitlines()[-1]
+    assert said.startswith("watchdog: no readings for 5 ticks (50 ms)") and "torque off" in said, lo + le
+    assert sorted(set(torque_off)) == sorted(range(1, 21)) or len(set(torque_off)) == 20, torque_off
+
+
+def test_duplicate_servo_ids_in_a_robot_file_are_one_line(tmp_path, robot_file):
+    robot_file.write_text(robot_file.read_text().replace("servo: {id: 4,", "servo: {id: 3,"))
+    loop = _loop(robot_file, tmp_path / "no-bus", "--seconds", "1")
+    (lo, le), = _finish(loop)
+    assert loop.returncode == 2 and len(le.strip().splitlines()) == 1, le
+    assert "servo id 3 given to" in le, le

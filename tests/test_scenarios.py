@@ -13,6 +13,7 @@ import json
 import math
 from dataclasses import dataclass
 
+import numpy as np
 import pytest
 
 from conftest import ROOT
@@ -170,3 +171,31 @@ def test_a_randomised_studys_best_trial_is_told_by_its_survival():
     assert line == ("best trial 7: score 3.500; survival 90% of its match walks (10 a surface) (minimum 80%); "
                     "trials below the minimum or rejected in study: 3")
     assert "fell" not in SCENARIOS["robust"].describe_best(RobustSpec(), t, fell=True, falls=1, infeasible=0)
+
+
+def test_servo_share_is_the_fastest_target_against_its_servo():
+    from types import SimpleNamespace
+
+    from tuner.sim.robustness import servo_share
+    q_ref = np.zeros((4, 2))
+    q_ref[2, 0] = 0.03                      # 3 rad/s at 10 ms ticks, servo 6 rad/s: half
+    q_ref[3, 1] = -0.04                     # 4 rad/s, servo 5 rad/s: 0.8
+    sim = SimpleNamespace(control_period=0.01, servo_speed=np.array([6.0, 5.0]))
+    assert servo_share(SimpleNamespace(q_ref=q_ref), sim) == pytest.approx(0.8)
+    assert servo_share(SimpleNamespace(q_ref=q_ref[:1]), sim) == 0.0
+
+
+@pytest.mark.parametrize("share, asked, feasible", [(None, 2.0, True), (0.95, 0.9, True), (0.95, 1.2, False)])
+def test_a_match_trial_that_asks_the_servos_too_much_is_infeasible(share, asked, feasible):
+    """scenario.servo_share: every walk survived, but one asked a servo for `asked` of its speed."""
+    from types import SimpleNamespace
+
+    from tuner.scenarios.match import Match, ScenarioSpec
+    rows = [{"survived": True, "pitch_rms_deg": 2.0, "tracking": None, "walked": 1.0, "servo_share": s}
+            for s in (0.3, asked)]
+    world = SimpleNamespace(sims={"rigid": None}, namespace=0,
+                            in_order=lambda k, walk: (("rigid", r) for r in rows))
+    res = Match().evaluate(ScenarioSpec(walks=2, min_survival=0.5, servo_share=share), None, world)
+    assert (res.fall_constraint <= 0) == feasible and res.attrs["servo_share"] == asked
+    if not feasible:
+        assert res.fall_constraint == pytest.approx(asked - share)

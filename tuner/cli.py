@@ -1136,11 +1136,14 @@ def compare(params_specs: tuple[str, ...], robot_name: str | None, surface_names
 @click.option("--plot", "plot_dir", type=OutPath(file_okay=False),
               help="Write robustness.png into this directory.")
 @RECORD_OPTION
+@click.option("--no-foot-sensors", is_flag=True,
+              help="Walk as a robot whose soles measure nothing (an OP3, a Darwin-OP): the controller gets no "
+                   "foot_force reading (a robot map says so for good with foot_sensors: false).")
 def robustness(params_spec: str | None, robot_name: str, surface_name: str, rollouts: int, seed: int,
                randomisation_spec: str | None, pushes: str, push_rollouts: int, command: str | None,
                commands_file: Path | None, duration: float | None, stabiliser: bool | None,
                controller_file: Path | None, workers: int, as_json: bool, plot_dir: Path | None,
-               record_dir: Path | None) -> None:
+               record_dir: Path | None, no_foot_sensors: bool) -> None:
     """Does a gait survive what differs between our model and your robot and field?
 
     Walks it ROLLOUTS times with masses, servos, backlash, latencies, sensor noise, friction, turf
@@ -1184,7 +1187,7 @@ def robustness(params_spec: str | None, robot_name: str, surface_name: str, roll
     with tqdm(total=total, desc="robustness", unit="rollout", **_bar_options()) as bar:
         report = evaluate(robot_name, surface_name, drive, rollouts=rollouts, seed=seed, randomisation=rnd,
                           pushes=sizes, push_rollouts=push_rollouts, workers=workers, progress=bar.update,
-                          record=record_dir)
+                          record=record_dir, without=("foot_force",) if no_foot_sensors else ())
     if record_dir is not None:
         click.echo(f"recorded {total} walk(s) into {record_dir}", err=True)
     if as_json:
@@ -1853,8 +1856,15 @@ def bus() -> None:
 @click.option("--idle", default=5.0, show_default=True, type=Span(0.5, 600.0),
               help="End once the client has been silent this long [s].")
 @click.option("--hang", is_flag=True, help="The robot hangs in a harness (for a sweep: gait-tuner-loop --sweep).")
+@click.option("--randomisation", "randomisation_spec", metavar="YAML|default|none", default="none", show_default=True,
+              help="Perturb the simulated robot and field as `robustness` does (default: its defaults; a YAML "
+                   "overrides fields): walk I of --seed S is robustness's rollout I of the same seed.")
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(0, 2**31 - 1),
+              help="With --randomisation: the evaluation seed.")
+@click.option("--walk", "walk_index", default=0, show_default=True, type=click.IntRange(0, 999_999),
+              help="With --randomisation: which of the seed's walks (robustness's rollout number).")
 def bus_serve(robot_name: str, surface_name: str, link: Path | None, baud: str, duration: float, idle: float,
-              hang: bool) -> None:
+              hang: bool, randomisation_spec: str, seed: int, walk_index: int) -> None:
     """Serve ROBOT's servos and IMU on a pseudo-terminal, answered by MuJoCo in lockstep (a tick of
     physics per sync write of goal positions). Prints the bus's path, then what the walk did.
     With --hang the robot hangs in a harness (its torso held, feet off the ground): play a sweep
@@ -1873,16 +1883,29 @@ def bus_serve(robot_name: str, surface_name: str, link: Path | None, baud: str, 
         sim = HangingSim(Harness(robot))
     else:
         sim = Simulator(robot, load_surface(surface_name))
+    perturb = None
+    if randomisation_spec != "none":
+        if hang:
+            raise UserError("--randomisation is for a walk on the ground, not --hang")
+        from .sim.randomisation import EVALUATE, draw, randomisation_from_mapping
+        from .yaml_input import read_yaml_file
+        doc = None if randomisation_spec == "default" else read_yaml_file(Path(randomisation_spec), "randomisation")
+        perturb = draw(randomisation_from_mapping(doc, randomisation_spec), (seed, walk_index), *sim.n_random(),
+                       namespace=EVALUATE)
 
     def ready(path: str) -> None:
         click.echo(f"bus of {robot.name} on {sim.surface.name} at {path} ({baud} baud, "
                    f"{len(rf.joints)} servos, IMU id 200)", err=False)
         sys.stdout.flush()
     out = serve(sim, rf, baudrate=int(baud), link=None if link is None else str(link), idle=idle, duration=duration,
-                ready=ready)
+                ready=ready, perturb=perturb)
     click.echo(f"served {out['ticks']} ticks ({out['ticks'] * sim.control_period:.2f} s); ended: {out['ended']}"
                + (f"; the walk: {out['outcome']}" if out["outcome"] else "")
-               + (f"; {out['ignored']} packet(s) not answered" if out["ignored"] else ""))
+               + (f"; {out['ignored']} packet(s) not answered" if out["ignored"] else "")
+               + (f"; randomised: seed {seed}, walk {walk_index}" if perturb is not None else ""))
+    if out["ticks"]:
+        click.echo(f"on the wire: {out['bytes_per_tick']:.0f} bytes a tick, {out['wire_ms_per_tick']:.2f} ms at {baud} "
+                   f"baud (a real bus adds this, and each servo's return delay, to every tick's latency)")
 
 
 @cli.command(name="params")

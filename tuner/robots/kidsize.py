@@ -11,7 +11,9 @@ leg), 52 cm tall like EROS. Where each number comes from:
   trunk 17 cm, neck and head 8.5 cm (head top at 0.52 m).
 * feet: 10 cm x 6 cm soles, a typical kid-size foot (RoboCup kid-size rules
   cap the foot area by the robot's height).
-* servos: the MX-64 preset in the legs, MX-28 in arms and head (``servo.py``).
+* servos: the MX-64 preset in the legs, MX-28 in arms and head (``servo.py``); on a Dynamixel bus
+  (``gait-tuner bus serve``, ``robot export``) ids 1 to 20 in ``gaits.JOINT_NAMES`` order, 4096
+  ticks a turn centred on 2048, no offsets (ours: a robot built that way).
 * joint limits: typical kid-size ranges (knee 0..150 deg, hip pitch -110..60 deg).
 """
 
@@ -24,6 +26,7 @@ from typing import Mapping
 import mujoco
 
 from gaits import JOINT_NAMES, LegGeometry
+from gaits.robot_file import ServoUnit
 
 from .mjcf_geometry import CROUCH, com_offset, crouch_angles, sole_polygon
 from .robot_model import RobotModel, joint_group
@@ -194,6 +197,7 @@ def kidsize_model(spec: RobotSpec = RobotSpec()) -> RobotModel:
     return RobotModel(spec.name, xml, jmap, "torso", ("l_foot", "r_foot"), (c, c),
                       (spec.foot_length, spec.foot_width), leg, servos,
                       pose={n: 0.0 for n in JOINT_NAMES if joint_group(n) != "legs"},
+                      servo_units={n: ServoUnit(id=i + 1) for i, n in enumerate(JOINT_NAMES)},
                       sole_hulls=(sole.hull, sole.hull),
                       sources={"robot": "built-in (tuner/robots/kidsize.py)",
                                "leg": "RobotSpec.leg", "servos": "presets MX-64 (legs), MX-28 (arms, head)",

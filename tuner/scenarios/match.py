@@ -12,6 +12,8 @@ once (``hopeless``).
       min_survival: 0.9     # below this share of walks standing: infeasible (stops early)
       tracking_weight: 10.0 # [deg per m/s]
       randomisation: {}     # overrides of tuner/sim/randomisation.py's defaults, or none
+      servo_share: 0.95     # optional: a walk whose targets ask any servo for more than this share of
+                            #   its speed makes the trial infeasible (so its export's servo table plays)
       forward: 0.3          # the distribution: any field of tuner/sim/scenario.py
 """
 
@@ -40,6 +42,7 @@ class ScenarioSpec:
     tracking_weight: float = 10.0      # [deg per m/s]
     randomisation: Any = None          # tuner.sim.randomisation.Randomisation
     scenario: Any = None               # tuner.sim.scenario.MatchDistribution
+    servo_share: float | None = None   # the most of a servo's speed a walk may ask (None: not checked)
 
 
 class Match(Scenario):
@@ -49,8 +52,8 @@ class Match(Scenario):
                 "speed": "a scenario study has its own randomised walks"}
 
     def parse(self, sec: Any, doc: Mapping[str, Any], source: str) -> ScenarioSpec:
-        check_section(sec, "scenario", ("walks", "min_survival", "tracking_weight", "randomisation") + SCENARIO_FIELDS,
-                      source)
+        check_section(sec, "scenario", ("walks", "min_survival", "tracking_weight", "randomisation", "servo_share")
+                      + SCENARIO_FIELDS, source)
         k = sec.get("walks", 6)
         if not isinstance(k, int) or isinstance(k, bool) or not 1 <= k <= 1000:
             fail(source, f"scenario: walks = {k!r}: expected a whole number in [1, 1000]")
@@ -60,18 +63,23 @@ class Match(Scenario):
         tw = sec.get("tracking_weight", 10.0)
         if not isinstance(tw, (int, float)) or isinstance(tw, bool) or not 0.0 <= tw <= 1000.0:
             fail(source, f"scenario: tracking_weight = {tw!r}: expected a number in [0, 1000] deg per m/s")
+        share = sec.get("servo_share")
+        if share is not None and (not isinstance(share, (int, float)) or isinstance(share, bool)
+                                  or not 0.1 <= share <= 10.0):
+            fail(source, f"scenario: servo_share = {share!r}: expected a share of the servos' speed in [0.1, 10]")
         try:
             rnd = randomisation_from_mapping(sec.get("randomisation"), "scenario.randomisation")
             scen = scenario_from_mapping({kk: v for kk, v in sec.items() if kk in SCENARIO_FIELDS}, "scenario")
         except UserError as exc:
             fail(source, str(exc))
-        return ScenarioSpec(k, float(ms), float(tw), rnd, scen)
+        return ScenarioSpec(k, float(ms), float(tw), rnd, scen, None if share is None else float(share))
 
     def evaluate(self, sc: ScenarioSpec, drive: Any, world: Any,
                  report: Callable[[float, int], bool] | None = None) -> TrialResult:
         total = sc.walks * len(world.sims)
         allowed = math.floor((1.0 - sc.min_survival) * total + 1e-9)
         scores, per, falls, hopeless = [], {}, 0, False
+        asked = 0.0                        # the largest share of a servo's speed any walk asked
 
         def walk(sim: Any, i: int) -> dict:
             stream, pushes = draw_scenario(sc.scenario, i, world.namespace)
@@ -88,6 +96,7 @@ class Match(Scenario):
                 falls += 1
                 score += FALL_PENALTY_DEG * (1.0 - min(max(r["walked"], 0.0), 1.0))
             scores.append(score)
+            asked = max(asked, float(r.get("servo_share") or 0.0))
             rows_of.setdefault(name, []).append(r)
             if falls > allowed:
                 hopeless = True
@@ -96,9 +105,13 @@ class Match(Scenario):
             per[name] = {"survival": float(np.mean([r["survived"] for r in rows])), "rollouts": len(rows),
                          "fell": any(not r["survived"] for r in rows)}
         constraint = survival_constraint(sc.min_survival, falls, total, len(scores), hopeless)
+        if sc.servo_share is not None and asked > sc.servo_share:
+            # too fast for the servos: infeasible by how far (beside any shortfall of survival)
+            constraint = max(constraint or 0.0, asked - sc.servo_share)
         return TrialResult(score=float(np.mean(scores)), speed=0.0,
                            fall_constraint=-1.0 if constraint is None else constraint, fell=falls > 0,
-                           per_surface=per, survival=1.0 - falls / len(scores), hopeless=hopeless)
+                           per_surface=per, survival=1.0 - falls / len(scores), hopeless=hopeless,
+                           attrs={"servo_share": round(asked, 4)})
 
 
     def describe_best(self, sc: ScenarioSpec, trial: Any, *, fell: bool, falls: int, infeasible: int) -> str:

@@ -176,7 +176,10 @@ def initial_walk(robot: Any, robot_ref: str, surface: Any, purpose: str = "match
         study.update({"engine": {}, "space": space,
                       # a first study's match walks, milder than the shipped ones' and with room to fall
                       # (a trial below min_survival stops at once and teaches the sampler nothing)
-                      "scenario": {"walks": 6, "min_survival": 0.5, "duration": 12.0, "forward": top_speed,
+                      # servo_share: a set whose walks ask a servo for more than 95 % of its speed is
+                      # infeasible, so the export's servo table plays on the robot
+                      "scenario": {"walks": 6, "min_survival": 0.5, "servo_share": 0.95, "duration": 12.0,
+                                   "forward": top_speed,
                                    "backward": 0.1, "sideways": 0.05, "turn": 0.5}})
     elif purpose == "push":
         space.update({"engine.k_vel": {"low": 0.0, "high": 1.0}, "engine.replan_error": {"low": 0.03, "high": 0.15},

@@ -82,6 +82,7 @@ class BusBridge:
         self.buf = b""
         self.ticks = 0
         self.ignored = 0                  # packets at the wrong baud rate, or for no device here
+        self.bytes_in = self.bytes_out = 0    # on the wire, both ways: what a real bus would carry
         self._last = np.zeros(len(JOINT_NAMES))
 
     # --- the controller protocol ----------------------------------------------------------
@@ -130,6 +131,7 @@ class BusBridge:
             self.ignored += 1             # another baud rate: a real servo hears noise, answers nothing
             return
         self.buf += chunk
+        self.bytes_in += len(chunk)
         while True:
             packet, used = parse_packet(self.buf)
             self.buf = self.buf[used:]
@@ -139,6 +141,7 @@ class BusBridge:
 
     def _send(self, data: bytes) -> None:
         os.write(self.master, data)
+        self.bytes_out += len(data)
 
     def _answer(self, p) -> np.ndarray | None:
         if p.instruction == PING and p.id in self.known:
@@ -217,4 +220,7 @@ def serve(sim: Any, robot: RobotFile, *, baudrate: int = 1_000_000, link: str | 
         os.close(slave)
         if link is not None and os.path.islink(link):
             os.unlink(link)
-    return {"ticks": bridge.ticks, "ended": why, "outcome": outcome, "ignored": bridge.ignored}
+    # a real bus is half duplex at ``baudrate``: 10 bits a byte (start, 8 data, stop), both ways in turn
+    per_tick = (bridge.bytes_in + bridge.bytes_out) / max(bridge.ticks, 1)
+    return {"ticks": bridge.ticks, "ended": why, "outcome": outcome, "ignored": bridge.ignored,
+            "bytes_per_tick": per_tick, "wire_ms_per_tick": 1000.0 * 10 * per_tick / baudrate}

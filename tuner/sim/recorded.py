@@ -32,7 +32,9 @@ def recording(controller: Any, sim: Any, drive: Any, path: Path | None, task: st
         return
     from gaits.recording import Recorder, RecordingController, RecordingMeta
     params = getattr(drive, "params", None)
-    meta = RecordingMeta(robot=sim.robot.name, task=task, simulated=True, controller=drive.describe(),
+    # the measured joints are the simulator's servo joints (a robot without arms measures fewer than 20)
+    meta = RecordingMeta(robot=sim.robot.name, task=task, simulated=True, joints=list(sim.joint_names),
+                         controller=drive.describe(),
                          parameters={} if params is None else params.to_mapping(), surface=sim.surface.name,
                          notes=notes)
     recorder = Recorder(path, meta)

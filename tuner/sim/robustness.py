@@ -27,6 +27,7 @@ from typing import Any, Callable
 import numpy as np
 
 import gaits
+from gaits.control import WithoutReadings
 from .cache import simulator
 from .metrics import MIN_PROGRESS, planned_forward_distance, steady_tracking, summarize
 from ..process_pool import map_in_order
@@ -78,7 +79,7 @@ def _controller(sim: Simulator, drive: gaits.Drive):
 
 
 def _one(task: tuple) -> dict[str, Any]:
-    robot, surface, drive, randomisation, seed, push, record = task
+    robot, surface, drive, randomisation, seed, push, record, without = task
     sim = simulator(robot, surface)
     p = draw(randomisation.with_push(push), seed, *sim.n_random(), namespace=EVALUATE)
     path, notes = None, ""
@@ -89,7 +90,10 @@ def _one(task: tuple) -> dict[str, Any]:
         notes = (f"gait-tuner robustness: randomised walk, evaluation seed {seed[0]}, rollout {seed[1]}"
                  + (f", a {push:g} N s push" if push else ""))
     from .recorded import recording
-    with recording(_controller(sim, drive), sim, drive, path, "walk", notes) as controller:
+    controller = _controller(sim, drive)
+    if without:
+        controller = WithoutReadings(controller, without)
+    with recording(controller, sim, drive, path, "walk", notes) as controller:
         trace = sim.run(controller, perturb=p, **drive.run_options())
     m = summarize(trace)
     row = {"push": push, "seed": list(seed), "fell": m.fell, "outcome": m.outcome, "survived": m.survived,
@@ -199,16 +203,20 @@ class RobustnessReport:
 def evaluate(robot: str, surface: str, drive: gaits.Drive, *, rollouts: int, seed: int,
              randomisation: Randomisation = Randomisation(), pushes: tuple[float, ...] = DEFAULT_PUSHES,
              push_rollouts: int = 20, workers: int = 2,
-             progress: Callable[[int], None] | None = None, record: Path | None = None) -> RobustnessReport:
+             progress: Callable[[int], None] | None = None, record: Path | None = None,
+             without: tuple[str, ...] = ()) -> RobustnessReport:
     """Walk what ``drive`` asks under randomisation; see the module docstring. With ``record`` (a
-    folder) every walk is recorded there (``recorded.py``), one MCAP file per walk."""
+    folder) every walk is recorded there (``recorded.py``), one MCAP file per walk; ``without``:
+    readings the controller is not given (``gaits.control.WithoutReadings``: a robot without foot
+    sensors is ``("foot_force",)``)."""
     load_robot(robot)                       # a bad robot fails here, once, in the parent
     load_surface(surface)
     base = (robot, surface, drive, randomisation)
     rec = None if record is None else str(record)
-    tasks = [base + ((seed, i), 0.0, rec) for i in range(rollouts)]
+    without = tuple(without)
+    tasks = [base + ((seed, i), 0.0, rec, without) for i in range(rollouts)]
     for size in pushes:
-        tasks += [base + ((seed, 1_000_000 + i), float(size), rec) for i in range(push_rollouts)]
+        tasks += [base + ((seed, 1_000_000 + i), float(size), rec, without) for i in range(push_rollouts)]
     rows = map_in_order(_one, tasks, workers, progress, chunksize=4)
     plain = rows[:rollouts]
     by_push: dict[float, list] = {}
@@ -222,6 +230,16 @@ def evaluate(robot: str, surface: str, drive: gaits.Drive, *, rollouts: int, see
                             drive.describe(), tracking)
 
 
+def servo_share(trace: Any, sim: Simulator) -> float:
+    """The fastest move the controller asked of any servo, as a share of that servo's nominal speed
+    (its targets tick to tick, before the simulator's rate limit: what a servo table of the walk
+    would ask, ``robots/servo_table.check_table``). 0 for a walk of one tick."""
+    if len(trace.q_ref) < 2:
+        return 0.0
+    rate = np.abs(np.diff(trace.q_ref, axis=0)) / sim.control_period
+    return float(np.max(rate / sim.servo_speed))
+
+
 def walk_scenario(sim: Simulator, drive: gaits.Drive, stream, pushes, perturb) -> dict[str, Any]:
     """One scenario walk of ``drive`` on ``sim``: fell, pitch, tracking (``metrics.tracking``)."""
     import dataclasses
@@ -232,7 +250,7 @@ def walk_scenario(sim: Simulator, drive: gaits.Drive, stream, pushes, perturb) -
         controller = walk.controller(sim.robot, sim.control_period)
     except (gaits.ParamError, gaits.UnreachableTargetError) as exc:
         return {"fell": True, "survived": False, "outcome": "invalid", "t_fall_s": 0.0, "walked": 0.0,
-                "pitch_rms_deg": None, "invalid": str(exc),
+                "pitch_rms_deg": None, "invalid": str(exc), "servo_share": 0.0,
                 "tracking": None, "segments": [], "pushes": len(pushes)}
     trace = sim.run(controller, perturb=perturb, pushes=pushes, **walk.run_options())
     m = summarize(trace)
@@ -240,7 +258,7 @@ def walk_scenario(sim: Simulator, drive: gaits.Drive, stream, pushes, perturb) -
     tk = tracking(trace, stream, np.asarray(starts if starts is not None else []))
     return {"fell": m.fell, "survived": m.survived, "outcome": m.outcome, "t_fall_s": m.t_fall_s,
             "walked": float(trace.t[-1]) / stream.duration,
-            "pitch_rms_deg": m.pitch_rms_deg,
+            "pitch_rms_deg": m.pitch_rms_deg, "servo_share": servo_share(trace, sim),
             "tracking": {k: tk[k] for k in ("vx_rmse_mps", "vy_rmse_mps", "wz_rmse_radps", "steps")},
             "segments": tk["segments"], "pushes": len(pushes)}
 

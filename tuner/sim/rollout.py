@@ -237,6 +237,8 @@ class Simulator:
         self._q_lo = np.where(limited, jr[:, 0], -np.inf)
         self._q_hi = np.where(limited, jr[:, 1], np.inf)
         speeds = np.array([r.servos[t].speed for t in theirs])
+        #: [rad/s] each servo joint's nominal speed (``joint_names`` order; a randomisation scales the played one)
+        self.servo_speed = speeds
         self._max_step = speeds * self.control_period
         # an identified servo's latency (one queue: the largest, in whole ticks) and dead band
         self._latency = int(round(max((r.servos[t].latency for t in theirs), default=0.0) / self.control_period))
