@@ -712,3 +712,30 @@ def test_the_stabiliser_keeps_its_last_correction_when_the_imu_drops_out():
     assert np.any(tilted != 0.0)
     for m in (Measurement(0.02, imu_rpy=np.array([np.nan, 0.1, 0.0]), gyro=np.zeros(3)), Measurement(0.03)):
         assert np.array_equal(s.step(m), tilted)
+
+
+def test_servo_share_caps_every_targets_move_at_its_servos_speed():
+    """EngineParams.servo_share: no target moves faster than that share of its servo's speed (the
+    robot's, per joint); 0 leaves the targets as planned (bit for bit); a robot file's speeds serve
+    the same (the robot side)."""
+    from gaits.engine.walk import joint_speeds
+    stream = CommandStream([0.0, 2.0], [[0.25, 0, 0], [0, 0, 0]], tail=1.0)
+    speeds = joint_speeds(ROBOT)
+    assert speeds[gaits.JOINT_NAMES.index("l_knee")] == 6.5 and speeds[0] == 5.8      # MX-64 legs, MX-28 head
+
+    def walk(**kw):
+        e = engine(**kw)
+        tr = simulator(ROBOT, "rigid").run(e, commands=stream, duration=stream.duration)
+        return e, tr.q_ref
+    plain, q_plain = walk()
+    capped, q_capped = walk(servo_share=0.5)
+    cols = [gaits.JOINT_NAMES.index(j) for j in simulator(ROBOT, "rigid").joint_names]
+    rate = np.abs(np.diff(q_capped, axis=0)) / 0.01
+    assert np.all(rate <= 0.5 * speeds[cols] + 1e-9) and capped.capped > 0 and plain.capped == 0
+    assert np.max(np.abs(np.diff(q_plain, axis=0)) / 0.01 / speeds[cols]) > 0.5      # the cap did something
+    assert np.array_equal(q_plain, walk(servo_share=0.0)[1])
+
+    class File:                                           # a robot file's joints: their speeds, ours
+        leg, foot_size = ROBOT.leg, ROBOT.foot_size
+        joints = {n: type("J", (), {"speed": 3.0})() for n in gaits.JOINT_NAMES}
+    assert np.all(joint_speeds(File) == 3.0)

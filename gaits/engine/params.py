@@ -45,6 +45,9 @@ class EngineParams(GaitParams):
                                "encoders' rates and the gyro; ours); 0: the velocity is not measured")
     foot_speed: float = param(1.2, "m/s", 0.1, 10.0, "fastest swing foot the servos carry (a re-targeted "
                               "swing may not need more)")
+    servo_share: float = param(0.0, "-", 0.0, 1.0, "each tick the targets move at most this share of each "
+                               "joint's servo speed (the robot's; ours: a table the servos can play, as the "
+                               "export's servo check asks; 0: not capped, the servos limit the moves)")
     level_feet: float = param(1.0, "-", 0.0, 1.0, "share of the measured torso tilt the legs' IK takes out, "
                               "keeping the soles level in the world (0: the plan's upright pelvis)")
     tilt_filter: float = param(0.03, "s", 0.0, 1.0, "time constant of the tilt the IK uses")

@@ -46,6 +46,10 @@ class WalkEngine:
         self._sensors = np.array([[sx * L / 4, sy * Wd / 4] for sx, sy in ((1, 1), (1, -1), (-1, 1), (-1, -1))])
         self._log: list[tuple] = []
         self.shaper = CommandShaper(params, limits, gait.period, dt)
+        # the most each target may move in a tick (params.servo_share of the servo's speed; inf: not capped)
+        speeds = joint_speeds(robot)
+        self._max_move = (np.full(len(JOINT_NAMES), np.inf) if params.servo_share <= 0 or speeds is None
+                          else params.servo_share * speeds * self.dt)
         self.reset_state()
 
     # --- what the engine offers ------------------------------------------------------------
@@ -88,6 +92,8 @@ class WalkEngine:
         self.replans = 0
         self.touchdowns = 0
         self.clamped = 0
+        self.capped = 0                            # ticks whose targets were capped at the servos' speed
+        self._last_q: np.ndarray | None = None
         self.binding = {"replans": 0, "reach": 0, "sole": 0, "timing": 0, "speed": 0}   # re-plans on a limit
         self.step_starts: list[float] = []
         self.tilt = np.zeros(2)                    # filtered (roll, pitch beyond the planned lean) [rad]
@@ -101,7 +107,9 @@ class WalkEngine:
 
     def start_pose(self) -> StartPose:
         self.reset_state()
-        return StartPose(self._joints(self.com, self.feet[1], self.feet[-1])[0])
+        q = self._joints(self.com, self.feet[1], self.feet[-1])[0]
+        self._last_q = np.array(q, dtype=float)
+        return StartPose(q)
 
     def reset(self, m: Measurement) -> None:
         self.reset_state()
@@ -131,6 +139,12 @@ class WalkEngine:
         if len(self._history) > 50:
             del self._history[:-25]
         q, support, feet = self._targets()
+        if self._last_q is not None and np.isfinite(self._max_move[0]):
+            move = np.clip(q - self._last_q, -self._max_move, self._max_move)
+            if np.any(move != q - self._last_q):
+                self.capped += 1
+            q = self._last_q + move
+        self._last_q = np.array(q, dtype=float)
         est = self.estimator
         self._log.append((support, self.zmp[0], self.zmp[1], feet[1][0], feet[1][1], feet[-1][0], feet[-1][1],
                           est.position[0], est.position[1], est.velocity[0], est.velocity[1],
@@ -550,3 +564,22 @@ class WalkEngine:
             return target
         self.clamped += 1
         return hip + d * (reach / n) - R_ps[:, 2] * leg.ankle_height
+
+
+def joint_speeds(robot) -> np.ndarray | None:
+    """Each of our joints' servo speed [rad/s] (``JOINT_NAMES`` order; inf for a joint the robot
+    lacks) from a robot file (``joints``: each with ``speed``) or a simulator's robot (``joint_map``
+    and ``servos`` by its own joint names); None when the robot states no servos."""
+    out = np.full(len(JOINT_NAMES), np.inf)
+    joints = getattr(robot, "joints", None)
+    if hasattr(joints, "items") and joints and hasattr(next(iter(joints.values())), "speed"):
+        for ours, j in joints.items():
+            out[JOINT_NAMES.index(ours)] = float(j.speed)
+        return out
+    jmap, servos = getattr(robot, "joint_map", None), getattr(robot, "servos", None)
+    if not jmap or not servos:
+        return None
+    for ours, (theirs, _) in jmap.items():
+        if theirs in servos:
+            out[JOINT_NAMES.index(ours)] = float(servos[theirs].speed)
+    return out

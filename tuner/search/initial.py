@@ -47,6 +47,8 @@ KNEE_SHARE = 0.5
 REACH_MAX, SPEED_MARGIN = 0.6, 1.1
 #: the most of the knee servo's speed a swing may ask when the top speed needs short periods (ours)
 KNEE_MAX = 0.9
+#: the share of each servo's speed the engine's targets may move (``EngineParams.servo_share``; ours)
+SERVO_SHARE = 0.95
 #: the legs' kp as a multiple of the robot's toppling stiffness m g z_c (ours, see the module docstring)
 GAIN_MARGIN = 4.0
 
@@ -153,7 +155,9 @@ def initial_walk(robot: Any, robot_ref: str, surface: Any, purpose: str = "match
     except Exception as exc:  # noqa: BLE001 - the derived numbers outside TLIPFM's ranges
         raise UserError(f"robot {robot.name}: its walk model does not fit TLIPFM's ranges: {exc}") from None
     servo, servo_source = leg_gains(robot, upper + 2 * (m_t + m_c), z_c)
-    engine = None if purpose == "speed" else EngineParams(idle="step" if purpose == "push" else "stand")
+    # the engine caps its targets' moves at 95 % of each servo's speed: its tables play on the servos
+    engine = None if purpose == "speed" else EngineParams(idle="step" if purpose == "push" else "stand",
+                                                          servo_share=SERVO_SHARE)
     name = name or f"{robot.name}-{surface.name}-{purpose}"
     # timing ranges narrow enough that most draws keep t1 < t2 < period (a draw that does not is a rejected trial)
     # the shortest period searched still asks the knee at most KNEE_MAX of its speed for the start's lift
@@ -176,9 +180,9 @@ def initial_walk(robot: Any, robot_ref: str, surface: Any, purpose: str = "match
         study.update({"engine": {}, "space": space,
                       # a first study's match walks, milder than the shipped ones' and with room to fall
                       # (a trial below min_survival stops at once and teaches the sampler nothing)
-                      # servo_share: a set whose walks ask a servo for more than 95 % of its speed is
-                      # infeasible, so the export's servo table plays on the robot
-                      "scenario": {"walks": 6, "min_survival": 0.5, "servo_share": 0.95, "duration": 12.0,
+                      # servo_share: a set whose walks ask a servo for more than its speed is infeasible
+                      # (the engine caps at SERVO_SHARE; a searched engine.servo_share of 0 would not)
+                      "scenario": {"walks": 6, "min_survival": 0.5, "servo_share": 1.0, "duration": 12.0,
                                    "forward": top_speed,
                                    "backward": 0.1, "sideways": 0.05, "turn": 0.5}})
     elif purpose == "push":
