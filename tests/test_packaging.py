@@ -13,6 +13,7 @@ import shutil
 import subprocess
 import sys
 import sysconfig
+import time
 import tomllib
 import venv
 
@@ -128,7 +129,7 @@ def test_the_robot_part_installs_and_runs_its_loop_without_the_simulator(tmp_pat
     wheel = next((tmp_path / "dist").glob("gait_tuner_robot-*.whl"))
     env_dir = tmp_path / "venv"
     venv.EnvBuilder(with_pip=True).create(env_dir)
-    r = subprocess.run([str(env_dir / "bin" / "python"), "-m", "pip", "install", "-q", str(wheel)],
+    r = subprocess.run([str(env_dir / "bin" / "python"), "-m", "pip", "install", "-q", f"{wheel}[dynamixel]"],
                        capture_output=True, text=True)
     assert r.returncode == 0, r.stderr[-3000:]
     py = env_dir / "bin" / "python"
@@ -145,3 +146,22 @@ def test_the_robot_part_installs_and_runs_its_loop_without_the_simulator(tmp_pat
                        capture_output=True, text=True, cwd=tmp_path)
     assert r.returncode == 0, r.stderr[-2000:]
     assert "100 ticks" in r.stdout and "robot kidsize" in r.stdout
+    # the same loop, from that venv, walks the simulated robot through the bus another process serves
+    link = tmp_path / "bus"
+    server = subprocess.Popen([sys.executable, "-m", "tuner.cli", "bus", "serve", "--robot", "kidsize", "--surface",
+                               "carpet4", "--link", str(link)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                              text=True, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not link.exists() and server.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert link.exists(), server.communicate(timeout=5)
+        r = subprocess.run([str(env_dir / "bin" / "gait-tuner-loop"), str(ROOT / "studies" / "results" /
+                            "kidsize-engine-carpet4.yaml"), "--robot", str(robot), "--port", str(link), "--seconds",
+                            "1", "--watchdog", "300"], capture_output=True, text=True, cwd=tmp_path, timeout=300)
+        out, _ = server.communicate(timeout=120)
+    finally:
+        if server.poll() is None:
+            server.kill()
+    assert r.returncode == 0 and "walked its time" in r.stdout, r.stdout + r.stderr[-2000:]
+    assert "served" in out and "the client turned the torque off" in out, out
