@@ -177,7 +177,7 @@ def initial_walk(robot: Any, robot_ref: str, surface: Any, purpose: str = "match
         space.update({"engine.k_vel": {"low": 0.0, "high": 1.0}, "engine.replan_error": {"low": 0.03, "high": 0.15},
                       "engine.step_weight": {"low": 0.001, "high": 1.0, "log": True},
                       "engine.accel_vx": {"low": 0.2, "high": 1.5}})
-        study.update({"engine": {}, "space": space,
+        study.update({"engine": {"servo_share": SERVO_SHARE}, "space": space,
                       # a first study's match walks, milder than the shipped ones' and with room to fall
                       # (a trial below min_survival stops at once and teaches the sampler nothing)
                       # servo_share: a set whose walks ask a servo for more than its speed is infeasible
@@ -188,7 +188,8 @@ def initial_walk(robot: Any, robot_ref: str, surface: Any, purpose: str = "match
     elif purpose == "push":
         space.update({"engine.k_vel": {"low": 0.0, "high": 1.0}, "engine.replan_error": {"low": 0.03, "high": 0.15},
                       "engine.step_weight": {"low": 0.001, "high": 1.0, "log": True}})
-        study.update({"engine": {"idle": "step"}, "space": space, "challenge": {"seeds": [0, 1, 2]}})
+        study.update({"engine": {"idle": "step", "servo_share": SERVO_SHARE}, "space": space,
+                      "challenge": {"seeds": [0, 1, 2]}})
     else:
         study.update({"space": space, "speed": {"directions": {"forward": {"top": 0.3, "weight": 1.0},
                                                                "backward": {"top": 0.2, "weight": 1.0},
