@@ -73,8 +73,8 @@ def test_the_bottle_really_touches_the_robot_at_each_push(trial):
 
 
 def test_challenge_through_the_cli(gait_tuner_cmd, run_env):
-    r = run(gait_tuner_cmd, ["challenge", "push", "--params", "kidsize-omni-carpet4", "--surface", "rigid",
-                             "--step", "0.25", "--json"], run_env)
+    r = run(gait_tuner_cmd, ["challenge", "push", "--rules", "2019", "--params", "kidsize-omni-carpet4", "--surface",
+                             "rigid", "--step", "0.25", "--json"], run_env)
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
     assert out["rope_m"] == 1.5 and {"best_distance_m", "momentum_Ns", "rank", "trials"} <= set(out)
@@ -122,7 +122,7 @@ def test_a_tiny_challenge_study_end_to_end(gait_tuner_cmd, run_env, tmp_path):
         gait_tuner_cmd, run_env, tmp_path,
         "gait: tlipfm\nbase: kidsize-engine-carpet4\nsurfaces: [carpet4]\nengine: {k_vel: 0.6}\n"
         "space:\n  engine.k_vel: {low: 0.5, high: 0.9}\ntrials: 2\nenqueue: [baselines]\n"
-        "challenge: {seeds: [0, 1], start: 0.6, step: 0.3}\n", 1)
+        "challenge: {rules: 2019, seeds: [0, 1], start: 0.6, step: 0.3}\n", 1)
     assert "push distance" in said
     r = run(gait_tuner_cmd, ["trials", study, "--runs", runs, "--json"], run_env)
     assert r.returncode == 0, r.stderr
@@ -141,7 +141,7 @@ def test_a_challenge_trial_that_takes_no_push_scores_below_every_one_that_does()
     from tuner.search.objective import Evaluator
     from tuner.search.study import load_study
     spec = dataclasses.replace(load_study("kidsize-omni-carpet4"), surfaces=("rigid",), kind="challenge",
-                               settings=ChallengeSpec(seeds=(0,), start=1.4, step=0.05))
+                               settings=ChallengeSpec(seeds=(0,), start=1.4, step=0.05, rules="2019"))
     res = Evaluator(spec).evaluate(gaits.Drive.of(resolve_params("kidsize-omni-carpet4", None)))
     assert res.values == (pytest.approx(1.35),) and res.fall_constraint < 0
     assert res.per_surface["rigid"]["best_distance_m"] == [None]
@@ -160,7 +160,8 @@ def test_a_challenge_study_aggregates_the_surfaces_mean_distances(monkeypatch, a
         return {"best_distance_m": d, "momentum_Ns": None if d is None else 1.0}
     monkeypatch.setattr(ch, "challenge", fake)
     spec = dataclasses.replace(load_study("kidsize-omni-carpet4"), surfaces=("rigid", "carpet4"), kind="challenge",
-                               aggregate=aggregate, settings=ChallengeSpec(seeds=(0, 1), start=0.6, step=0.05))
+                               aggregate=aggregate, settings=ChallengeSpec(seeds=(0, 1), start=0.6, step=0.05,
+                                                                                rules="2019"))
     res = Evaluator(spec).evaluate(gaits.Drive.of(resolve_params("kidsize-omni-carpet4", None)))
     # per surface the mean over seeds: rigid (0.4 + 0.6) / 2 = 0.5; carpet4 (0.55, start - step for no
     # push, + 1.2) / 2 = 0.875; then the worst of them, or their mean
@@ -173,7 +174,13 @@ def test_a_challenge_study_aggregates_the_surfaces_mean_distances(monkeypatch, a
     ("challenge: {seeds: []}", "seeds"),
     ("challenge: {rope: 3}", "rope = 3"),
     ("challenge: {start: 1.5}", "start = 1.5"),
+    ("challenge: {start: 1.2}", "below 0.75 of the rope"),
     ("challenge: {step: 0}", "step = 0"),
+    ("challenge: {rules: 2020}", "rules = 2020: expected 2025"),
+    ("challenge: {bottle: 1}", "bottle = 1: expected 3, 5 or 10"),
+    ("challenge: {rules: 2019, bottle: 3}", "bottle and third are the 2025 rules'"),
+    ("challenge: {third: either}", "third = 'either'"),
+    ("challenge: {rope: 1.2}", "the 2025 rules' rope is 1.5 to 2 m"),
     ("challenge: {pushes: 3}", "unknown key 'pushes'"),
     ("challenge: [0, 1]", "challenge must be a mapping"),
     ("challenge: {}\nobjectives: [pitch_rms]", "remove 'objectives'"),
@@ -266,8 +273,8 @@ def test_push_by_direction_raises_d_until_a_push_time_fails(monkeypatch):
 
 
 def test_challenge_by_direction_through_the_cli(gait_tuner_cmd, run_env):
-    r = run(gait_tuner_cmd, ["challenge", "push", "--params", "kidsize-omni-carpet4", "--surface", "rigid",
-                             "--by-direction", "--directions", "90", "--step", "0.5", "--json"], run_env)
+    r = run(gait_tuner_cmd, ["challenge", "push", "--rules", "2019", "--params", "kidsize-omni-carpet4", "--surface",
+                             "rigid", "--by-direction", "--directions", "90", "--step", "0.5", "--json"], run_env)
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
     (row,) = out["by_direction"]
@@ -275,12 +282,81 @@ def test_challenge_by_direction_through_the_cli(gait_tuner_cmd, run_env):
     assert row["best_distance_m"] in (None, 0.4, 0.9, 1.4)
     if row["first_failure"] is not None:
         assert row["first_failure"]["distance_m"] == pytest.approx((row["best_distance_m"] or -0.1) + 0.5)
-    bad = run(gait_tuner_cmd, ["challenge", "push", "--params", "kidsize-omni-carpet4", "--by-direction",
-                               "--directions", "left"], run_env)
+    bad = run(gait_tuner_cmd, ["challenge", "push", "--rules", "2019", "--params", "kidsize-omni-carpet4",
+                               "--by-direction", "--directions", "left"], run_env)
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1 and "--directions" in bad.stderr
     for twice in ("0,0", "90,-270", "0,360"):
-        again = run(gait_tuner_cmd, ["challenge", "push", "--params", "kidsize-omni-carpet4", "--by-direction",
-                                     "--directions", twice], run_env)
+        again = run(gait_tuner_cmd, ["challenge", "push", "--rules", "2019", "--params", "kidsize-omni-carpet4",
+                                     "--by-direction", "--directions", twice], run_env)
         assert again.returncode == 2 and len(again.stderr.strip().splitlines()) == 1 and "given already" in again.stderr
     alone = run(gait_tuner_cmd, ["challenge", "push", "--params", "kidsize-omni-carpet4", "--directions", "90"], run_env)
     assert alone.returncode == 2 and len(alone.stderr.strip().splitlines()) == 1 and "--by-direction" in alone.stderr
+
+
+
+# --- the 2025 rules ---------------------------------------------------------------------------
+
+def test_the_2025_trial_pushes_from_the_front_from_behind_then_the_third_side():
+    from tuner.sim.challenge import PUSH_TIMES_2025, pushes_2025
+    for third, last in (("front", 180.0), ("back", 0.0)):
+        p = pushes_2025(7, 0.4, third)
+        assert all(abs(d - want) <= 10.0 for (_, d), want in zip(p, (180.0, 0.0, last)))
+        assert all(base <= t < base + 0.6 for (t, _), base in zip(p, PUSH_TIMES_2025))
+        assert all(b - a >= 4.0 for (a, _), (b, _) in zip(p, p[1:]))
+    assert pushes_2025(7, 0.4, "front") == pushes_2025(7, 0.4, "front") != pushes_2025(8, 0.4, "front")
+    with pytest.raises(ValueError):
+        pushes_2025(0, 0.4, "either")
+
+
+@pytest.mark.parametrize("t_fall, absorbed, full, partial", [
+    (None, [True, True, True], True, True),       # up to the end
+    (12.5, [True, True, False], False, True),     # fell after the third: two of three, partial
+    (7.9, [True, False, False], False, False),    # fell between the second and the third
+    (4.0, [False, False, False], False, False),   # fell after the first
+])
+def test_absorbed_pushes_and_partial_success(t_fall, absorbed, full, partial):
+    from tuner.sim import challenge as C
+    trial = {"pushes": [{"t_s": 3.2}, {"t_s": 7.8}, {"t_s": 12.3}], "t_fall_s": t_fall}
+    got = C.absorbed(trial)
+    assert got == absorbed and (sum(got) == 3) == full and (sum(got) >= 2) == partial
+
+
+def test_m_by_the_2025_formula():
+    from tuner.sim.challenge import rank_2025
+    # L 1.5 m, D 0.5 m: H = 1.5 - sqrt(2.0) = 0.0857864 m; h_c 0.25, h_i 0.25, m_B 3, m_R 5
+    H = 1.5 - math.sqrt(2.0)
+    assert rank_2025(1.5, 0.5, 3.0, 5.0, 0.25, 0.25) == pytest.approx(math.sqrt(H) / 0.25 * 0.6)
+    assert rank_2025(1.5, 0.5, 3.0, 5.0, 0.25, 0.2) == pytest.approx(math.sqrt(H) / 0.25 * 0.6 * 0.8)
+
+
+@pytest.mark.parametrize("kg", [3, 5, 10])
+def test_each_bottle_delivers_m_sqrt_2gh_at_the_robots_com_height(kg):
+    """The 2025 bottles, hung by their centre of mass: the momentum measured from the swing is m
+    sqrt(2 g H) within 4%, and the bottle's centre meets the robot at its CoM height."""
+    from tuner.sim.scene import BOTTLES
+    sim = Simulator(load_robot("kidsize"), SURFACES["carpet4"], pendulum=1.5, bottle=BOTTLES[kg])
+    drive = gaits.Drive.of(resolve_params("kidsize-engine-carpet4", None))
+    r = push_trial(sim, drive, 0.3, 0, keep_trace=True, pushes=[(3.0, 0.0)])
+    (push,) = r["pushes"]
+    assert push["measured_Ns"] == pytest.approx(kg * math.sqrt(2 * 9.81 * drop_height(1.5, 0.3)), rel=0.04)
+    assert push["pivot"][2] - 1.5 == pytest.approx(r["com_height_m"], abs=1e-9)
+    assert sim.model.body("gt/bottle").mass[0] == pytest.approx(kg) or \
+        sim.model.body_subtreemass[sim.model.body("gt/bottle").id] == pytest.approx(kg)
+
+
+def test_the_2025_challenge_through_the_cli(gait_tuner_cmd, run_env):
+    r = run(gait_tuner_cmd, ["challenge", "push", "--params", "kidsize-engine-carpet4", "--surface", "carpet4",
+                             "--step", "0.3", "--third", "back", "--json"], run_env)
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert out["rules"] == "2025" and out["bottle_kg"] == 3.0 and out["max_distance_m"] == pytest.approx(1.125)
+    assert all(t["third"] == "back" and len(t["pushes"]) <= 3 for t in out["trials"])
+    full = out["full"]
+    if full["distance_m"] is not None:
+        assert full["momentum_Ns"] == pytest.approx(3 * math.sqrt(2 * 9.81 * drop_height(1.5, full["distance_m"])))
+        assert full["M"] == pytest.approx(math.sqrt(full["drop_m"]) / out["com_height_m"] * 3 / out["robot_mass_kg"])
+    for args, words in ((["--rules", "2019", "--bottle", "5"], "--bottle is for the 2025 rules"),
+                        (["--rope", "1.2"], "the 2025 rules' rope is 1.5 to 2 m"),
+                        (["--by-direction"], "add --rules 2019")):
+        bad = run(gait_tuner_cmd, ["challenge", "push", "--params", "kidsize-engine-carpet4", *args], run_env)
+        assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1 and words in bad.stderr, bad.stderr

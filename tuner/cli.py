@@ -1212,10 +1212,18 @@ def challenge() -> None:
 @CONTROLLER_OPTION
 @robot_option()
 @surface_option("carpet4")
+@click.option("--rules", type=click.Choice(["2025", "2019"]), default="2025", show_default=True,
+              help="2025: the rules since 2025-02-13 (a 3, 5 or 10 kg bottle; pushes from the front, from behind, "
+                   "from either; partial success at two; M). 2019: the old KidSize trial (a 1 kg bottle, three "
+                   "random directions, sqrt(H) / (m H_com)), for comparison.")
+@click.option("--bottle", type=click.Choice(["3", "5", "10"]), default="3", show_default=True,
+              help="The bottle's mass [kg] (2025 rules).")
+@click.option("--third", type=click.Choice(["both", "front", "back"]), default="both", show_default=True,
+              help="2025 rules: where the third push comes from; both: each D tried with either, the worse counts.")
 @click.option("--rope", default=1.5, show_default=True, type=Span(1.0, 2.0),
-              help="Rope length L [m], fixed between 1 and 2 m by the rules (to the bottle's middle).")
+              help="Rope length L [m] to the bottle's centre of mass: 1.5-2 m by the 2025 rules, 1-2 m by 2019's.")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(0, 2**31 - 1),
-              help="Seed of the push directions.")
+              help="Seed of the pushes: their directions (2019), their timing and a few degrees of direction (2025).")
 @click.option("--step", default=0.05, show_default=True, type=Span(0.01, 0.5),
               help="How much D [m] grows from trial to trial.")
 @click.option("--by-direction", is_flag=True,
@@ -1229,14 +1237,17 @@ def challenge() -> None:
 @JSON_OPTION
 @RECORD_OPTION
 def challenge_push(params_spec: str | None, controller_file: Path | None, robot_name: str, surface_name: str,
-                   rope: float, seed: int, step: float, by_direction: bool, directions: str, stabiliser: bool | None,
-                   as_json: bool, record_dir: Path | None) -> None:
-    """The push-recovery challenge: a 1 kg pendulum released from a growing distance D.
+                   rules: str, bottle: str, third: str, rope: float, seed: int, step: float, by_direction: bool,
+                   directions: str, stabiliser: bool | None, as_json: bool, record_dir: Path | None) -> None:
+    """The push-recovery challenge: a bottle on a rope released from a growing distance D.
 
-    The robot walks in place; a trial is three pushes from random directions, fully successful
-    when it is still up after the third. D grows by --step until a trial fails; the best D, the
-    bottle's momentum at impact and the rules' rank sqrt(H) / (m_robot H_com) are reported
-    (tuner/sim/challenge.py says what is ours).
+    The robot walks in place. By the 2025 rules (the default): a 3, 5 or 10 kg bottle meets the
+    robot at its CoM height; a trial is a push from the front, one from behind and one from either
+    (--third); a push is absorbed when the robot is still up, stepping, at the next one; fully
+    successful at three, partially at two; D (at most 0.75 L) grows by --step while a trial is at
+    least partially successful; the largest D of each, the bottle's momentum at impact and M =
+    sqrt(H) / h_c * m_B / m_R * h_i / h_c are reported. --rules 2019: a 1 kg bottle, three random
+    directions, the rank sqrt(H) / (m_robot H_com). tuner/sim/challenge.py says what is ours.
     """
     import json
 
@@ -1249,8 +1260,20 @@ def challenge_push(params_spec: str | None, controller_file: Path | None, robot_
         raise UserError("give --params (a gait set) or --controller (your own)")
     if not by_direction and click.get_current_context().get_parameter_source("directions").name != "DEFAULT":
         raise UserError("--directions is for --by-direction (the rules' trial draws its directions from --seed)")
+    ctx = click.get_current_context()
+    if rules == "2019":
+        given = [o for o in ("bottle", "third") if ctx.get_parameter_source(o).name != "DEFAULT"]
+        if given:
+            raise UserError(f"--{given[0]} is for the 2025 rules (the 2019 trial has a 1 kg bottle and three random "
+                            f"directions)")
+    elif rope < 1.5:
+        raise UserError(f"--rope {rope:g}: the 2025 rules' rope is 1.5 to 2 m (1 to 2 m with --rules 2019)")
+    if rules == "2025" and by_direction:
+        raise UserError("--by-direction is an analysis of the 2019 trial's random directions: add --rules 2019")
     drive = resolve_drive(params_spec, None, stabiliser=stabiliser, controller=controller_file)
-    sim = Simulator(load_robot(robot_name), load_surface(surface_name), pendulum=rope)
+    from .sim.scene import BOTTLE_2019, BOTTLES
+    sim = Simulator(load_robot(robot_name), load_surface(surface_name), pendulum=rope,
+                    bottle=BOTTLE_2019 if rules == "2019" else BOTTLES[int(bottle)])
 
     def shown(trial: dict) -> None:
         if not as_json:
@@ -1261,6 +1284,9 @@ def challenge_push(params_spec: str | None, controller_file: Path | None, robot_
         if record_dir is not None:
             raise UserError("--record is for the rules' trial (each trial's walk one file), not --by-direction")
         _challenge_by_direction(sim, drive, directions, step, as_json)
+        return
+    if rules == "2025":
+        _challenge_2025(sim, drive, seed, step, third, as_json, record_dir)
         return
     if not as_json:
         click.echo(f"push-recovery challenge: {drive.describe()} on {sim.robot.name} / {sim.surface.name}, rope {rope:g} m")
@@ -1277,6 +1303,44 @@ def challenge_push(params_spec: str | None, controller_file: Path | None, robot_
         click.echo(f"best D {report['best_distance_m']:.2f} m: H {report['drop_m'] * 1000:.0f} mm, momentum "
                    f"{report['momentum_Ns']:.2f} N s at impact, rank {report['rank']:.3f} "
                    f"(robot {report['robot_mass_kg']:.2f} kg, CoM {report['com_height_m']:.3f} m)")
+
+
+def _challenge_2025(sim, drive, seed: int, step: float, third: str, as_json: bool, record_dir: Path | None) -> None:
+    """``challenge push`` by the 2025 rules (``challenge.challenge_2025``)."""
+    import json
+    import math
+
+    from .sim.challenge import challenge_2025
+
+    def shown(trial: dict) -> None:
+        if as_json:
+            return
+        # a push from the front: the bottle moving backward against the heading (cos < 0)
+        cells = ", ".join(f"{'front' if math.cos(math.radians(p['direction_deg'])) < 0 else 'back'} "
+                          f"{'-' if p['measured_Ns'] is None else format(p['measured_Ns'], '.2f')} N s "
+                          f"{'absorbed' if p['absorbed'] else 'not absorbed'}" for p in trial["pushes"])
+        verdict = "fully successful" if trial["success"] else "partially successful" if trial["partial"] else \
+            f"failed ({trial['reason']})"
+        click.echo(f"  D {trial['distance_m']:.2f} m, third from the {trial['third']}: {verdict} ({cells})")
+    if not as_json:
+        click.echo(f"push-recovery challenge (2025 rules): {drive.describe()} on {sim.robot.name} / {sim.surface.name}, "
+                   f"{sim.bottle.mass:g} kg bottle, rope {sim.rope:g} m, D up to {0.75 * sim.rope:.3g} m")
+    report = challenge_2025(sim, drive, seed=seed, step=step, third=third, progress=shown, record=record_dir)
+    if record_dir is not None:
+        click.echo(f"recorded {len(report['trials'])} trial(s) into {record_dir}", err=True)
+    if as_json:
+        click.echo(json.dumps({"robot": sim.robot.name, "surface": sim.surface.name, "params": drive.source,
+                               "drive": drive.describe(), **report}, indent=2, allow_nan=False))
+        return
+    for kind in ("full", "partial"):
+        f = report[kind]
+        if f["distance_m"] is None:
+            click.echo(f"{'fully' if kind == 'full' else 'partially'} successful: no D (not even the first)")
+        else:
+            click.echo(f"{'fully' if kind == 'full' else 'partially'} successful up to D {f['distance_m']:.2f} m: H "
+                       f"{f['drop_m'] * 1000:.0f} mm, {f['momentum_Ns']:.2f} N s at impact, M {f['M']:.3f}")
+    click.echo(f"  (M = sqrt(H) / h_c * m_B / m_R * h_i / h_c: h_c = h_i = {report['com_height_m']:.3f} m, m_B "
+               f"{report['bottle_kg']:g} kg, m_R {report['robot_mass_kg']:.2f} kg)")
 
 
 def _challenge_by_direction(sim, drive, directions: str, step: float, as_json: bool) -> None:

@@ -50,12 +50,15 @@ class World:
         """The study's aggregate over surfaces of a score to minimise: the worst (max) or the mean."""
         return float(max(scores) if self.aggregate_rule == "worst" else np.mean(scores))
 
-    def sims_with_pendulum(self, rope: float) -> list[Simulator]:
-        """One simulator per surface with the challenge's bottle on a rope of ``rope`` m (built on
-        first use, kept)."""
-        if rope not in self._with_pendulum:
-            self._with_pendulum[rope] = [Simulator(self.robot, sim.surface, pendulum=rope) for sim in self.sims]
-        return self._with_pendulum[rope]
+    def sims_with_pendulum(self, rope: float, bottle: Any = None) -> list[Simulator]:
+        """One simulator per surface with the challenge's ``bottle`` (default: the 2019 rules') on a
+        rope of ``rope`` m (built on first use, kept)."""
+        from ..sim.scene import BOTTLE_2019
+        bottle = bottle or BOTTLE_2019
+        if (rope, bottle) not in self._with_pendulum:
+            self._with_pendulum[(rope, bottle)] = [Simulator(self.robot, sim.surface, pendulum=rope, bottle=bottle)
+                                                   for sim in self.sims]
+        return self._with_pendulum[(rope, bottle)]
 
     def plan(self, drive: gaits.Drive) -> tuple[Any, float, float]:
         """(table, planned walking time [s], planned forward distance [m]) of what ``drive`` walks:
@@ -89,7 +92,7 @@ class World:
                 free = self._copies[id(sim)] = queue.SimpleQueue()
                 free.put(sim)
                 for _ in range(self.threads - 1):
-                    free.put(Simulator(self.robot, sim.surface, pendulum=sim.rope))
+                    free.put(Simulator(self.robot, sim.surface, pendulum=sim.rope, bottle=sim.bottle))
 
         def task(sim: Any, i: int) -> Any:
             free = self._copies[id(sim)]

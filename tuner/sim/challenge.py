@@ -33,7 +33,7 @@ from gaits import CommandStream
 
 from .recorded import recording, recording_stem
 from .rollout import Simulator
-from .scene import BOTTLE_LENGTH, BOTTLE_MASS, BOTTLE_RADIUS, PREFIX
+from .scene import BOTTLE_2019, BOTTLE_LENGTH, BOTTLE_MASS, BOTTLES, PREFIX
 
 __all__ = ["challenge", "push_trial", "push_by_direction", "drop_height", "impact_momentum", "rank", "PUSH_TIMES_S", "TRIAL_S"]
 
@@ -48,14 +48,23 @@ def drop_height(rope: float, distance: float) -> float:
     return rope - math.sqrt(max(rope * rope - distance * distance, 0.0))
 
 
-def impact_momentum(rope: float, distance: float) -> float:
+def impact_momentum(rope: float, distance: float, mass: float = BOTTLE_MASS) -> float:
     """[N s] The bottle's momentum as it meets the robot: m sqrt(2 g H) for a release from D."""
-    return BOTTLE_MASS * math.sqrt(2 * GRAVITY * drop_height(rope, distance))
+    return mass * math.sqrt(2 * GRAVITY * drop_height(rope, distance))
 
 
 def rank(rope: float, distance: float, robot_mass: float, com_height: float) -> float:
-    """The rules' rank sqrt(H) / (m_robot H_com)."""
+    """The 2019 rules' rank sqrt(H) / (m_robot H_com)."""
     return math.sqrt(drop_height(rope, distance)) / (robot_mass * com_height)
+
+
+def rank_2025(rope: float, distance: float, bottle_mass: float, robot_mass: float, com_height: float,
+              impact_height: float) -> float:
+    """The 2025 rules' M = sqrt(H) / h_c * m_B / m_R * h_i / h_c: H the bottle's drop [m], h_c the
+    robot's CoM height [m], h_i the height the bottle meets it at [m], m_B the bottle's and m_R the
+    robot's mass [kg]."""
+    return (math.sqrt(drop_height(rope, distance)) / com_height * bottle_mass / robot_mass
+            * impact_height / com_height)
 
 
 def _quarter_period(rope: float, angle: float) -> float:
@@ -93,6 +102,7 @@ def push_trial(sim: Simulator, drive: gaits.Drive, distance: float, seed: int, k
     the last."""
     m = sim.model
     rope = sim.rope
+    bottle = getattr(sim, "bottle", BOTTLE_2019)
     if pushes is None:
         rng = np.random.default_rng(np.random.SeedSequence([0xC4A1, int(seed), int(round(distance * 1000))]))
         times = PUSH_TIMES_S
@@ -125,9 +135,14 @@ def push_trial(sim: Simulator, drive: gaits.Drive, distance: float, seed: int, k
             phi = heading + rel[i]
             u = np.array([math.cos(phi), math.sin(phi)])          # the way the bottle moves
             h_com = state["com_height"]
-            z_lo, z_hi = h_com, h_com + BOTTLE_LENGTH
-            rest = torso[:2] - u * (_reach(model, data, sim, -u, z_lo, z_hi) + BOTTLE_RADIUS + GAP)
-            data.mocap_pos[mocap] = [rest[0], rest[1], h_com + BOTTLE_LENGTH / 2 + rope]
+            if bottle.centred:        # the bottle's centre of mass meets the robot's CoM height
+                z_lo, z_hi = h_com - bottle.length / 2, h_com + bottle.length / 2
+                pivot_z = h_com + rope
+            else:                     # the 2019 trial as the tool has always run it
+                z_lo, z_hi = h_com, h_com + BOTTLE_LENGTH
+                pivot_z = h_com + BOTTLE_LENGTH / 2 + rope
+            rest = torso[:2] - u * (_reach(model, data, sim, -u, z_lo, z_hi) + bottle.radius + GAP)
+            data.mocap_pos[mocap] = [rest[0], rest[1], pivot_z]
             axis = np.array([-u[1], u[0], 0.0])                     # z x u: the bottle swings back along -u
             data.qpos[qadr:qadr + 4] = [math.cos(angle0 / 2), *(axis * math.sin(angle0 / 2))]
             data.qvel[vadr:vadr + 3] = 0.0
@@ -163,7 +178,7 @@ def push_trial(sim: Simulator, drive: gaits.Drive, distance: float, seed: int, k
         quats = trace.qpos[k0:k1, qadr:qadr + 4]
         pos = np.array([rec["pivot"] + _rotate(q, np.array([0.0, 0.0, -rope])) for q in quats])
         speed = np.linalg.norm(np.diff(pos, axis=0), axis=1) / dt
-        rec["measured_Ns"] = float(BOTTLE_MASS * speed.max())
+        rec["measured_Ns"] = float(bottle.mass * speed.max())
         rec["pivot"] = [float(v) for v in rec["pivot"]]
     ok = trace.survived
     out = {"distance_m": distance, "success": ok, "reason": trace.reason, "pushes": records,
@@ -250,3 +265,102 @@ def push_by_direction(sim: Simulator, drive: gaits.Drive, *, directions: Sequenc
         if progress is not None:
             progress(row)
     return rows
+
+
+#: the 2025 trial's pushes (ours where the rules leave it open): the first from the front (the
+#: bottle moving backward, 180 deg against the heading), the second from behind (0 deg), the third
+#: from either; each at a base time plus up to a step period (0.6 s) drawn from the push seed, so
+#: that the pushes meet the walk at different points of its step, and within 10 deg of its side
+PUSH_TIMES_2025 = (3.0, 7.6, 12.2)
+FRONT, BACK = 180.0, 0.0
+THIRDS = ("both", "front", "back")
+
+
+def pushes_2025(seed: int, distance: float, third: str) -> list[tuple[float, float]]:
+    """The three pushes (time [s], direction [deg] against the heading) of a 2025 trial."""
+    if third not in ("front", "back"):
+        raise ValueError(f"third push {third!r}: expected front or back")
+    rng = np.random.default_rng(np.random.SeedSequence([0xC4A2, int(seed), int(round(distance * 1000))]))
+    jitter_t = rng.uniform(0.0, 0.6, 3)
+    jitter_d = rng.uniform(-10.0, 10.0, 3)
+    dirs = (FRONT, BACK, FRONT if third == "front" else BACK)
+    return [(t + j, d + e) for t, j, d, e in zip(PUSH_TIMES_2025, jitter_t, dirs, jitter_d)]
+
+
+def absorbed(trial: dict[str, Any]) -> list[bool]:
+    """Per push of a trial: absorbed when the robot was still up when the next push came (the last:
+    at the walk's end, 3 s after it). Ours: the rules' "a stable walking cycle in place" is read as
+    standing and stepping until then."""
+    times = [p["t_s"] for p in trial["pushes"]]
+    t_fall = trial.get("t_fall_s")
+    ends = times[1:] + [math.inf]
+    return [t_fall is None or t_fall >= end - 1e-9 for end in ends]
+
+
+def trial_2025(sim: Simulator, drive: gaits.Drive, distance: float, seed: int, third: str,
+               record: Path | None = None) -> dict[str, Any]:
+    """One 2025 trial at ``distance`` [m]: front, back, then ``third``; which pushes were absorbed,
+    fully successful (all three) or partially (two)."""
+    trial = push_trial(sim, drive, distance, seed, keep_trace=True, pushes=pushes_2025(seed, distance, third),
+                       record=record)
+    trace = trial.pop("trace")
+    trial["t_fall_s"] = float(trace.t_fall) if trace.fell else None
+    trial["third"] = third
+    got = absorbed(trial)
+    for p, ok in zip(trial["pushes"], got):
+        p["absorbed"] = ok
+    trial["absorbed"] = sum(got)
+    trial["success"] = trial["absorbed"] == 3
+    trial["partial"] = trial["absorbed"] >= 2
+    return trial
+
+
+def challenge_2025(sim: Simulator, drive: gaits.Drive, *, seed: int = 0, start: float = 0.05, step: float = 0.05,
+                   third: str = "both", progress: Callable[[dict], None] | None = None,
+                   record: Path | None = None) -> dict[str, Any]:
+    """The push-recovery challenge as the 2025 rules run it (module docstring): D raised from
+    ``start`` by ``step`` [m] up to 0.75 L while a trial is at least partially successful; with
+    ``third`` "both", each D is tried with the third push from the front and from behind and counts
+    as its worse (the referee may choose either). Returns the largest D fully and partially
+    successful with their momenta and M."""
+    if third not in THIRDS:
+        raise ValueError(f"third push {third!r}: expected one of {', '.join(THIRDS)}")
+    rope = sim.rope
+    bottle = getattr(sim, "bottle", BOTTLES[3])
+    robot_mass = float(sim.model.body_subtreemass[sim._torso])
+    trials: list[dict] = []
+    best_full = best_partial = None
+    com_height = None
+    distance = start
+    while distance <= 0.75 * rope + 1e-9:
+        d = round(distance, 4)
+        at_d = []
+        for which in (("front", "back") if third == "both" else (third,)):
+            path = None if record is None else \
+                Path(record) / f"{recording_stem(drive)}--{sim.surface.name}--D{d:.2f}-{which}.mcap"
+            trial = trial_2025(sim, drive, d, seed, which, record=path)
+            com_height = trial["com_height_m"]
+            at_d.append(trial)
+            trials.append(trial)
+            if progress is not None:
+                progress(trial)
+            if not trial["partial"]:
+                break
+        if all(t["success"] for t in at_d):
+            best_full = d
+        if all(t["partial"] for t in at_d):
+            best_partial = d
+        else:
+            break
+        distance += step
+
+    def figures(best: float | None) -> dict[str, Any]:
+        if best is None:
+            return {"distance_m": None, "momentum_Ns": None, "drop_m": None, "M": None}
+        return {"distance_m": best, "momentum_Ns": impact_momentum(rope, best, bottle.mass),
+                "drop_m": drop_height(rope, best),
+                "M": rank_2025(rope, best, bottle.mass, robot_mass, com_height, com_height)}
+    return {"rules": "2025", "rope_m": rope, "bottle_kg": bottle.mass, "third": third,
+            "max_distance_m": 0.75 * rope, "full": figures(best_full), "partial": figures(best_partial),
+            "robot_mass_kg": robot_mass, "com_height_m": com_height, "impact_height_m": com_height,
+            "trials": trials}

@@ -50,7 +50,7 @@ from .sensors import SensorReader
 from ..robots import RobotModel, SimOptions
 from .blades import BladeLayer
 from .native_gate import arm as arm_native_gate, disarm as disarm_native_gate, install as install_native_gate
-from .scene import CORNERS, IMU_SITE_POS, PREFIX, add_pendulum, build_scene, drag_gate
+from .scene import BOTTLE_2019, CORNERS, IMU_SITE_POS, PREFIX, Bottle, add_pendulum, build_scene, drag_gate
 from .surfaces import Surface
 
 __all__ = ["FallCriteria", "OUTCOMES", "Trace", "Simulator", "dead_band"]
@@ -166,9 +166,9 @@ class Simulator:
 
     def __init__(self, robot: RobotModel, surface: Surface, *, control_period: float | None = None,
                  timestep: float | None = None, fall: FallCriteria | None = None,
-                 pendulum: float | None = None, native_gate: bool = True) -> None:
-        """``pendulum`` [m]: add the push-recovery challenge's pendulum on a rope this long
-        (``scene.add_pendulum``; ``tuner/sim/challenge.py`` swings it). ``native_gate``: on a
+                 pendulum: float | None = None, bottle: Bottle = BOTTLE_2019, native_gate: bool = True) -> None:
+        """``pendulum`` [m]: add the push-recovery challenge's pendulum on a rope this long, with
+        ``bottle`` on it (``scene.add_pendulum``; ``tuner/sim/challenge.py`` swings it). ``native_gate``: on a
         contact-layer grass, gate the drag dampers in MuJoCo's step (``native_gate.py``) when the
         callback can be installed; False keeps the Python gate (the same walk to the bit, slower)."""
         self.robot = robot
@@ -184,8 +184,9 @@ class Simulator:
         self.nstep = int(round(opts.control_period / opts.timestep))
         spec, self.layout = build_scene(robot, surface)
         if pendulum is not None:
-            add_pendulum(spec, pendulum)
+            add_pendulum(spec, pendulum, bottle)
         self.rope = pendulum
+        self.bottle = bottle
         self.spec = spec
         self.model = spec.compile()
         self.data = mujoco.MjData(self.model)

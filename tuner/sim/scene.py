@@ -305,23 +305,45 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
 #: The push-recovery challenge's pendulum (RoboCup Humanoid League, technical challenges, Part A,
 #: KidSize): a 1 kg bottle with up to 1 cm of foam on a rope. Ours: a 1 L PET bottle, 8 cm across
 #: and 25 cm long, as a capsule; the foam as a soft contact (a 15 ms time constant).
-BOTTLE_MASS = 1.0          # [kg]
+BOTTLE_MASS = 1.0          # [kg] the 2019 rules' bottle
 BOTTLE_RADIUS = 0.045      # [m] the bottle (4 cm) and its foam (<= 1 cm)
 BOTTLE_LENGTH = 0.25       # [m]
 FOAM_TIMECONST = 0.015     # [s]
 
 
-def add_pendulum(spec: mujoco.MjSpec, rope: float) -> None:
+@dataclass(frozen=True)
+class Bottle:
+    """The challenge's bottle: its mass [kg], the capsule's radius (foam included) and length [m];
+    ``centred``: the rope is measured to its centre of mass (the 2025 rules; the 2019 bottle hangs
+    from its top end, as this tool has always hung it)."""
+
+    mass: float
+    radius: float
+    length: float
+    centred: bool = True
+
+
+#: the 2019 rules' 1 kg bottle, as the tool simulated it
+BOTTLE_2019 = Bottle(BOTTLE_MASS, BOTTLE_RADIUS, BOTTLE_LENGTH, centred=False)
+#: the 2025 rules' bottles (3 kg the default): water bottles of that volume, sizes ours (a capsule
+#: of 3.3, 5.1 and 10.2 litres, 1 cm of foam included in the radius)
+BOTTLES = {3: Bottle(3.0, 0.060, 0.33), 5: Bottle(5.0, 0.070, 0.38), 10: Bottle(10.0, 0.090, 0.46)}
+
+
+def add_pendulum(spec: mujoco.MjSpec, rope: float, bottle_spec: Bottle = BOTTLE_2019) -> None:
     """The challenge's pendulum in the scene: a mocap pivot (``gt/pivot``, placed before each push)
     and the bottle hanging ``rope`` [m] below it on a ball joint (``gt/rope``), the bottle's axis
-    along the rope. It touches only the robot (not the ground, its own contacts excluded)."""
+    along the rope (its centre ``rope`` below the pivot when ``centred``, else its top end). It
+    touches only the robot (not the ground, its own contacts excluded)."""
     pivot = spec.worldbody.add_body(name=PREFIX + "pivot", mocap=True, pos=[0.0, 0.0, 5.0])
     bottle = pivot.add_body(name=PREFIX + "bottle", pos=[0.0, 0.0, 0.0])
     bottle.add_joint(name=PREFIX + "rope", type=mujoco.mjtJoint.mjJNT_BALL, damping=0.0)
-    half = BOTTLE_LENGTH / 2 - BOTTLE_RADIUS
+    b = bottle_spec
+    half = b.length / 2 - b.radius
+    top = -rope + half if b.centred else -rope
     g = bottle.add_geom(name=PREFIX + "bottle", type=mujoco.mjtGeom.mjGEOM_CAPSULE,
-                        fromto=[0, 0, -rope, 0, 0, -rope - 2 * half], size=[BOTTLE_RADIUS, 0, 0],
-                        mass=BOTTLE_MASS, rgba=[0.9, 0.5, 0.1, 1.0])
+                        fromto=[0, 0, top, 0, 0, top - 2 * half], size=[b.radius, 0, 0],
+                        mass=b.mass, rgba=[0.9, 0.5, 0.1, 1.0])
     g.solref = [FOAM_TIMECONST, 1.0]
     g.contype = 2              # collides with the robot's geoms (contype 1), not with the ground planes
     g.conaffinity = 1
