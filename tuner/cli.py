@@ -1249,7 +1249,6 @@ def challenge_push(params_spec: str | None, controller_file: Path | None, robot_
     sqrt(H) / h_c * m_B / m_R * h_i / h_c are reported. --rules 2019: a 1 kg bottle, three random
     directions, the rank sqrt(H) / (m_robot H_com). tuner/sim/challenge.py says what is ours.
     """
-    import json
 
     from .robots import load_robot
     from .sim.challenge import challenge as run_challenge
@@ -1291,11 +1290,7 @@ def challenge_push(params_spec: str | None, controller_file: Path | None, robot_
     if not as_json:
         click.echo(f"push-recovery challenge: {drive.describe()} on {sim.robot.name} / {sim.surface.name}, rope {rope:g} m")
     report = run_challenge(sim, drive, seed=seed, step=step, progress=shown, record=record_dir)
-    if record_dir is not None:
-        click.echo(f"recorded {len(report['trials'])} trial(s) into {record_dir}", err=True)
-    if as_json:
-        click.echo(json.dumps({"robot": sim.robot.name, "surface": sim.surface.name, "params": drive.source,
-                               "drive": drive.describe(), **report}, indent=2, allow_nan=False))
+    if _challenge_said(sim, drive, report, record_dir, as_json):
         return
     if report["best_distance_m"] is None:
         click.echo("no trial fully successful (not even the first)")
@@ -1305,9 +1300,19 @@ def challenge_push(params_spec: str | None, controller_file: Path | None, robot_
                    f"(robot {report['robot_mass_kg']:.2f} kg, CoM {report['com_height_m']:.3f} m)")
 
 
+def _challenge_said(sim, drive, report: dict, record_dir: Path | None, as_json: bool) -> bool:
+    """Say where a challenge's trials were recorded; with ``as_json`` print the report (True: done)."""
+    import json
+    if record_dir is not None:
+        click.echo(f"recorded {len(report['trials'])} trial(s) into {record_dir}", err=True)
+    if as_json:
+        click.echo(json.dumps({"robot": sim.robot.name, "surface": sim.surface.name, "params": drive.source,
+                               "drive": drive.describe(), **report}, indent=2, allow_nan=False))
+    return as_json
+
+
 def _challenge_2025(sim, drive, seed: int, step: float, third: str, as_json: bool, record_dir: Path | None) -> None:
     """``challenge push`` by the 2025 rules (``challenge.challenge_2025``)."""
-    import json
     import math
 
     from .sim.challenge import challenge_2025
@@ -1326,11 +1331,7 @@ def _challenge_2025(sim, drive, seed: int, step: float, third: str, as_json: boo
         click.echo(f"push-recovery challenge (2025 rules): {drive.describe()} on {sim.robot.name} / {sim.surface.name}, "
                    f"{sim.bottle.mass:g} kg bottle, rope {sim.rope:g} m, D up to {0.75 * sim.rope:.3g} m")
     report = challenge_2025(sim, drive, seed=seed, step=step, third=third, progress=shown, record=record_dir)
-    if record_dir is not None:
-        click.echo(f"recorded {len(report['trials'])} trial(s) into {record_dir}", err=True)
-    if as_json:
-        click.echo(json.dumps({"robot": sim.robot.name, "surface": sim.surface.name, "params": drive.source,
-                               "drive": drive.describe(), **report}, indent=2, allow_nan=False))
+    if _challenge_said(sim, drive, report, record_dir, as_json):
         return
     for kind in ("full", "partial"):
         f = report[kind]
