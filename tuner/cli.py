@@ -1300,6 +1300,70 @@ def challenge_push(params_spec: str | None, controller_file: Path | None, robot_
                    f"(robot {report['robot_mass_kg']:.2f} kg, CoM {report['com_height_m']:.3f} m)")
 
 
+@challenge.command(name="bound")
+@robot_option()
+@surface_option("carpet4")
+@click.option("--bottle", type=click.Choice(["3", "5", "10"]), default="3", show_default=True,
+              help="The bottle's mass [kg] (2025 rules).")
+@click.option("--rope", default=1.5, show_default=True, type=Span(1.5, 2.0), help="Rope length L [m].")
+@click.option("--steps", default=3, show_default=True, type=click.IntRange(1, 4),
+              help="Steps the model may take to absorb a push.")
+@JSON_OPTION
+def challenge_bound(robot_name: str, surface_name: str, bottle: str, rope: float, steps: int, as_json: bool) -> None:
+    """The physical bound for this robot: the largest push from behind and from the front that any
+    step sequence within its limits absorbs, and the largest sustained forward speed.
+
+    A trajectory optimisation (CasADi) of the linear inverted pendulum that knows the push in
+    advance: step places and timings free, the ZMP anywhere on the sole (and within the ankle's
+    torque), steps within the reach, each swing no shorter than the hip and knee servos' torque and
+    speed allow. An upper bound within what it models; what it leaves out is said
+    (tuner/search/bound.py)."""
+    import json
+
+    from .robots import load_robot
+    from .search.bound import LEAVES_OUT, bottle_figures, leg_limits, push_bounds, speed_bound
+    from .sim.challenge import rank_2025
+    from .sim.surfaces import load_surface
+    robot = load_robot(robot_name)
+    surface = load_surface(surface_name)
+    lift = max(0.02, float(getattr(surface, "layer_height", 0.0)) + 0.01)
+    lim = leg_limits(robot, lift)
+    m_b = float(bottle)
+    pushes = push_bounds(lim, steps)
+    out: dict = {"robot": robot.name, "surface": surface.name, "bottle_kg": m_b, "rope_m": rope,
+                 "model": {"mass_kg": lim.mass, "z_c_m": lim.z_c, "zmp_front_m": lim.zmp_front(),
+                           "zmp_back_m": lim.zmp_back(), "reach_m": lim.reach, "lift_m": lift,
+                           "hip_speed_radps": lim.hip_speed, "knee_speed_radps": lim.knee_speed},
+                 "leaves_out": list(LEAVES_OUT)}
+    for side, b in pushes.items():
+        fig = bottle_figures(b["delta_v_mps"], m_b, lim.mass, rope)
+        d = fig["distance_m"]
+        within = d is not None and d <= 0.75 * rope
+        fig["within_rules"] = within
+        fig["M"] = rank_2025(rope, d, m_b, lim.mass, lim.z_c, lim.z_c) if within else None
+        out[side] = {**b, **fig}
+    out["speed"] = speed_bound(lim)
+    if as_json:
+        click.echo(json.dumps(out, indent=2, allow_nan=False))
+        return
+    click.echo(f"bound for {robot.name} on {surface.name} (an upper bound of the LIPM within the servos' limits, "
+               f"{steps} step(s) at most; {lim.mass:.2f} kg, z_c {lim.z_c:.3f} m, ZMP {lim.zmp_back() * 1000:.0f} mm "
+               f"back / {lim.zmp_front() * 1000:.0f} mm ahead, reach {lim.reach * 1000:.0f} mm, lift {lift * 1000:.0f} mm)")
+    for side, label in (("from_behind", "from behind"), ("from_the_front", "from the front")):
+        r = out[side]
+        where = (f"D {r['distance_m']:.2f} m" + ("" if r["within_rules"] else f" (beyond the rules' 0.75 L = "
+                                                                               f"{0.75 * rope:.2f} m)")
+                 if r["distance_m"] is not None else "no release reaches it")
+        click.echo(f"  a push {label}: Delta v {r['delta_v_mps']:.2f} m/s, a {m_b:g} kg bottle's "
+                   f"{r['momentum_Ns']:.2f} N s, {where}" + (f", M {r['M']:.3f}" if r["M"] is not None else "")
+                   + "; steps " + ", ".join(f"{p['step_m'] * 1000:.0f} mm in {p['swing_s']:.3f} s"
+                                               for p in r["plan"]))
+    sp = out["speed"]
+    click.echo(f"  forward speed: {sp['speed_mps']:.2f} m/s (steps of {sp['step_m'] * 1000:.0f} mm every "
+               f"{sp['period_s']:.3f} s), Froude number {sp['froude']:.2f}")
+    click.echo("  left out (so an upper bound only within it): " + "; ".join(LEAVES_OUT))
+
+
 def _challenge_said(sim, drive, report: dict, record_dir: Path | None, as_json: bool) -> bool:
     """Say where a challenge's trials were recorded; with ``as_json`` print the report (True: done)."""
     import json

@@ -1,0 +1,94 @@
+"""The push-recovery challenge's physical bound (tuner/search/bound.py, `challenge bound`): the
+trajectory optimisation against the closed-form one-step capture region, and what it reports."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import subprocess
+
+import numpy as np
+import pytest
+
+from tuner.robots import load_robot
+from tuner.search.bound import (LegLimits, bottle_figures, leg_limits, lipm_phase_function, one_step_capture,
+                                push_bound, speed_bound, swing_time)
+
+LIM = LegLimits(mass=5.0, z_c=0.25, sole_front=0.06, sole_back=0.04, reach=0.16, leg=0.19, thigh=0.11, shank=0.11,
+                crouch_height=0.19, hip_speed=6.0, knee_speed=6.0, ankle_torque=10.0, knee_torque=6.0, lift=0.02)
+
+
+def test_the_lipm_block_is_the_pendulums_closed_form():
+    f = lipm_phase_function()
+    w = math.sqrt(9.81 / 0.25)
+    x1, v1 = (float(v) for v in f(0.01, 0.3, 0.05, 0.2, w))
+    c, s = math.cosh(w * 0.2), math.sinh(w * 0.2)
+    assert x1 == pytest.approx(0.05 + (0.01 - 0.05) * c + 0.3 / w * s, abs=1e-12)
+    assert v1 == pytest.approx((0.01 - 0.05) * w * s + 0.3 * c, abs=1e-12)
+
+
+@pytest.mark.parametrize("lim", [LIM, dataclasses.replace(LIM, hip_speed=2.0, reach=0.2),
+                                 dataclasses.replace(LIM, knee_speed=20.0, lift=0.01, leg_inertia=0.03,
+                                                     hip_torque=4.0)])
+def test_one_step_is_the_closed_form_capture_region(lim):
+    """One step: the optimisation's largest Delta v is omega (b + l e^{-omega T_s(l)}) maximised
+    over the step length l, computed by hand on a grid (1e-4 m/s: the grid's spacing)."""
+    w = math.sqrt(9.81 / lim.z_c)
+    by_hand = max(w * (min(lim.sole_front, lim.ankle_torque / (lim.mass * 9.81)) + l * math.exp(-w * swing_time(lim, l)))
+                  for l in np.linspace(0, lim.reach, 4001))
+    got = push_bound(lim, 1)
+    assert got["delta_v_mps"] == pytest.approx(by_hand, abs=1e-4)
+    assert got["one_step_closed_form_mps"] == pytest.approx(by_hand, abs=1e-4)
+    (phase,) = got["plan"]
+    assert phase["zmp_m"] == pytest.approx(lim.zmp_front(), abs=1e-6)         # the ZMP on the sole's edge
+
+
+def test_more_steps_absorb_more_and_the_ankle_torque_can_bind():
+    one, two, three = (push_bound(LIM, n)["delta_v_mps"] for n in (1, 2, 3))
+    assert one < two < three < one * 2
+    weak = dataclasses.replace(LIM, ankle_torque=1.0)                          # 1 / (5 g) = 20 mm < the sole's 60
+    assert weak.zmp_front() == pytest.approx(1.0 / (5.0 * 9.81))
+    assert push_bound(weak, 1)["delta_v_mps"] < one
+
+
+def test_the_swing_time_is_the_servos_and_the_speed_bound_its_step_over_it():
+    # no inertia given: each joint at its servo's speed from the start; by hand, the law of cosines
+    def knee(h):
+        return math.pi - math.acos((0.11 ** 2 * 2 - h * h) / (2 * 0.11 * 0.11))
+    hip = 2 * math.asin(0.16 / (2 * 0.19)) / 6.0
+    lift = 2 * (knee(0.19 - 0.02) - knee(0.19)) / 6.0
+    assert swing_time(LIM, 0.16) == pytest.approx(max(hip, lift))
+    assert swing_time(LIM, 0.0) == pytest.approx(lift)
+    sp = speed_bound(LIM)
+    assert sp["speed_mps"] == pytest.approx(sp["step_m"] / sp["period_s"])
+    assert sp["froude"] == pytest.approx(sp["speed_mps"] ** 2 / (9.81 * 0.25))
+    assert speed_bound(dataclasses.replace(LIM, hip_speed=3.0))["speed_mps"] < sp["speed_mps"]
+
+
+def test_bottle_figures_invert_the_drop():
+    f = bottle_figures(0.5, 3.0, 5.0, 1.5)
+    assert f["momentum_Ns"] == pytest.approx(4.0)
+    assert f["drop_m"] == pytest.approx((4.0 / 3.0) ** 2 / (2 * 9.81))
+    assert f["distance_m"] == pytest.approx(math.sqrt(1.5 ** 2 - (1.5 - f["drop_m"]) ** 2))
+    assert bottle_figures(20.0, 3.0, 5.0, 1.5)["distance_m"] is None
+
+
+def test_a_robots_limits_come_from_its_model():
+    lim = leg_limits(load_robot("kidsize"), 0.02)
+    assert lim.mass == pytest.approx(4.95) and lim.hip_speed == 6.5 and lim.ankle_torque == 6.0
+    assert lim.sole_front + lim.sole_back == pytest.approx(0.10) and lim.reach == pytest.approx(0.8 * 0.22)
+    assert lim.leg_inertia > lim.shank_inertia > 0
+
+
+def test_challenge_bound_through_the_cli(gait_tuner_cmd, run_env):
+    r = subprocess.run(gait_tuner_cmd + ["challenge", "bound", "--surface", "grass30", "--steps", "2", "--json"],
+                       capture_output=True, text=True, env=run_env)
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert out["model"]["lift_m"] == pytest.approx(0.04) and out["bottle_kg"] == 3.0
+    for side in ("from_behind", "from_the_front"):
+        b = out[side]
+        assert len(b["plan"]) == 2 and b["delta_v_mps"] >= b["one_step_closed_form_mps"] - 1e-6
+        assert b["momentum_Ns"] == pytest.approx((3.0 + out["model"]["mass_kg"]) * b["delta_v_mps"])
+    assert out["speed"]["froude"] > 0 and out["leaves_out"]

@@ -1,0 +1,256 @@
+"""The physical bound of the push-recovery challenge and of forward speed for a robot (ours):
+``gait-tuner challenge bound``.
+
+A reduced model that knows the push in advance and is given every benefit of the doubt, so that
+what it cannot absorb no controller on this robot can (an upper bound, within what it models):
+
+* **The body**: the linear inverted pendulum (LIPM) of the robot's CoM at its walking height z_c
+  (``omega = sqrt(g / z_c)``), its whole mass; no angular momentum (no upper-body swing, no
+  flywheel: a robot that windmills its arms could do a little more, which the bound leaves out).
+* **The push**: the bottle meets the robot inelastically (the foam: restitution 0), so the CoM
+  takes Delta v = p_B / (m_B + m_R), the least of any restitution. The robot stands on one foot with
+  the CoM over it, in the middle of stepping in place, ready to step at once.
+* **The feet**: the ZMP anywhere on the support sole (the sole's front and back edges from the
+  ankle, ``robot.soles``/``foot_size``), and no further than the ankle's servo torque carries the
+  whole weight (tau / (m g)). Each step lands within ``reach`` (thigh + shank times the reach
+  ratio, as the engine's ``reach_forward``, default 0.8, the parameter's range's top) and takes
+  at least the swing time the leg's servos allow: the hip pitch turning the leg through the step,
+  the knee bending to lift the foot by ``lift`` and straightening, each bang-bang at its servo's
+  stall torque (the leg as point masses, the servo's armature added) and no-load speed (gravity
+  and the torque-speed droop left out: shorter than any real swing). Double support is
+  instantaneous.
+* **Captured**: after the last step the capture point lies on the last sole (the robot can then
+  stop over it).
+
+The trajectory optimisation (CasADi, IPOPT): decision variables the push's Delta v (maximised),
+each phase's duration and constant ZMP, each step's place; the LIPM integrated exactly per phase
+(the named block ``lipm_phase``). The closed form it is tested against: one step, ZMP at the
+sole's edge, Delta v_max = omega (b + l e^{-omega T_s(l)}) (Koolen et al. 2012, capturability,
+with a finite sole), the best step length l up to the reach.
+
+Forward speed: a periodic LIPM gait's speed is step / period; the step at most ``reach`` long,
+the period at least the swing time of that step; the largest of step / swing_time(step) over
+steps up to the reach, with its Froude number v^2 / (g z_c). What it leaves out (``LEAVES_OUT``,
+said with every bound): the friction and the turf (a rigid floor: the turf slows the swing),
+the stance knee's torque under load.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+__all__ = ["LegLimits", "leg_limits", "lipm_phase_function", "one_step_capture", "push_bound", "push_bounds",
+           "speed_bound", "swing_time", "bottle_figures", "LEAVES_OUT"]
+
+#: what the model leaves out, said with every bound
+LEAVES_OUT = ("angular momentum (arm or trunk swing, a flywheel)", "friction and the turf (a rigid floor)",
+              "the servos' torque-speed droop and gravity on the swing leg", "double support's duration",
+              "the stance knee's torque under load", "the bottle's bounce (inelastic)")
+
+GRAVITY = 9.81
+
+
+@dataclass(frozen=True)
+class LegLimits:
+    """What the bound takes of a robot (SI units)."""
+
+    mass: float               # [kg] the whole robot
+    z_c: float                # [m] CoM height walking
+    sole_front: float         # [m] the sole's front edge ahead of the ankle
+    sole_back: float          # [m] its back edge behind the ankle
+    reach: float              # [m] the longest step, forward or backward
+    leg: float                # [m] hip to ankle at the crouch
+    thigh: float              # [m]
+    shank: float              # [m]
+    crouch_height: float      # [m] hip to ankle height at the walking crouch
+    hip_speed: float          # [rad/s] hip pitch servo
+    knee_speed: float         # [rad/s] knee servo
+    ankle_torque: float       # [N m] ankle pitch servo
+    knee_torque: float        # [N m] knee servo
+    lift: float               # [m] the swing foot's lift
+    hip_torque: float = math.inf      # [N m] hip pitch servo
+    leg_inertia: float = 0.0          # [kg m^2] the swing leg about the hip pitch axis (its servo's armature in)
+    shank_inertia: float = 0.0        # [kg m^2] the shank and foot about the knee (its armature in)
+
+    @property
+    def omega(self) -> float:
+        return math.sqrt(GRAVITY / self.z_c)
+
+    def zmp_front(self) -> float:
+        """[m] the furthest ZMP ahead of the ankle: the sole's edge, or what the ankle's torque carries."""
+        return min(self.sole_front, self.ankle_torque / (self.mass * GRAVITY))
+
+    def zmp_back(self) -> float:
+        return min(self.sole_back, self.ankle_torque / (self.mass * GRAVITY))
+
+
+def _knee_angle(height: float, thigh: float, shank: float) -> float:
+    """The knee's bend [rad] that puts the ankle ``height`` below the hip (law of cosines)."""
+    c = (thigh * thigh + shank * shank - height * height) / (2 * thigh * shank)
+    return math.pi - math.acos(max(-1.0, min(1.0, c)))
+
+
+def _move_time(angle: Any, speed: float, torque: float, inertia: float) -> Any:
+    """[s] The shortest move through ``angle`` [rad] from rest to rest: full torque (acceleration
+    torque / inertia) then full speed, bang-bang (gravity and the servo's torque-speed droop left
+    out: shorter than any real move). Works on numbers and CasADi expressions."""
+    if inertia <= 0 or not math.isfinite(torque):
+        return angle / speed
+    acc = torque / inertia
+    reach_top = speed * speed / acc                  # the angle at which full speed is reached and left
+    short = 2 * ca.sqrt(angle / acc) if isinstance(angle, (ca.SX, ca.MX)) else 2 * math.sqrt(angle / acc)
+    long = angle / speed + speed / acc
+    if isinstance(angle, (ca.SX, ca.MX)):
+        return ca.if_else(angle <= reach_top, short, long)
+    return short if angle <= reach_top else long
+
+
+def _hip_turn(lim: LegLimits, step: Any) -> Any:
+    """[rad] the swing leg's turn for a step: from half a step behind the hip to half a step ahead."""
+    if isinstance(step, (ca.SX, ca.MX)):
+        return 2 * ca.asin(ca.fmin(ca.fmax(step, 0.0) / (2 * lim.leg), 0.999))
+    return 2 * math.asin(min(abs(step) / (2 * lim.leg), 0.999))
+
+
+def _knee_bend(lim: LegLimits) -> float:
+    return _knee_angle(lim.crouch_height - lim.lift, lim.thigh, lim.shank) - \
+        _knee_angle(lim.crouch_height, lim.thigh, lim.shank)
+
+
+def swing_time(lim: LegLimits, step: Any) -> Any:
+    """[s] The shortest swing of a step ``step`` [m] long: the hip pitch turns the leg through the
+    step (``_hip_turn``), while the knee bends to lift the foot ``lift`` and straightens again, each
+    at its servo's torque and speed (``_move_time``); whichever takes longer."""
+    hip = _move_time(_hip_turn(lim, step), lim.hip_speed, lim.hip_torque, lim.leg_inertia)
+    knee = 2 * _move_time(_knee_bend(lim), lim.knee_speed, lim.knee_torque, lim.shank_inertia)
+    if isinstance(hip, (ca.SX, ca.MX)):
+        return ca.fmax(hip, knee)
+    return max(hip, knee, 1e-3)
+
+
+def lipm_phase_function() -> ca.Function:
+    """Named block ``lipm_phase``: (x0, v0, p, t, omega) -> (x1, v1), the LIPM with its ZMP held at p
+    for t seconds, exactly (x - p)'' = omega^2 (x - p)."""
+    x0, v0, p, t, w = (ca.SX.sym(n) for n in ("x0", "v0", "p", "t", "omega"))
+    c, s = ca.cosh(w * t), ca.sinh(w * t)
+    x1 = p + (x0 - p) * c + v0 / w * s
+    v1 = (x0 - p) * w * s + v0 * c
+    return ca.Function("lipm_phase", [x0, v0, p, t, w], [x1, v1], ["x0", "v0", "p", "t", "omega"], ["x1", "v1"])
+
+
+def one_step_capture(lim: LegLimits, step: float | None = None) -> float:
+    """The closed form [m/s]: the largest Delta v one step of length ``step`` absorbs, the ZMP at the
+    sole's edge b through the shortest swing T_s(step), captured on the new sole's edge:
+    omega (b + step e^{-omega T_s}). Without ``step``: the best step up to the reach (a dense grid)."""
+    w = lim.omega
+    if step is not None:
+        return w * (lim.zmp_front() + step * math.exp(-w * swing_time(lim, step)))
+    return max(one_step_capture(lim, s) for s in np.linspace(0.0, lim.reach, 2001))
+
+
+def push_bound(lim: LegLimits, steps: int = 3) -> dict[str, Any]:
+    """The largest forward Delta v [m/s] the LIPM absorbs with up to ``steps`` steps (trajectory
+    optimisation; a push from behind: backward is the same with the sole's back edge, see
+    :func:`push_bounds`), the plan that does it, and the closed form for one step beside it."""
+    phase = lipm_phase_function()
+    opti = ca.Opti()
+    dv = opti.variable()
+    w = lim.omega
+    x, v = 0.0, dv                     # the CoM over the stance ankle, pushed
+    foot = 0.0
+    front, back = lim.zmp_front(), lim.zmp_back()
+    plan = []
+    guess_foot = 0.0
+    for i in range(steps):
+        t = opti.variable()
+        p = opti.variable()
+        step = opti.variable()
+        opti.subject_to(opti.bounded(foot - back, p, foot + front))
+        opti.subject_to(opti.bounded(0.0, step, lim.reach))
+        # the swing's hip turn through the step and the knee's lift, at the servos' torque and speed
+        hip = _move_time(_hip_turn(lim, step), lim.hip_speed, lim.hip_torque, lim.leg_inertia)
+        opti.subject_to(t >= hip)
+        opti.subject_to(t >= 2 * _move_time(_knee_bend(lim), lim.knee_speed, lim.knee_torque, lim.shank_inertia))
+        opti.subject_to(t <= 3.0)
+        x, v = phase(x, v, p, t, w)
+        foot = foot + step
+        plan.append((t, p, step))
+        opti.set_initial(t, swing_time(lim, lim.reach))
+        opti.set_initial(p, guess_foot + front)
+        opti.set_initial(step, lim.reach)
+        guess_foot += lim.reach
+    # captured: the capture point on the last sole
+    opti.subject_to(x + v / w <= foot + front)
+    opti.subject_to(dv >= 0)
+    opti.minimize(-dv)
+    opti.set_initial(dv, one_step_capture(lim))
+    opti.solver("ipopt", {"print_time": False}, {"print_level": 0, "sb": "yes", "max_iter": 500, "tol": 1e-10})
+    try:
+        sol = opti.solve()
+    except RuntimeError as exc:                       # pragma: no cover - the problem is always feasible (dv = 0)
+        raise RuntimeError(f"the bound's optimisation did not converge: {exc}") from None
+    return {"delta_v_mps": float(sol.value(dv)), "steps": steps,
+            "plan": [{"swing_s": float(sol.value(t)), "zmp_m": float(sol.value(p)), "step_m": float(sol.value(s))}
+                     for t, p, s in plan],
+            "one_step_closed_form_mps": one_step_capture(lim)}
+
+
+def push_bounds(lim: LegLimits, steps: int = 3) -> dict[str, Any]:
+    """From behind (the robot pushed forward) and from the front (pushed backward): the backward
+    case is the forward one with the sole's back edge in front."""
+    import dataclasses
+    behind = push_bound(lim, steps)
+    mirrored = dataclasses.replace(lim, sole_front=lim.sole_back, sole_back=lim.sole_front)
+    front = push_bound(mirrored, steps)
+    return {"from_behind": behind, "from_the_front": front}
+
+
+def speed_bound(lim: LegLimits) -> dict[str, Any]:
+    """The largest sustained forward speed [m/s]: step / swing_time(step) over steps up to the
+    reach (a periodic LIPM gait with instantaneous double support), and its Froude number."""
+    steps = np.linspace(lim.reach / 200, lim.reach, 200)
+    speeds = np.array([s / swing_time(lim, s) for s in steps])
+    k = int(np.argmax(speeds))
+    v = float(speeds[k])
+    return {"speed_mps": v, "step_m": float(steps[k]), "period_s": float(swing_time(lim, steps[k])),
+            "froude": v * v / (GRAVITY * lim.z_c)}
+
+
+def leg_limits(robot: Any, lift: float, reach_ratio: float = 0.8) -> LegLimits:
+    """The bound's numbers of a loaded robot (``tuner.robots.load_robot``): mass, walking CoM height,
+    soles, legs at the crouch, the leg servos' speed and torque."""
+    from ..robots.mjcf_geometry import CROUCH
+    model = robot.model()
+    mass = float(np.sum(model.body_mass))
+    leg = robot.leg
+    z_c = CROUCH * leg.max_hip_height + leg.hip_offset_z + leg.com_above_pelvis
+    length = float(robot.foot_size[0])
+    centre = float(getattr(leg, "sole_forward", 0.0))
+    servo = {k: robot.servos[robot.joint_map[f"l_{k}"][0]] for k in ("hip_pitch", "knee", "ankle_pitch")}
+    crouch = CROUCH * (leg.thigh + leg.shank)
+    from .initial import leg_masses
+    _, m_thigh, m_calf, _ = leg_masses(robot)
+    # point masses (ours): the thigh's at its middle, the calf and foot's at the shank's middle
+    shank_inertia = m_calf * (leg.shank / 2) ** 2 + servo["knee"].armature
+    leg_inertia = (m_thigh * (leg.thigh / 2) ** 2 + m_calf * (leg.thigh + leg.shank / 2) ** 2
+                   + servo["hip_pitch"].armature)
+    return LegLimits(mass=mass, z_c=z_c, sole_front=length / 2 + centre, sole_back=length / 2 - centre,
+                     reach=reach_ratio * (leg.thigh + leg.shank), leg=crouch, thigh=leg.thigh, shank=leg.shank,
+                     crouch_height=crouch, hip_speed=servo["hip_pitch"].speed, knee_speed=servo["knee"].speed,
+                     ankle_torque=servo["ankle_pitch"].torque, knee_torque=servo["knee"].torque, lift=lift,
+                     hip_torque=servo["hip_pitch"].torque, leg_inertia=leg_inertia, shank_inertia=shank_inertia)
+
+
+def bottle_figures(delta_v: float, bottle_mass: float, robot_mass: float, rope: float) -> dict[str, float | None]:
+    """What a Delta v [m/s] absorbed means in the challenge: the bottle's momentum at impact (an
+    inelastic meeting: p_B = (m_B + m_R) Delta v), its drop H = (p_B / m_B)^2 / (2 g) and the release
+    distance D = sqrt(L^2 - (L - H)^2) (None when H exceeds the rope: no release reaches it)."""
+    momentum = (bottle_mass + robot_mass) * delta_v
+    drop = (momentum / bottle_mass) ** 2 / (2 * GRAVITY)
+    distance = math.sqrt(rope * rope - (rope - drop) ** 2) if drop <= rope else None
+    return {"momentum_Ns": momentum, "drop_m": drop, "distance_m": distance}
