@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from tuner.robots import load_robot
-from tuner.search.bound import (LegLimits, bottle_figures, leg_limits, lipm_phase_function, one_step_capture,
+from tuner.search.bound import (LegLimits, bottle_figures, leg_limits, lipm_phase_function,
                                 push_bound, speed_bound, swing_time)
 
 LIM = LegLimits(mass=5.0, z_c=0.25, sole_front=0.06, sole_back=0.04, reach=0.16, leg=0.19, thigh=0.11, shank=0.11,
