@@ -15,10 +15,10 @@ what it cannot absorb no controller on this robot can (an upper bound, within wh
   whole weight (tau / (m g)). Each step lands within ``reach`` (thigh + shank times the reach
   ratio, as the engine's ``reach_forward``, default 0.8, the parameter's range's top) and takes
   at least the swing time the leg's servos allow: the hip pitch turning the leg through the step,
-  the knee bending to lift the foot by ``lift`` and straightening, each bang-bang at its servo's
-  stall torque (the leg as point masses, the servo's armature added) and no-load speed (gravity
-  and the torque-speed droop left out: shorter than any real swing). Double support is
-  instantaneous.
+  the knee bending to lift the foot by ``lift`` and straightening, each no faster than its servo's
+  no-load speed and its stall torque allow (the leg as point masses, the servo's armature added;
+  ``_move_bounds``: gravity and the torque-speed droop left out, shorter than any real swing). Double
+  support is instantaneous.
 * **Captured**: after the last step the capture point lies on the last sole (the robot can then
   stop over it).
 
@@ -95,26 +95,25 @@ def _knee_angle(height: float, thigh: float, shank: float) -> float:
     return math.pi - math.acos(max(-1.0, min(1.0, c)))
 
 
-def _move_time(angle: Any, speed: float, torque: float, inertia: float) -> Any:
-    """[s] The shortest move through ``angle`` [rad] from rest to rest: full torque (acceleration
-    torque / inertia) then full speed, bang-bang (gravity and the servo's torque-speed droop left
-    out: shorter than any real move). Works on numbers and CasADi expressions."""
-    if inertia <= 0 or not math.isfinite(torque):
-        return angle / speed
-    acc = torque / inertia
-    reach_top = speed * speed / acc                  # the angle at which full speed is reached and left
-    short = 2 * ca.sqrt(angle / acc) if isinstance(angle, (ca.SX, ca.MX)) else 2 * math.sqrt(angle / acc)
-    long = angle / speed + speed / acc
-    if isinstance(angle, (ca.SX, ca.MX)):
-        return ca.if_else(angle <= reach_top, short, long)
-    return short if angle <= reach_top else long
+def _move_bounds(angle: Any, speed: float, torque: float, inertia: float) -> list[Any]:
+    """Lower bounds [s] of the shortest move through ``angle`` [rad] from rest to rest: no shorter
+    than at full speed throughout (angle / speed), nor than at full torque throughout (bang-bang
+    accelerate-decelerate, 2 sqrt(angle / (torque / inertia))). The true shortest move (ramps at
+    full torque, then full speed) is longer than both, so the bound stays an upper bound, a little
+    looser, and each term is smooth for the optimiser. Gravity and the servo's torque-speed droop
+    are left out. Works on numbers and CasADi expressions."""
+    sqrt = ca.sqrt if isinstance(angle, (ca.SX, ca.MX)) else math.sqrt
+    out = [angle / speed]
+    if inertia > 0 and math.isfinite(torque):
+        out.append(2 * sqrt(angle * inertia / torque + 1e-12))
+    return out
 
 
 def _hip_turn(lim: LegLimits, step: Any) -> Any:
-    """[rad] the swing leg's turn for a step: from half a step behind the hip to half a step ahead."""
-    if isinstance(step, (ca.SX, ca.MX)):
-        return 2 * ca.asin(ca.fmin(ca.fmax(step, 0.0) / (2 * lim.leg), 0.999))
-    return 2 * math.asin(min(abs(step) / (2 * lim.leg), 0.999))
+    """[rad] the swing leg's turn for a step: from half a step behind the hip to half a step ahead
+    (a step stays under the reach, well below twice the leg, so the arcsine is defined)."""
+    asin = ca.asin if isinstance(step, (ca.SX, ca.MX)) else math.asin
+    return 2 * asin(step / (2 * lim.leg))
 
 
 def _knee_bend(lim: LegLimits) -> float:
@@ -122,15 +121,17 @@ def _knee_bend(lim: LegLimits) -> float:
         _knee_angle(lim.crouch_height, lim.thigh, lim.shank)
 
 
-def swing_time(lim: LegLimits, step: Any) -> Any:
-    """[s] The shortest swing of a step ``step`` [m] long: the hip pitch turns the leg through the
-    step (``_hip_turn``), while the knee bends to lift the foot ``lift`` and straightens again, each
-    at its servo's torque and speed (``_move_time``); whichever takes longer."""
-    hip = _move_time(_hip_turn(lim, step), lim.hip_speed, lim.hip_torque, lim.leg_inertia)
-    knee = 2 * _move_time(_knee_bend(lim), lim.knee_speed, lim.knee_torque, lim.shank_inertia)
-    if isinstance(hip, (ca.SX, ca.MX)):
-        return ca.fmax(hip, knee)
-    return max(hip, knee, 1e-3)
+def _swing_bounds(lim: LegLimits, step: Any) -> list[Any]:
+    """Lower bounds [s] of a swing ``step`` [m] long: the hip pitch turning the leg through the step
+    (``_hip_turn``) and the knee bending to lift the foot ``lift`` then straightening (two moves),
+    each at its servo's torque and speed (``_move_bounds``)."""
+    knee = [2 * b for b in _move_bounds(_knee_bend(lim), lim.knee_speed, lim.knee_torque, lim.shank_inertia)]
+    return _move_bounds(_hip_turn(lim, step), lim.hip_speed, lim.hip_torque, lim.leg_inertia) + knee
+
+
+def swing_time(lim: LegLimits, step: float) -> float:
+    """[s] The shortest swing of a step ``step`` [m] long: the largest of ``_swing_bounds``."""
+    return max(max(_swing_bounds(lim, abs(step))), 1e-3)
 
 
 def lipm_phase_function() -> ca.Function:
@@ -173,10 +174,9 @@ def push_bound(lim: LegLimits, steps: int = 3) -> dict[str, Any]:
         opti.subject_to(opti.bounded(foot - back, p, foot + front))
         opti.subject_to(opti.bounded(0.0, step, lim.reach))
         # the swing's hip turn through the step and the knee's lift, at the servos' torque and speed
-        hip = _move_time(_hip_turn(lim, step), lim.hip_speed, lim.hip_torque, lim.leg_inertia)
-        opti.subject_to(t >= hip)
-        opti.subject_to(t >= 2 * _move_time(_knee_bend(lim), lim.knee_speed, lim.knee_torque, lim.shank_inertia))
-        opti.subject_to(t <= 3.0)
+        for low in _swing_bounds(lim, step):
+            opti.subject_to(t >= low)
+        opti.subject_to(t <= 1.0)                 # a longer swing never helps (and e^{omega t} conditions badly)
         x, v = phase(x, v, p, t, w)
         foot = foot + step
         plan.append((t, p, step))
@@ -189,7 +189,7 @@ def push_bound(lim: LegLimits, steps: int = 3) -> dict[str, Any]:
     opti.subject_to(dv >= 0)
     opti.minimize(-dv)
     opti.set_initial(dv, one_step_capture(lim))
-    opti.solver("ipopt", {"print_time": False}, {"print_level": 0, "sb": "yes", "max_iter": 500, "tol": 1e-10})
+    opti.solver("ipopt", {"print_time": False}, {"print_level": 0, "sb": "yes", "max_iter": 3000, "tol": 1e-9})
     try:
         sol = opti.solve()
     except RuntimeError as exc:                       # pragma: no cover - the problem is always feasible (dv = 0)
