@@ -154,3 +154,29 @@ def test_a_servo_table_outside_its_servos_positions_is_refused(tmp_path, gait_tu
 def test_read_servo_units_defaults():
     units = read_servo_units({"default": {"ticks_per_turn": 1024, "centre": 512}, "A": {"id": 3}}, ("A", "B"), "m")
     assert units["A"] == ServoUnit(3, 1024 / (2 * math.pi), 512.0, 1, 0.0) and "B" not in units
+
+
+@pytest.mark.parametrize("share", [0.0, 0.95])
+def test_an_engine_sets_servo_table_is_the_engines_own_targets(tmp_path, gait_tuner_cmd, run_env, share):
+    """`export --format servo` of an engine study: the targets the engine sent walking the command in
+    the simulator (its header says so). Capped at 95 % of the servos' speed (engine.servo_share, as
+    init's studies are) it passes the servo check; uncapped, its re-plans jump past the servos and
+    the export is refused in one line."""
+    study = tmp_path / "eng.yaml"
+    study.write_text("gait: tlipfm\nbase: kidsize-engine-carpet4\nsurfaces: [carpet4]\n"
+                     f"engine: {{servo_share: {share}}}\nspace:\n  engine.k_vel: {{low: 0.5, high: 0.6}}\n"
+                     "trials: 1\nenqueue: []\nscenario: {walks: 1, duration: 3.0, min_survival: 0.0}\n")
+    r = run(gait_tuner_cmd, ["tune", study, "--runs", tmp_path / "runs", "--workers", "1"], run_env)
+    assert r.returncode == 0, r.stderr
+    r = run(gait_tuner_cmd, ["export", study, "--runs", tmp_path / "runs", "--format", "servo", "--command",
+                             "0.2,0,0", "--out", tmp_path / "best.yaml"], run_env)
+    if share:
+        assert r.returncode == 0, r.stderr
+        text = (tmp_path / "best.servo.csv").read_text()
+        assert "the engine's own targets walking it on carpet4 in the simulator" in text.splitlines()[0]
+        ticks = np.array([[float(v) for v in ln.split(",")] for ln in text.splitlines()
+                          if ln and not ln.startswith("#") and ln[0].isdigit()])
+        turn = 4096 / (2 * math.pi)
+        assert np.max(np.abs(np.diff(ticks[:, 1:], axis=0))) / turn / 0.01 <= 6.5 + 1e-6
+    else:
+        assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "is asked to move at" in r.stderr

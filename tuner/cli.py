@@ -1025,15 +1025,43 @@ def export(study_file: str, storage: str | None, runs_dir: Path, number: int | N
     if cmd is not None and commands_file is not None:
         raise UserError("give --command or --commands, not both")
     stream = None if commands_file is None else load_stream(commands_file, _tail(duration, commands_file))
-    drive = gaits.Drive(params, trial_stabiliser(t), cmd, stream, source=f"study {spec.name} trial {t.number}")
-    traj = drive.table(robot, robot.sim.control_period)       # an engine set's table: planned per step
-    table, table_text = joint_table_file(traj, robot, out.with_suffix(".joints.csv"), joint_names,
-                                         f"set {out.stem} ({drive.describe()}); surfaces {', '.join(spec.surfaces)}",
+    engine = trial_engine(t)
+    drive = gaits.Drive(params, trial_stabiliser(t), cmd, stream, source=f"study {spec.name} trial {t.number}",
+                        engine=engine)
+    what = f"set {out.stem} ({drive.describe()}); surfaces {', '.join(spec.surfaces)}"
+    if engine is not None and table_format == "servo":
+        # what the engine sends: its targets as it walks the command in the simulator, on the study's
+        # first surface (on the robot it re-plans from what it senses there: the same engine, other targets)
+        traj = _engine_targets(drive, robot, spec.surfaces[0])
+        what += f"; the engine's own targets walking it on {spec.surfaces[0]} in the simulator"
+    else:
+        traj = gaits.Drive(params, trial_stabiliser(t), cmd, stream).table(robot, robot.sim.control_period)
+        if engine is not None:
+            what += "; the engine's gait planned per step (--format servo: the engine's own targets)"
+    table, table_text = joint_table_file(traj, robot, out.with_suffix(".joints.csv"), joint_names, what,
                                          table_format, clip)
     # the set and its table as one: after a kill at any moment both are new or both old
-    write_files_atomic({table: table_text, out: gaits.gait_file_text(params, desc, trial_stabiliser(t),
-                                                                     trial_engine(t))})
+    write_files_atomic({table: table_text, out: gaits.gait_file_text(params, desc, trial_stabiliser(t), engine)})
     click.echo(f"trial {t.number} (score {t.values[0]:.4f}) -> {out} and {table}")
+
+
+def _engine_targets(drive, robot, surface_name: str) -> "gaits.GaitTrajectory":
+    """The targets an engine set sends walking its command (or a stop: standing) in the simulator,
+    as a joint table (the robot's unmapped joints at zero: held), with the walk's references."""
+    from .sim.rollout import Simulator
+    from .sim.surfaces import load_surface
+    if drive.command is None and drive.stream is None:
+        drive = dataclasses.replace(drive, command=gaits.WalkCommand(0.0, 0.0, 0.0))
+    sim = Simulator(robot, load_surface(surface_name))
+    trace = _walk(drive, robot, sim, None)
+    if trace.fell:
+        click.echo(f"note: the engine's walk fell ({trace.reason}): the table ends there", err=True)
+    q = np.zeros((len(trace.t), len(gaits.JOINT_NAMES)))
+    for j, name in enumerate(sim.joint_names):
+        q[:, gaits.JOINT_NAMES.index(name)] = trace.q_ref[:, j]
+    return gaits.GaitTrajectory("engine", trace.t - trace.t[0], q, trace.p_torso, trace.p_com,
+                                np.asarray(trace.zmp_ref)[:, :2], trace.p_sole_l, trace.p_sole_r,
+                                np.asarray(trace.support, dtype=int), meta={"engine": True})
 
 
 def _export_controller(spec, t, out: Path) -> None:
