@@ -173,6 +173,7 @@ SCENARIO_FIELDS = [
     ("scenario.bogus", 1, "unknown key 'bogus'"), ("scenario", [1], "scenario must be a mapping"),
     ("scenario.randomisation", {"mass_scale": -1}, "scenario.randomisation"),
     ("scenario.servo_share", 0.0, "scenario: servo_share = 0.0: expected a share of the servos' speed"),
+    ("scenario.top_hold", -1, "scenario: top_hold = -1"),
 ]
 
 

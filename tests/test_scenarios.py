@@ -199,3 +199,19 @@ def test_a_match_trial_that_asks_the_servos_too_much_is_infeasible(share, asked,
     assert (res.fall_constraint <= 0) == feasible and res.attrs["servo_share"] == asked
     if not feasible:
         assert res.fall_constraint == pytest.approx(asked - share)
+
+
+def test_top_hold_ends_each_walk_at_the_top_speed_and_leaves_the_draws_as_they_were():
+    """scenario.top_hold: the drawn segments are the same (no random draw added), then the top forward
+    speed held top_hold seconds, then the stop; the pushes are the same."""
+    from tuner.sim.scenario import MatchDistribution, draw_scenario
+    plain = MatchDistribution(forward=0.2, push_rate=0.5)
+    held = MatchDistribution(forward=0.2, push_rate=0.5, top_hold=6.0)
+    for seed in (0, 1, 7):
+        (a, pa), (b, pb) = draw_scenario(plain, seed, 1), draw_scenario(held, seed, 1)
+        n = len(a.t) - 1                                    # the drawn rows, before the final stop
+        assert np.array_equal(a.t[:n], b.t[:n]) and np.array_equal(a.commands[:n], b.commands[:n])
+        assert b.t[n] == plain.duration and np.array_equal(b.commands[n], [0.2, 0.0, 0.0])
+        assert b.t[n + 1] == plain.duration + 6.0 and np.array_equal(b.commands[n + 1], np.zeros(3))
+        assert len(pa) == len(pb) and all(x[0] == y[0] for x, y in zip(pa, pb))
+    assert held.length == plain.length + 6.0

@@ -10,7 +10,9 @@ share a walk). Each walk:
   ``duration``; each segment is a stop with probability ``stop``, else one direction drawn from
   forward, backward, left, right, turning either way (equally likely), or forward while turning
   with probability ``combined``, at U(0.3, 1) of that direction's top speed (``forward``,
-  ``backward``, ``sideways`` [m/s], ``turn`` [rad/s]); the walk ends with a stop of 2 s;
+  ``backward``, ``sideways`` [m/s], ``turn`` [rad/s]); then, when ``top_hold`` > 0, the top
+  forward speed held that long (the walk a team asks for at the top of its range, and its stop);
+  the walk ends with a stop of 2 s;
 * pushes arrive as a Poisson process of ``push_rate`` per second after the first 2 s, each
   horizontal, in a random direction, of U(``push_min``, ``push_max``) [N s], on the torso over one
   control tick.
@@ -37,7 +39,8 @@ __all__ = ["MatchDistribution", "draw_scenario", "scenario_from_mapping", "SCENA
 _RANGES = {"duration": (2.0, 600.0, "s"), "segment_min": (0.3, 30.0, "s"), "segment_max": (0.3, 60.0, "s"),
            "forward": (0.0, 2.0, "m/s"), "backward": (0.0, 2.0, "m/s"), "sideways": (0.0, 2.0, "m/s"),
            "turn": (0.0, 10.0, "rad/s"), "stop": (0.0, 1.0, "-"), "combined": (0.0, 1.0, "-"),
-           "push_rate": (0.0, 5.0, "1/s"), "push_min": (0.0, 50.0, "N s"), "push_max": (0.0, 50.0, "N s")}
+           "push_rate": (0.0, 5.0, "1/s"), "push_min": (0.0, 50.0, "N s"), "push_max": (0.0, 50.0, "N s"),
+           "top_hold": (0.0, 60.0, "s")}
 
 
 @dataclass(frozen=True)
@@ -56,6 +59,7 @@ class MatchDistribution:
     push_rate: float = 0.0        # [1/s] pushes per second (0: none)
     push_min: float = 0.5         # [N s]
     push_max: float = 1.5         # [N s]
+    top_hold: float = 0.0         # [s] the top forward speed held this long after the drawn segments (0: not)
 
     def __post_init__(self) -> None:
         for name, (lo, hi, unit) in _RANGES.items():
@@ -71,8 +75,8 @@ class MatchDistribution:
 
     @property
     def length(self) -> float:
-        """[s] a walk: the commanded time and its final 2 s stop."""
-        return self.duration + 2.0
+        """[s] a walk: the commanded time, the top speed's hold and its final 2 s stop."""
+        return self.duration + self.top_hold + 2.0
 
     def to_mapping(self) -> dict[str, float]:
         return {k: getattr(self, k) for k in _RANGES}
@@ -104,7 +108,9 @@ def draw_scenario(s: MatchDistribution, seed: int | tuple[int, ...], namespace: 
             cmd = np.array(units[names[int(rng.integers(len(names)))]], dtype=float) * rng.uniform(0.3, 1.0)
         rows.append((t, cmd))
         t += float(rng.uniform(s.segment_min, s.segment_max))
-    rows.append((s.duration, np.zeros(3)))
+    if s.top_hold > 0:                      # no random draw: the other fields' walks are as without it
+        rows.append((s.duration, np.array([s.forward, 0.0, 0.0])))
+    rows.append((s.duration + s.top_hold, np.zeros(3)))
     stream = CommandStream(np.array([r[0] for r in rows]), np.array([r[1] for r in rows]), tail=2.0)
     pushes = []
     if s.push_rate > 0 and s.push_max > 0:
