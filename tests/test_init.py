@@ -46,7 +46,7 @@ def test_init_writes_a_study_and_a_start_that_walk_the_robot(tmp_path, gait_tune
     assert spec.robot == str(MAP.resolve()) and spec.engine is not None
     # the study's engine caps its targets at the servos' speed, as its start set does
     assert spec.engine.servo_share == 0.95 and spec.settings.servo_share == 1.0
-    assert spec.settings.scenario.top_hold == 6.0 and spec.settings.scenario.forward == 0.2
+    assert spec.settings.scenario.forward == 0.2
     start = out / "kid3kg-grass30-match-start.yaml"
     r = subprocess.run(gait_tuner_cmd + ["simulate", "--robot", str(MAP), "--params", str(start), "--surface",
                                          "grass30", "--command", "0.1,0,0", "--json"], capture_output=True, text=True,

@@ -182,9 +182,8 @@ def initial_walk(robot: Any, robot_ref: str, surface: Any, purpose: str = "match
                       # (a trial below min_survival stops at once and teaches the sampler nothing)
                       # servo_share: a set whose walks ask a servo for more than its speed is infeasible
                       # (the engine caps at SERVO_SHARE; a searched engine.servo_share of 0 would not)
-                      # top_hold: each walk ends holding the top speed 6 s, then stops (the walk asked of it)
                       "scenario": {"walks": 6, "min_survival": 0.5, "servo_share": 1.0, "duration": 12.0,
-                                   "top_hold": 6.0, "forward": top_speed,
+                                   "forward": top_speed,
                                    "backward": 0.1, "sideways": 0.05, "turn": 0.5}})
     elif purpose == "push":
         space.update({"engine.k_vel": {"low": 0.0, "high": 1.0}, "engine.replan_error": {"low": 0.03, "high": 0.15},
