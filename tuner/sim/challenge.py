@@ -1,6 +1,15 @@
-"""The RoboCup Humanoid League's push-recovery challenge (technical challenges, Part A, KidSize), simulated.
+"""The RoboCup Humanoid League's push-recovery challenge, simulated: the rules since 2025
+(:func:`challenge_2025`, the default of ``challenge push``) and the 2019 KidSize trial
+(:func:`challenge`, ``--rules 2019``).
 
-As the rules run it: a 1 kg pendulum (a bottle with up to 1 cm of foam) on a rope of a fixed
+By the 2025 rules (Section III, push recovery, revision of 2025-02-13): a bottle of 3, 5 or 10 kg
+on a rope of 1.5-2 m measured to its centre of mass, released from D (declared, at most 0.75 L),
+meeting the robot when the rope is vertical at the robot's CoM height; a trial is a push from the
+front, one from behind and one from either; fully successful when all three are absorbed,
+partially at two; M = sqrt(H) / h_c * m_B / m_R * h_i / h_c. Ours where they leave it open: see
+:data:`PUSH_TIMES_2025`, :func:`absorbed` and ``scene.BOTTLES`` (the bottles' sizes).
+
+By the 2019 rules: a 1 kg pendulum (a bottle with up to 1 cm of foam) on a rope of a fixed
 length L between 1 and 2 m, the bottle's bottom at the robot's CoM height, released from a
 ground-projected distance D; the robot walks in place; a trial is three pushes from random
 directions, fully successful when the robot is standing or walking after all three; the rank is
