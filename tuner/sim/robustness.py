@@ -32,6 +32,7 @@ from .cache import simulator
 from .metrics import MIN_PROGRESS, planned_forward_distance, steady_tracking, summarize
 from ..process_pool import map_in_order
 from .randomisation import DEFAULT_PUSHES, EVALUATE, Randomisation, draw
+from .recorded import recording, recording_stem
 from ..robots import load_robot
 from .rollout import Simulator
 from .surfaces import load_surface
@@ -84,12 +85,10 @@ def _one(task: tuple) -> dict[str, Any]:
     p = draw(randomisation.with_push(push), seed, *sim.n_random(), namespace=EVALUATE)
     path, notes = None, ""
     if record is not None:
-        from .recorded import recording_stem
         kind = f"push{push:g}Ns-{seed[1] - 1_000_000:03d}" if push else f"{seed[1]:03d}"
         path = Path(record) / f"{recording_stem(drive)}--{sim.surface.name}--{kind}.mcap"
         notes = (f"gait-tuner robustness: randomised walk, evaluation seed {seed[0]}, rollout {seed[1]}"
                  + (f", a {push:g} N s push" if push else ""))
-    from .recorded import recording
     controller = _controller(sim, drive)
     if without:
         controller = WithoutReadings(controller, without)
