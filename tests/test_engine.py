@@ -739,3 +739,16 @@ def test_servo_share_caps_every_targets_move_at_its_servos_speed():
         leg, foot_size = ROBOT.leg, ROBOT.foot_size
         joints = {n: type("J", (), {"speed": 3.0})() for n in gaits.JOINT_NAMES}
     assert np.all(joint_speeds(File) == 3.0)
+
+    class Legs(File):                                     # a robot without head or arms: their speed unknown
+        joints = {n: type("J", (), {"speed": 3.0})() for n in gaits.JOINT_NAMES if n[2:] in gaits.leg_kinematics.LEG_JOINTS}
+    assert np.isinf(joint_speeds(Legs)[0]) and np.all(joint_speeds(Legs)[gaits.JOINT_NAMES.index("l_knee")] == 3.0)
+    e = WalkEngine(FAST, EngineParams(servo_share=0.5), Legs, 0.01, LIMITS)
+    q0 = e.start_pose().q
+    e.reset(Measurement(0.0))
+    last, worst = q0, 0.0
+    for k in range(300):                                  # the legs are capped though the head has no speed
+        q = e.step(Measurement(k * 0.01), np.array([0.25, 0.0, 0.0]))
+        worst = max(worst, float(np.max(np.abs(q - last))))
+        last = q
+    assert e.capped > 0 and worst <= 0.5 * 3.0 * 0.01 + 1e-12

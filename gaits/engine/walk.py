@@ -48,8 +48,8 @@ class WalkEngine:
         self.shaper = CommandShaper(params, limits, gait.period, dt)
         # the most each target may move in a tick (params.servo_share of the servo's speed; inf: not capped)
         speeds = joint_speeds(robot)
-        self._max_move = (np.full(len(JOINT_NAMES), np.inf) if params.servo_share <= 0 or speeds is None
-                          else params.servo_share * speeds * self.dt)
+        self._capping = params.servo_share > 0 and speeds is not None
+        self._max_move = params.servo_share * speeds * self.dt if self._capping else None
         self.reset_state()
 
     # --- what the engine offers ------------------------------------------------------------
@@ -139,7 +139,7 @@ class WalkEngine:
         if len(self._history) > 50:
             del self._history[:-25]
         q, support, feet = self._targets()
-        if self._last_q is not None and np.isfinite(self._max_move[0]):
+        if self._capping and self._last_q is not None:
             move = np.clip(q - self._last_q, -self._max_move, self._max_move)
             if np.any(move != q - self._last_q):
                 self.capped += 1
