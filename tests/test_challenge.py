@@ -360,3 +360,10 @@ def test_the_2025_challenge_through_the_cli(gait_tuner_cmd, run_env):
                         (["--by-direction"], "add --rules 2019")):
         bad = run(gait_tuner_cmd, ["challenge", "push", "--params", "kidsize-engine-carpet4", *args], run_env)
         assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1 and words in bad.stderr, bad.stderr
+
+
+def test_the_2025_challenge_refuses_the_2019_bottle():
+    from tuner.sim.challenge import challenge_2025
+    sim = Simulator(load_robot("kidsize"), SURFACES["carpet4"], pendulum=1.5)      # the default: the 2019 bottle
+    with pytest.raises(ValueError, match="the 2019 trial's"):
+        challenge_2025(sim, gaits.Drive.of(resolve_params("kidsize-engine-carpet4", None)))

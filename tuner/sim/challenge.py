@@ -42,7 +42,7 @@ from gaits import CommandStream
 
 from .recorded import recording, recording_stem
 from .rollout import Simulator
-from .scene import BOTTLE_2019, BOTTLE_LENGTH, BOTTLE_MASS, BOTTLES, PREFIX
+from .scene import BOTTLE_2019, BOTTLE_LENGTH, BOTTLE_MASS, PREFIX
 
 __all__ = ["challenge", "push_trial", "push_by_direction", "drop_height", "impact_momentum", "rank", "PUSH_TIMES_S", "TRIAL_S"]
 
@@ -335,7 +335,10 @@ def challenge_2025(sim: Simulator, drive: gaits.Drive, *, seed: int = 0, start: 
     if third not in THIRDS:
         raise ValueError(f"third push {third!r}: expected one of {', '.join(THIRDS)}")
     rope = sim.rope
-    bottle = getattr(sim, "bottle", BOTTLES[3])
+    bottle = getattr(sim, "bottle", BOTTLE_2019)
+    if not bottle.centred:
+        raise ValueError(f"challenge_2025: the simulator's bottle ({bottle.mass:g} kg) is the 2019 trial's; build it "
+                         f"with bottle=scene.BOTTLES[3, 5 or 10]")
     robot_mass = float(sim.model.body_subtreemass[sim._torso])
     trials: list[dict] = []
     best_full = best_partial = None
