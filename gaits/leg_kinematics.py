@@ -35,12 +35,14 @@ Readings of the printed paper (the OCR and the paper itself garble some lines):
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import math
 
 import numpy as np
 
+from .leg_chain import IKNotConverged, LegChains
 from .params import ParamError
 
 __all__ = [
@@ -94,6 +96,14 @@ class LegGeometry:
     sole_outward: float = 0.0      # [m] sole centre outboard of the ankle axes, mirrored per side (ours)
     hip_offset_x: float = 0.0      # [m] hip-joint centres ahead of the pelvis origin (ours: a team robot's
     #                                torso frame need not sit over its hips; EROS puts them under it)
+    chains: LegChains | None = None  # the legs as the robot file builds them, where the closed form does not
+    #                                  fit (ours, ``leg_chain``): the IK and FK below are then numerical; the
+    #                                  numbers above stay the planners' (reach, heights, offsets)
+
+    @property
+    def ik(self) -> str:
+        """Which IK the legs get: ``closed form`` (the papers') or ``numerical`` (``leg_chain``)."""
+        return "closed form" if self.chains is None else "numerical"
 
     def __post_init__(self) -> None:
         for name in ("com_forward", "com_lateral", "sole_forward", "sole_outward", "hip_offset_x"):
@@ -166,6 +176,8 @@ def leg_fk(q: np.ndarray, leg: LegGeometry, side: int | str) -> tuple[np.ndarray
     if q.shape[-1] != 6:
         raise ValueError(f"leg_fk expects joint angles of shape (..., 6), got {q.shape}")
     s = _side(side)
+    if leg.chains is not None:                      # the robot file's chain (leg_chain)
+        return leg.chains.side(s).fk_many(q)
     q1, q2, q3, q4, q5, q6 = np.moveaxis(q, -1, 0)
     R_hip = rot_z(q1) @ rot_x(q2)
     R_thigh = R_hip @ rot_y(q3)
@@ -197,6 +209,8 @@ def leg_ik(p_pelvis_sole: np.ndarray, yaw: np.ndarray | float, leg: LegGeometry,
         raise ValueError(f"leg_ik expects targets of shape (..., 3), got {p.shape}")
     yaw = np.broadcast_to(np.asarray(yaw, dtype=float), p.shape[:-1])
     s = _side(side)
+    if leg.chains is not None:
+        return _chain_ik(p, rot_z(yaw), leg, s, t)
     l3, l4 = leg.thigh, leg.shank
     # eq 9: the yaw joint takes the heading directly
     q1 = yaw.copy()
@@ -240,6 +254,37 @@ def leg_ik(p_pelvis_sole: np.ndarray, yaw: np.ndarray | float, leg: LegGeometry,
     return np.stack([q1, q2, q3, q4, q5, q6], axis=-1)
 
 
+def _chain_ik(p: np.ndarray, R: np.ndarray, leg: LegGeometry, side: int, t: np.ndarray | None,
+              q0: np.ndarray | None = None) -> np.ndarray:
+    """The numerical IK (``leg_chain``) over leading dimensions: sole points (..., 3) and rotations
+    (..., 3, 3) -> joints (..., 6), each sample warm-started from the one before (the first from
+    ``q0``'s, else the closed form on the planners' numbers: near enough for the Newton steps)."""
+    chain = leg.chains.side(side)
+    shape = p.shape[:-1]
+    P = p.reshape(-1, 3)
+    Rs = np.broadcast_to(R, shape + (3, 3)).reshape(-1, 3, 3)
+    Q0 = None if q0 is None else np.broadcast_to(q0, shape + (6,)).reshape(-1, 6)
+    out = np.empty((len(P), 6))
+    prev = None
+    for i in range(len(P)):
+        start = Q0[i] if Q0 is not None else prev
+        if start is None:
+            try:
+                start = leg_ik_pose(P[i], Rs[i], dataclasses.replace(leg, chains=None), side)
+            except UnreachableTargetError:
+                start = np.zeros(6)
+        try:
+            out[i] = prev = chain.solve(P[i], Rs[i], q0=start)
+        except IKNotConverged as exc:
+            idx = np.unravel_index(i, shape) if shape else ()
+            t_bad = float(np.asarray(t)[idx]) if t is not None else None
+            when = f" at t = {t_bad:.3f} s" if t is not None else ""
+            sample = f" (sample {tuple(int(j) for j in idx)})" if idx else ""
+            name = "left" if side == 1 else "right"
+            raise UnreachableTargetError(f"{name} {exc}{sample}{when}", t_bad) from None
+    return out.reshape(shape + (6,))
+
+
 def _rotation_error(R_d: np.ndarray, R: np.ndarray) -> np.ndarray:
     """Axis-angle-like error vector (small angles) taking R to R_d, shape (..., 3)."""
     E = R_d @ np.swapaxes(R, -1, -2)
@@ -254,6 +299,9 @@ def refine_ik(q0: np.ndarray, p_pelvis_sole: np.ndarray, R_pelvis_sole: np.ndarr
     torso). The flat-foot IK of :func:`leg_ik` is a good start, so a few iterations reach
     machine precision; the Jacobian is a central difference of :func:`leg_fk`.
     """
+    if leg.chains is not None:                      # the chain's IK is already full-pose
+        return _chain_ik(np.asarray(p_pelvis_sole, dtype=float), np.asarray(R_pelvis_sole, dtype=float), leg,
+                         _side(side), None, q0=np.asarray(q0, dtype=float))
     q = np.array(q0, dtype=float)
     h = 1e-6
     for _ in range(iterations):
@@ -284,6 +332,14 @@ def leg_ik_pose(p_pelvis_sole: np.ndarray, R_pelvis_sole: np.ndarray, leg: LegGe
     """
     s = _side(side)
     R = np.asarray(R_pelvis_sole, dtype=float)
+    if leg.chains is not None:                      # numerical, warm-started from the last tick (leg_chain)
+        try:
+            return leg.chains.side(s).solve(np.asarray(p_pelvis_sole, dtype=float), R)
+        except IKNotConverged as exc:
+            name = "left" if s == 1 else "right"
+            err = UnreachableTargetError(f"{name} {exc}")
+            err.best = exc.best
+            raise err from None
     ankle = np.asarray(p_pelvis_sole, dtype=float) + R[:, 2] * leg.ankle_height
     hip = leg.hip_in_pelvis(s)
     r = R.T @ (hip - ankle)

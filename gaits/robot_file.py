@@ -7,6 +7,8 @@ numpy and PyYAML only (no MuJoCo, no built-in geometry on the robot side)::
     mass: 3.154                    # [kg] the whole robot
     foot_size: [0.127, 0.078]      # [m] the sole's bounding box (length, width)
     leg: {thigh: 0.11, shank: 0.11, ...}   # [m] gaits.LegGeometry's fields, derived from the joint axes
+    leg_chains: {reason: ..., left: {axes, points, sole, sole_rotation}, right: ...}   # only for legs the
+                                   # closed-form IK does not fit: the numerical IK's chains (gaits.leg_chain)
     joints:                        # our joint name (gaits.JOINT_NAMES) -> the robot's joint
       l_knee: {name: Knee_L, sign: 1, lower: -2.6, upper: 0.0, speed: 6.5, torque: 6.0,
                servo: {id: 14, units_per_rad: 651.9, centre: 2048, direction: -1, offset: 0.05}}
@@ -29,6 +31,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from .files import MAX_BYTES, read_bytes_checked, write_text_atomic
+from .leg_chain import chains_from_mapping, chains_to_mapping
 from .leg_kinematics import LegGeometry
 from .params import ParamError
 from .trajectory import JOINT_NAMES
@@ -135,8 +138,8 @@ def load_robot_file(path: str | Path) -> RobotFile:
     except (UnicodeDecodeError, yaml.YAMLError) as exc:
         raise ParamError(f"{source}: not a YAML robot file ({' '.join(str(exc).split())[:200]})") from None
     doc = _mapping(doc, "the file", source)
-    _known(doc, ("robot", "control_period", "mass", "foot_size", "leg", "joints", "held", "foot_sensors"), "the file",
-           source)
+    _known(doc, ("robot", "control_period", "mass", "foot_size", "leg", "leg_chains", "joints", "held", "foot_sensors"),
+           "the file", source)
     foot_sensors = doc.get("foot_sensors", True)
     if not isinstance(foot_sensors, bool):
         raise ParamError(f"{source}: foot_sensors = {foot_sensors!r}: expected true or false")
@@ -144,10 +147,11 @@ def load_robot_file(path: str | Path) -> RobotFile:
         if k not in doc:
             raise ParamError(f"{source}: missing {k!r} (write it with gait-tuner robot export MAP --out FILE)")
     leg_doc = _mapping(doc["leg"], "leg", source)
-    leg_fields = tuple(f.name for f in fields(LegGeometry))
+    leg_fields = tuple(f.name for f in fields(LegGeometry) if f.name != "chains")
     _known(leg_doc, leg_fields, "leg", source)
+    chains = None if doc.get("leg_chains") is None else chains_from_mapping(doc["leg_chains"], source)
     try:
-        leg = LegGeometry(**{k: _num(v, f"leg.{k}", source) for k, v in leg_doc.items()})
+        leg = LegGeometry(**{k: _num(v, f"leg.{k}", source) for k, v in leg_doc.items()}, chains=chains)
     except (ValueError, TypeError) as exc:
         raise ParamError(f"{source}: {exc}") from None
     fs = doc["foot_size"]
@@ -212,8 +216,10 @@ def save_robot_file(path: str | Path, robot: RobotFile, header: str = "") -> Pat
         return float(v)
     doc = {"robot": robot.robot, "control_period": r(robot.control_period), "mass": r(robot.mass),
            "foot_size": [r(robot.foot_size[0]), r(robot.foot_size[1])],
-           "leg": {f.name: r(getattr(robot.leg, f.name)) for f in fields(LegGeometry)},
+           "leg": {f.name: r(getattr(robot.leg, f.name)) for f in fields(LegGeometry) if f.name != "chains"},
            "joints": {}, "held": {k: r(v) for k, v in robot.held.items()}, "foot_sensors": bool(robot.foot_sensors)}
+    if robot.leg.chains is not None:                 # the numerical IK's legs (gaits.leg_chain)
+        doc["leg_chains"] = chains_to_mapping(robot.leg.chains)
     for ours, j in robot.joints.items():
         entry = {"name": j.name, "sign": j.sign, "lower": r(j.lower), "upper": r(j.upper), "speed": r(j.speed),
                  "torque": r(j.torque)}

@@ -23,8 +23,18 @@ def joint_name(kind: str, side: str) -> str:
 
 
 def mjcf(feet: str = "two_box", torso_com_x: float = -0.015, kp: float = 21.1, torque: float = 5.0,
-         key_ctrl: int = 20, swap_lr: bool = False) -> str:
-    """The MJCF text. ``feet``: "two_box" or "capsule"."""
+         key_ctrl: int = 20, swap_lr: bool = False, yaw_offset: float = 0.0, knee_ahead: float = 0.0,
+         ankle_ahead: float = 0.0, ankle_tilt_deg: float = 0.0) -> str:
+    """The MJCF text. ``feet``: "two_box" or "capsule". Legs that are not ideal, as many teams'
+    are (the numerical leg IK's robots): ``yaw_offset`` [m] the hip yaw axis that far ahead of the
+    hip centre; ``knee_ahead`` and ``ankle_ahead`` [m] the knee and ankle pitch axes that far ahead
+    of the hip at the zero pose (bent legs; thigh and shank keep their lengths); ``ankle_tilt_deg``
+    the ankle roll axis tilted up at the front by that much."""
+    import math
+    thigh_z = -math.sqrt(0.11015 ** 2 - knee_ahead ** 2)
+    shank_z = -math.sqrt(0.11 ** 2 - (ankle_ahead - knee_ahead) ** 2)
+    tilt = math.radians(ankle_tilt_deg)
+    roll_axis = f"{math.cos(tilt):.9g} 0 {math.sin(tilt):.9g}"
     def foot(s: int) -> str:
         if feet == "two_box":
             return (f'<geom class="foot" pos="0.024 {s * 0.013:.4f} -0.0265" size="0.0635 0.028 0.004"/>\n'
@@ -47,25 +57,25 @@ def mjcf(feet: str = "two_box", torso_com_x: float = -0.015, kp: float = 21.1, t
     def leg(side: str, s: int) -> str:
         n = {k: joint_name(k, side) for k in LEG}
         return f"""
-    <body name="hip_yaw_link_{side}" pos="0 {s * 0.035} 0">
+    <body name="hip_yaw_link_{side}" pos="{yaw_offset:g} {s * 0.035} 0">
       <inertial pos="-0.0016 0 -0.0077" mass="0.012" diaginertia="4e-6 4e-6 1.5e-6"/>
       <joint name="{n['hip_yaw']}" axis="0 0 -1" range="-1 1"/>
-      <body name="hip_roll_link_{side}" pos="-0.024 0 -0.0285">
+      <body name="hip_roll_link_{side}" pos="{-0.024 - yaw_offset:g} 0 -0.0285">
         <inertial pos="0.004 0 -0.012" mass="0.18" diaginertia="1.2e-4 1.1e-4 4.7e-5"/>
         <joint name="{n['hip_roll']}" axis="-1 0 0" range="-0.8 0.8"/>
         <body name="thigh_{side}" pos="0.0241 {s * 0.019} 0">
           <inertial pos="0.0006 {-s * 0.019} -0.084" mass="0.115" diaginertia="1.05e-4 9.6e-5 2.5e-5"/>
           <joint name="{n['hip_pitch']}" axis="0 {s} 0" range="-2 2"/>
           <geom class="collision" type="capsule" fromto="0 {-s * 0.019} -0.02 0 {-s * 0.019} -0.09" size="0.02"/>
-          <body name="shank_{side}" pos="0 0 -0.11015">
+          <body name="shank_{side}" pos="{knee_ahead:g} 0 {thigh_z:.9g}">
             <inertial pos="0 {-s * 0.0215} -0.055" mass="0.04" diaginertia="3.7e-5 2.8e-5 1.5e-5"/>
             <joint name="{n['knee']}" axis="0 {s} 0" range="-2.6 2.6"/>
-            <body name="ankle_link_{side}" pos="0 0 -0.11">
+            <body name="ankle_link_{side}" pos="{ankle_ahead - knee_ahead:g} 0 {shank_z:.9g}">
               <inertial pos="-0.02 {-s * 0.0187} 0.012" mass="0.18" diaginertia="1.2e-4 1.1e-4 4.7e-5"/>
               <joint name="{n['ankle_pitch']}" axis="0 {-s} 0" range="-1.5 1.5"/>
               <body name="foot_{side}" pos="-0.0241 {-s * 0.019} 0"{turn}>
                 <inertial pos="0.024 {s * 0.0104} -0.0276" mass="0.07" diaginertia="1.2e-4 8.5e-5 4e-5"/>
-                <joint name="{n['ankle_roll']}" axis="1 0 0" range="-0.8 0.8"/>
+                <joint name="{n['ankle_roll']}" axis="{roll_axis}" range="-0.8 0.8"/>
                 {foot(s)}
               </body>
             </body>

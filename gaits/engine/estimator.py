@@ -31,6 +31,8 @@ def _rz(a: float) -> np.ndarray:
 def sole_in_pelvis(q: np.ndarray, leg: LegGeometry, side: int) -> tuple[np.ndarray, np.ndarray]:
     """The leg's forward kinematics for one sample (``leg_kinematics.leg_fk``'s chain, scalar and
     fast): the point ``ankle_height`` below the ankle, and the sole's rotation, in the pelvis frame."""
+    if leg.chains is not None:                      # the robot file's chain (gaits.leg_chain)
+        return leg.chains.side(side).fk(q)
     q1, q2, q3, q4, q5, q6 = (float(v) for v in q)
     R = _rz(q1) @ _rx(q2) @ _ry(q3)
     p = leg.hip_in_pelvis(side) + R @ np.array([0.0, 0.0, -leg.thigh])

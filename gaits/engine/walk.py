@@ -11,7 +11,7 @@ import numpy as np
 
 from ..control import READINGS, Measurement, PlanRecord, StartPose, finite_readings
 from ..footstep_planner import StepLimits, relative, swing_fraction
-from ..leg_kinematics import LegGeometry, leg_ik_pose
+from ..leg_kinematics import LegGeometry, UnreachableTargetError, leg_ik_pose
 from ..lipm import dcm_forward, propagate, zmp_at
 from ..tlipfm import TlipfmParams
 from ..trajectory import GRAVITY, JOINT_NAMES
@@ -548,7 +548,15 @@ class WalkEngine:
             R_f = _rz(foot[2])
             sole_point = np.array([foot[0], foot[1], z]) - R_f @ leg.sole_in_ankle(side)
             target, R_ps = R_wp.T @ (sole_point - pelvis), R_wp.T @ R_f
-            q[0, _LEG[side]] = leg_ik_pose(self._reachable(target, R_ps, side), R_ps, leg, side)
+            target = self._reachable(target, R_ps, side)
+            try:
+                q[0, _LEG[side]] = leg_ik_pose(target, R_ps, leg, side)
+            except UnreachableTargetError as exc:
+                best = getattr(exc, "best", None)      # the numerical IK's closest pose (gaits.leg_chain)
+                if best is None:
+                    raise
+                self.clamped += 1
+                q[0, _LEG[side]] = best
         return q
 
     def _reachable(self, target: np.ndarray, R_ps: np.ndarray, side: int) -> np.ndarray:

@@ -72,6 +72,32 @@ def _servo_groups(robot: RobotModel) -> dict[str, dict[str, Any]]:
     return out
 
 
+def _leg_ik(leg: Any) -> dict[str, Any]:
+    """Which IK the legs get and why; for the numerical one, its time per leg and tick on this
+    machine (p99 over a crouched stepping cycle of 400 ticks, each warm-started from the one before:
+    as the walk engine calls it; a figure, not a check: a loaded machine reads more)."""
+    if leg.chains is None:
+        return {"kind": leg.ik, "why": "the hip's three axes meet, the ankle's two meet, and the knee and ankle "
+                                       "lie straight below the hip at the zero pose: the papers' closed form",
+                "p99_ms": None}
+    import time
+    from gaits.leg_kinematics import leg_ik_pose
+    times = []
+    for side in (1, -1):
+        hip = leg.hip_in_pelvis(side)
+        for k in range(400):
+            ph = 2 * np.pi * k / 100
+            target = hip + np.array([0.04 * np.sin(ph), 0.0, -0.85 * leg.max_hip_height + 0.02 * max(np.sin(ph), 0)])
+            t0 = time.perf_counter()
+            try:
+                leg_ik_pose(target, np.eye(3), leg, side)
+            except ValueError:
+                continue
+            times.append(time.perf_counter() - t0)
+    return {"kind": leg.ik, "why": leg.chains.reason,
+            "p99_ms": float(np.percentile(times, 99) * 1000) if times else None}
+
+
 def robot_report(robot: RobotModel, *, stand: bool = True, duration: float = 2.0) -> dict[str, Any]:
     """Everything ``robot check`` shows, as plain data (strict-JSON friendly)."""
     model = robot.model()
@@ -96,6 +122,7 @@ def robot_report(robot: RobotModel, *, stand: bool = True, duration: float = 2.0
                    ("hip_offset_x", "hip_offset_y", "hip_offset_z", "thigh", "shank", "ankle_height",
                     "sole_forward", "sole_outward")},
         "straight_hip_height_mm": round(1000 * L.max_hip_height, 2),
+        "leg_ik": _leg_ik(L),
         "com_mm": {"forward": round(1000 * L.com_forward, 2), "lateral": round(1000 * L.com_lateral, 2),
                    "above_pelvis": round(1000 * L.com_above_pelvis, 2),
 },
@@ -131,6 +158,9 @@ def format_report(r: dict[str, Any]) -> str:
              f"thigh {L['thigh']:.1f} mm, shank {L['shank']:.1f} mm, ankle height {L['ankle_height']:.1f} mm "
              f"(straight-leg hip height {r['straight_hip_height_mm']:.1f} mm)",
              f"  sole centre {L['sole_forward']:+.1f} mm ahead of / {L['sole_outward']:+.1f} mm outboard of the ankle",
+             f"  leg IK: {r['leg_ik']['kind']}: {r['leg_ik']['why']}"
+             + (f" (p99 {r['leg_ik']['p99_ms']:.3f} ms a leg on this machine, warm-started)"
+                if r["leg_ik"].get("p99_ms") is not None else ""),
              f"CoM [{r['sources'].get('com', '')}]",
              f"  {c['forward']:+.1f} mm ahead, {c['lateral']:+.1f} mm left, {c['above_pelvis']:+.1f} mm above "
              f"the torso origin; the gait plans the CoM, the pelvis follows",

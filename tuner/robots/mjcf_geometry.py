@@ -15,7 +15,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
 from typing import Mapping
 
 import mujoco
@@ -131,13 +132,16 @@ class SolePolygon:
     """A foot's sole: the hull of its collision geoms' lowest points.
 
     The *sole frame* has its origin at the foot body's origin and the torso's axes at the
-    zero pose (x forward, y left, z up), whatever way the foot body's own frame is turned.
+    zero pose (x forward, y left, z up), whatever way the foot body's own frame is turned
+    (turned onto the sole's plane for a foot tilted at the zero pose: :func:`sole_polygon`).
     """
 
     hull: np.ndarray            # (M, 2) [m] counter-clockwise, sole-frame x, y
     z: float                    # [m] height of the sole plane in the sole frame
     R_sole_foot: np.ndarray     # (3, 3) foot-frame vectors -> sole-frame vectors
     geoms: tuple[str, ...]      # the collision geoms it came from
+    R_torso_sole: np.ndarray = field(default_factory=lambda: np.eye(3))   # sole-frame vectors -> torso frame
+    #                             (the identity but for a foot tilted at the zero pose: sole_polygon)
 
     @property
     def centre_sole(self) -> np.ndarray:
@@ -162,19 +166,48 @@ def sole_polygon(model: mujoco.MjModel, data: mujoco.MjData, body: int, R_world_
     """The sole of a foot body at the current pose (kinematics must be up to date): every
     collision-geom point within ``tolerance`` [m] of the lowest one, as a hull in the sole
     frame (the torso's axes ``R_world_torso``, default the world's). None when the body has
-    no collision geom."""
+    no collision geom.
+
+    A foot that stands tilted at the zero pose (a team's URDF whose legs are bent there, its sole
+    pitched 15 deg) has its sole on another plane (ours): of the torso's z and the foot frame's
+    axes, the normal whose lowest points span the largest area (more than twice the torso z's) is
+    the sole's, and the sole frame is turned onto it (``R_torso_sole``; x the torso's x on the
+    plane)."""
     geoms = foot_geoms(model, body)
     if not geoms:
         return None
     R_t = np.eye(3) if R_world_torso is None else np.asarray(R_world_torso)
     pts = np.vstack([_geom_points(model, data, g) for g in geoms])
-    low = pts[:, 2].min()
-    near = pts[pts[:, 2] <= low + tolerance]
-    local = (near - data.xpos[body]) @ R_t                     # sole-frame coordinates
-    z_local = float(((np.array([0.0, 0.0, low]) - data.xpos[body]) @ R_t)[2])
-    R_sole_foot = R_t.T @ data.xmat[body].reshape(3, 3)
+    R_foot = data.xmat[body].reshape(3, 3)
+
+    def plane(S: np.ndarray) -> tuple[float, np.ndarray, float]:
+        """(area, the lowest points in the frame S (torso axes -> S), their height) along S's z."""
+        local = (pts - data.xpos[body]) @ R_t @ S
+        low = local[:, 2].min()
+        near = local[local[:, 2] <= low + tolerance]
+        if len(near) < 3:
+            return 0.0, near, low
+        hull = _hull(near[:, :2])
+        x, y = hull[:, 0], hull[:, 1]
+        return 0.5 * abs(float(x @ np.roll(y, -1) - y @ np.roll(x, -1))), near, low
+
+    best = (np.eye(3),) + plane(np.eye(3))
+    for axis in (R_t.T @ R_foot).T:                  # the foot frame's axes, in the torso frame
+        for n in (axis, -axis):
+            if n[2] < math.cos(math.radians(45)):    # a sole faces down: its normal (up) near the torso's z
+                continue
+            if n[2] > math.cos(math.radians(1)):     # the torso's own z: tried first
+                continue
+            x = np.array([1.0, 0.0, 0.0]) - n[0] * n
+            x /= np.linalg.norm(x)
+            S = np.column_stack([x, np.cross(n, x), n])
+            cand = (S,) + plane(S)
+            if cand[1] > 2.0 * best[1] and cand[1] > 0.0:
+                best = cand
+    S, _, near, low = best
+    R_sole_foot = S.T @ R_t.T @ R_foot
     names = tuple(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or f"geom#{g}" for g in geoms)
-    return SolePolygon(_hull(local[:, :2]), z_local, R_sole_foot, names)
+    return SolePolygon(_hull(near[:, :2]), float(low), R_sole_foot, names, S)
 
 
 def body_chain(model: mujoco.MjModel, body: int) -> list[int]:

@@ -43,6 +43,7 @@ import mujoco
 import numpy as np
 
 from gaits import JOINT_NAMES, LegGeometry, ParamError, did_you_mean
+from gaits.leg_chain import LegChain, LegChains
 from gaits.leg_kinematics import LEG_JOINTS
 from gaits.files import MAX_BYTES, read_bytes_checked
 
@@ -65,6 +66,9 @@ MAP_KEYS = ("mjcf", "urdf", "packages", "ranges", "balance_inertia", "foot_senso
 #: How far apart two axis lines that must meet may be, and how far the straight leg's
 #: centres may stray from a vertical line [m] (ours).
 AXIS_TOLERANCE = 0.005
+#: How far a leg joint's axis may turn from its ideal (LEG_AXES) for the closed-form IK [rad] (ours);
+#: beyond it, or beyond AXIS_TOLERANCE above, the legs get the numerical IK (gaits.leg_chain).
+AXIS_ANGLE_TOLERANCE = math.radians(0.5)
 _DEFAULT_PRESET = {"legs": "MX-64", "arms": "MX-28", "head": "MX-28", "other": "MX-28"}
 _SIDES = (("left", "l_", 1), ("right", "r_", -1))
 
@@ -205,41 +209,61 @@ def load_map(path: Path) -> RobotModel:
 
     geo: dict[str, dict[str, float]] = {}
     soles, hulls, axes, bodies, sizes, sources = [], [], [], [], [], {}
+    chains: dict[str, LegChain] = {}
+    numerical: list[str] = []            # where the closed-form IK's ideal leg does not fit (ours)
     for side, p, s in _SIDES:
+        why: list[str] = []
         hip_dist, hip = axis_line_distance(*line(p + "hip_roll"), *line(p + "hip_pitch"))
-        _require(hip_dist < AXIS_TOLERANCE, source,
-                 f"the {side} hip roll and hip pitch axes must intersect: their lines pass {_mm(hip_dist)} apart "
-                 f"(allowed {_mm(AXIS_TOLERANCE)})")
+        if hip_dist >= AXIS_TOLERANCE:
+            why.append(f"the hip roll and pitch axes pass {_mm(hip_dist)} apart")
         yaw_dist = float(np.linalg.norm(np.cross(hip - line(p + "hip_yaw")[0], line(p + "hip_yaw")[1])))
-        _require(yaw_dist < AXIS_TOLERANCE, source,
-                 f"the {side} hip yaw axis must pass through the hip centre: it passes {_mm(yaw_dist)} from it "
-                 f"(allowed {_mm(AXIS_TOLERANCE)})")
+        if yaw_dist >= AXIS_TOLERANCE:
+            why.append(f"the hip yaw axis passes {_mm(yaw_dist)} from the hip centre")
         ank_dist, ankle = axis_line_distance(*line(p + "ankle_pitch"), *line(p + "ankle_roll"))
-        _require(ank_dist < AXIS_TOLERANCE, source,
-                 f"the {side} ankle pitch and ankle roll axes must intersect: their lines pass {_mm(ank_dist)} apart "
-                 f"(allowed {_mm(AXIS_TOLERANCE)})")
+        if ank_dist >= AXIS_TOLERANCE:
+            why.append(f"the ankle pitch and roll axes pass {_mm(ank_dist)} apart")
         knee_p, knee_a = line(p + "knee")
-        thigh, _ = axis_line_distance(*line(p + "hip_pitch"), knee_p, knee_a)
-        shank, _ = axis_line_distance(knee_p, knee_a, *line(p + "ankle_pitch"))
+        # the links' lengths: the hip centre's and the ankle centre's distances from the knee's axis
+        # (for an ideal leg the distances between the pitch axes; not the skew lines' closest distance,
+        # which for axes a hair from parallel lies anywhere along them)
+        thigh = float(np.linalg.norm(np.cross(hip - knee_p, knee_a)))
+        shank = float(np.linalg.norm(np.cross(ankle - knee_p, knee_a)))
         knee = knee_p - ((knee_p - hip) @ knee_a) * knee_a     # the knee line's point in the hip's plane
         for what, point in (("knee axis", knee), ("ankle centre", ankle)):
             off = point[:2] - hip[:2]
-            _require(abs(off[0]) < AXIS_TOLERANCE and abs(off[1]) < AXIS_TOLERANCE, source,
-                     f"the {side} {what} is {_mm(off[0])} ahead of and {_mm(off[1])} left of the hip centre at "
-                     f"the zero pose; the leg IK needs straight legs at the zero pose (allowed {_mm(AXIS_TOLERANCE)})")
+            if abs(off[0]) >= AXIS_TOLERANCE or abs(off[1]) >= AXIS_TOLERANCE:
+                why.append(f"the {what} is {_mm(off[0])} ahead of and {_mm(off[1])} left of the hip centre at "
+                           f"the zero pose")
+        for kind in LEG_JOINTS:
+            axis = abs(line(p + kind)[1] @ np.array(LEG_AXES[kind], dtype=float))
+            if axis < math.cos(AXIS_ANGLE_TOLERANCE):
+                why.append(f"the {kind.replace('_', ' ')} axis is tilted "
+                           f"{math.degrees(math.acos(min(axis, 1.0))):.1f} deg from its ideal")
         _require(abs(hip[0]) <= 0.1, source,
                  f"the {side} hip centre is {_mm(hip[0])} ahead of the torso origin; the leg IK takes the hips "
                  f"at most 100.0 mm ahead or behind it: use a torso body whose origin lies nearer the hips")
         fb = foot_ids[side]
         sole = sole_polygon(model, d, fb, R_t)
         _require(sole is not None, source, f"feet.{side}: body {feet[side]!r} has no collision geom")
-        c = in_torso(d.xpos[fb]) + sole.centre_sole
+        S = sole.R_torso_sole                                  # the sole's axes at the zero pose
+        c = in_torso(d.xpos[fb]) + S @ sole.centre_sole
+        rel = S.T @ (ankle - c)                                # the ankle from the sole centre, sole axes
+        tilt = math.degrees(math.acos(min(float(S[2, 2]), 1.0)))
+        if tilt > math.degrees(AXIS_ANGLE_TOLERANCE):
+            why.append(f"the sole is tilted {tilt:.1f} deg at the zero pose")
+        if why:
+            numerical.append((side, "; ".join(why)))
+        # the chain as the file builds it (our signs), its sole point ankle_height below the ankle centre
+        # along the sole's normal, its rotation the sole's axes at the zero pose
+        chains[side] = LegChain(axes=[final[p + k][1] * line(p + k)[1] for k in LEG_JOINTS],
+                                points=[line(p + k)[0] for k in LEG_JOINTS],
+                                sole=ankle - rel[2] * S[:, 2], sole_rotation=S)
         # within the axis tolerance the hips count as under the torso origin, as the knee and ankle
         # count as under the hips (ours: the figures of robots that passed the old check unchanged)
         geo[side] = {"hip_offset_x": float(hip[0]) if abs(hip[0]) >= AXIS_TOLERANCE else 0.0,
                      "hip_offset_y": float(s * hip[1]), "hip_offset_z": float(-hip[2]), "thigh": thigh,
-                     "shank": shank, "ankle_height": float(ankle[2] - c[2]),
-                     "sole_forward": float(c[0] - ankle[0]), "sole_outward": float(s * (c[1] - ankle[1]))}
+                     "shank": shank, "ankle_height": float(rel[2]),
+                     "sole_forward": float(-rel[0]), "sole_outward": float(-s * rel[1])}
         soles.append(tuple(float(v) for v in sole.centre))
         hulls.append(sole.hull)
         sizes.append(sole.size)
@@ -258,13 +282,14 @@ def load_map(path: Path) -> RobotModel:
 
     leg_over = doc.get("leg") or {}
     _require(isinstance(leg_over, Mapping), source, "leg must be a mapping of LegGeometry fields")
-    allowed = [f.name for f in dataclasses.fields(LegGeometry)]
+    allowed = [f.name for f in dataclasses.fields(LegGeometry) if f.name != "chains"]
     for k, v in leg_over.items():
         _require(k in allowed, source, f"leg: unknown field {k!r} (allowed: {', '.join(allowed)})")
         _require(isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v), source,
                  f"leg.{k} = {v!r}: expected a number [m]")
     try:
-        leg = LegGeometry(**{**derived, **{k: float(v) for k, v in leg_over.items()}})
+        leg = LegGeometry(**{**derived, **{k: float(v) for k, v in leg_over.items()}},
+                          chains=LegChains(chains["left"], chains["right"], _ik_reason(numerical)) if numerical else None)
     except ParamError as exc:
         raise UserError(f"{source}: {exc}") from None
     if not {"com_above_pelvis", "com_forward", "com_lateral"} <= set(leg_over):
@@ -354,6 +379,13 @@ def _xml_finite(raw: bytes, fname: str, source: str) -> None:
                 who = f"<{el.tag} name={el.get('name')!r}>" if el.get("name") else f"<{el.tag}>"
                 raise UserError(f"{source}: {fname}: {who} {key}={value!r}: NaN or infinity is not a number "
                                 f"a robot file can hold")
+
+
+def _ik_reason(why: list[tuple[str, str]]) -> str:
+    """Why the legs get the numerical IK, in words: per leg, or once when both legs say the same."""
+    if len(why) == 2 and why[0][1] == why[1][1]:
+        return f"both legs: {why[0][1]}"
+    return "; ".join(f"{side} leg: {text}" for side, text in why)
 
 
 def _check_crouch(model: mujoco.MjModel, leg: LegGeometry, final: Mapping[str, tuple[str, int]], source: str) -> None:

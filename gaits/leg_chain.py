@@ -1,0 +1,256 @@
+"""A leg as its robot file builds it, and a numerical IK for it (ours, not the papers').
+
+The papers' IKs (``leg_kinematics``) are closed forms for ideal legs: the hip's three axes meet at
+one point, the knee and the ankle lie straight below it at the zero pose, the ankle's two axes
+meet. Many team robots are built otherwise (a hip yaw axis beside the hip centre, legs bent at the
+zero pose, a tilted ankle axis). For those, :class:`LegChain` holds the leg's six joint axes as
+the robot file has them at the zero pose, each a unit axis ``u_i`` through a point ``a_i`` in the
+pelvis frame (our joints' signs: positive knee flexion, toes down for positive ankle pitch), and
+the sole's frame ``M`` at the zero pose; the forward kinematics is the product of exponentials
+
+    T_pelvis_sole(q) = exp([S_1] q_1) ... exp([S_6] q_6) M,   S_i = (u_i, -u_i x a_i)
+
+(Lynch & Park, Modern Robotics, eq 4.14), and :meth:`LegChain.solve` the inverse: damped Newton
+steps (Levenberg-Marquardt, the geometric Jacobian in the pelvis frame, the rotation error as the
+log map's axis-angle) from a warm start, the last tick's solution. Pure numpy, scalar and small:
+it runs on the robot. The sole point is the closed form's: ``ankle_height`` below the ankle centre
+(the closest point between the ankle's two axes), so a caller's offsets mean the same for both.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["LegChain", "LegChains", "IKNotConverged"]
+
+_TOL = 1e-10          # [m + rad] error at which the Newton steps stop
+_FLOOR = 1e-8         # [m + rad] below this a step that does not improve is the rounding floor: stop
+_ACCEPT = 1e-6        # [m, rad] an answer further than this from the target is no solution
+
+
+class IKNotConverged(ValueError):
+    """The target is out of the leg's reach (or the Newton steps did not reach it): ``best`` holds
+    the joints of the closest pose found, ``error`` its distance [m + rad]."""
+
+    def __init__(self, message: str, best: np.ndarray, error: float) -> None:
+        super().__init__(message)
+        self.best = best
+        self.error = error
+
+
+def _skew(u: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -u[2], u[1]], [u[2], 0.0, -u[0]], [-u[1], u[0], 0.0]])
+
+
+def _log_rotation(R: np.ndarray) -> np.ndarray:
+    """The rotation vector (axis times angle) of ``R`` (3,)."""
+    c = (R[0, 0] + R[1, 1] + R[2, 2] - 1.0) / 2.0
+    v = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    s = 0.5 * math.sqrt(float(v @ v))
+    angle = math.atan2(s, max(min(c, 1.0), -1.0))
+    if s < 1e-9:
+        if c > 0:                               # near identity: the first-order term
+            return 0.5 * v
+        # near pi: the axis from the symmetric part
+        B = (R + np.eye(3)) / 2.0
+        axis = B[:, int(np.argmax(np.diag(B)))]
+        return math.pi * axis / np.linalg.norm(axis)
+    return v * (angle / (2.0 * s))
+
+
+@dataclass(frozen=True)
+class LegChain:
+    """One leg's joints (hip yaw, hip roll, hip pitch, knee, ankle pitch, ankle roll) as the robot
+    file has them at the zero pose, in the pelvis frame, our joints' signs (module docstring).
+
+    ``axes`` and ``points`` (6 x 3): each joint's unit axis and a point on it [m]; ``sole`` (3,)
+    [m] and ``sole_rotation`` (3 x 3, rows) the sole frame at the zero pose (its point
+    ``ankle_height`` below the ankle centre, its z the sole's normal)."""
+
+    axes: tuple
+    points: tuple
+    sole: tuple
+    sole_rotation: tuple
+    _warm: dict = field(default_factory=dict, compare=False, repr=False)
+
+    def __post_init__(self) -> None:
+        u = np.asarray(self.axes, dtype=float)
+        a = np.asarray(self.points, dtype=float)
+        if u.shape != (6, 3) or a.shape != (6, 3) or np.shape(self.sole) != (3,) or np.shape(self.sole_rotation) != (3, 3):
+            raise ValueError("a leg chain is 6 axes and 6 points (6 x 3), a sole point (3,) and a sole rotation (3 x 3)")
+        if not (np.all(np.isfinite(u)) and np.all(np.isfinite(a))):
+            raise ValueError("a leg chain's axes and points must be finite")
+        norms = np.linalg.norm(u, axis=1)
+        if np.any(np.abs(norms - 1.0) > 1e-6):
+            raise ValueError(f"a leg chain's axes must be unit vectors (norms {np.round(norms, 6).tolist()})")
+        object.__setattr__(self, "axes", tuple(tuple(float(x) for x in r / n) for r, n in zip(u, norms)))
+        object.__setattr__(self, "points", tuple(tuple(float(x) for x in r) for r in a))
+        object.__setattr__(self, "sole", tuple(float(x) for x in self.sole))
+        object.__setattr__(self, "sole_rotation", tuple(tuple(float(x) for x in r) for r in np.asarray(self.sole_rotation)))
+        u = np.array(self.axes)
+        a = np.array(self.points)
+        K = np.array([_skew(x) for x in u])
+        object.__setattr__(self, "_u", u)
+        object.__setattr__(self, "_a", a)
+        object.__setattr__(self, "_K", K)
+        object.__setattr__(self, "_K2", K @ K)
+        object.__setattr__(self, "_m_p", np.array(self.sole))
+        object.__setattr__(self, "_m_R", np.array(self.sole_rotation))
+
+    # --- the chain ---------------------------------------------------------------------------
+    def fk(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Joint angles (6,) -> (the sole point (3,), the sole's rotation (3, 3)) in the pelvis frame."""
+        p, R, _, _ = self._chain(q)
+        return p, R
+
+    def fk_many(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`fk` over leading dimensions: (..., 6) -> ((..., 3), (..., 3, 3))."""
+        q = np.asarray(q, dtype=float)
+        flat = q.reshape(-1, 6)
+        ps = np.empty((len(flat), 3))
+        Rs = np.empty((len(flat), 3, 3))
+        for i, qi in enumerate(flat):
+            ps[i], Rs[i] = self.fk(qi)
+        return ps.reshape(q.shape[:-1] + (3,)), Rs.reshape(q.shape[:-1] + (3, 3))
+
+    def _chain(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The sole's pose and each joint's axis and point in the pelvis frame at ``q`` (plain floats:
+        numpy's per-call cost dominates 3 x 3 products; this is the IK's inner loop)."""
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
+        px = py = pz = 0.0
+        axes, pts = [], []
+        for (ux, uy, uz), (ax, ay, az), qi in zip(self.axes, self.points, q):
+            axes.append((r00 * ux + r01 * uy + r02 * uz, r10 * ux + r11 * uy + r12 * uz,
+                         r20 * ux + r21 * uy + r22 * uz))
+            pts.append((r00 * ax + r01 * ay + r02 * az + px, r10 * ax + r11 * ay + r12 * az + py,
+                        r20 * ax + r21 * ay + r22 * az + pz))
+            sn, cs = math.sin(qi), math.cos(qi)
+            v = 1.0 - cs
+            # Rodrigues: Ri = I + sin K + (1 - cos) K^2, K = [u]x
+            a00, a01, a02 = cs + ux * ux * v, ux * uy * v - uz * sn, ux * uz * v + uy * sn
+            a10, a11, a12 = uy * ux * v + uz * sn, cs + uy * uy * v, uy * uz * v - ux * sn
+            a20, a21, a22 = uz * ux * v - uy * sn, uz * uy * v + ux * sn, cs + uz * uz * v
+            # the screw's translation (I - Ri) a, turned into the pelvis frame
+            tx = ax - (a00 * ax + a01 * ay + a02 * az)
+            ty = ay - (a10 * ax + a11 * ay + a12 * az)
+            tz = az - (a20 * ax + a21 * ay + a22 * az)
+            px, py, pz = (px + r00 * tx + r01 * ty + r02 * tz, py + r10 * tx + r11 * ty + r12 * tz,
+                          pz + r20 * tx + r21 * ty + r22 * tz)
+            r00, r01, r02, r10, r11, r12, r20, r21, r22 = (
+                r00 * a00 + r01 * a10 + r02 * a20, r00 * a01 + r01 * a11 + r02 * a21, r00 * a02 + r01 * a12 + r02 * a22,
+                r10 * a00 + r11 * a10 + r12 * a20, r10 * a01 + r11 * a11 + r12 * a21, r10 * a02 + r11 * a12 + r12 * a22,
+                r20 * a00 + r21 * a10 + r22 * a20, r20 * a01 + r21 * a11 + r22 * a21, r20 * a02 + r21 * a12 + r22 * a22)
+        R = np.array([[r00, r01, r02], [r10, r11, r12], [r20, r21, r22]])
+        return R @ self._m_p + np.array([px, py, pz]), R @ self._m_R, np.array(axes), np.array(pts)
+
+    # --- the inverse ---------------------------------------------------------------------------
+    def solve(self, p_target: np.ndarray, R_target: np.ndarray, q0: np.ndarray | None = None,
+              iterations: int = 40) -> np.ndarray:
+        """Joint angles (6,) that put the sole point at ``p_target`` (3,) with the rotation
+        ``R_target`` (3, 3), in the pelvis frame, from ``q0`` (default: the last solution this
+        chain returned, else the zero pose). Damped Newton steps (module docstring); raises
+        :class:`IKNotConverged` with the closest pose found when it does not reach the target
+        within 1e-6 (m + rad)."""
+        p_t = np.asarray(p_target, dtype=float)
+        R_t = np.asarray(R_target, dtype=float)
+        q = np.array(self._warm.get("q", np.zeros(6)) if q0 is None else q0, dtype=float)
+        best_q, best_err = q.copy(), math.inf
+        lam = 1e-9
+        for _ in range(iterations):
+            p, R, axes, pts = self._chain(q)
+            e = np.concatenate([p_t - p, _log_rotation(R_t @ R.T)])
+            err = float(math.sqrt(e @ e))
+            if err < best_err:
+                best_q, best_err = q.copy(), err
+                lam = max(lam * 0.1, 1e-12)
+                if err < _TOL:
+                    break
+            else:                                   # no better: at the rounding floor, or damp more
+                if best_err < _FLOOR:
+                    break
+                q = best_q.copy()
+                lam = max(lam * 100.0, 1e-6)
+                p, R, axes, pts = self._chain(q)
+                e = np.concatenate([p_t - p, _log_rotation(R_t @ R.T)])
+            J = np.empty((6, 6))
+            d = p - pts                             # the sole point from each axis
+            J[0] = axes[:, 1] * d[:, 2] - axes[:, 2] * d[:, 1]
+            J[1] = axes[:, 2] * d[:, 0] - axes[:, 0] * d[:, 2]
+            J[2] = axes[:, 0] * d[:, 1] - axes[:, 1] * d[:, 0]
+            J[3:] = axes.T
+            JJ = J @ J.T
+            JJ[np.diag_indices(6)] += lam
+            q = q + J.T @ np.linalg.solve(JJ, e)
+        q = best_q
+        if best_err > _ACCEPT:
+            raise IKNotConverged(f"sole target {np.round(p_t, 4).tolist()} m is out of the leg's reach (closest pose "
+                                 f"{best_err * 1000:.1f} mm + mrad away)", best_q, best_err)
+        q = (q + math.pi) % (2 * math.pi) - math.pi
+        self._warm["q"] = q.copy()
+        return q
+
+
+@dataclass(frozen=True)
+class LegChains:
+    """Both legs' chains (:class:`LegChain`) and why the robot needs them: the closed form's
+    assumptions it breaks, in words (``robot check`` prints it)."""
+
+    left: LegChain
+    right: LegChain
+    reason: str = ""
+
+    def side(self, side: int) -> LegChain:
+        return self.left if side == 1 else self.right
+
+
+def ideal_chain(leg, side: int) -> LegChain:
+    """The chain of an ideal leg (``leg_kinematics.LegGeometry``'s, the closed form's): the hip's
+    axes z, x, y through the hip centre, the knee and the ankle's y, x below it, the sole flat (for
+    tests, and to compare the two IKs)."""
+    hip = np.asarray(leg.hip_in_pelvis(side), dtype=float)
+    down = np.array([0.0, 0.0, -1.0])
+    knee = hip + leg.thigh * down
+    ankle = knee + leg.shank * down
+    x, y, z = np.eye(3)
+    return LegChain(axes=(z, x, y, y, y, x), points=(hip, hip, hip, knee, ankle, ankle),
+                    sole=ankle + leg.ankle_height * down, sole_rotation=np.eye(3))
+
+
+def chains_to_mapping(chains: LegChains) -> dict:
+    """Both chains as plain lists for a robot file (``robot_file``): per side the axes and points
+    (6 x 3) and the sole point (3,); the reason beside them."""
+    def one(c: LegChain) -> dict:
+        return {"axes": [list(a) for a in c.axes], "points": [list(p) for p in c.points], "sole": list(c.sole),
+                "sole_rotation": [list(r) for r in c.sole_rotation]}
+    return {"reason": chains.reason, "left": one(chains.left), "right": one(chains.right)}
+
+
+def chains_from_mapping(doc, source: str) -> LegChains:
+    """:func:`chains_to_mapping`'s inverse, each field checked (a ``ParamError`` naming it)."""
+    from .params import ParamError
+    if not isinstance(doc, dict) or set(doc) - {"reason", "left", "right"} or not {"left", "right"} <= set(doc):
+        raise ParamError(f"{source}: leg_chains: expected a mapping with left, right (and reason)")
+    sides = {}
+    for side in ("left", "right"):
+        d = doc[side]
+        if not isinstance(d, dict) or set(d) != {"axes", "points", "sole", "sole_rotation"}:
+            raise ParamError(f"{source}: leg_chains.{side}: expected axes, points, sole and sole_rotation")
+        try:
+            arrays = {k: np.asarray(d[k], dtype=float) for k in d}
+        except (TypeError, ValueError):
+            raise ParamError(f"{source}: leg_chains.{side}: every entry must be a number [m]") from None
+        for k, shape in (("axes", (6, 3)), ("points", (6, 3)), ("sole", (3,)), ("sole_rotation", (3, 3))):
+            if arrays[k].shape != shape or not np.all(np.isfinite(arrays[k])):
+                raise ParamError(f"{source}: leg_chains.{side}.{k}: expected {' x '.join(map(str, shape))} finite "
+                                 f"numbers, got shape {arrays[k].shape}")
+        try:
+            sides[side] = LegChain(**{k: arrays[k] for k in ("axes", "points", "sole", "sole_rotation")})
+        except ValueError as exc:
+            raise ParamError(f"{source}: leg_chains.{side}: {exc}") from None
+    reason = doc.get("reason", "")
+    if not isinstance(reason, str):
+        raise ParamError(f"{source}: leg_chains.reason = {reason!r}: expected text")
+    return LegChains(sides["left"], sides["right"], reason)
