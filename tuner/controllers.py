@@ -102,15 +102,32 @@ def load_controller(path: str | Path) -> UserController:
     doc = read_yaml_file(path, "controller")
     if not isinstance(doc, Mapping):
         raise UserError(f"{source}: expected a mapping with keys {', '.join(_KEYS)}")
+    if "policy" in doc:
+        return _load_policy(doc, path)
     for k in doc:
         if k not in _KEYS:
             raise UserError(f"{source}: unknown key {k!r} (allowed: {', '.join(_KEYS)})")
     if "class" not in doc:
         raise UserError(f"{source}: missing 'class' (path/to/file.py:ClassName or module:ClassName)")
+    params, ranges = _params_and_ranges(doc, source)
+    limits = _limits(doc.get("time_limit"), source)
+    cls, origin = import_class(doc["class"], path.parent, source, limits.import_)
+    return UserController(cls, params, origin, ranges, limits)
+
+
+def _params_and_ranges(doc: Mapping, source: str, known: Mapping[str, float] | None = None
+                       ) -> tuple[dict[str, float], dict[str, tuple[float, float]]]:
+    """A controller file's ``params:`` (name: number; ``known``: only these names, their values the
+    defaults) and ``ranges:`` (name: {low, high}, each holding its value)."""
     params_doc = doc.get("params") or {}
     if not isinstance(params_doc, Mapping):
         raise UserError(f"{source}: params must be a mapping of name: number")
     params = {str(k): _number(v, f"params.{k}", source) for k, v in params_doc.items()}
+    if known is not None:
+        for k in params:
+            if k not in known:
+                raise UserError(f"{source}: params.{k}: not tunable (a policy's: {', '.join(known) or 'none'})")
+        params = {**known, **params}
     ranges_doc = doc.get("ranges") or {}
     if not isinstance(ranges_doc, Mapping):
         raise UserError(f"{source}: ranges must map parameter names to {{low, high}}")
@@ -126,9 +143,37 @@ def load_controller(path: str | Path) -> UserController:
         if not low <= params[k] <= high:
             raise UserError(f"{source}: params.{k} = {params[k]:g} lies outside its range [{low:g}, {high:g}]")
         ranges[str(k)] = (low, high)
-    limits = _limits(doc.get("time_limit"), source)
-    cls, origin = import_class(doc["class"], path.parent, source, limits.import_)
-    return UserController(cls, params, origin, ranges, limits)
+    return params, ranges
+
+
+_POLICY_KEYS = ("policy", "description", "params", "ranges", "time_limit")
+
+
+def _load_policy(doc: Mapping, path: Path) -> UserController:
+    """A policy file (``gaits/policy.py``): its spec checked, its model opened and checked against
+    it, as a controller whose parameters are what the spec lets a study tune."""
+    from gaits import ParamError
+    from gaits.policy import PolicyFactory, check_sizes, policy_from_mapping
+    source = str(path)
+    for k in doc:
+        if k not in _POLICY_KEYS:
+            raise UserError(f"{source}: unknown key {k!r} in a policy file (allowed: {', '.join(_POLICY_KEYS)})")
+    try:
+        spec = policy_from_mapping(doc["policy"], source)
+    except ParamError as exc:
+        raise UserError(str(exc)) from None
+    model = Path(spec.model)
+    model = (model if model.is_absolute() else path.parent / model).resolve()
+    if not model.is_file():
+        raise UserError(f"{source}: policy.model: no such file {model}")
+    params, ranges = _params_and_ranges(doc, source, known=spec.tunables())
+    factory = PolicyFactory(spec, str(model), source)
+    try:
+        _, n_in, n_out = factory.runner()
+        check_sizes(spec, n_in, n_out, source)
+    except ParamError as exc:
+        raise UserError(str(exc)) from None
+    return UserController(factory, params, source, ranges, _limits(doc.get("time_limit"), source))
 
 
 def _limits(doc: Any, source: str) -> TimeLimits:

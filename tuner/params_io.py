@@ -72,6 +72,8 @@ def resolve_drive(spec: str | None, family: str | None, *, stabiliser: bool | No
     if command is not None and commands_file is not None:
         raise UserError("give --command or --commands, not both")
     stream = None if commands_file is None else load_stream(commands_file, tail)
+    if controller is None and spec is not None and _is_controller_file(spec):
+        controller, spec = spec, None            # a controller or policy file given as the set
     if controller is not None:
         from .controllers import load_controller
         if spec is not None or family is not None:
@@ -86,3 +88,17 @@ def resolve_drive(spec: str | None, family: str | None, *, stabiliser: bool | No
         return Drive.of(gait_file, source=label, stabiliser=stabiliser, command=command, stream=stream)
     except ParamError as exc:
         raise UserError(f"--stabiliser: {exc}") from None
+
+
+def _is_controller_file(spec: str) -> bool:
+    """Whether ``spec`` names a controller file (``class:``) or a policy file (``policy:``) rather than
+    a parameter set (``gait:``, ``params:``): a YAML file whose top level says so."""
+    path = Path(spec)
+    if path.suffix not in (".yaml", ".yml") or not path.is_file() or path.stat().st_size > 1_000_000:
+        return False
+    try:
+        import yaml
+        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except Exception:  # noqa: BLE001 - not ours to judge here: resolve_params names what is wrong
+        return False
+    return isinstance(doc, dict) and ("policy" in doc or "class" in doc)

@@ -1,0 +1,182 @@
+"""Learned walk policies as controllers (gaits/policy.py, a controller file's ``policy:`` section):
+a small ONNX policy built here with onnx's helper runs through the spec, its observation vector
+tick by tick the one built by hand; a wrong spec is one line, exit 2."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import gaits
+from gaits.control import Measurement
+from gaits.params import ParamError
+from gaits.policy import PolicyController, gravity_in_body, policy_from_mapping
+
+onnx = pytest.importorskip("onnx", reason="onnx (the dev extra) builds the test's policy")
+pytest.importorskip("onnxruntime", reason="onnxruntime (the onnx extra) runs policies")
+
+LEGS = [f"{s}_{k}" for s in "lr" for k in ("hip_yaw", "hip_roll", "hip_pitch", "knee", "ankle_pitch", "ankle_roll")]
+
+
+def mlp(n_in: int, n_out: int, seed: int = 0, gain: float = 1.0):
+    """Weights of a two-layer tanh MLP, and its numpy reference."""
+    rng = np.random.default_rng(seed)
+    W1 = rng.normal(0, 1 / math.sqrt(n_in), (n_in, 16)).astype(np.float32)
+    b1 = rng.normal(0, 0.1, 16).astype(np.float32)
+    W2 = (gain * rng.normal(0, 0.25, (16, n_out))).astype(np.float32)
+    b2 = np.zeros(n_out, dtype=np.float32)
+
+    def ref(x: np.ndarray) -> np.ndarray:
+        h = np.tanh(x.astype(np.float32) @ W1 + b1)
+        return h @ W2 + b2
+    return (W1, b1, W2, b2), ref
+
+
+def write_onnx(path: Path, n_in: int, n_out: int, seed: int = 0, gain: float = 1.0, batched: bool = True):
+    from onnx import TensorProto, helper, numpy_helper
+    (W1, b1, W2, b2), ref = mlp(n_in, n_out, seed, gain)
+    shape_in, shape_out = ([1, n_in], [1, n_out]) if batched else ([n_in], [n_out])
+    nodes = [helper.make_node("MatMul", ["obs", "W1"], ["h0"]), helper.make_node("Add", ["h0", "b1"], ["h1"]),
+             helper.make_node("Tanh", ["h1"], ["h2"]), helper.make_node("MatMul", ["h2", "W2"], ["a0"]),
+             helper.make_node("Add", ["a0", "b2"], ["action"])]
+    graph = helper.make_graph(nodes, "walk", [helper.make_tensor_value_info("obs", TensorProto.FLOAT, shape_in)],
+                              [helper.make_tensor_value_info("action", TensorProto.FLOAT, shape_out)],
+                              [numpy_helper.from_array(a, n) for a, n in ((W1, "W1"), (b1, "b1"), (W2, "W2"), (b2, "b2"))])
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 13)])
+    model.ir_version = 8
+    onnx.checker.check_model(model)
+    path.write_bytes(model.SerializeToString())
+    return ref
+
+
+def crouch() -> dict[str, float]:
+    leg = gaits.LegGeometry()
+    out = {}
+    for side, s in ((1, "l"), (-1, "r")):
+        q = gaits.leg_ik(leg.hip_in_pelvis(side) + np.array([0.0, 0.0, -0.85 * leg.max_hip_height]), 0.0, leg, side)
+        for name, v in zip(("hip_yaw", "hip_roll", "hip_pitch", "knee", "ankle_pitch", "ankle_roll"), q):
+            out[f"{s}_{name}"] = round(float(v), 6)
+    return out
+
+
+def spec_doc(model: str = "walk.onnx", **over) -> dict:
+    doc = {"model": model, "period": 0.02, "joints": list(LEGS), "default_pose": crouch(),
+           "observation": [{"term": "gyro", "scale": 0.25}, {"term": "gravity"},
+                           {"term": "command", "scale": [2.0, 2.0, 0.25]},
+                           {"term": "joint_pos", "clip": 1.0}, {"term": "joint_vel", "scale": 0.05},
+                           {"term": "last_action"}, {"term": "phase", "period": 0.6},
+                           {"term": "imu_rpy", "offset": [0.0, 0.05, 0.0]}],
+           "action": {"scale": 0.25, "clip": 2.0},
+           "commands": {"vx": [-0.1, 0.2], "vy": [-0.1, 0.1], "wz": [-0.5, 0.5]}}
+    doc.update(over)
+    return doc
+
+
+N_OBS = 3 + 3 + 3 + 12 + 12 + 12 + 2 + 3
+
+
+def test_the_observation_and_the_targets_tick_by_tick_against_a_hand_built_one(tmp_path):
+    from gaits.policy import onnx_runner
+    ref = write_onnx(tmp_path / "walk.onnx", N_OBS, 12, seed=1, gain=4.0)
+    spec = policy_from_mapping(spec_doc(), "policy.yaml")
+    run, n_in, n_out = onnx_runner(tmp_path / "walk.onnx")
+    assert (n_in, n_out) == (N_OBS, 12)
+    ctl = PolicyController(spec, run, None, 0.01, (n_in, n_out))
+    q0 = ctl.start_pose().q
+    default = np.array([crouch().get(j, 0.0) for j in gaits.JOINT_NAMES])
+    np.testing.assert_array_equal(q0, default)
+    rng = np.random.default_rng(7)
+    last = np.zeros(12)
+    target = default.copy()
+    idx = [gaits.JOINT_NAMES.index(j) for j in LEGS]
+    for k in range(12):
+        t = 0.01 * k
+        m = Measurement(t, q=default + rng.normal(0, 0.3, 20), dq=rng.normal(0, 5, 20),
+                        imu_rpy=rng.normal(0, 0.2, 3), gyro=rng.normal(0, 1, 3))
+        command = np.array([0.5, -0.05, 0.3])                 # vx beyond the envelope: clipped to 0.2
+        out = ctl.step(m, command)
+        if k % 2 == 0:                                        # the policy's period is two ticks
+            r, p = m.imu_rpy[0], m.imu_rpy[1]
+            grav = np.array([math.sin(p), -math.sin(r) * math.cos(p), -math.cos(r) * math.cos(p)])
+            by_hand = np.concatenate([
+                m.gyro * 0.25, grav, np.array([0.2, -0.05, 0.3]) * np.array([2.0, 2.0, 0.25]),
+                np.clip((m.q - default)[idx], -1.0, 1.0), m.dq[idx] * 0.05, last,
+                [math.sin(2 * math.pi * t / 0.6), math.cos(2 * math.pi * t / 0.6)],
+                m.imu_rpy - np.array([0.0, 0.05, 0.0])])
+            np.testing.assert_allclose(ctl.last_observation, by_hand, atol=1e-12)
+            np.testing.assert_allclose(ctl.last_action, np.clip(ref(by_hand).reshape(-1), -2.0, 2.0), atol=1e-5)
+            last = ctl.last_action.copy()                     # onnxruntime's float32, carried exactly
+            target = default.copy()
+            target[idx] += 0.25 * last
+        np.testing.assert_allclose(out, target, atol=1e-12)
+    assert ctl.calls == 6
+    np.testing.assert_allclose(gravity_in_body(np.array([0.0, 0.0, 1.0])), [0.0, 0.0, -1.0], atol=1e-15)
+
+
+@pytest.mark.parametrize("edit, needle", [
+    (lambda d: d["observation"].append({"term": "gyro"}), "the observation has 53 numbers (gyro 3, gravity 3, command 3, "
+                                                           "joint_pos 12, joint_vel 12, last_action 12, phase 2, imu_rpy 3, "
+                                                           "gyro 3) but the model takes 50"),
+    (lambda d: d["observation"].append({"term": "foot_contact"}), "unknown term 'foot_contact'"),
+    (lambda d: d["joints"].__setitem__(0, "l_wrist"), "policy.joints: 'l_wrist' is not one of our joints"),
+    (lambda d: d["observation"][0].__setitem__("scale", [1.0, 2.0]), "policy.observation[0] (gyro).scale has 2 numbers"),
+    (lambda d: d.__setitem__("period", 0.015), "policy.period = 0.015 s is not a whole number of the loop's 0.01 s ticks"),
+    (lambda d: d["joints"].pop(), "the observation has 47 numbers"),
+])
+def test_a_wrong_spec_is_one_line_exit_2(tmp_path, gait_tuner_cmd, run_env, edit, needle):
+    import yaml
+    write_onnx(tmp_path / "walk.onnx", N_OBS, 12)
+    doc = spec_doc()
+    edit(doc)
+    (tmp_path / "policy.yaml").write_text(yaml.safe_dump({"policy": doc}))
+    r = subprocess.run(gait_tuner_cmd + ["simulate", "--controller", str(tmp_path / "policy.yaml"), "--surface", "rigid",
+                                         "--duration", "1"], capture_output=True, text=True, env=run_env, timeout=300)
+    assert r.returncode == 2, (r.stdout, r.stderr)
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "Traceback" not in r.stderr, r.stderr
+    assert needle in lines[0], lines[0]
+
+
+def test_a_joint_the_robot_lacks_and_gains_it_was_not_trained_with_are_named(tmp_path):
+    import yaml
+    import third_party_robot as T
+    from gaits.policy import PolicyFactory, check_robot
+    from tuner.robots import load_robot
+    legs_only = load_robot(str(T.write(tmp_path, T.mjcf(), T.map_yaml(T.joint_map(legs_only=True)))))
+    spec = policy_from_mapping(spec_doc(joints=LEGS + ["l_elbow"]), "policy.yaml")
+    with pytest.raises(ParamError, match=r"policy.yaml: policy.joints: 'l_elbow' is not a joint of robot"):
+        check_robot(spec, legs_only, "policy.yaml")
+    spec = policy_from_mapping(spec_doc(gains={"kp": 80.0}), "policy.yaml")
+    with pytest.raises(ParamError, match=r"trained with servos at kp 80 N m/rad .* are at kp 21.1: give its map servo"):
+        check_robot(spec, legs_only, "policy.yaml")
+    check_robot(policy_from_mapping(spec_doc(gains={"kp": 20.0}), "p"), legs_only, "p")     # within 25 %
+    assert isinstance(PolicyFactory(spec, "walk.onnx", "p"), PolicyFactory)
+    assert yaml is not None
+
+
+def test_a_policy_walks_like_any_set_and_a_study_tunes_what_its_spec_exposes(tmp_path, gait_tuner_cmd, run_env):
+    """A policy whose output is nearly zero stands in its default crouch through simulate, robustness
+    and the challenge's first trial; its params are the spec's tunables."""
+    import yaml
+    from tuner.controllers import load_controller
+    write_onnx(tmp_path / "walk.onnx", N_OBS, 12, gain=0.01)
+    (tmp_path / "policy.yaml").write_text(yaml.safe_dump({
+        "policy": spec_doc(), "params": {"action_scale": 0.2},
+        "ranges": {"action_scale": {"low": 0.1, "high": 0.3}, "vx_max": {"low": 0.1, "high": 0.4}}}))
+    user = load_controller(tmp_path / "policy.yaml")
+    assert user.params == {"action_scale": 0.2, "vx_min": -0.1, "vx_max": 0.2, "vy_max": 0.1, "wz_max": 0.5}
+    assert set(user.ranges) == {"action_scale", "vx_max"}
+    r = subprocess.run(gait_tuner_cmd + ["simulate", "--controller", str(tmp_path / "policy.yaml"), "--surface", "grass30",
+                                         "--command", "0.1,0,0", "--duration", "3", "--json"],
+                       capture_output=True, text=True, env=run_env, timeout=600)
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout)["metrics"]["outcome"] == "completed"
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(yaml.safe_dump({"policy": spec_doc(), "params": {"kp": 3.0}}))
+    with pytest.raises(Exception, match=r"params.kp: not tunable"):
+        load_controller(bad)
