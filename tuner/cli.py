@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import errno
+import math
 import os
 import signal
 import sys
@@ -1993,6 +1994,80 @@ def transfer(params_spec: str, robot_name: str | None, surface_name: str, defaul
         return
     for line in transfer_lines(drive.source or params_spec, out):
         click.echo(line)
+
+
+@cli.command()
+@click.argument("walk_specs", metavar="WALK...", nargs=-1, required=True)
+@robot_option()
+@click.option("--surfaces", "surface_names", default="rigid,grass30", show_default=True,
+              help="Comma-separated surfaces (names or files).")
+@click.option("--speeds", default="0.2,0.1,0.1,0.5", show_default=True, metavar="FWD,BACK,SIDE,TURN",
+              help="The command asked in each direction [m/s, m/s, m/s, rad/s]; 0 leaves a direction out.")
+@click.option("--walks", default=20, show_default=True, type=click.IntRange(0, 10_000),
+              help="Randomised match walks per walk and surface (0: none).")
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(0, 2**31 - 1),
+              help="Seed of the match walks and of the challenge's pushes.")
+@click.option("--challenge/--no-challenge", default=True, show_default=True,
+              help="The push-recovery challenge by the 2025 rules (3 kg bottle, rope 1.5 m).")
+@click.option("--out", "out_dir", default="runs/versus", show_default=True, type=OutPath(file_okay=False),
+              help="Folder for versus.md, versus.json and versus.png.")
+@workers_option()
+@JSON_OPTION
+def versus(walk_specs: tuple[str, ...], robot_name: str, surface_names: str, speeds: str, walks: int, seed: int,
+           challenge: bool, out_dir: Path, workers: int, as_json: bool) -> None:
+    """Walks side by side on one robot: sets, controllers, policies, placo.
+
+    Each WALK is a shipped or tuned set, a parameter file, a controller file (class:) or a policy
+    file (policy:, an ONNX model). On every surface each is commanded forward, backward, sideways
+    and turning (the speed reached), walks randomised match streams (survival, pitch, tracking),
+    takes the challenge (largest D, momentum, M), and its cost per tick is timed.
+    tuner/report/versus.py says how each figure is measured.
+    """
+    import json
+
+    from tqdm import tqdm
+
+    from .report.versus import DIRECTIONS, nan_free, versus_cell, versus_markdown, versus_plots
+    from .robots import load_robot
+    from .sim.surfaces import load_surface
+    names = [n.strip() for n in surface_names.split(",") if n.strip()]
+    if not names:
+        raise UserError("--surfaces: give at least one surface name or file")
+    try:
+        asked = [float(v) for v in speeds.split(",")]
+    except ValueError:
+        raise UserError(f"--speeds {speeds!r}: expected four numbers FWD,BACK,SIDE,TURN") from None
+    if len(asked) != 4 or any(not math.isfinite(v) or v < 0 or v > 2.0 for v in asked):
+        raise UserError(f"--speeds {speeds!r}: expected four numbers in [0, 2] (m/s, m/s, m/s, rad/s)")
+    speed_of = {d: v for d, v in zip(DIRECTIONS, asked) if v > 0}
+    robot = load_robot(robot_name)
+    for n in names:
+        load_surface(n)
+    drives = [(Path(spec).stem if spec.endswith((".yaml", ".yml")) else spec, resolve_drive(spec, None))
+              for spec in walk_specs]
+    labels = [label for label, _ in drives]
+    if len(set(labels)) != len(labels):
+        raise UserError(f"versus: two walks share the name {next(x for x in labels if labels.count(x) > 1)!r}: "
+                        f"rename one file")
+    out_dir.mkdir(parents=True, exist_ok=True)
+    per_cell = len(speed_of) + walks + (1 if challenge else 0)
+    cells = []
+    with tqdm(total=len(drives) * len(names) * per_cell, desc="versus", unit="walk", **_bar_options()) as bar:
+        for label, drive in drives:
+            for n in names:
+                cells.append((label, load_surface(n).name,
+                              versus_cell(robot_name, n, drive, speeds=speed_of, walks=walks, seed=seed,
+                                          challenge=challenge, workers=workers, progress=bar.update)))
+    text = versus_markdown(robot.name, cells, speed_of)
+    doc = nan_free({"robot": robot.name, "speeds": speed_of, "seed": seed,
+                    "cells": [{"walk": w, "surface": s, **c} for w, s, c in cells]})
+    write_files_atomic({out_dir / "versus.md": text, out_dir / "versus.json": json.dumps(doc, indent=1)})
+    versus_plots(out_dir, cells, speed_of)
+    if as_json:
+        click.echo(json.dumps(doc, allow_nan=False))
+        return
+    click.echo(text)
+    click.echo(f"wrote {out_dir / 'versus.md'}, versus.json and versus.png")
 
 
 @cli.group()

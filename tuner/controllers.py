@@ -104,6 +104,8 @@ def load_controller(path: str | Path) -> UserController:
         raise UserError(f"{source}: expected a mapping with keys {', '.join(_KEYS)}")
     if "policy" in doc:
         return _load_policy(doc, path)
+    if "placo" in doc:
+        return _load_placo(doc, path)
     for k in doc:
         if k not in _KEYS:
             raise UserError(f"{source}: unknown key {k!r} (allowed: {', '.join(_KEYS)})")
@@ -209,3 +211,26 @@ def save_controller(path: str | Path, user: UserController, description: str = "
     write_text_atomic(path, "# a controller of your own (tuner/controllers.py); naming this file runs its "
                             "class's code\n" + yaml.safe_dump(doc, sort_keys=False))
     return path
+
+
+_PLACO_KEYS = ("placo", "description", "ranges", "time_limit")
+
+
+def _load_placo(doc: Mapping, path: Path) -> UserController:
+    """A placo file (``tuner/placo_walk.py``): placo's walk as a controller whose parameters are its
+    ``placo:`` section (a study searches those with ``ranges:``)."""
+    from gaits import ParamError
+    from .placo_walk import PlacoFactory, placo_params
+    source = str(path)
+    for k in doc:
+        if k not in _PLACO_KEYS:
+            raise UserError(f"{source}: unknown key {k!r} in a placo file (allowed: {', '.join(_PLACO_KEYS)})")
+    try:
+        params = placo_params(doc["placo"], source)
+    except ParamError as exc:
+        raise UserError(str(exc)) from None
+    _, ranges = _params_and_ranges({"ranges": doc.get("ranges")}, source, known=params)
+    limits = _limits(doc.get("time_limit"), source)
+    if "time_limit" not in doc:              # placo reads the URDF and its meshes when it is built: seconds
+        limits = TimeLimits(tick=30.0, walk=limits.walk, import_=limits.import_)
+    return UserController(PlacoFactory(), params, source, ranges, limits)

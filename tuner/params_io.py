@@ -91,7 +91,8 @@ def resolve_drive(spec: str | None, family: str | None, *, stabiliser: bool | No
 
 
 def _is_controller_file(spec: str) -> bool:
-    """Whether ``spec`` names a controller file (``class:``) or a policy file (``policy:``) rather than
+    """Whether ``spec`` names a controller file (``class:``), a policy file (``policy:``) or a placo file
+    (``placo:``) rather than
     a parameter set (``gait:``, ``params:``): a YAML file whose top level says so."""
     path = Path(spec)
     if path.suffix not in (".yaml", ".yml") or not path.is_file() or path.stat().st_size > 1_000_000:
@@ -101,4 +102,4 @@ def _is_controller_file(spec: str) -> bool:
         doc = yaml.safe_load(path.read_text(encoding="utf-8"))
     except Exception:  # noqa: BLE001 - not ours to judge here: resolve_params names what is wrong
         return False
-    return isinstance(doc, dict) and ("policy" in doc or "class" in doc)
+    return isinstance(doc, dict) and ("policy" in doc or "class" in doc or "placo" in doc)

@@ -1,0 +1,53 @@
+"""`gait-tuner versus`: walks of every kind side by side (a set, a policy file), one table, strict
+JSON, a plot; bad input one line."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+
+import pytest
+import yaml
+
+
+def run(cmd, args, env, timeout=900):
+    return subprocess.run(cmd + [str(a) for a in args], capture_output=True, text=True, env=env, timeout=timeout)
+
+
+def test_a_set_and_a_policy_side_by_side(tmp_path, gait_tuner_cmd, run_env):
+    pytest.importorskip("onnx", reason="onnx (the dev extra) builds the test's policy")
+    pytest.importorskip("onnxruntime", reason="onnxruntime (the onnx extra) runs policies")
+    import test_policy as P
+    P.write_onnx(tmp_path / "walk.onnx", P.N_OBS, 12, gain=0.01)
+    (tmp_path / "still.yaml").write_text(yaml.safe_dump({"policy": P.spec_doc()}))
+    out = tmp_path / "vs"
+    r = run(gait_tuner_cmd, ["versus", "kidsize-engine-carpet4", tmp_path / "still.yaml", "--surfaces", "rigid",
+                             "--speeds", "0.2,0,0,0.5", "--walks", "1", "--no-challenge", "--out", out, "--json"], run_env)
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(r.stdout)
+    cells = {c["walk"]: c for c in doc["cells"]}
+    assert set(cells) == {"kidsize-engine-carpet4", "still"} and doc["speeds"] == {"forward": 0.2, "turning": 0.5}
+    engine, still = cells["kidsize-engine-carpet4"]["speeds"], cells["still"]["speeds"]
+    assert 0.15 < engine["forward"]["reached"] < 0.3 and abs(still["forward"]["reached"]) < 0.02
+    assert engine["turning"]["reached"] > 0.3
+    assert cells["still"]["match"]["walks"] == 1 and cells["still"]["tick_ms"]["median"] > 0
+    assert "challenge" not in cells["still"]
+    text = (out / "versus.md").read_text()
+    assert "| still | rigid |" in text and "| kidsize-engine-carpet4 | rigid |" in text
+    assert (out / "versus.png").stat().st_size > 1000
+    assert json.loads((out / "versus.json").read_text())["cells"][0]["walk"] == "kidsize-engine-carpet4"
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["kidsize-engine-carpet4", "--speeds", "0.2,0.1"], "--speeds '0.2,0.1': expected four numbers in [0, 2]"),
+    (["kidsize-engine-carpet4", "--speeds", "a,b,c,d"], "expected four numbers FWD,BACK,SIDE,TURN"),
+    (["kidsize-engine-carpet4", "kidsize-engine-carpet4"], "two walks share the name 'kidsize-engine-carpet4'"),
+    (["kidsize-engine-carpet4", "--surfaces", "moon"], "moon"),
+    (["no-such-set"], "no-such-set"),
+])
+def test_bad_input_is_one_line(tmp_path, gait_tuner_cmd, run_env, args, needle):
+    r = run(gait_tuner_cmd, ["versus", *args, "--out", tmp_path / "vs"], run_env, timeout=300)
+    assert r.returncode == 2, (r.stdout, r.stderr)
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "Traceback" not in r.stderr, r.stderr
+    assert needle in lines[0], lines[0]

@@ -1,0 +1,194 @@
+"""Walks side by side (`gait-tuner versus`): any mix of shipped or tuned sets, controllers of a
+team's own, learned policies (policy files) and placo's walk, on one robot and its surfaces, each
+measured the same way (ours):
+
+* **speed reached** per direction: the walk commanded forward, backward, sideways and turning
+  (``--speeds``), deterministic, its mean velocity in its own heading frame over a window of
+  steady walking (online walks 4-9.5 s of their 10 s; a table its plan's steady cycles), or
+  ``fell``;
+* **match walks**: ``--walks`` randomised match streams (``tuner/sim/scenario.py``, the default
+  randomisation, evaluation seeds), survival, torso pitch RMS and forward tracking RMSE;
+* **the challenge** by the 2025 rules (3 kg bottle, rope 1.5 m, ``--seed``): the largest D fully
+  successful, its momentum and M;
+* **cost per tick**: the controller's ``step`` time on this machine (median and p99 over the
+  forward walk; a figure, not a check: a loaded machine reads more).
+
+The table is Markdown (``versus.md``) and the plots PNG in ``--out``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+import gaits
+from gaits.drive import ONLINE_DURATION_S
+from gaits.walk_command import WalkCommand
+
+__all__ = ["DIRECTIONS", "speed_walk", "versus_cell", "versus_markdown", "versus_plots"]
+
+#: Each direction's command for a unit speed (vx, vy, wz), and the default speed asked.
+DIRECTIONS = {"forward": ((1.0, 0.0, 0.0), 0.2), "backward": ((-1.0, 0.0, 0.0), 0.1),
+              "sideways": ((0.0, 1.0, 0.0), 0.1), "turning": ((0.0, 0.0, 1.0), 0.5)}
+
+
+class _Timed:
+    """A controller whose ``step`` calls are timed (everything else its own)."""
+
+    def __init__(self, inner: Any) -> None:
+        self._inner = inner
+        self.times: list[float] = []
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._inner, name)
+
+    def step(self, m: Any, command: Any = None) -> Any:
+        t0 = time.perf_counter()
+        out = self._inner.step(m, command)
+        self.times.append(time.perf_counter() - t0)
+        return out
+
+
+def speed_walk(sim: Any, drive: gaits.Drive, direction: str, speed: float) -> dict[str, Any]:
+    """One deterministic walk of ``drive`` commanded ``speed`` along ``direction``: the velocity it
+    reached along it (None when it fell), its pitch RMS and its ``step`` times [s]."""
+    from ..sim.metrics import heading_velocity, pitch_rms
+    unit, _ = DIRECTIONS[direction]
+    command = WalkCommand(*(speed * u for u in unit))
+    walk = dataclasses.replace(drive, command=command, stream=None)
+    if walk.online:
+        ctl = walk.controller(sim.robot, sim.control_period)
+        window = (4.0, ONLINE_DURATION_S - 0.5)
+    else:
+        ctl = walk.controller(sim.robot, sim.control_period)
+        window = None
+    timed = _Timed(ctl)
+    trace = sim.run(timed, **walk.run_options())
+    if window is None:
+        steady = trace.meta.get("steady")
+        window = tuple(steady) if steady else (0.4 * float(trace.t[-1]), 0.9 * float(trace.t[-1]))
+    reached = None
+    if trace.survived:
+        v = heading_velocity(trace.t, trace.p_com, trace.yaw if trace.yaw is not None else np.zeros(len(trace.t)),
+                             *window)
+        if np.all(np.isfinite(v)):
+            reached = float(np.dot(v, unit))
+    return {"direction": direction, "asked": float(speed), "reached": reached,
+            "fell": not trace.survived, "reason": trace.reason,
+            "pitch_rms_deg": float(np.degrees(pitch_rms(trace.pitch))) if trace.survived else None,
+            "step_times": timed.times}
+
+
+def versus_cell(robot_name: str, surface_name: str, drive: gaits.Drive, *, speeds: dict[str, float], walks: int,
+                seed: int, challenge: bool, workers: int, progress: Callable[[int], None] | None = None
+                ) -> dict[str, Any]:
+    """Everything the table shows for one walk on one surface (module docstring)."""
+    from ..robots import load_robot
+    from ..sim.rollout import Simulator
+    from ..sim.surfaces import load_surface
+    from .transfer import world_summary
+    robot, surface = load_robot(robot_name), load_surface(surface_name)
+    sim = Simulator(robot, surface)
+    out: dict[str, Any] = {"speeds": {}}
+    times: list[float] = []
+    for direction, speed in speeds.items():
+        r = speed_walk(sim, drive, direction, speed)
+        if direction == "forward":
+            times = r.pop("step_times")
+            out["pitch_rms_deg"] = r["pitch_rms_deg"]
+        else:
+            r.pop("step_times")
+        out["speeds"][direction] = r
+        if progress is not None:
+            progress(1)
+    out["tick_ms"] = {"median": float(np.median(times) * 1000), "p99": float(np.percentile(times, 99) * 1000)} \
+        if times else None
+    if walks:
+        from ..sim.robustness import scenario_walks
+        from ..sim.scenario import MatchDistribution
+        rows = scenario_walks(robot_name, surface_name, drive, MatchDistribution(), walks=walks, seed=seed,
+                              workers=workers, progress=progress)
+        out["match"] = world_summary(rows)
+    if challenge:
+        from ..sim.challenge import challenge_2025
+        from ..sim.scene import BOTTLES
+        csim = Simulator(robot, surface, pendulum=1.5, bottle=BOTTLES[3])
+        rep = challenge_2025(csim, dataclasses.replace(drive, command=None, stream=None), seed=seed, step=0.05)
+        full = rep.get("full") or {}           # none: not even the first D fully successful
+        out["challenge"] = {"full_m": full.get("distance_m") or 0.0, "momentum_Ns": full.get("momentum_Ns") or 0.0,
+                            "M": full.get("M") or 0.0}
+        if progress is not None:
+            progress(1)
+    return out
+
+
+def _f(v: Any, fmt: str) -> str:
+    return "-" if v is None else format(v, fmt)
+
+
+def versus_markdown(robot: str, cells: Sequence[tuple[str, str, dict[str, Any]]], speeds: dict[str, float]) -> str:
+    """The Markdown table: one row per (walk, surface)."""
+    heads = [f"{d} ({s:g} {'rad/s' if d == 'turning' else 'm/s'})" for d, s in speeds.items()]
+    cols = ["walk", "surface", *heads, "match survival", "pitch RMS [deg]", "vx RMSE [m/s]", "challenge D [m]",
+            "momentum [N s]", "M", "tick median / p99 [ms]"]
+    lines = [f"Walks side by side on robot {robot}", "", "| " + " | ".join(cols) + " |",
+             "|" + "|".join("---" for _ in cols) + "|"]
+    for walk, surface, c in cells:
+        row = [walk, surface]
+        for d in speeds:
+            r = c["speeds"].get(d)
+            row.append("fell" if r and r["fell"] else _f(r and r["reached"], ".3f"))
+        m = c.get("match")
+        row += [f"{m['survival'] * 100:.0f} % of {m['walks']}" if m else "-", _f(c.get("pitch_rms_deg"), ".2f"),
+                _f(m and m["vx_rmse_mps"], ".3f")]
+        ch = c.get("challenge")
+        row += [_f(ch and ch["full_m"], ".2f"), _f(ch and ch["momentum_Ns"], ".2f"), _f(ch and ch["M"], ".3f")]
+        t = c.get("tick_ms")
+        row.append(f"{t['median']:.3f} / {t['p99']:.3f}" if t else "-")
+        lines.append("| " + " | ".join(row) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def versus_plots(out: Path, cells: Sequence[tuple[str, str, dict[str, Any]]], speeds: dict[str, float]) -> list[Path]:
+    """Bar charts: the speed reached per direction, match survival and the challenge's D, per walk
+    and surface."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    labels = [f"{w}\n{s}" for w, s, _ in cells]
+    x = np.arange(len(cells))
+    panels = [(d, [(c["speeds"].get(d) or {}).get("reached") or 0.0 for _, _, c in cells],
+               f"{d} reached [{'rad/s' if d == 'turning' else 'm/s'}] (asked {speeds[d]:g})") for d in speeds]
+    if any("match" in c for _, _, c in cells):
+        panels.append(("survival", [100 * c["match"]["survival"] if "match" in c else 0.0 for _, _, c in cells],
+                       "match-walk survival [%]"))
+    if any("challenge" in c for _, _, c in cells):
+        panels.append(("challenge", [(c.get("challenge") or {}).get("full_m") or 0.0 for _, _, c in cells],
+                       "challenge: largest D fully successful [m]"))
+    fig, axes = plt.subplots(len(panels), 1, figsize=(max(6, 1.4 * len(cells)), 2.4 * len(panels)), squeeze=False)
+    for ax, (_, vals, title) in zip(axes[:, 0], panels):
+        ax.bar(x, vals, color="tab:blue")
+        ax.set_title(title, fontsize=9)
+        ax.set_xticks(x, labels, fontsize=7)
+        ax.grid(axis="y", alpha=0.3)
+    fig.tight_layout()
+    path = Path(out) / "versus.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return [path]
+
+
+def nan_free(obj: Any) -> Any:
+    """``obj`` with NaN and infinities as None (strict JSON)."""
+    if isinstance(obj, dict):
+        return {k: nan_free(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [nan_free(v) for v in obj]
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
