@@ -2027,7 +2027,8 @@ def versus(walk_specs: tuple[str, ...], robot_name: str, surface_names: str, spe
 
     from tqdm import tqdm
 
-    from .report.versus import DIRECTIONS, nan_free, versus_cell, versus_markdown, versus_plots
+    from .report.tables import json_finite
+    from .report.versus import DIRECTIONS, versus_cell, versus_markdown, versus_plots
     from .robots import load_robot
     from .sim.surfaces import load_surface
     names = [n.strip() for n in surface_names.split(",") if n.strip()]
@@ -2059,7 +2060,7 @@ def versus(walk_specs: tuple[str, ...], robot_name: str, surface_names: str, spe
                               versus_cell(robot_name, n, drive, speeds=speed_of, walks=walks, seed=seed,
                                           challenge=challenge, workers=workers, progress=bar.update)))
     text = versus_markdown(robot.name, cells, speed_of)
-    doc = nan_free({"robot": robot.name, "speeds": speed_of, "seed": seed,
+    doc = json_finite({"robot": robot.name, "speeds": speed_of, "seed": seed,
                     "cells": [{"walk": w, "surface": s, **c} for w, s, c in cells]})
     write_files_atomic({out_dir / "versus.md": text, out_dir / "versus.json": json.dumps(doc, indent=1)})
     versus_plots(out_dir, cells, speed_of)

@@ -151,19 +151,26 @@ def _params_and_ranges(doc: Mapping, source: str, known: Mapping[str, float] | N
 _POLICY_KEYS = ("policy", "description", "params", "ranges", "time_limit")
 
 
+def _section(doc: Mapping, keys: tuple[str, ...], what: str, read: Any, source: str) -> Any:
+    """A file kind's own section (its first key) read by ``read(section, source)``, after its keys
+    are checked; a ``ParamError`` becomes the one line of a ``UserError``."""
+    from gaits import ParamError
+    for k in doc:
+        if k not in keys:
+            raise UserError(f"{source}: unknown key {k!r} in {what} (allowed: {', '.join(keys)})")
+    try:
+        return read(doc[keys[0]], source)
+    except ParamError as exc:
+        raise UserError(str(exc)) from None
+
+
 def _load_policy(doc: Mapping, path: Path) -> UserController:
     """A policy file (``gaits/policy.py``): its spec checked, its model opened and checked against
     it, as a controller whose parameters are what the spec lets a study tune."""
     from gaits import ParamError
     from gaits.policy import PolicyFactory, check_sizes, policy_from_mapping
     source = str(path)
-    for k in doc:
-        if k not in _POLICY_KEYS:
-            raise UserError(f"{source}: unknown key {k!r} in a policy file (allowed: {', '.join(_POLICY_KEYS)})")
-    try:
-        spec = policy_from_mapping(doc["policy"], source)
-    except ParamError as exc:
-        raise UserError(str(exc)) from None
+    spec = _section(doc, _POLICY_KEYS, "a policy file", policy_from_mapping, source)
     model = Path(spec.model)
     model = (model if model.is_absolute() else path.parent / model).resolve()
     if not model.is_file():
@@ -219,16 +226,9 @@ _PLACO_KEYS = ("placo", "description", "ranges", "time_limit")
 def _load_placo(doc: Mapping, path: Path) -> UserController:
     """A placo file (``tuner/placo_walk.py``): placo's walk as a controller whose parameters are its
     ``placo:`` section (a study searches those with ``ranges:``)."""
-    from gaits import ParamError
     from .placo_walk import PlacoFactory, placo_params
     source = str(path)
-    for k in doc:
-        if k not in _PLACO_KEYS:
-            raise UserError(f"{source}: unknown key {k!r} in a placo file (allowed: {', '.join(_PLACO_KEYS)})")
-    try:
-        params = placo_params(doc["placo"], source)
-    except ParamError as exc:
-        raise UserError(str(exc)) from None
+    params = _section(doc, _PLACO_KEYS, "a placo file", placo_params, source)
     _, ranges = _params_and_ranges({"ranges": doc.get("ranges")}, source, known=params)
     limits = _limits(doc.get("time_limit"), source)
     if "time_limit" not in doc:              # placo reads the URDF and its meshes when it is built: seconds

@@ -22,6 +22,7 @@ import yaml
 from gaits.files import write_files_atomic
 
 from ..sim.identify import SCALED, ServoFit
+from .tables import json_finite
 from .provenance import commit_of
 
 __all__ = ["servo_overlay", "write_servo_fit", "summary_lines", "fit_json", "write_ground_fit", "ground_lines",
@@ -199,20 +200,9 @@ def write_ground_fit(fit: Any, out_dir: Path) -> list[Path]:
            "entangled": fit.entangled, "rms_before": fit.rms_before, "rms_after": fit.rms_after,
            "statistics": fit.stats, "slip_ticks": fit.slips, "replays": fit.rollouts, "seconds": round(fit.seconds, 1)}
     files = {out_dir / "surface.yaml": surface_yaml(surface, header),
-             out_dir / "fit.json": json.dumps(_finite(doc), indent=1, allow_nan=False) + "\n",
+             out_dir / "fit.json": json.dumps(json_finite(doc), indent=1, allow_nan=False) + "\n",
              out_dir / "report.txt": "\n".join(ground_lines(fit)) + "\n"}
     if fit.sysid:
         files[out_dir / "report.html"] = sysid_html(f"gait-tuner identify ground ({commit})", fit.sysid)
     out_dir.mkdir(parents=True, exist_ok=True)
     return write_files_atomic(files)
-
-
-def _finite(x: Any) -> Any:
-    """``x`` with every non-finite number as None (strict JSON)."""
-    if isinstance(x, dict):
-        return {k: _finite(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_finite(v) for v in x]
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    return x

@@ -6,9 +6,21 @@ the verbs' own (strict JSON of the same numbers).
 
 from __future__ import annotations
 
-from typing import Mapping
+import math
+from typing import Any, Mapping
 
-__all__ = ["format_metrics", "format_value", "format_surface_tests"]
+__all__ = ["format_metrics", "format_value", "format_surface_tests", "json_finite"]
+
+
+def json_finite(x: Any) -> Any:
+    """``x`` with every non-finite number as None, through dicts, lists and tuples (strict JSON)."""
+    if isinstance(x, dict):
+        return {k: json_finite(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [json_finite(v) for v in x]
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    return x
 
 
 def format_value(value) -> str:

@@ -19,7 +19,6 @@ The table is Markdown (``versus.md``) and the plots PNG in ``--out``.
 from __future__ import annotations
 
 import dataclasses
-import math
 import time
 from pathlib import Path
 from typing import Any, Callable, Sequence
@@ -181,14 +180,3 @@ def versus_plots(out: Path, cells: Sequence[tuple[str, str, dict[str, Any]]], sp
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return [path]
-
-
-def nan_free(obj: Any) -> Any:
-    """``obj`` with NaN and infinities as None (strict JSON)."""
-    if isinstance(obj, dict):
-        return {k: nan_free(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [nan_free(v) for v in obj]
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    return obj
