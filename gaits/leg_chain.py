@@ -74,6 +74,8 @@ class LegChain:
     points: tuple
     sole: tuple
     sole_rotation: tuple
+    sole_offset: tuple = (0.0, 0.0, 0.0)   # [m] the sole's centre from ``sole``, in the sole's axes (this
+    #                                        leg's own: a robot's two feet need not mirror each other)
     _warm: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -89,6 +91,9 @@ class LegChain:
         object.__setattr__(self, "axes", tuple(tuple(float(x) for x in r / n) for r, n in zip(u, norms)))
         object.__setattr__(self, "points", tuple(tuple(float(x) for x in r) for r in a))
         object.__setattr__(self, "sole", tuple(float(x) for x in self.sole))
+        if np.shape(self.sole_offset) != (3,) or not np.all(np.isfinite(self.sole_offset)):
+            raise ValueError("a leg chain's sole offset is 3 finite numbers [m]")
+        object.__setattr__(self, "sole_offset", tuple(float(x) for x in self.sole_offset))
         object.__setattr__(self, "sole_rotation", tuple(tuple(float(x) for x in r) for r in np.asarray(self.sole_rotation)))
         u = np.array(self.axes)
         a = np.array(self.points)
@@ -224,7 +229,7 @@ def chains_to_mapping(chains: LegChains) -> dict:
     (6 x 3) and the sole point (3,); the reason beside them."""
     def one(c: LegChain) -> dict:
         return {"axes": [list(a) for a in c.axes], "points": [list(p) for p in c.points], "sole": list(c.sole),
-                "sole_rotation": [list(r) for r in c.sole_rotation]}
+                "sole_rotation": [list(r) for r in c.sole_rotation], "sole_offset": list(c.sole_offset)}
     return {"reason": chains.reason, "left": one(chains.left), "right": one(chains.right)}
 
 
@@ -236,18 +241,22 @@ def chains_from_mapping(doc, source: str) -> LegChains:
     sides = {}
     for side in ("left", "right"):
         d = doc[side]
-        if not isinstance(d, dict) or set(d) != {"axes", "points", "sole", "sole_rotation"}:
-            raise ParamError(f"{source}: leg_chains.{side}: expected axes, points, sole and sole_rotation")
+        if not isinstance(d, dict) or not {"axes", "points", "sole", "sole_rotation"} <= set(d) \
+                or set(d) - {"axes", "points", "sole", "sole_rotation", "sole_offset"}:
+            raise ParamError(f"{source}: leg_chains.{side}: expected axes, points, sole, sole_rotation (and "
+                             f"sole_offset)")
         try:
             arrays = {k: np.asarray(d[k], dtype=float) for k in d}
         except (TypeError, ValueError):
             raise ParamError(f"{source}: leg_chains.{side}: every entry must be a number [m]") from None
-        for k, shape in (("axes", (6, 3)), ("points", (6, 3)), ("sole", (3,)), ("sole_rotation", (3, 3))):
+        arrays.setdefault("sole_offset", np.zeros(3))
+        for k, shape in (("axes", (6, 3)), ("points", (6, 3)), ("sole", (3,)), ("sole_rotation", (3, 3)),
+                         ("sole_offset", (3,))):
             if arrays[k].shape != shape or not np.all(np.isfinite(arrays[k])):
                 raise ParamError(f"{source}: leg_chains.{side}.{k}: expected {' x '.join(map(str, shape))} finite "
                                  f"numbers, got shape {arrays[k].shape}")
         try:
-            sides[side] = LegChain(**{k: arrays[k] for k in ("axes", "points", "sole", "sole_rotation")})
+            sides[side] = LegChain(**{k: arrays[k] for k in ("axes", "points", "sole", "sole_rotation", "sole_offset")})
         except ValueError as exc:
             raise ParamError(f"{source}: leg_chains.{side}: {exc}") from None
     reason = doc.get("reason", "")

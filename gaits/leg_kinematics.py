@@ -127,7 +127,10 @@ class LegGeometry:
         return np.array([self.hip_offset_x, side * self.hip_offset_y, -self.hip_offset_z])
 
     def sole_in_ankle(self, side: int) -> np.ndarray:
-        """Sole centre relative to the point of the sole straight below the ankle [m] (3,)."""
+        """Sole centre relative to the point of the sole straight below the ankle [m] (3,); with
+        ``chains``, each leg's own (its feet need not mirror each other)."""
+        if self.chains is not None:
+            return np.array(self.chains.side(side).sole_offset)
         return np.array([self.sole_forward, side * self.sole_outward, 0.0])
 
     @property

@@ -257,7 +257,8 @@ def load_map(path: Path) -> RobotModel:
         # along the sole's normal, its rotation the sole's axes at the zero pose
         chains[side] = LegChain(axes=[final[p + k][1] * line(p + k)[1] for k in LEG_JOINTS],
                                 points=[line(p + k)[0] for k in LEG_JOINTS],
-                                sole=ankle - rel[2] * S[:, 2], sole_rotation=S)
+                                sole=ankle - rel[2] * S[:, 2], sole_rotation=S,
+                                sole_offset=(-rel[0], -rel[1], 0.0))
         # within the axis tolerance the hips count as under the torso origin, as the knee and ankle
         # count as under the hips (ours: the figures of robots that passed the old check unchanged)
         geo[side] = {"hip_offset_x": float(hip[0]) if abs(hip[0]) >= AXIS_TOLERANCE else 0.0,
@@ -277,8 +278,9 @@ def load_map(path: Path) -> RobotModel:
     notes = []
     for key, value in derived.items():
         if abs(geo["right"][key] - value) > 0.002:
-            notes.append(f"legs differ: {key} left {_mm(value)}, right {_mm(geo['right'][key])}; the IK uses the "
-                         f"left leg's (give leg.{key} to choose)")
+            notes.append(f"legs differ: {key} left {_mm(value)}, right {_mm(geo['right'][key])}; "
+                         + ("the numerical IK uses each leg's own, the planners the left leg's" if numerical else
+                            f"the IK uses the left leg's (give leg.{key} to choose)"))
 
     leg_over = doc.get("leg") or {}
     _require(isinstance(leg_over, Mapping), source, "leg must be a mapping of LegGeometry fields")
