@@ -20,7 +20,7 @@ it runs on the robot. The sole point is the closed form's: ``ankle_height`` belo
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -76,7 +76,6 @@ class LegChain:
     sole_rotation: tuple
     sole_offset: tuple = (0.0, 0.0, 0.0)   # [m] the sole's centre from ``sole``, in the sole's axes (this
     #                                        leg's own: a robot's two feet need not mirror each other)
-    _warm: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         u = np.asarray(self.axes, dtype=float)
@@ -155,13 +154,14 @@ class LegChain:
     def solve(self, p_target: np.ndarray, R_target: np.ndarray, q0: np.ndarray | None = None,
               iterations: int = 40) -> np.ndarray:
         """Joint angles (6,) that put the sole point at ``p_target`` (3,) with the rotation
-        ``R_target`` (3, 3), in the pelvis frame, from ``q0`` (default: the last solution this
-        chain returned, else the zero pose). Damped Newton steps (module docstring); raises
+        ``R_target`` (3, 3), in the pelvis frame, from ``q0`` (default: the zero pose; a walk passes its
+        last tick's answer, so a result never depends on another walk's). Damped Newton steps (module
+        docstring); raises
         :class:`IKNotConverged` with the closest pose found when it does not reach the target
         within 1e-6 (m + rad)."""
         p_t = np.asarray(p_target, dtype=float)
         R_t = np.asarray(R_target, dtype=float)
-        q = np.array(self._warm.get("q", np.zeros(6)) if q0 is None else q0, dtype=float)
+        q = np.zeros(6) if q0 is None else np.array(q0, dtype=float)
         best_q, best_err = q.copy(), math.inf
         lam = 1e-9
         for _ in range(iterations):
@@ -193,9 +193,7 @@ class LegChain:
         if best_err > _ACCEPT:
             raise IKNotConverged(f"sole target {np.round(p_t, 4).tolist()} m is out of the leg's reach (closest pose "
                                  f"{best_err * 1000:.1f} mm + mrad away)", best_q, best_err)
-        q = (q + math.pi) % (2 * math.pi) - math.pi
-        self._warm["q"] = q.copy()
-        return q
+        return (q + math.pi) % (2 * math.pi) - math.pi
 
 
 @dataclass(frozen=True)

@@ -322,7 +322,8 @@ def refine_ik(q0: np.ndarray, p_pelvis_sole: np.ndarray, R_pelvis_sole: np.ndarr
     return q
 
 
-def leg_ik_pose(p_pelvis_sole: np.ndarray, R_pelvis_sole: np.ndarray, leg: LegGeometry, side: int | str) -> np.ndarray:
+def leg_ik_pose(p_pelvis_sole: np.ndarray, R_pelvis_sole: np.ndarray, leg: LegGeometry, side: int | str,
+                q0: np.ndarray | None = None) -> np.ndarray:
     """Closed-form IK for one sample and any sole orientation (ours): the point ``ankle_height``
     below the ankle (3,) and the sole's rotation (3, 3), in the pelvis frame -> the 6 joints.
 
@@ -335,9 +336,15 @@ def leg_ik_pose(p_pelvis_sole: np.ndarray, R_pelvis_sole: np.ndarray, leg: LegGe
     """
     s = _side(side)
     R = np.asarray(R_pelvis_sole, dtype=float)
-    if leg.chains is not None:                      # numerical, warm-started from the last tick (leg_chain)
+    if leg.chains is not None:                      # numerical (leg_chain), from q0: a walk's last tick
+        p = np.asarray(p_pelvis_sole, dtype=float)
+        if q0 is None:                              # the closed form on the planners' numbers: near enough
+            try:
+                q0 = leg_ik_pose(p, R, dataclasses.replace(leg, chains=None), s)
+            except UnreachableTargetError:
+                q0 = np.zeros(6)
         try:
-            return leg.chains.side(s).solve(np.asarray(p_pelvis_sole, dtype=float), R)
+            return leg.chains.side(s).solve(p, R, q0=q0)
         except IKNotConverged as exc:
             name = "left" if s == 1 else "right"
             err = UnreachableTargetError(f"{name} {exc}")

@@ -67,18 +67,24 @@ def bent_chain() -> LegChain:
 
 def test_the_numerical_ik_solves_a_leg_that_is_not_ideal():
     """FK(IK(FK(q))) = FK(q) to 1e-9 over random poses, from the last tick's answer (a walk's warm
-    start), and the angles found are the ones that made the pose (one branch, near the start)."""
+    start), and the angles found are the ones that made the pose (one branch, near the start); with
+    no start given, the same answer whatever was solved before (nothing kept between calls)."""
     chain = bent_chain()
     rng = np.random.default_rng(5)
     q_prev = np.array([0.0, 0.0, -0.4, 0.8, -0.4, 0.0])
     for k in range(300):
         q = q_prev + rng.normal(0.0, 0.02, 6)
         p, R = chain.fk(q)
-        solved = chain.solve(p, R)                         # from the chain's own last answer
+        solved = chain.solve(p, R, q0=q_prev)              # from the last tick's answer
         p2, R2 = chain.fk(solved)
         assert np.abs(p2 - p).max() < 1e-9 and np.abs(R2 - R).max() < 1e-9
         assert np.abs(solved - q).max() < 1e-7
         q_prev = q
+    p, R = chain.fk(q_prev)
+    first = LegGeometry(chains=LegChains(chain, chain, "t"))
+    a = leg_ik_pose(p, R, first, 1)
+    chain.solve(*chain.fk(np.array([0.5, -0.3, -1.0, 2.0, 0.4, 0.3])))   # another solve in between
+    np.testing.assert_array_equal(leg_ik_pose(p, R, first, 1), a)
 
 
 def test_a_target_out_of_reach_is_named_and_keeps_the_closest_pose():
@@ -114,14 +120,14 @@ def test_the_solver_keeps_the_walk_engines_leg_on_a_smooth_path():
     inner = chain._chain
     object.__setattr__(chain, "_chain", lambda q: calls.append(1) or inner(q))
     p0, _ = chain.fk(np.array([0.0, 0.0, -0.5, 1.0, -0.5, 0.0]))
-    chain.solve(p0, np.eye(3), q0=np.array([0.0, 0.0, -0.5, 1.0, -0.5, 0.0]))
+    q = chain.solve(p0, np.eye(3), q0=np.array([0.0, 0.0, -0.5, 1.0, -0.5, 0.0]))
     worst = 0
     for k in range(200):
         ph = 2 * math.pi * k / 60
         yaw = 0.2 * math.sin(ph)
         target = p0 + np.array([0.04 * math.sin(ph), 0.01 * math.cos(ph), 0.02 * max(math.sin(ph), 0.0)])
         calls.clear()
-        chain.solve(target, rot_z(yaw) @ rot_y(0.05 * math.sin(ph)) @ rot_x(0.03 * math.cos(ph)))
+        q = chain.solve(target, rot_z(yaw) @ rot_y(0.05 * math.sin(ph)) @ rot_x(0.03 * math.cos(ph)), q0=q)
         worst = max(worst, len(calls))
     assert worst <= 4, worst                                   # 3 steps and the final check
 

@@ -549,8 +549,9 @@ class WalkEngine:
             sole_point = np.array([foot[0], foot[1], z]) - R_f @ leg.sole_in_ankle(side)
             target, R_ps = R_wp.T @ (sole_point - pelvis), R_wp.T @ R_f
             target = self._reachable(target, R_ps, side)
-            try:
-                q[0, _LEG[side]] = leg_ik_pose(target, R_ps, leg, side)
+            try:                                        # the numerical IK starts from the last tick's
+                q[0, _LEG[side]] = leg_ik_pose(target, R_ps, leg, side,
+                                               None if self._last_q is None else self._last_q[_LEG[side]])
             except UnreachableTargetError as exc:
                 best = getattr(exc, "best", None)      # the numerical IK's closest pose (gaits.leg_chain)
                 if best is None:

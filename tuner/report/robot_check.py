@@ -85,13 +85,15 @@ def _leg_ik(leg: Any) -> dict[str, Any]:
     times = []
     for side in (1, -1):
         hip = leg.hip_in_pelvis(side)
+        q = None
         for k in range(400):
             ph = 2 * np.pi * k / 100
             target = hip + np.array([0.04 * np.sin(ph), 0.0, -0.85 * leg.max_hip_height + 0.02 * max(np.sin(ph), 0)])
             t0 = time.perf_counter()
             try:
-                leg_ik_pose(target, np.eye(3), leg, side)
+                q = leg_ik_pose(target, np.eye(3), leg, side, q)
             except ValueError:
+                q = None
                 continue
             times.append(time.perf_counter() - t0)
     return {"kind": leg.ik, "why": leg.chains.reason,
