@@ -20,7 +20,7 @@ import pytest
 from conftest import ROOT
 
 BUDGET = {"tune": ["--trials", "2"], "robustness": ["--rollouts", "4", "--push-rollouts", "2"],
-          "identify": ["--max-iters", "3"]}
+          "identify": ["--max-iters", "3"], "versus": ["--walks", "1", "--no-challenge", "--speeds", "0.2,0,0,0"]}
 SLOW_ONLY = {"calibrate"}
 
 
