@@ -308,8 +308,7 @@ class PolicyController:
         self.last_action = np.zeros(len(self.spec.joints))
         self.target = self.default.copy()
         self.ticks = 0
-        self.observations: list[np.ndarray] = []     # the last one kept for tests and recordings
-        self.last_observation: np.ndarray | None = None
+        self.last_observation: np.ndarray | None = None    # what the policy was last given (tests, recordings)
         self.calls = 0
 
     def start_pose(self) -> StartPose:

@@ -60,13 +60,8 @@ def speed_walk(sim: Any, drive: gaits.Drive, direction: str, speed: float) -> di
     unit, _ = DIRECTIONS[direction]
     command = WalkCommand(*(speed * u for u in unit))
     walk = dataclasses.replace(drive, command=command, stream=None)
-    if walk.online:
-        ctl = walk.controller(sim.robot, sim.control_period)
-        window = (4.0, ONLINE_DURATION_S - 0.5)
-    else:
-        ctl = walk.controller(sim.robot, sim.control_period)
-        window = None
-    timed = _Timed(ctl)
+    window = (4.0, ONLINE_DURATION_S - 0.5) if walk.online else None      # a table: its plan's steady cycles
+    timed = _Timed(walk.controller(sim.robot, sim.control_period))
     trace = sim.run(timed, **walk.run_options())
     if window is None:
         steady = trace.meta.get("steady")

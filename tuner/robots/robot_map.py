@@ -210,7 +210,7 @@ def load_map(path: Path) -> RobotModel:
     geo: dict[str, dict[str, float]] = {}
     soles, hulls, axes, bodies, sizes, sources = [], [], [], [], [], {}
     chains: dict[str, LegChain] = {}
-    numerical: list[str] = []            # where the closed-form IK's ideal leg does not fit (ours)
+    numerical: list[tuple[str, str]] = []   # (side, why) where the closed form's ideal leg does not fit (ours)
     for side, p, s in _SIDES:
         why: list[str] = []
         hip_dist, hip = axis_line_distance(*line(p + "hip_roll"), *line(p + "hip_pitch"))
