@@ -30,6 +30,7 @@ def test_a_set_and_a_policy_side_by_side(tmp_path, gait_tuner_cmd, run_env):
     engine, still = cells["kidsize-engine-carpet4"]["speeds"], cells["still"]["speeds"]
     assert 0.15 < engine["forward"]["reached"] < 0.3 and abs(still["forward"]["reached"]) < 0.02
     assert engine["turning"]["reached"] > 0.3
+    assert {r["outcome"] for r in (*engine.values(), *still.values())} == {"completed"}   # the table says how one did not
     assert cells["still"]["match"]["walks"] == 1 and cells["still"]["tick_ms"]["median"] > 0
     assert "challenge" not in cells["still"]
     text = (out / "versus.md").read_text()

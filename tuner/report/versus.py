@@ -55,7 +55,7 @@ class _Timed:
 
 def speed_walk(sim: Any, drive: gaits.Drive, direction: str, speed: float) -> dict[str, Any]:
     """One deterministic walk of ``drive`` commanded ``speed`` along ``direction``: the velocity it
-    reached along it (None when it fell), its pitch RMS and its ``step`` times [s]."""
+    reached along it (None when it did not end standing: ``outcome`` says how), its pitch RMS and its ``step`` times [s]."""
     from ..sim.metrics import heading_velocity, pitch_rms
     unit, _ = DIRECTIONS[direction]
     command = WalkCommand(*(speed * u for u in unit))
@@ -73,7 +73,7 @@ def speed_walk(sim: Any, drive: gaits.Drive, direction: str, speed: float) -> di
         if np.all(np.isfinite(v)):
             reached = float(np.dot(v, unit))
     return {"direction": direction, "asked": float(speed), "reached": reached,
-            "fell": not trace.survived, "reason": trace.reason,
+            "fell": not trace.survived, "outcome": trace.outcome, "reason": trace.reason,
             "pitch_rms_deg": float(np.degrees(pitch_rms(trace.pitch))) if trace.survived else None,
             "step_times": timed.times}
 
@@ -136,7 +136,7 @@ def versus_markdown(robot: str, cells: Sequence[tuple[str, str, dict[str, Any]]]
         row = [walk, surface]
         for d in speeds:
             r = c["speeds"].get(d)
-            row.append("fell" if r and r["fell"] else _f(r and r["reached"], ".3f"))
+            row.append(r["outcome"] if r and r["fell"] else _f(r and r["reached"], ".3f"))   # fell, diverged, ...
         m = c.get("match")
         row += [f"{m['survival'] * 100:.0f} % of {m['walks']}" if m else "-", _f(c.get("pitch_rms_deg"), ".2f"),
                 _f(m and m["vx_rmse_mps"], ".3f")]
