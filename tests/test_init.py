@@ -129,3 +129,21 @@ def test_the_start_period_gives_the_top_speed_within_its_reach():
     assert slow.params.period > iw.params.period and "at most half of it" in slow.sources["period"]
     with pytest.raises(UserError, match="asks the knee servo for"):
         initial_walk(robot, str(MAP), load_surface("grass30"), top_speed=0.6)
+
+
+def test_the_period_searched_reaches_down_to_the_knees_limit():
+    """The study searches periods down to the one whose swing asks the knee KNEE_MAX of its servo's
+    speed for the start's lift (pi h_z / t_ssp over the shorter link), up to 1.1 x the start's."""
+    import math
+    from tuner.search.initial import KNEE_MAX, T1_SHARE, T2_SHARE
+    robot = load_robot(str(MAP))
+    iw = initial_walk(robot, str(MAP), load_surface("grass30"), top_speed=0.1)
+    knee = robot.servos[robot.joint_map["l_knee"][0]].speed
+    lever = min(robot.leg.thigh, robot.leg.shank)
+    fastest = math.pi * iw.params.h_z / (KNEE_MAX * knee * lever) / (T2_SHARE - T1_SHARE)
+    rng = iw.study["space"]["period"]
+    assert rng["low"] == pytest.approx(fastest, abs=1e-4) and rng["low"] < 0.7 * iw.params.period
+    assert rng["high"] == pytest.approx(1.1 * iw.params.period, abs=1e-4)
+    # the step's timing ranges over TKU-X's shares of every period searched
+    assert iw.study["space"]["t1"]["low"] <= T1_SHARE * rng["low"] and iw.study["space"]["t1"]["high"] >= T1_SHARE * rng["high"]
+    assert iw.study["space"]["t2"]["low"] <= T2_SHARE * rng["low"] and iw.study["space"]["t2"]["high"] >= T2_SHARE * rng["high"]

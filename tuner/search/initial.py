@@ -160,10 +160,16 @@ def initial_walk(robot: Any, robot_ref: str, surface: Any, purpose: str = "match
                                                           servo_share=SERVO_SHARE)
     name = name or f"{robot.name}-{surface.name}-{purpose}"
     # timing ranges narrow enough that most draws keep t1 < t2 < period (a draw that does not is a rejected trial)
-    # the shortest period searched still asks the knee at most KNEE_MAX of its speed for the start's lift
+    # the shortest period searched asks the knee KNEE_MAX of its speed for the start's lift: the knee
+    # rule's period is a ceiling for the swing, not a good step for every robot (Bit-Bots' Wolfgang-OP,
+    # 6.1 kg, falls sideways at its 0.72 s, its hip roll servos at their torque, and walks at 0.45 s)
     fastest = math.pi * h_z / (KNEE_MAX * speed * lever) / (T2_SHARE - T1_SHARE)
-    space = {"period": _around(period, max(0.75, min(1.0, fastest / period)), 1.1, 0.1, 3.0), "t1": _around(params.t1, 0.5, 1.5, 0.01, 0.5),
-             "t2": _around(params.t2, 0.85, 1.15, 0.02, 2.5), "h_z": _around(h_z, 0.6, 1.3, 0.005, 0.1),
+    # t1 and t2 range over TKU-X's shares of every period searched
+    span = _around(period, min(1.0, fastest / period), 1.1, 0.1, 3.0)
+    space = {"period": span,
+             "t1": _range(T1_SHARE * span["low"] * 0.5, T1_SHARE * span["high"] * 1.5, 0.01, 0.5),
+             "t2": _range(T2_SHARE * span["low"] * 0.85, T2_SHARE * span["high"] * 1.15, 0.02, 2.5),
+             "h_z": _around(h_z, 0.6, 1.3, 0.005, 0.1),
              "z_c": _around(z_c, 0.85, 1.05, 0.08, 0.5), "half_width": _around(half, 0.9, 1.3, 0.02, 0.12),
              # the longest step [leg lengths] sets the envelope's forward speed (reach / period): searched,
              # never below what the top speed needs at the starting period
@@ -216,5 +222,10 @@ def leg_gains(robot: Any, mass: float, z_c: float) -> tuple[dict[str, float], st
 
 def _around(value: float, lo: float, hi: float, floor: float, ceil: float) -> dict[str, float]:
     """A search range from ``lo`` to ``hi`` times ``value``, within the parameter's [floor, ceil]."""
-    low, high = max(floor, value * lo), min(ceil, value * hi)
+    return _range(value * lo, value * hi, floor, ceil)
+
+
+def _range(low: float, high: float, floor: float, ceil: float) -> dict[str, float]:
+    """A search range from ``low`` to ``high`` within the parameter's [floor, ceil]."""
+    low, high = max(floor, low), min(ceil, high)
     return {"low": round(low, 4), "high": round(max(high, low * 1.05), 4)}
