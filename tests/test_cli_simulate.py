@@ -142,9 +142,9 @@ def test_compare_reports_the_stair_held_per_direction(tmp_path):
 def test_compare_rows_do_not_depend_on_workers(tmp_path):
     from tuner.report.compare import run_compare
     args = (["tkux-table2"], "kidsize", ["rigid", "carpet4"], False, None, tmp_path / "runs")
-    one = run_compare(*args, tmp_path / "w1", workers=1)
+    one = run_compare(*args, tmp_path / "w1", workers=1, random_rollouts=2)
     done = []
-    two = run_compare(*args, tmp_path / "w2", workers=2, progress=done.append)
+    two = run_compare(*args, tmp_path / "w2", workers=2, progress=done.append, random_rollouts=2)
     assert one.replace("w1", "w2") == two and len(done) == 2
 
 

@@ -2,7 +2,7 @@
 
 The block is read from README.md itself, so an example that stops working fails here. Run in
 order in a scratch directory (``studies/`` and ``examples/`` linked in), so that ``export`` finds
-what ``tune`` made and ``compare`` what ``export`` wrote. In the default run four long commands
+what ``tune`` made and ``compare`` what ``export`` wrote. In the default run seven long commands
 get a smaller budget, appended and listed in ``BUDGET`` (the same command, fewer trials,
 rollouts or iterations), and ``calibrate`` (~10 minutes) runs only in the slow suite, where every line runs
 exactly as written (``pytest -m slow tests/test_readme.py``). ``worker`` joins the study
@@ -20,7 +20,8 @@ import pytest
 from conftest import ROOT
 
 BUDGET = {"tune": ["--trials", "2"], "robustness": ["--rollouts", "4", "--push-rollouts", "2"],
-          "identify": ["--max-iters", "3"], "versus": ["--walks", "1", "--no-challenge", "--speeds", "0.2,0,0,0"]}
+          "identify": ["--max-iters", "3"], "versus": ["--walks", "1", "--no-challenge", "--speeds", "0.2,0,0,0"],
+          "compare": ["--random-rollouts", "2"], "render": ["--duration", "3"], "transfer": ["--walks", "1"]}
 SLOW_ONLY = {"calibrate"}
 
 

@@ -35,6 +35,7 @@ def test_render_writes_the_expected_video(gait_tuner_cmd, run_env, tmp_path):
     assert "51 frames, 320x240, 20 fps" in r.stdout
 
 
+@pytest.mark.slow   # the MP4 writer is tested by render's test above; this films two whole walks at 640x480
 def test_compare_video_films_every_set_on_every_surface(gait_tuner_cmd, run_env, tmp_path):
     r = subprocess.run(gait_tuner_cmd + ["compare", "tkux-table2", "--no-baselines", "--surfaces", "rigid,carpet4",
                                          "--random-rollouts", "0", "--workers", "1", "--video",
