@@ -47,6 +47,13 @@ def test_init_writes_a_study_and_a_start_that_walk_the_robot(tmp_path, gait_tune
     # the study's engine caps its targets at the servos' speed, as its start set does
     assert spec.engine.servo_share == 0.95 and spec.settings.servo_share == 1.0
     assert spec.settings.scenario.forward == 0.2
+    # the start at shorter periods is tried first too: written beside it, listed as the study's baselines
+    rungs = sorted(out.glob("kid3kg-grass30-match-start-*ms.yaml"), key=lambda p: -int(p.stem.split("-")[-1][:-2]))
+    import yaml
+    assert yaml.safe_load(study.read_text())["baselines"] == [p.name for p in rungs] and len(rungs) >= 1
+    ours = [b for b in spec.baselines if b.mass_upper == spec.base.mass_upper]
+    assert len(ours) == len(rungs) and all(b.period < spec.base.period for b in ours)
+    assert "also tried" in r.stdout
     start = out / "kid3kg-grass30-match-start.yaml"
     r = subprocess.run(gait_tuner_cmd + ["simulate", "--robot", str(MAP), "--params", str(start), "--surface",
                                          "grass30", "--command", "0.1,0,0", "--json"], capture_output=True, text=True,
@@ -61,7 +68,10 @@ def test_init_writes_a_study_and_a_start_that_walk_the_robot(tmp_path, gait_tune
                                                                           "completed yet")), r.stdout
     r = subprocess.run(gait_tuner_cmd + ["trials", str(study), "--runs", str(tmp_path / "runs"), "--json"],
                        capture_output=True, text=True, env=run_env)
-    assert json.loads(r.stdout)["trials"] == 2
+    shown = json.loads(r.stdout)["shown"]
+    # two walked (the CasADi seed, the start); the shorter-period starts wait for the next run
+    assert [t["state"] for t in shown].count("waiting") == len(rungs) and len(shown) == 2 + len(rungs)
+    assert {t["start"] for t in shown if t["state"] != "waiting"} == {"casadi seed", "baseline 0"}
 
 
 @pytest.mark.parametrize("purpose, kind", [("speed", "speed"), ("push", "challenge")])
@@ -147,3 +157,28 @@ def test_the_period_searched_reaches_down_to_the_knees_limit():
     # the step's timing ranges over TKU-X's shares of every period searched
     assert iw.study["space"]["t1"]["low"] <= T1_SHARE * rng["low"] and iw.study["space"]["t1"]["high"] >= T1_SHARE * rng["high"]
     assert iw.study["space"]["t2"]["low"] <= T2_SHARE * rng["low"] and iw.study["space"]["t2"]["high"] >= T2_SHARE * rng["high"]
+
+
+def test_the_start_is_also_tried_at_the_periods_the_knee_carries_at_higher_shares():
+    """The ladder: the start at the periods whose swing asks the knee LADDER_SHARES of its servo's
+    speed (pi h_z / t_ssp over the shorter link), t1 and t2 at TKU-X's shares, only where shorter than
+    the start's period; everything else as the start."""
+    import math
+    from tuner.search.initial import LADDER_SHARES, T1_SHARE, T2_SHARE
+    robot = load_robot(str(MAP))
+    iw = initial_walk(robot, str(MAP), load_surface("grass30"), top_speed=0.1)
+    knee = robot.servos[robot.joint_map["l_knee"][0]].speed
+    lever = min(robot.leg.thigh, robot.leg.shank)
+    assert [s for s, _ in iw.ladder] == list(LADDER_SHARES)
+    for share, rung in iw.ladder:
+        t_ssp = rung.t2 - rung.t1
+        assert math.pi * rung.h_z / t_ssp / lever / knee == pytest.approx(share, rel=2e-3)
+        assert rung.t1 / rung.period == pytest.approx(T1_SHARE, rel=2e-3)
+        assert rung.t2 / rung.period == pytest.approx(T2_SHARE, rel=2e-3)
+        assert rung.period < iw.params.period
+        assert rung.replace(period=iw.params.period, t1=iw.params.t1, t2=iw.params.t2) == iw.params
+    # a start already shortened for a top speed: only the rungs shorter than it
+    fast = initial_walk(robot, str(MAP), load_surface("grass30"), top_speed=0.3)
+    asked = math.pi * fast.params.h_z / (fast.params.t2 - fast.params.t1) / lever / knee
+    assert [s for s, _ in fast.ladder] == [s for s in LADDER_SHARES if s > asked * 1.01]
+    assert len(fast.ladder) < len(iw.ladder)

@@ -1658,6 +1658,15 @@ def init(robot_name: str, surface_name: str, purpose: str, top_speed: float, out
     start = out_dir / f"{name}-start.yaml"
     study = out_dir / f"{name}.yaml"
     files = {start: gaits.gait_file_text(iw.params, desc, None, iw.engine)}
+    rungs = []
+    for share, rung in iw.ladder:
+        path = out_dir / f"{name}-start-{round(rung.period * 1000)}ms.yaml"
+        files[path] = gaits.gait_file_text(rung, f"{desc}; then the period shortened to {rung.period:g} s (t1, t2 "
+                                                 f"with it), whose swing asks the knee {share:.0%} of its speed",
+                                           None, iw.engine)
+        rungs.append(path.name)
+    if rungs:
+        iw.study["baselines"] = rungs
     if iw.servo and robot.map_path:
         # the weight-sized gains go into a copy of the team's map beside the study, which walks it
         from .robots.robot_map import map_with_servo
@@ -1674,6 +1683,8 @@ def init(robot_name: str, surface_name: str, purpose: str, top_speed: float, out
     for k, why in iw.sources.items():
         click.echo(f"  {k:11s} {getattr(iw.params, k):8.4g}  from {why}")
     click.echo(f"  {'t1, t2':11s} {iw.params.t1:.3g}, {iw.params.t2:.3g}  TKU-X's shares of the step")
+    for share, rung in iw.ladder:
+        click.echo(f"  {'also tried':11s} {rung.period:8.4g}  the period whose swing asks the knee {share:.0%} of its speed")
     if iw.servo:
         click.echo(f"  {'legs kp':11s} {iw.servo['kp']:8.4g}  {iw.servo_source}")
     else:

@@ -47,6 +47,8 @@ KNEE_SHARE = 0.5
 REACH_MAX, SPEED_MARGIN = 0.6, 1.1
 #: the most of the knee servo's speed a swing may ask when the top speed needs short periods (ours)
 KNEE_MAX = 0.9
+#: the knee's shares of speed at which the study also tries the start (shorter periods; ours)
+LADDER_SHARES = (0.7, 0.9)
 #: the share of each servo's speed the engine's targets may move (``EngineParams.servo_share``; ours)
 SERVO_SHARE = 0.95
 #: the legs' kp as a multiple of the robot's toppling stiffness m g z_c (ours, see the module docstring)
@@ -62,6 +64,11 @@ class InitialWalk:
     #: the legs' servo fields to write into the robot's map (empty: the file's or the map's own are kept)
     servo: dict[str, float] = field(default_factory=dict)
     servo_source: str = ""
+    #: the start at shorter periods, tried first too (the study's ``baselines``): (the knee's share, set).
+    #: A start whose period is too long for the robot's balance (Bit-Bots' Wolfgang-OP falls sideways at
+    #: the knee rule's 0.72 s, its hip roll servos at their torque, and walks at 0.45 s) leaves a study
+    #: no trial that stands to learn from; these give it some.
+    ladder: list[tuple[float, TlipfmParams]] = field(default_factory=list)
 
 
 def _subtree(model: Any, body: int) -> list[int]:
@@ -202,7 +209,13 @@ def initial_walk(robot: Any, robot_ref: str, surface: Any, purpose: str = "match
                                                                "left": {"top": 0.1, "weight": 2.0},
                                                                "turn_left": {"top": 1.0, "weight": 0.2}}}})
     study.update({"trials": 200, "enqueue": ["casadi", "baselines"], "sampler_seed": 0})
-    return InitialWalk(params, engine, study, sources, servo, servo_source)
+    # the start at shorter periods, tried first too: k / share is the period whose swing asks the
+    # knee that share of its servo's speed
+    k = math.pi * h_z / ((T2_SHARE - T1_SHARE) * lever * speed)
+    ladder = [(share, params.replace(period=round(k / share, 3), t1=round(T1_SHARE * k / share, 4),
+                                     t2=round(T2_SHARE * k / share, 4)))
+              for share in LADDER_SHARES if k / share < period - 1e-3]
+    return InitialWalk(params, engine, study, sources, servo, servo_source, ladder)
 
 
 def leg_gains(robot: Any, mass: float, z_c: float) -> tuple[dict[str, float], str]:
