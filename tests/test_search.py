@@ -69,6 +69,20 @@ def test_tune_export_simulate_reproduces(gait_tuner_cmd, run_env, tmp_path):
         assert again[key] == stored[key]                           # exactly: the simulation is deterministic
 
 
+def test_a_study_with_no_feasible_trial_says_so_and_offers_no_export(gait_tuner_cmd, run_env, tmp_path):
+    """Every draw here ends single support after the step (t2 > period): rejected, infeasible. The
+    summary names the best of them and says there is nothing worth exporting (not `export it with`)."""
+    study = tmp_path / "rej.yaml"
+    study.write_text("name: rej\nrobot: kidsize\nsurfaces: [rigid]\ngait: tlipfm\nbase: tkux-table2\n"
+                     "space:\n  period: {low: 0.2, high: 0.21}\n  t2: {low: 0.3, high: 0.4}\n"
+                     "trials: 2\nenqueue: []\nsampler_seed: 0\n")
+    r = run(gait_tuner_cmd, ["tune", str(study), "--runs", str(tmp_path / "runs"), "--workers", "1"], run_env)
+    assert r.returncode == 0, r.stderr
+    last = r.stdout.strip().splitlines()
+    assert last[-2].startswith("best trial") and last[-1].startswith("no feasible trial of study rej yet")
+    assert "export it with" not in r.stdout
+
+
 def test_resume_after_kill_keeps_finished_trials(gait_tuner_cmd, run_env, tmp_path):
     study = write_study(tmp_path, "killed")
     runs = str(tmp_path / "runs")

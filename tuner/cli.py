@@ -831,6 +831,11 @@ def _run_study_and_report(spec, store, study_file: str, storage: str | None, tot
     n_infeasible = sum(1 for x in study.get_trials(deepcopy=False, states=DONE_STATES) if not trial_feasible(x))
     click.echo(spec.scenario_room.describe_best(spec.settings, t, fell=trial_fell(t), falls=n_fell,
                                                 infeasible=n_infeasible))
+    if not trial_feasible(t):
+        click.echo(f"no feasible trial of study {spec.name} yet: nothing worth exporting; give it more trials "
+                   f"(resume with the same command and --trials N), or a wider space (`export --trial N` "
+                   f"writes one anyway)")
+        return
     click.echo(f"export it with: gait-tuner export {study_file}"
                + (f" --storage {storage}" if storage else "") + (" --pareto-pick knee" if len(spec.objectives) > 1 else ""))
 
