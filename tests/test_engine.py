@@ -574,6 +574,25 @@ def test_the_stride_calibration_plans_the_scaled_command_and_widens_the_envelope
     assert e1["backward"] == pytest.approx(e0["backward"] / 1.25) and e1["forward"] == pytest.approx(e0["forward"])
 
 
+def test_the_combined_limit_scales_a_command_at_the_envelopes_corner_along_its_direction():
+    """combined_limit 1: a command asking each direction's whole envelope at once is scaled to the
+    ellipsoid (its shares' norm 1) along its own direction; a command along one direction, or one
+    whose shares' norm is within the limit, is as the box clips it; the default (2) is the box."""
+    box, ell = engine(), engine(combined_limit=1.0)
+    env = box.envelope()
+    corner = np.array([env["forward"], env["left"], env["turn_left"]])
+    np.testing.assert_allclose(box.shaper.clip(2 * corner), corner, atol=1e-12)
+    got = ell.shaper.clip(2 * corner)
+    np.testing.assert_allclose(got, corner / np.sqrt(3.0), atol=1e-12)
+    back = np.array([-env["backward"], 0.0, env["turn_left"]])
+    np.testing.assert_allclose(ell.shaper.clip(back), back / np.sqrt(2.0), atol=1e-12)
+    np.testing.assert_allclose(ell.shaper.clip(np.array([5.0, 0.0, 0.0])), [env["forward"], 0.0, 0.0], atol=1e-12)
+    inside = 0.5 * corner                     # shares' norm 0.87
+    np.testing.assert_allclose(ell.shaper.clip(inside), inside, atol=1e-12)
+    mid = engine(combined_limit=1.5).shaper.clip(corner)
+    assert np.sqrt(np.sum((mid / corner) ** 2)) == pytest.approx(1.5)
+
+
 def test_the_gyro_makes_up_a_turning_shortfall_within_bounds():
     """Asked 0.6 rad/s while the gyro reads 80 % of it, the engine plans a faster turn once the asked
     turn is reached and three steps have passed (at most 30 % more); it turns as asked when the gyro

@@ -61,6 +61,11 @@ class EngineParams(GaitParams):
     stride_backward: float = param(1.0, "-", 0.5, 1.5, "the same for a backward command")
     stride_sideways: float = param(1.0, "-", 0.5, 1.5, "the same for a sideways command")
     stride_turn: float = param(1.0, "-", 0.5, 1.5, "the same for a turning command")
+    combined_limit: float = param(2.0, "-", 0.3, 2.0, "the largest Euclidean norm of a command's shares of "
+                                  "each direction's envelope (ours: 1 an ellipsoid, a walk forward while "
+                                  "turning at the edge asks less of each; below 1 a smaller one, the step "
+                                  "limits being kinematic, not what the walk keeps its balance at; from "
+                                  "sqrt(3) = 1.73 up the box, each direction to its own limit)")
     idle: str = param("stand", "-", doc="at a zero command: stand, or step in place",
                       choices=("stand", "step"))
     stance_widen: float = param(0.0, "m", 0.0, 0.03, "slow steps land this much wider on each side than "

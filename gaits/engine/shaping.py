@@ -42,9 +42,20 @@ class CommandShaper:
                 "turn_left": turn, "turn_right": turn}
 
     def clip(self, c: np.ndarray) -> np.ndarray:
+        """``c`` within the envelope: each direction to its own limit (a box), then, where the
+        command's shares of those limits have a Euclidean norm above ``combined_limit``, scaled
+        down to it along its own direction (ours: at 1 an ellipsoid; a walk forward while turning
+        at both edges asks the swing for the longest step and the largest turn at once)."""
         e = self.envelope()
-        return np.array([min(max(c[0], -e["backward"]), e["forward"]), min(max(c[1], -e["left"]), e["left"]),
-                         min(max(c[2], -e["turn_left"]), e["turn_left"])])
+        out = np.array([min(max(c[0], -e["backward"]), e["forward"]), min(max(c[1], -e["left"]), e["left"]),
+                        min(max(c[2], -e["turn_left"]), e["turn_left"])])
+        cap = self.params.combined_limit
+        if cap < 3.0 ** 0.5:
+            shares = out / np.array([e["forward"] if out[0] >= 0 else e["backward"], e["left"], e["turn_left"]])
+            norm = float(np.sqrt(np.sum(shares ** 2)))
+            if norm > cap:
+                out = out * (cap / norm)
+        return out
 
     def update(self, command: np.ndarray | None, walking: bool) -> None:
         """The command the steps are planned for: the asked one clipped to the envelope and
