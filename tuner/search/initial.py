@@ -67,7 +67,8 @@ class InitialWalk:
     #: the start at shorter periods, tried first too (the study's ``baselines``): (the knee's share, set).
     #: A start whose period is too long for the robot's balance (Bit-Bots' Wolfgang-OP falls sideways at
     #: the knee rule's 0.72 s, its hip roll servos at their torque, and walks at 0.45 s) leaves a study
-    #: no trial that stands to learn from; these give it some.
+    #: no trial that stands to learn from; these are other places to start (on Wolfgang they fell too:
+    #: docs/robots.md).
     ladder: list[tuple[float, TlipfmParams]] = field(default_factory=list)
 
 
@@ -166,7 +167,7 @@ def initial_walk(robot: Any, robot_ref: str, surface: Any, purpose: str = "match
     engine = None if purpose == "speed" else EngineParams(idle="step" if purpose == "push" else "stand",
                                                           servo_share=SERVO_SHARE)
     name = name or f"{robot.name}-{surface.name}-{purpose}"
-    # timing ranges narrow enough that most draws keep t1 < t2 < period (a draw that does not is a rejected trial)
+    # a draw with t2 past its period is a rejected trial (infeasible: the sampler learns to avoid it)
     # the shortest period searched asks the knee KNEE_MAX of its speed for the start's lift: the knee
     # rule's period is a ceiling for the swing, not a good step for every robot (Bit-Bots' Wolfgang-OP,
     # 6.1 kg, falls sideways at its 0.72 s, its hip roll servos at their torque, and walks at 0.45 s)
@@ -212,9 +213,13 @@ def initial_walk(robot: Any, robot_ref: str, surface: Any, purpose: str = "match
     # the start at shorter periods, tried first too: k / share is the period whose swing asks the
     # knee that share of its servo's speed
     k = math.pi * h_z / ((T2_SHARE - T1_SHARE) * lever * speed)
-    ladder = [(share, params.replace(period=round(k / share, 3), t1=round(T1_SHARE * k / share, 4),
-                                     t2=round(T2_SHARE * k / share, 4)))
-              for share in LADDER_SHARES if k / share < period - 1e-3]
+    # (no shorter than the start's own 0.25 s floor)
+    ladder = []
+    for share in LADDER_SHARES:
+        rung = round(k / share, 3)
+        if 0.25 <= rung < period - 1e-3:
+            ladder.append((share, params.replace(period=rung, t1=round(T1_SHARE * rung, 4),
+                                                 t2=round(T2_SHARE * rung, 4))))
     return InitialWalk(params, engine, study, sources, servo, servo_source, ladder)
 
 
