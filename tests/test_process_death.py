@@ -159,3 +159,28 @@ def test_ctrl_c_after_loading_is_pythons_again(tmp_path):
                         "assert signal.getsignal(signal.SIGINT) is signal.default_int_handler"],
                        capture_output=True, text=True, cwd=tmp_path, preexec_fn=_as_a_terminal_starts_it)
     assert r.returncode == 0, r.stderr[-1500:]
+
+
+def test_a_ctrl_c_while_forking_reaches_the_parent_and_no_child():
+    """forking_without_ctrl_c blocks SIGINT while workers are forked: a child starts with it
+    blocked (a Ctrl-C landing before its ignore_ctrl_c waits, then is dropped: it exits 0, no
+    traceback), and the parent takes a Ctrl-C sent during the block when the block ends."""
+    from tuner.process_pool import forking_without_ctrl_c, ignore_ctrl_c
+    reached = []
+    with pytest.raises(KeyboardInterrupt):
+        with forking_without_ctrl_c():
+            pid = os.fork()
+            if pid == 0:                                   # the child: SIGINT still blocked here
+                try:
+                    blocked = signal.SIGINT in signal.pthread_sigmask(signal.SIG_BLOCK, set())
+                    os.kill(os.getpid(), signal.SIGINT)    # a Ctrl-C before the worker's set-up
+                    ignore_ctrl_c()
+                    os._exit(0 if blocked else 3)
+                except BaseException:
+                    os._exit(4)
+            os.kill(os.getpid(), signal.SIGINT)            # the parent's Ctrl-C, held until the block ends
+            _, status = os.waitpid(pid, 0)
+            reached.append(os.waitstatus_to_exitcode(status))
+        pytest.fail("the Ctrl-C sent during the block never came")
+    assert reached == [0]                                  # the block held it past the child's end
+    assert signal.SIGINT not in signal.pthread_sigmask(signal.SIG_BLOCK, set())

@@ -7,12 +7,36 @@ workers and says so in one line; no worker prints a traceback."""
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing as mp
 import os
 import signal
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Iterator, Sequence
 
-__all__ = ["mp_context", "map_in_order", "die_with_parent"]
+__all__ = ["mp_context", "map_in_order", "die_with_parent", "forking_without_ctrl_c", "ignore_ctrl_c"]
+
+
+@contextlib.contextmanager
+def forking_without_ctrl_c() -> Iterator[None]:
+    """Block SIGINT in this thread while it forks workers: a Ctrl-C (sent to the whole process group)
+    that lands in a child between its fork and its :func:`ignore_ctrl_c` would raise in Python's own
+    after-fork code there and print a traceback. The child inherits the blocked mask; the parent
+    takes a Ctrl-C that came meanwhile when the block ends."""
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def ignore_ctrl_c() -> None:
+    """In a worker: Ctrl-C is the parent's to handle; then SIGINT unblocked (a pending one is dropped)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if hasattr(signal, "pthread_sigmask"):
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
 
 def die_with_parent(parent: int) -> None:
@@ -29,7 +53,7 @@ def die_with_parent(parent: int) -> None:
 
 def _pool_worker(parent: int) -> None:
     die_with_parent(parent)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)       # the parent decides what Ctrl-C stops
+    ignore_ctrl_c()                                    # the parent decides what Ctrl-C stops
 
 
 def mp_context() -> Any:
@@ -42,8 +66,9 @@ def map_in_order(fn: Callable[[Any], Any], tasks: Sequence[Any], workers: int,
     """``[fn(t) for t in tasks]`` on ``workers`` processes; ``progress(1)`` after each result."""
     rows: list[Any] = []
     if workers > 1 and len(tasks) > 1:
-        with mp_context().Pool(min(workers, len(tasks)), initializer=_pool_worker,
-                               initargs=(os.getpid(),)) as pool:
+        with forking_without_ctrl_c():
+            pool = mp_context().Pool(min(workers, len(tasks)), initializer=_pool_worker, initargs=(os.getpid(),))
+        with pool:
             for row in pool.imap(fn, tasks, chunksize=chunksize):
                 rows.append(row)
                 if progress is not None:

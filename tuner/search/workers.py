@@ -30,7 +30,7 @@ import gaits
 from gaits import ParamError
 
 from ..errors import UserError
-from ..process_pool import die_with_parent, mp_context
+from ..process_pool import die_with_parent, forking_without_ctrl_c, ignore_ctrl_c, mp_context
 from . import optuna_compat as compat
 from .liveness import Heartbeat, process_identity
 from .history import IndexedMedianPruner, TrialIndex, WindowedTPESampler
@@ -290,7 +290,7 @@ def _worker(spec: StudySpec, store: StudyStore, budget: int, seed: int, parent: 
             threads: int = 1) -> None:
     """A worker process: :func:`work`; bad input or a full disk goes back to the parent as one line."""
     die_with_parent(parent)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)       # the parent decides what Ctrl-C stops
+    ignore_ctrl_c()                                    # the parent decides what Ctrl-C stops
     os.environ.setdefault("MPLBACKEND", "Agg")
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     store = StudyStore(journal=store.journal, url=store.url, grace_s=store.grace_s,
@@ -378,7 +378,8 @@ def run_workers(spec: StudySpec, store: StudyStore, study: optuna.Study, budget:
     def spawn(index: int) -> Any:
         p = ctx.Process(target=_worker, args=(spec, store, budget, _sampler_seed(seed, index, run),
                                               parent, errors, threads), daemon=False)
-        p.start()
+        with forking_without_ctrl_c():
+            p.start()
         return p
 
     procs = {i: spawn(i) for i in range(n)}
