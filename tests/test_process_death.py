@@ -13,6 +13,7 @@ from __future__ import annotations
 import os
 import signal
 import subprocess
+import threading
 import time
 from pathlib import Path
 
@@ -189,7 +190,9 @@ def _fork_under_the_block(forking_without_ctrl_c, ignore_ctrl_c, reached: list) 
                     os._exit(0 if blocked else 3)
                 except BaseException:
                     os._exit(4)
-            os.kill(os.getpid(), signal.SIGINT)            # the parent's Ctrl-C, held until the block ends
+            # the parent's Ctrl-C, held until the block ends: sent to this thread (a signal sent to
+            # the process goes to any thread not blocking it, and pytest may have others by now)
+            signal.pthread_kill(threading.get_ident(), signal.SIGINT)
             _, status = os.waitpid(pid, 0)
             reached.append(os.waitstatus_to_exitcode(status))
         pytest.fail("the Ctrl-C sent during the block never came")
