@@ -171,7 +171,9 @@ def initial_walk(robot: Any, robot_ref: str, surface: Any, purpose: str = "match
     # the shortest period searched asks the knee KNEE_MAX of its speed for the start's lift: the knee
     # rule's period is a ceiling for the swing, not a good step for every robot (Bit-Bots' Wolfgang-OP,
     # 6.1 kg, falls sideways at its 0.72 s, its hip roll servos at their torque, and walks at 0.45 s)
-    fastest = math.pi * h_z / (KNEE_MAX * speed * lever) / (T2_SHARE - T1_SHARE)
+    # k / share: the period whose swing asks the knee that share of its servo's speed
+    k = math.pi * h_z / ((T2_SHARE - T1_SHARE) * lever * speed)
+    fastest = k / KNEE_MAX
     # t1 and t2 range over TKU-X's shares of every period searched
     span = _around(period, min(1.0, fastest / period), 1.1, 0.1, 3.0)
     space = {"period": span,
@@ -210,9 +212,7 @@ def initial_walk(robot: Any, robot_ref: str, surface: Any, purpose: str = "match
                                                                "left": {"top": 0.1, "weight": 2.0},
                                                                "turn_left": {"top": 1.0, "weight": 0.2}}}})
     study.update({"trials": 200, "enqueue": ["casadi", "baselines"], "sampler_seed": 0})
-    # the start at shorter periods, tried first too: k / share is the period whose swing asks the
-    # knee that share of its servo's speed
-    k = math.pi * h_z / ((T2_SHARE - T1_SHARE) * lever * speed)
+    # the start at shorter periods, tried first too
     # (no shorter than the start's own 0.25 s floor)
     ladder = []
     for share in LADDER_SHARES:
