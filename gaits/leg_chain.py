@@ -10,7 +10,9 @@ the sole's frame ``M`` at the zero pose; the forward kinematics is the product o
 
     T_pelvis_sole(q) = exp([S_1] q_1) ... exp([S_6] q_6) M,   S_i = (u_i, -u_i x a_i)
 
-(Lynch & Park, Modern Robotics, eq 4.14), and :meth:`LegChain.solve` the inverse: damped Newton
+(Lynch & Park, Modern Robotics, eq 4.14), its factors in the order the file builds the leg from the
+pelvis (``order``: a hip that turns roll first, then yaw, as some robots' do, composes so; the
+joints keep our names and our order everywhere else), and :meth:`LegChain.solve` the inverse: damped Newton
 steps (Levenberg-Marquardt, the geometric Jacobian in the pelvis frame, the rotation error as the
 log map's axis-angle) from a warm start, the last tick's solution. Pure numpy, scalar and small:
 it runs on the robot. The sole point is the closed form's: ``ankle_height`` below the ankle centre
@@ -76,6 +78,8 @@ class LegChain:
     sole_rotation: tuple
     sole_offset: tuple = (0.0, 0.0, 0.0)   # [m] the sole's centre from ``sole``, in the sole's axes (this
     #                                        leg's own: a robot's two feet need not mirror each other)
+    order: tuple = (0, 1, 2, 3, 4, 5)       # the joints (indices in our order) from the pelvis to the foot:
+    #                                        a leg built hip roll, hip yaw, hip pitch, ... is (1, 0, 2, 3, 4, 5)
 
     def __post_init__(self) -> None:
         u = np.asarray(self.axes, dtype=float)
@@ -94,6 +98,12 @@ class LegChain:
             raise ValueError("a leg chain's sole offset is 3 finite numbers [m]")
         object.__setattr__(self, "sole_offset", tuple(float(x) for x in self.sole_offset))
         object.__setattr__(self, "sole_rotation", tuple(tuple(float(x) for x in r) for r in np.asarray(self.sole_rotation)))
+        order = tuple(int(i) for i in self.order)
+        if sorted(order) != list(range(6)):
+            raise ValueError(f"a leg chain's order is the six joints 0-5 each once, got {list(order)}")
+        object.__setattr__(self, "order", order)
+        # the axes, points and joints' indices as the chain composes them, pelvis to foot
+        object.__setattr__(self, "_seq", tuple((self.axes[i], self.points[i], i) for i in order))
         u = np.array(self.axes)
         a = np.array(self.points)
         K = np.array([_skew(x) for x in u])
@@ -122,15 +132,17 @@ class LegChain:
 
     def _chain(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The sole's pose and each joint's axis and point in the pelvis frame at ``q`` (plain floats:
-        numpy's per-call cost dominates 3 x 3 products; this is the IK's inner loop)."""
+        numpy's per-call cost dominates 3 x 3 products; this is the IK's inner loop). The joints
+        compose in ``order``; ``q`` and the axes and points returned are in our order."""
         r00, r01, r02, r10, r11, r12, r20, r21, r22 = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
         px = py = pz = 0.0
-        axes, pts = [], []
-        for (ux, uy, uz), (ax, ay, az), qi in zip(self.axes, self.points, q):
-            axes.append((r00 * ux + r01 * uy + r02 * uz, r10 * ux + r11 * uy + r12 * uz,
-                         r20 * ux + r21 * uy + r22 * uz))
-            pts.append((r00 * ax + r01 * ay + r02 * az + px, r10 * ax + r11 * ay + r12 * az + py,
-                        r20 * ax + r21 * ay + r22 * az + pz))
+        axes, pts = [None] * 6, [None] * 6
+        for (ux, uy, uz), (ax, ay, az), i in self._seq:
+            axes[i] = (r00 * ux + r01 * uy + r02 * uz, r10 * ux + r11 * uy + r12 * uz,
+                       r20 * ux + r21 * uy + r22 * uz)
+            pts[i] = (r00 * ax + r01 * ay + r02 * az + px, r10 * ax + r11 * ay + r12 * az + py,
+                      r20 * ax + r21 * ay + r22 * az + pz)
+            qi = q[i]
             sn, cs = math.sin(qi), math.cos(qi)
             v = 1.0 - cs
             # Rodrigues: Ri = I + sin K + (1 - cos) K^2, K = [u]x
@@ -227,7 +239,8 @@ def chains_to_mapping(chains: LegChains) -> dict:
     (6 x 3) and the sole point (3,); the reason beside them."""
     def one(c: LegChain) -> dict:
         return {"axes": [list(a) for a in c.axes], "points": [list(p) for p in c.points], "sole": list(c.sole),
-                "sole_rotation": [list(r) for r in c.sole_rotation], "sole_offset": list(c.sole_offset)}
+                "sole_rotation": [list(r) for r in c.sole_rotation], "sole_offset": list(c.sole_offset),
+                "order": list(c.order)}
     return {"reason": chains.reason, "left": one(chains.left), "right": one(chains.right)}
 
 
@@ -240,21 +253,25 @@ def chains_from_mapping(doc, source: str) -> LegChains:
     for side in ("left", "right"):
         d = doc[side]
         if not isinstance(d, dict) or not {"axes", "points", "sole", "sole_rotation"} <= set(d) \
-                or set(d) - {"axes", "points", "sole", "sole_rotation", "sole_offset"}:
+                or set(d) - {"axes", "points", "sole", "sole_rotation", "sole_offset", "order"}:
             raise ParamError(f"{source}: leg_chains.{side}: expected axes, points, sole, sole_rotation (and "
-                             f"sole_offset)")
+                             f"sole_offset, order)")
         try:
             arrays = {k: np.asarray(d[k], dtype=float) for k in d}
         except (TypeError, ValueError):
             raise ParamError(f"{source}: leg_chains.{side}: every entry must be a number [m]") from None
         arrays.setdefault("sole_offset", np.zeros(3))
+        arrays.setdefault("order", np.arange(6.0))
         for k, shape in (("axes", (6, 3)), ("points", (6, 3)), ("sole", (3,)), ("sole_rotation", (3, 3)),
-                         ("sole_offset", (3,))):
+                         ("sole_offset", (3,)), ("order", (6,))):
             if arrays[k].shape != shape or not np.all(np.isfinite(arrays[k])):
                 raise ParamError(f"{source}: leg_chains.{side}.{k}: expected {' x '.join(map(str, shape))} finite "
                                  f"numbers, got shape {arrays[k].shape}")
         try:
-            sides[side] = LegChain(**{k: arrays[k] for k in ("axes", "points", "sole", "sole_rotation", "sole_offset")})
+            if np.any(arrays["order"] != np.round(arrays["order"])):
+                raise ValueError(f"order {arrays['order'].tolist()}: expected whole numbers 0-5")
+            sides[side] = LegChain(**{k: arrays[k] for k in ("axes", "points", "sole", "sole_rotation", "sole_offset",
+                                                             "order")})
         except ValueError as exc:
             raise ParamError(f"{source}: leg_chains.{side}: {exc}") from None
     reason = doc.get("reason", "")

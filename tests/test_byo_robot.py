@@ -321,13 +321,43 @@ def test_shipped_example_robot_checks_and_stands(gait_tuner_cmd, run_env):
     assert "speed from the map" in doc["sources"]["servos.legs"]
 
 
-def test_a_robot_whose_hips_turn_in_another_order_is_told_so(tmp_path):
+def test_a_robot_whose_hips_turn_in_another_order_gets_the_numerical_ik_composed_so(tmp_path):
+    """A hip built pitch, roll, yaw from the torso loads (before, it was refused): robot check
+    says so, and the legs' chains, composed in that order, put the soles where MuJoCo's own
+    kinematics of the file does at random joint angles (1e-9 m)."""
     xml = T.mjcf()
     for side in "LR":                      # hip pitch joint in the first hip body, hip yaw in the thigh
         yaw = next(line for line in xml.splitlines() if f'name="HipYaw_{side}"' in line).strip()
         pitch = next(line for line in xml.splitlines() if f'name="HipPitch_{side}"' in line).strip()
         xml = xml.replace(yaw, "@@").replace(pitch, yaw).replace("@@", pitch)
     path = T.write(tmp_path, xml)
-    with pytest.raises(UserError, match=r"this robot's left leg turns hip pitch, hip roll, hip yaw, knee, .* "
-                                        r"so this robot is not supported"):
-        load_robot(str(path))
+    robot = load_robot(str(path))
+    chains = robot.leg.chains
+    LEG = ("hip_yaw", "hip_roll", "hip_pitch", "knee", "ankle_pitch", "ankle_roll")
+    assert chains is not None and robot.leg.ik == "numerical"
+    assert "the leg turns hip pitch, hip roll, hip yaw, knee, ankle pitch, ankle roll going from the torso" \
+        in chains.reason, chains.reason
+    assert chains.left.order == (2, 1, 0, 3, 4, 5) == chains.right.order
+    m = mujoco.MjModel.from_xml_string(robot.xml)
+    d, d0 = mujoco.MjData(m), mujoco.MjData(m)
+    tb = m.body(robot.torso).id
+    mujoco.mj_kinematics(m, d0)
+    R_t0 = d0.xmat[tb].reshape(3, 3)
+    rng = np.random.default_rng(2)
+    for _ in range(20):
+        q = {p + k: rng.uniform(-0.3, 0.3) for p in ("l_", "r_") for k in LEG}
+        d.qpos[:] = m.qpos0
+        for ours, (theirs, sign) in robot.joint_map.items():
+            if ours in q:
+                d.qpos[m.jnt_qposadr[m.joint(theirs).id]] = sign * q[ours]
+        mujoco.mj_kinematics(m, d)
+        R_t, p_t = d.xmat[tb].reshape(3, 3), d.xpos[tb]
+        for p, chain, foot in (("l_", chains.left, robot.feet[0]), ("r_", chains.right, robot.feet[1])):
+            f = m.body(foot).id
+            p_sole, R_sole = chain.fk(np.array([q[p + k] for k in LEG]))
+            p0, R0 = chain.fk(np.zeros(6))
+            # the sole point rides on the foot body: its place in the foot frame does not move
+            R_f, p_f = R_t.T @ d.xmat[f].reshape(3, 3), R_t.T @ (d.xpos[f] - p_t)
+            R_f0, p_f0 = R_t0.T @ d0.xmat[f].reshape(3, 3), R_t0.T @ (d0.xpos[f] - d0.xpos[tb])
+            np.testing.assert_allclose(p_sole, p_f + R_f @ (R_f0.T @ (p0 - p_f0)), atol=1e-9)
+            np.testing.assert_allclose(R_sole @ R0.T, R_f @ R_f0.T, atol=1e-9)

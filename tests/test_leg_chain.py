@@ -87,6 +87,59 @@ def test_the_numerical_ik_solves_a_leg_that_is_not_ideal():
     np.testing.assert_array_equal(leg_ik_pose(p, R, first, 1), a)
 
 
+def hip_roll_first_chain() -> LegChain:
+    """A leg whose hip turns roll first, then yaw (as Berkeley Humanoid Lite's: both axes 45 deg
+    from the vertical), its axes on lines that do not meet."""
+    c = math.sqrt(0.5)
+    hip = np.array([-0.01, 0.05, -0.09])
+    knee = hip + np.array([0.0, -0.018, -0.15])
+    ankle = knee + np.array([0.0, -0.003, -0.16])
+    return LegChain(axes=[(c, 0, -c), (c, 0, c), (0, 1, 0), (0, 1, 0), (0, 1, 0), (1, 0, 0)],
+                    points=[hip + (-0.037, 0.027, 0.037), hip + (-0.019, 0.027, 0.093), hip, knee, ankle,
+                            ankle + (0.03, 0.025, -0.05)],
+                    sole=ankle + (0.0, 0.0, -0.07), sole_rotation=np.eye(3), order=(1, 0, 2, 3, 4, 5))
+
+
+def test_a_chain_composes_in_the_files_order_and_solves_in_ours():
+    """The pose is the product of exponentials in the file's order (hip roll's factor first, a
+    numpy reference from Rodrigues' formula), the joints in our order; the IK finds the angles that
+    made a pose; the same axes composed yaw first give another pose; a bad order is named."""
+    chain = hip_roll_first_chain()
+
+    def screw(u, a, q):
+        K = np.array([[0, -u[2], u[1]], [u[2], 0, -u[0]], [-u[1], u[0], 0]])
+        R = np.eye(3) + math.sin(q) * K + (1 - math.cos(q)) * K @ K
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = R, (np.eye(3) - R) @ a
+        return T
+
+    rng = np.random.default_rng(7)
+    q_prev = np.array([0.0, 0.0, -0.4, 0.8, -0.4, 0.0])
+    for _ in range(100):
+        q = q_prev + rng.normal(0.0, 0.03, 6)
+        q[3] = min(max(q[3], 0.4), 1.4)                   # the knee bent: one branch
+        T = np.eye(4)
+        for i in (1, 0, 2, 3, 4, 5):
+            T = T @ screw(np.array(chain.axes[i]), np.array(chain.points[i]), q[i])
+        p, R = chain.fk(q)
+        np.testing.assert_allclose(p, T[:3, :3] @ np.array(chain.sole) + T[:3, 3], atol=1e-12)
+        np.testing.assert_allclose(R, T[:3, :3], atol=1e-12)
+        solved = chain.solve(p, R, q0=q_prev)
+        assert np.abs(solved - q).max() < 1e-7
+        q_prev = q
+    import dataclasses
+    yaw_first = dataclasses.replace(chain, order=(0, 1, 2, 3, 4, 5))
+    assert np.abs(yaw_first.fk(q_prev)[0] - chain.fk(q_prev)[0]).max() > 1e-3
+    with pytest.raises(ValueError, match=r"order is the six joints 0-5 each once, got \[0, 0, 2, 3, 4, 5\]"):
+        dataclasses.replace(chain, order=(0, 0, 2, 3, 4, 5))
+    chains = LegChains(chain, chain, "t")
+    assert chains_from_mapping(chains_to_mapping(chains), "robot.yaml") == chains
+    doc = chains_to_mapping(chains)
+    doc["left"]["order"] = [1, 0, 2, 3, 4.5, 5]
+    with pytest.raises(ParamError, match=r"leg_chains.left: order .* expected whole numbers 0-5"):
+        chains_from_mapping(doc, "robot.yaml")
+
+
 def test_a_target_out_of_reach_is_named_and_keeps_the_closest_pose():
     chain = bent_chain()
     with pytest.raises(IKNotConverged, match=r"out of the leg's reach") as info:

@@ -69,6 +69,10 @@ AXIS_TOLERANCE = 0.005
 #: How far a leg joint's axis may turn from its ideal (LEG_AXES) for the closed-form IK [rad] (ours);
 #: beyond it, or beyond AXIS_TOLERANCE above, the legs get the numerical IK (gaits.leg_chain).
 AXIS_ANGLE_TOLERANCE = math.radians(0.5)
+#: How far a leg joint's axis may turn from its ideal and still be that joint (ours): 50 deg takes a
+#: hip whose roll and yaw axes both lie 45 deg from the vertical (Berkeley Humanoid Lite's), and
+#: still tells a pitch joint from a roll one; its sign is the one nearer the ideal.
+AXIS_FIT = math.cos(math.radians(50.0))
 _DEFAULT_PRESET = {"legs": "MX-64", "arms": "MX-28", "head": "MX-28", "other": "MX-28"}
 _SIDES = (("left", "l_", 1), ("right", "r_", -1))
 
@@ -199,7 +203,7 @@ def load_map(path: Path) -> RobotModel:
         y = in_torso(d.xpos[foot_ids[side]])[1]
         _require(s * y > 0, source, f"feet.{side}: body {feet[side]!r} lies at y = {_mm(y)} in the torso frame "
                  f"(the {'right' if s > 0 else 'left'} side; +y is left): left and right feet swapped?")
-    _check_chains(model, d, R_t, jmap, foot_ids, tb, source)
+    orders = _check_chains(model, d, R_t, jmap, foot_ids, tb, source)
     final = _signs(model, d, jmap, R_t, source)
 
     # geometry from the axis lines at the zero pose, in the torso frame
@@ -251,6 +255,9 @@ def load_map(path: Path) -> RobotModel:
         tilt = math.degrees(math.acos(min(float(S[2, 2]), 1.0)))
         if tilt > math.degrees(AXIS_ANGLE_TOLERANCE):
             why.append(f"the sole is tilted {tilt:.1f} deg at the zero pose")
+        if orders[side] != tuple(range(len(LEG_JOINTS))):
+            why.append("the leg turns " + ", ".join(LEG_JOINTS[k].replace("_", " ") for k in orders[side])
+                       + " going from the torso")
         if why:
             numerical.append((side, "; ".join(why)))
         # the chain as the file builds it (our signs), its sole point ankle_height below the ankle centre
@@ -258,7 +265,7 @@ def load_map(path: Path) -> RobotModel:
         chains[side] = LegChain(axes=[final[p + k][1] * line(p + k)[1] for k in LEG_JOINTS],
                                 points=[line(p + k)[0] for k in LEG_JOINTS],
                                 sole=ankle - rel[2] * S[:, 2], sole_rotation=S,
-                                sole_offset=(-rel[0], -rel[1], 0.0))
+                                sole_offset=(-rel[0], -rel[1], 0.0), order=orders[side])
         # within the axis tolerance the hips count as under the torso origin, as the knee and ankle
         # count as under the hips (ours: the figures of robots that passed the old check unchanged)
         geo[side] = {"hip_offset_x": float(hip[0]) if abs(hip[0]) >= AXIS_TOLERANCE else 0.0,
@@ -472,16 +479,24 @@ def _read_joints(joints: Any, model: mujoco.MjModel, source: str, fname: str) ->
 
 def _axis_fits(model: mujoco.MjModel, d: mujoco.MjData, R_t: np.ndarray, joint: str, kind: str) -> bool:
     axis = R_t.T @ d.xaxis[model.joint(joint).id]
-    return abs(float(axis @ np.array(LEG_AXES[kind], dtype=float))) > 0.95
+    return abs(float(axis @ np.array(LEG_AXES[kind], dtype=float))) >= AXIS_FIT
+
+
+_HIPS = ("hip_yaw", "hip_roll", "hip_pitch")
+_ANKLES = ("ankle_pitch", "ankle_roll")
 
 
 def _check_chains(model: mujoco.MjModel, d: mujoco.MjData, R_t: np.ndarray,
                   jmap: Mapping[str, tuple[str, int | None]], foot_ids: Mapping[str, int], tb: int,
-                  source: str) -> None:
-    """Each leg joint lies on the chain from the torso to its own foot, in the IK's order. A
-    wrong order whose joints all turn about their kind's axis is the robot's own build (e.g.
-    hips pitch-roll-yaw), which the EROS IK cannot drive; otherwise two names look swapped."""
+                  source: str) -> dict[str, tuple[int, ...]]:
+    """Each leg joint lies on the chain from the torso to its own foot: the three hip joints, then
+    the knee, then the two ankle joints. Within the hip and within the ankle the file's order is the
+    robot's own build (e.g. a hip that turns roll, then yaw, as Berkeley Humanoid Lite's) when each
+    joint turns about its kind's axis: such legs get the numerical IK, composed in that order
+    (ours: the papers' closed form is yaw, roll, pitch). Otherwise two names look swapped. Returns
+    each side's order (indices into LEG_JOINTS, torso to foot)."""
     chains = {side: body_chain(model, foot_ids[side]) for side in foot_ids}
+    orders: dict[str, tuple[int, ...]] = {}
     for side, p, _ in _SIDES:
         other = "right" if side == "left" else "left"
         _require(tb in chains[side], source, f"feet.{side}: body {model.body(foot_ids[side]).name!r} is not "
@@ -497,21 +512,21 @@ def _check_chains(model: mujoco.MjModel, d: mujoco.MjData, R_t: np.ndarray,
                          f"not on the chain from the torso to the {side} foot {model.body(foot_ids[side]).name!r}")
                 raise UserError(f"{source}: joints.{p}{kind}: {theirs!r} is {where}")
             ranks.append((-chains[side].index(b), j))
-        for k in range(len(LEG_JOINTS) - 1):
-            if ranks[k] >= ranks[k + 1]:
-                a, b = LEG_JOINTS[k], LEG_JOINTS[k + 1]
-                hips_first = max(ranks[:3]) < ranks[3] < ranks[4] < ranks[5]
-                if hips_first and all(_axis_fits(model, d, R_t, jmap[p + kind][0], kind) for kind in LEG_JOINTS):
-                    order = sorted(LEG_JOINTS, key=lambda kind: ranks[LEG_JOINTS.index(kind)])
+        rank = dict(zip(LEG_JOINTS, ranks))
+        order = tuple(sorted(range(len(LEG_JOINTS)), key=lambda k: ranks[k]))
+        grouped = (max(rank[k] for k in _HIPS) < rank["knee"] < min(rank[k] for k in _ANKLES))
+        fits = all(_axis_fits(model, d, R_t, jmap[p + kind][0], kind) for kind in LEG_JOINTS)
+        if order != tuple(range(len(LEG_JOINTS))) and not (grouped and fits):
+            for k in range(len(LEG_JOINTS) - 1):
+                if ranks[k] >= ranks[k + 1]:
+                    a, b = LEG_JOINTS[k], LEG_JOINTS[k + 1]
                     raise UserError(
-                        f"{source}: this robot's {side} leg turns {', '.join(x.replace('_', ' ') for x in order)} "
-                        f"going from the torso ({', '.join(jmap[p + x][0] for x in order)}); gait-tuner's leg IK "
-                        f"(EROS eqs 9-35) needs hip yaw, hip roll, hip pitch, knee, ankle pitch, ankle roll, so "
-                        f"this robot is not supported")
-                raise UserError(
-                    f"{source}: joints.{p}{a} and joints.{p}{b} look swapped: {jmap[p + b][0]!r} comes before "
-                    f"{jmap[p + a][0]!r} going from the torso to the {side} foot (the IK's order is "
-                    f"{', '.join(x.replace('_', ' ') for x in LEG_JOINTS)})")
+                        f"{source}: joints.{p}{a} and joints.{p}{b} look swapped: {jmap[p + b][0]!r} comes before "
+                        f"{jmap[p + a][0]!r} going from the torso to the {side} foot (the order is the three hip "
+                        f"joints, the knee, the two ankle joints; the closed-form IK's "
+                        f"{', '.join(x.replace('_', ' ') for x in LEG_JOINTS)})")
+        orders[side] = order
+    return orders
 
 
 def _signs(model: mujoco.MjModel, d: mujoco.MjData, jmap: Mapping[str, tuple[str, int | None]],
@@ -525,9 +540,10 @@ def _signs(model: mujoco.MjModel, d: mujoco.MjData, jmap: Mapping[str, tuple[str
             axis = R_t.T @ d.xaxis[j]
             expected = np.array(LEG_AXES[kind], dtype=float)
             dot = float(axis @ expected)
-            _require(abs(dot) > 0.95, source,
+            _require(abs(dot) >= AXIS_FIT, source,
                      f"joints.{ours}: {theirs!r} turns about {np.round(axis, 3).tolist()} in the torso frame; "
-                     f"a {kind.replace('_', ' ')} joint must turn about +-{list(LEG_AXES[kind])}")
+                     f"a {kind.replace('_', ' ')} joint must turn about +-{list(LEG_AXES[kind])} (within "
+                     f"{math.degrees(math.acos(AXIS_FIT)):.0f} deg)")
             natural = 1 if dot > 0 else -1
             _require(sign is None or sign == natural, source,
                      f"joints.{ours}.sign = {sign} contradicts the axis of {theirs!r} "

@@ -299,7 +299,7 @@ class Simulator:
         d.qpos[3:7] = [1.0, 0.0, 0.0, 0.0]
         d.qpos[2] = 1.0 - self._lowest_sole_z() + self._layer_h + 0.0005
         mujoco.mj_forward(m, d)
-        return float(d.qpos[2])
+        return float(d.sensordata[self._s_height])      # the fall check's height (scene: origin, or CoM)
 
     def landing_test(self, q0: np.ndarray, *, pitch: float = math.radians(10.0), forward_speed: float = 0.3,
                      sink_speed: float = 0.3, drop: float = 0.005, duration: float = 1.0) -> Trace:
@@ -458,7 +458,8 @@ class Simulator:
                     [math.cos(pert.push_angle), math.sin(pert.push_angle), 0.0])
         if start is not None:
             start(m, d)
-            z0 = float(d.qpos[2])
+            mujoco.mj_kinematics(m, d)          # positions only: the fall check's height, origin or CoM
+            z0 = float(d.xipos[self._torso][2] if self.robot.leg.hip_offset_z < 0.0 else d.qpos[2])
         sens = np.empty((n_ticks, m.nsensordata))
         cmds = np.empty((n_ticks, len(cmd)))
         sent_log = np.empty((n_ticks, len(cmd)))

@@ -278,9 +278,13 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
         sensor("tau", 1, name=f"{PREFIX}tau/{ours}", type=S.mjSENS_ACTUATORFRC, objtype=O.mjOBJ_ACTUATOR,
                objname=f"{PREFIX}servo/{ours}")
     # ground truth for the fall check (ours): the torso body's frame z axis and origin, copies of
-    # MuJoCo's xmat and xpos, so a rollout run natively (``mujoco.rollout``) is judged on the same numbers
+    # MuJoCo's xmat and xpos, so a rollout run natively (``mujoco.rollout``) is judged on the same numbers;
+    # a torso whose origin lies below its hips (a base frame at the floor, as an Onshape export's) is
+    # judged by its centre of mass instead: its origin's height says nothing of a fall
+    low_origin = r.leg.hip_offset_z < 0.0
     sensor("fall", 3, name=PREFIX + "torso_zaxis", type=S.mjSENS_FRAMEZAXIS, objtype=O.mjOBJ_XBODY, objname=r.torso)
-    sensor("fall", 3, name=PREFIX + "torso_origin", type=S.mjSENS_FRAMEPOS, objtype=O.mjOBJ_XBODY, objname=r.torso)
+    sensor("fall", 3, name=PREFIX + "torso_origin", type=S.mjSENS_FRAMEPOS,
+           objtype=O.mjOBJ_BODY if low_origin else O.mjOBJ_XBODY, objname=r.torso)
 
     # keyframes: ctrl rebuilt from qpos (the targets that hold the pose), or dropped
     adr = {}
