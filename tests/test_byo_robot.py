@@ -361,3 +361,34 @@ def test_a_robot_whose_hips_turn_in_another_order_gets_the_numerical_ik_composed
             R_f0, p_f0 = R_t0.T @ d0.xmat[f].reshape(3, 3), R_t0.T @ (d0.xpos[f] - d0.xpos[tb])
             np.testing.assert_allclose(p_sole, p_f + R_f @ (R_f0.T @ (p0 - p_f0)), atol=1e-9)
             np.testing.assert_allclose(R_sole @ R0.T, R_f @ R_f0.T, atol=1e-9)
+
+
+def test_a_torso_whose_origin_lies_at_its_feet_is_judged_by_its_centre_of_mass(tmp_path):
+    """A torso frame at the floor (an Onshape export's base: Berkeley Humanoid Lite's lies 478 mm
+    below its hips) said nothing of a fall: the first tick's sag put it under 60 % of its start
+    height. The same robot with its torso frame moved 0.4 m down (its bodies where they were) now
+    stands and walks as the robot does, and a fall is still one."""
+    xml = T.mjcf()
+    low = (xml.replace('<body name="body_link" pos="0 0 0.3">', '<body name="body_link" pos="0 0 -0.1">')
+              .replace('<inertial pos="-0.015 0.0001 0.066"', '<inertial pos="-0.015 0.0001 0.466"')
+              .replace("      <freejoint/>\n", '      <freejoint/>\n      <frame pos="0 0 0.4">\n')
+              .replace("    </body>\n  </worldbody>", "      </frame>\n    </body>\n  </worldbody>"))
+    assert low.count("<frame pos") == 1 and low.count("</frame>") == 1 and "0.466" in low
+    walks = []
+    for name, text in (("robot", xml), ("low", low)):
+        path = T.write(tmp_path / name, text)
+        robot = load_robot(str(path))
+        sim = Simulator(robot, SURFACES["rigid"])
+        traj = gaits.generate(gaits.load_baseline("tkux-table2").params, robot.leg, sim.control_period)
+        walks.append(summarize(sim.rollout(traj, duration=4.0)))
+        assert (robot.leg.hip_offset_z < 0) == (name == "low")
+    assert walks[0].outcome == walks[1].outcome == "completed"
+    assert walks[1].distance_m > 0.7 * walks[0].distance_m > 0.05
+    # knocked over by a shove, it still falls
+    path = T.write(tmp_path / "low2", low)
+    robot = load_robot(str(path))
+    sim = Simulator(robot, SURFACES["rigid"])
+    traj = gaits.generate(gaits.load_baseline("tkux-table2").params, robot.leg, sim.control_period)
+    from gaits.control import TablePlayer
+    fallen = summarize(sim.run(TablePlayer(traj), duration=4.0, pushes=[(1.0, (0.0, 6.0, 0.0))]))
+    assert fallen.outcome == "fell"

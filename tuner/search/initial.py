@@ -85,6 +85,14 @@ def _subtree(model: Any, body: int) -> list[int]:
     return out
 
 
+def _depth(model: Any, body: int) -> int:
+    """How many bodies lie between ``body`` and the world."""
+    n = 0
+    while body:
+        body, n = int(model.body_parentid[body]), n + 1
+    return n
+
+
 def leg_masses(robot: Any) -> tuple[float, float, float, dict[str, str]]:
     """(upper body, thigh, calf with foot) [kg] of a robot model (means of the two legs), and where
     each came from."""
@@ -92,7 +100,9 @@ def leg_masses(robot: Any) -> tuple[float, float, float, dict[str, str]]:
     total = float(np.sum(model.body_mass))
     thighs, calves = [], []
     for side in ("l_", "r_"):
-        hip = model.jnt_bodyid[model.joint(robot.joint_map[side + "hip_yaw"][0]).id]
+        # the leg from its first hip joint (the one nearest the torso: yaw on most robots, roll first on some)
+        hip = min((model.jnt_bodyid[model.joint(robot.joint_map[side + k][0]).id]
+                   for k in ("hip_yaw", "hip_roll", "hip_pitch")), key=lambda b: _depth(model, b))
         knee = model.jnt_bodyid[model.joint(robot.joint_map[side + "knee"][0]).id]
         leg = set(_subtree(model, hip))
         calf = set(_subtree(model, knee))
@@ -102,7 +112,7 @@ def leg_masses(robot: Any) -> tuple[float, float, float, dict[str, str]]:
     upper = total - 2 * (m_t + m_c)
     return upper, m_t, m_c, {
         "mass_upper": f"the model's {total:.3f} kg less both legs (2 x {m_t + m_c:.3f} kg)",
-        "mass_thigh": f"the bodies from the hip yaw joint to the knee, mean of both legs ({', '.join(f'{v:.3f}' for v in thighs)} kg)",
+        "mass_thigh": f"the bodies from the first hip joint to the knee, mean of both legs ({', '.join(f'{v:.3f}' for v in thighs)} kg)",
         "mass_calf": f"the bodies from the knee down, foot included, mean of both legs ({', '.join(f'{v:.3f}' for v in calves)} kg)"}
 
 

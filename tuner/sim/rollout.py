@@ -224,6 +224,7 @@ class Simulator:
         self._s_tilt, self._s_height = self._s_fall.start + 2, self._s_fall.start + 5
         self._imu_offset = np.array(IMU_SITE_POS, dtype=float)
         self._torso = m.body(r.torso).id
+        self._low_origin = r.leg.hip_offset_z < 0.0     # the fall check's height is the torso's CoM (scene)
         self._feet = np.array([m.body(f).id for f in r.feet])
         theirs = [r.joint_map[j][0] for j in self.joint_names]
         self._sign = np.array([r.joint_map[j][1] for j in self.joint_names], dtype=float)
@@ -459,7 +460,7 @@ class Simulator:
         if start is not None:
             start(m, d)
             mujoco.mj_kinematics(m, d)          # positions only: the fall check's height, origin or CoM
-            z0 = float(d.xipos[self._torso][2] if self.robot.leg.hip_offset_z < 0.0 else d.qpos[2])
+            z0 = float(d.xipos[self._torso][2] if self._low_origin else d.qpos[2])
         sens = np.empty((n_ticks, m.nsensordata))
         cmds = np.empty((n_ticks, len(cmd)))
         sent_log = np.empty((n_ticks, len(cmd)))
@@ -707,7 +708,7 @@ class Simulator:
             p_fall = sens[-1, self._s_pos].copy()
             reason = (f"fell at t = {t_fall:.2f} s, x = {p_fall[0]:.3f} m: torso pitch "
                       f"{math.degrees(pitch[-1]):+.0f} deg, roll {math.degrees(roll[-1]):+.0f} deg, "
-                      f"height {p_fall[2] / z0:.0%} of start")
+                      f"height {(sens[-1, self._s_height] if self._low_origin else p_fall[2]) / z0:.0%} of start")
         zmp_ref = plan.p_world_zmp_ref[:k]
         return Trace(t=t, pitch=pitch, roll=roll, p_torso=sens[:, self._s_pos],
                      p_com=sens[:, self._s_com], p_sole_l=sens[:, self._s_sole][:, :3],
