@@ -180,3 +180,28 @@ def test_a_policy_walks_like_any_set_and_a_study_tunes_what_its_spec_exposes(tmp
     bad.write_text(yaml.safe_dump({"policy": spec_doc(), "params": {"kp": 3.0}}))
     with pytest.raises(Exception, match=r"params.kp: not tunable"):
         load_controller(bad)
+
+
+def test_the_berkeley_humanoid_lite_example_states_its_policys_layout():
+    """examples/robots/berkeley-humanoid-lite: the policy file says the public 50 Hz walk's layout
+    (45 numbers in, 12 out: its config's num_observations and num_actions), in the order its Isaac
+    Lab task builds them, its hip yaw's sign turned as the map's axis says, and the gains it was
+    trained with are the ones the map gives its servos (the robot and the ONNX model are not
+    shipped: docs/controllers.md says how to fetch them)."""
+    import yaml
+    from conftest import ROOT
+    from gaits.policy import policy_from_mapping
+    from tuner.robots.robot_map import MAP_KEYS
+    here = ROOT / "examples" / "robots" / "berkeley-humanoid-lite"
+    spec = policy_from_mapping(yaml.safe_load((here / "policy-biped-50hz.yaml").read_text())["policy"], "p")
+    assert spec.observation_size == 45 and len(spec.joints) == 12 and spec.period == 0.02
+    assert [t.term for t in spec.observation] == ["command", "gyro", "gravity", "joint_pos", "joint_vel",
+                                                   "last_action"]
+    flips = [j for j, s in zip(spec.joints, spec.observation[3].scale) if s < 0]
+    assert flips == ["l_hip_yaw", "r_hip_yaw"]
+    assert [j for j, s in zip(spec.joints, spec.action_scale) if s < 0] == flips
+    for name in ("bhl-biped.yaml", "bhl-biped-engine.yaml"):
+        doc = yaml.safe_load((here / name).read_text())
+        assert set(doc) <= set(MAP_KEYS)
+    policy_map = yaml.safe_load((here / "bhl-biped.yaml").read_text())
+    assert spec.gains == {"kp": policy_map["servo"]["legs"]["kp"], "kd": policy_map["servo"]["legs"]["kv"]}
