@@ -103,3 +103,25 @@ def test_distance_budget_splits_a_walk_into_slide_skid_air_and_sway():
     assert b["feet_m"] == pytest.approx(0.037)
     assert b["sway_m"] == pytest.approx(0.005)
     assert b["torso_m"] == pytest.approx(b["feet_m"] + b["sway_m"])
+
+
+def test_a_walk_whose_controller_reports_no_steps_is_tracked_in_one_second_windows():
+    """A learned policy reports no steps: its walk is cut every TRACKING_WINDOW (1 s) instead,
+    each segment's first window left out as its first step is. 0.2 m/s asked for 3 s, then 0;
+    walked 0.2 m/s, then 0.1: windows 1-2 and 2-3 s match, 4-5 s is 0.1 m/s off."""
+    from types import SimpleNamespace
+
+    from gaits import CommandStream
+    from tuner.sim.metrics import TRACKING_WINDOW, tracking
+    assert TRACKING_WINDOW == 1.0
+    stream = CommandStream(np.array([0.0, 3.0]), np.array([[0.2, 0.0, 0.0], [0.0, 0.0, 0.0]]), tail=2.0)
+    t = np.arange(0.0, 5.0 + 1e-9, 0.01)
+    x = np.where(t <= 3.0, 0.2 * t, 0.6 + 0.1 * (t - 3.0))
+    trace = SimpleNamespace(t=t, p_torso=np.stack([x, 0 * t, 0 * t], axis=1), yaw=0 * t, fell=False, t_fall=None)
+    tk = tracking(trace, stream, None)
+    assert tk["steps"] == 3
+    assert tk["vx_rmse_mps"] == pytest.approx(math.sqrt(0.1 ** 2 / 3), abs=1e-9)
+    assert tk["vy_rmse_mps"] == pytest.approx(0.0, abs=1e-12)
+    assert [s["steps"] for s in tk["segments"]] == [2, 1]
+    # the controller's own steps, when it reports them, as before
+    assert tracking(trace, stream, np.array([0.0, 0.5, 1.5, 2.5, 3.0, 4.0, 5.0]))["steps"] == 4

@@ -541,8 +541,7 @@ def simulate(robot_name: str, surface_name: str, family: str | None, params_spec
                                                     "wz_radps": drive.command.wz}
     followed = None
     if drive.stream is not None:
-        starts = trace.meta.get("step_starts")
-        followed = tracking(trace, drive.stream, np.asarray(starts if starts is not None else []))
+        followed = tracking(trace, drive.stream, trace.meta.get("step_starts"))
     if as_json:
         out = metrics.to_dict()
         if followed is not None:

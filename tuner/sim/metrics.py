@@ -185,11 +185,18 @@ def summarize(trace: Trace) -> Metrics:
                    wz_radps=float(vel[2]), outcome=trace.outcome)
 
 
-def tracking(trace: Trace, stream, step_starts: np.ndarray) -> dict:
+#: [s] the windows a walk is cut into when its controller reports no steps (a learned policy, a
+#: controller class of a team's own): about two steps of a kid-size walk, so the sway mostly
+#: cancels within one (ours)
+TRACKING_WINDOW = 1.0
+
+
+def tracking(trace: Trace, stream, step_starts: np.ndarray | None) -> dict:
     """How well a walk followed a command stream (``gaits.CommandStream``).
 
     The walk is cut at the step starts ``step_starts`` [s] (the controller's own steps, so the
-    torso's sway, which crosses the midline once a step, cancels within each window); in every
+    torso's sway, which crosses the midline once a step, cancels within each window; None, from a
+    controller that reports no steps: every :data:`TRACKING_WINDOW` from the start); in every
     step that lies inside one segment of the stream, after that segment's first step, the torso's
     velocity in its heading frame (:func:`heading_velocity`) is compared with the segment's
     command. Returns the RMS errors ``vx_rmse_mps``, ``vy_rmse_mps``, ``wz_rmse_radps`` over those
@@ -198,8 +205,9 @@ def tracking(trace: Trace, stream, step_starts: np.ndarray) -> dict:
     (``step_velocities``: its start [s] and velocity (vx, vy, wz), for a reader that wants only
     some of them, e.g. the steps after a controller's command ramp has settled).
     """
-    starts = np.asarray(step_starts, dtype=float)
     t_end = float(trace.t[-1])
+    starts = (np.arange(0.0, float(stream.duration) + TRACKING_WINDOW, TRACKING_WINDOW) if step_starts is None
+              else np.asarray(step_starts, dtype=float))
     errors, segments = [], []
     for a, b, cmd in stream.segments():
         inside = starts[(starts >= a - 1e-9) & (starts <= b + 1e-9)]

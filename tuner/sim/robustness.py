@@ -105,8 +105,7 @@ def _one(task: tuple) -> dict[str, Any]:
             row["covered"] = float(m.distance_m / plan)
     if drive.stream is not None:
         from .metrics import tracking
-        starts = trace.meta.get("step_starts")
-        tk = tracking(trace, drive.stream, np.asarray(starts if starts is not None else []))
+        tk = tracking(trace, drive.stream, trace.meta.get("step_starts"))
         row["tracking"] = {k: tk[k] for k in ("vx_rmse_mps", "vy_rmse_mps", "wz_rmse_radps", "steps")}
         row["segments"] = tk["segments"]
     return row
@@ -253,8 +252,7 @@ def walk_scenario(sim: Simulator, drive: gaits.Drive, stream, pushes, perturb) -
                 "tracking": None, "segments": [], "pushes": len(pushes)}
     trace = sim.run(controller, perturb=perturb, pushes=pushes, **walk.run_options())
     m = summarize(trace)
-    starts = trace.meta.get("step_starts")
-    tk = tracking(trace, stream, np.asarray(starts if starts is not None else []))
+    tk = tracking(trace, stream, trace.meta.get("step_starts"))
     return {"fell": m.fell, "survived": m.survived, "outcome": m.outcome, "t_fall_s": m.t_fall_s,
             "walked": float(trace.t[-1]) / stream.duration,
             "pitch_rms_deg": m.pitch_rms_deg, "servo_share": servo_share(trace, sim),
