@@ -205,3 +205,7 @@ def test_the_berkeley_humanoid_lite_example_states_its_policys_layout():
         assert set(doc) <= set(MAP_KEYS)
     policy_map = yaml.safe_load((here / "bhl-biped.yaml").read_text())
     assert spec.gains == {"kp": policy_map["servo"]["legs"]["kp"], "kd": policy_map["servo"]["legs"]["kv"]}
+    # the engine's set for it (a study's trial, docs/controllers.md) reads as a set of the online engine
+    from gaits.gait_file import load_gait_file
+    engine = load_gait_file(here / "engine-grass30.yaml")
+    assert engine.engine is not None and 0.3 < engine.params.period < 0.4
