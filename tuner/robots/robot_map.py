@@ -514,9 +514,9 @@ def _check_chains(model: mujoco.MjModel, d: mujoco.MjData, R_t: np.ndarray,
             ranks.append((-chains[side].index(b), j))
         rank = dict(zip(LEG_JOINTS, ranks))
         order = tuple(sorted(range(len(LEG_JOINTS)), key=lambda k: ranks[k]))
-        grouped = (max(rank[k] for k in _HIPS) < rank["knee"] < min(rank[k] for k in _ANKLES))
-        fits = all(_axis_fits(model, d, R_t, jmap[p + kind][0], kind) for kind in LEG_JOINTS)
-        if order != tuple(range(len(LEG_JOINTS))) and not (grouped and fits):
+        if order != tuple(range(len(LEG_JOINTS))) and not (
+                max(rank[k] for k in _HIPS) < rank["knee"] < min(rank[k] for k in _ANKLES)
+                and all(_axis_fits(model, d, R_t, jmap[p + kind][0], kind) for kind in LEG_JOINTS)):
             for k in range(len(LEG_JOINTS) - 1):
                 if ranks[k] >= ranks[k + 1]:
                     a, b = LEG_JOINTS[k], LEG_JOINTS[k + 1]

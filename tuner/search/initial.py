@@ -35,6 +35,7 @@ from gaits import TlipfmParams
 from gaits.engine import EngineParams
 
 from ..errors import UserError
+from ..robots.mjcf_geometry import body_chain
 
 __all__ = ["InitialWalk", "initial_walk", "PURPOSES", "leg_masses", "leg_gains", "GAIN_MARGIN"]
 
@@ -85,14 +86,6 @@ def _subtree(model: Any, body: int) -> list[int]:
     return out
 
 
-def _depth(model: Any, body: int) -> int:
-    """How many bodies lie between ``body`` and the world."""
-    n = 0
-    while body:
-        body, n = int(model.body_parentid[body]), n + 1
-    return n
-
-
 def leg_masses(robot: Any) -> tuple[float, float, float, dict[str, str]]:
     """(upper body, thigh, calf with foot) [kg] of a robot model (means of the two legs), and where
     each came from."""
@@ -102,7 +95,7 @@ def leg_masses(robot: Any) -> tuple[float, float, float, dict[str, str]]:
     for side in ("l_", "r_"):
         # the leg from its first hip joint (the one nearest the torso: yaw on most robots, roll first on some)
         hip = min((model.jnt_bodyid[model.joint(robot.joint_map[side + k][0]).id]
-                   for k in ("hip_yaw", "hip_roll", "hip_pitch")), key=lambda b: _depth(model, b))
+                   for k in ("hip_yaw", "hip_roll", "hip_pitch")), key=lambda b: len(body_chain(model, b)))
         knee = model.jnt_bodyid[model.joint(robot.joint_map[side + "knee"][0]).id]
         leg = set(_subtree(model, hip))
         calf = set(_subtree(model, knee))

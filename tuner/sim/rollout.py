@@ -50,7 +50,8 @@ from .sensors import SensorReader
 from ..robots import RobotModel, SimOptions
 from .blades import BladeLayer
 from .native_gate import arm as arm_native_gate, disarm as disarm_native_gate, install as install_native_gate
-from .scene import BOTTLE_2019, CORNERS, IMU_SITE_POS, PREFIX, Bottle, add_pendulum, build_scene, drag_gate
+from .scene import (BOTTLE_2019, CORNERS, IMU_SITE_POS, PREFIX, Bottle, add_pendulum, build_scene, drag_gate,
+                    fall_height_at_com)
 from .surfaces import Surface
 
 __all__ = ["FallCriteria", "OUTCOMES", "Trace", "Simulator", "dead_band"]
@@ -224,7 +225,7 @@ class Simulator:
         self._s_tilt, self._s_height = self._s_fall.start + 2, self._s_fall.start + 5
         self._imu_offset = np.array(IMU_SITE_POS, dtype=float)
         self._torso = m.body(r.torso).id
-        self._low_origin = r.leg.hip_offset_z < 0.0     # the fall check's height is the torso's CoM (scene)
+        self._low_origin = fall_height_at_com(r)         # the fall check's height is the torso's CoM
         self._feet = np.array([m.body(f).id for f in r.feet])
         theirs = [r.joint_map[j][0] for j in self.joint_names]
         self._sign = np.array([r.joint_map[j][1] for j in self.joint_names], dtype=float)

@@ -35,7 +35,8 @@ from .blades import REF_SITE, add_blades
 from .native_gate import BLOCK as GATE_BLOCK
 from .surfaces import Surface
 
-__all__ = ["PREFIX", "SceneLayout", "build_scene", "add_ground", "add_drag", "drag_gate", "CORNERS", "IMU_SITE_POS"]
+__all__ = ["PREFIX", "SceneLayout", "build_scene", "add_ground", "add_drag", "drag_gate", "CORNERS", "IMU_SITE_POS",
+           "fall_height_at_com"]
 
 PREFIX = "gt/"
 #: Sole corners and touch quadrants, (sign x, sign y): toe-left, toe-right, heel-left, heel-right.
@@ -53,6 +54,13 @@ class SceneLayout:
     n_drag: int                        # drag dampers (2 per sole corner, 0 on rigid/carpet)
     sensors: tuple[tuple[str, int], ...]   # (block name, width) in sensordata order
     touch_quadrant: tuple[int, ...]    # per touch sensor, its sole quadrant 0..7 (left 0-3, right 4-7)
+
+
+def fall_height_at_com(robot: RobotModel) -> bool:
+    """Whether the fall check's height is the torso's centre of mass rather than its frame's origin:
+    for a torso whose origin lies below its hips (a base frame at the floor, as an Onshape export's),
+    whose origin's height says nothing of a fall (ours)."""
+    return robot.leg.hip_offset_z < 0.0
 
 
 def _our_default(spec: mujoco.MjSpec) -> mujoco.MjsDefault:
@@ -281,7 +289,7 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
     # MuJoCo's xmat and xpos, so a rollout run natively (``mujoco.rollout``) is judged on the same numbers;
     # a torso whose origin lies below its hips (a base frame at the floor, as an Onshape export's) is
     # judged by its centre of mass instead: its origin's height says nothing of a fall
-    low_origin = r.leg.hip_offset_z < 0.0
+    low_origin = fall_height_at_com(r)
     sensor("fall", 3, name=PREFIX + "torso_zaxis", type=S.mjSENS_FRAMEZAXIS, objtype=O.mjOBJ_XBODY, objname=r.torso)
     sensor("fall", 3, name=PREFIX + "torso_origin", type=S.mjSENS_FRAMEPOS,
            objtype=O.mjOBJ_BODY if low_origin else O.mjOBJ_XBODY, objname=r.torso)
