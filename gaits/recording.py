@@ -19,8 +19,8 @@ nanoseconds, and ``t`` [s] since the start; SI units, gait-tuner's joint names a
 ``/walk/command``      ``vx, vy`` [m/s], ``wz`` [rad/s]
 =====================  ====================================================================
 
-A reading the controller was not given (its ``senses``) is not recorded; a missing command is
-none. Writing needs the ``mcap`` package (``pip install mcap``), as reading does; the rest of the
+Every reading the robot has is recorded, whatever the controller uses (a joint table uses none);
+a reading the robot lacks is not recorded; a missing command is none. Writing needs the ``mcap`` package (``pip install mcap``), as reading does; the rest of the
 robot side needs numpy and PyYAML only. A run that is killed keeps what was flushed: MCAP's
 chunks are written as they fill.
 """
@@ -30,13 +30,14 @@ from __future__ import annotations
 import json
 import math
 import time
+import dataclasses
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .control import FOOT_FORCE_LABELS, Measurement, Wrapped
+from .control import FOOT_FORCE_LABELS, READINGS, Measurement, Wrapped
 from .trajectory import JOINT_NAMES
 
 __all__ = ["RecordingMeta", "Recorder", "RecordingController", "Recording", "read_recording", "recording_info",
@@ -165,14 +166,32 @@ class Recorder:
 
 class RecordingController(Wrapped):
     """A controller whose every tick is recorded (``gaits.control.Controller``: every attribute is
-    the wrapped one's)."""
+    the wrapped one's but these). A recording keeps every reading the robot has, whatever the
+    controller uses (``senses``: all of :data:`gaits.control.READINGS`; the loop reads those the
+    robot has), so a sweep or a joint table, which senses nothing, still records the encoders and
+    the IMU that ``identify`` fits; the wrapped controller is given only the readings it senses, as
+    without the recording. ``ahead`` is None: a recorded walk is run tick by tick (the simulator's
+    native path skips ``step``; its walk is the tick loop's bit for bit)."""
+
+    senses = frozenset(READINGS)
+    ahead = None
 
     def __init__(self, inner: Any, recorder: Recorder) -> None:
         super().__init__(inner)
         self.recorder = recorder
+        theirs = frozenset(getattr(inner, "senses", READINGS))
+        self._unsensed = tuple(name for name in READINGS if name not in theirs)
+
+    def _theirs(self, m: Measurement) -> Measurement:
+        if not self._unsensed:
+            return m
+        return dataclasses.replace(m, **{name: None for name in self._unsensed})
+
+    def reset(self, m: Measurement) -> None:
+        self.inner.reset(self._theirs(m))
 
     def step(self, m: Measurement, command: Any = None) -> np.ndarray:
-        q = self.inner.step(m, command)
+        q = self.inner.step(self._theirs(m), command)
         self.recorder.record(m, command, q)
         return q
 

@@ -92,9 +92,24 @@ def test_the_loop_walks_the_simulated_robot_through_the_bus(tmp_path, robot_file
 def test_the_watchdog_stops_to_the_safe_pose_when_the_bus_goes_silent(tmp_path, robot_file):
     server, link = _serve(tmp_path, "--duration", "0.5")          # the bus ends after 0.5 s of walking
     loop = _loop(robot_file, link, "--seconds", "5", "--watchdog", "5")
-    (lo, le), _ = _finish(loop, server)
+    (lo, le), (so, se) = _finish(loop, server)
     assert loop.returncode == 3, lo + le
     assert lo.strip().splitlines()[-1].startswith("watchdog: no readings for 5 ticks (50 ms)"), lo
+    # the server ends as the walk's duration says, not in an internal error (its plan record was short)
+    assert server.returncode == 0 and "ended: the walk's duration ran out; the walk: completed" in so, so + se
+
+
+def test_a_robot_that_falls_stays_on_the_bus_and_the_loop_sees_the_fall(tmp_path, robot_file):
+    """A 20 N s push mid-walk throws the robot down: as on a real bus its servos still answer, the
+    loop's own fall stop (its IMU's tilt) ends the walk, and the server says when it fell."""
+    push = tmp_path / "push.yaml"
+    push.write_text("push: 20\n")
+    server, link = _serve(tmp_path, "--duration", "3", "--randomisation", str(push))
+    loop = _loop(robot_file, link, "--seconds", "5")
+    (lo, le), (so, se) = _finish(loop, server)
+    assert loop.returncode == 3 and "fall detected at t = " in lo.strip().splitlines()[-1], lo + le
+    assert server.returncode == 0 and "the walk: fell at t = " in so and "the client turned the torque off" in so, \
+        so + se
 
 
 def test_a_fall_turns_the_torque_off(tmp_path, robot_file):

@@ -91,6 +91,24 @@ def test_simulate_records_and_log_info_says_what_it_holds(tmp_path, gait_tuner_c
     assert all(c["rate_hz"] == pytest.approx(100.0) for c in info["channels"].values())
 
 
+def test_a_joint_table_records_what_the_robot_sensed(tmp_path, capsys):
+    """A table set senses nothing (the simulator may run it natively, never calling its step): its
+    recording still holds every tick's encoders, IMU and sole forces, and the walk is the one
+    walked without a recording (the same metrics)."""
+    from tuner.cli import main
+    args = ["simulate", "--params", "tkux-table2", "--surface", "rigid", "--duration", "1", "--json"]
+    assert main(args) == 0
+    plain = json.loads(capsys.readouterr().out)["metrics"]
+    assert main(args + ["--record", str(tmp_path)]) == 0
+    recorded = json.loads(capsys.readouterr().out)["metrics"]
+    assert recorded == plain
+    [path] = tmp_path.glob("*.mcap")
+    back = read_recording(path)
+    assert set(back.channels) == set(CHANNELS) - {"/walk/command"}
+    assert len(back.times("/joints/measured")) == len(back.times("/joints/target")) == 100
+    assert np.ptp(back.values("/joints/measured", "position"), axis=0).max() > 0.05     # the legs moved
+
+
 def test_the_robot_loop_records(tmp_path):
     out = tmp_path / "loop.mcap"
     r = subprocess.run([sys.executable, str(ROOT / "examples" / "robot_loop.py"),

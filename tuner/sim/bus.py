@@ -18,14 +18,17 @@ after it started, or has turned the torque off.
 
 from __future__ import annotations
 
+import dataclasses
+import math
 import os
 import select
 import struct
 import termios
 import time
 import tty
+from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Iterator
 
 import numpy as np
 
@@ -35,6 +38,8 @@ from gaits.dynamixel import (ADDR_GOAL_POSITION, ADDR_PRESENT_VELOCITY, ADDR_TOR
                              status_packet)
 from gaits.robot_file import RobotFile, from_units
 from gaits.trajectory import JOINT_NAMES
+
+from .rollout import Simulator
 
 __all__ = ["BusClosed", "BusBridge", "open_pty", "serve"]
 
@@ -100,7 +105,9 @@ class BusBridge:
         return self._last
 
     def plan(self, n: int) -> PlanRecord:
-        return PlanRecord("bus", np.zeros(n, dtype=int), np.zeros((n, 2)), np.zeros((n, 2)), np.zeros((n, 2)))
+        # the client's plan is not on the bus: no steps planned, the walk's metrics of a stand
+        return PlanRecord("bus", np.zeros(n, dtype=int), np.zeros((n, 2)), np.zeros((n, 2)), np.zeros((n, 2)),
+                          walk_start=self.walk_start, cycle_time=1.0)
 
     # --- the bus ---------------------------------------------------------------------------
     def _goal(self) -> np.ndarray:
@@ -195,6 +202,38 @@ class BusBridge:
         return q
 
 
+class _FallWatch:
+    """A robot that falls on a real bus lies there with its servos still answering, and the loop's
+    own fall stop (its IMU's tilt) is what ends the walk: so the simulated robot is simulated on
+    after a fall (the simulator's tilt and height checks off for the walk) and the first tick its
+    torso passed the simulator's fall criteria is kept for the report (``t_fall`` [s])."""
+
+    def __init__(self, sim: Simulator) -> None:
+        self.sim = sim
+        self.t_fall: float | None = None
+        self._z_min: float | None = None
+
+    @contextmanager
+    def kept_on_the_bus(self) -> Iterator[None]:
+        criteria = self.sim.fall
+        self._cos_tilt = math.cos(criteria.max_tilt)
+        self._ratio = criteria.min_height_ratio
+        self.sim.fall = dataclasses.replace(criteria, max_tilt=math.pi)      # cos(pi) = -1: never below it
+        try:
+            yield
+        finally:
+            self.sim.fall = criteria
+
+    def __call__(self, k: int, d: Any) -> bool:
+        if self.t_fall is None:
+            cos_tilt, height = self.sim.tilt_and_height(d)
+            if self._z_min is None:
+                self._z_min = self._ratio * height
+            if cos_tilt < self._cos_tilt or height < self._z_min:
+                self.t_fall = k * self.sim.control_period
+        return True
+
+
 def serve(sim: Any, robot: RobotFile, *, baudrate: int = 1_000_000, link: str | None = None, idle: float = 5.0,
           duration: float = 600.0, perturb: Any = None, ready: Any = None) -> dict[str, Any]:
     """Serve the robot of ``sim`` on a new pty until its client stops; ``link``: a symbolic link to
@@ -210,8 +249,13 @@ def serve(sim: Any, robot: RobotFile, *, baudrate: int = 1_000_000, link: str | 
     bridge = BusBridge(master, robot, sim.control_period, baudrate, idle=idle, duration=duration)
     why = "the walk's duration ran out"
     outcome = None
+    watch = _FallWatch(sim) if isinstance(sim, Simulator) else None
     try:
-        trace = sim.run(bridge, duration=duration, perturb=perturb)
+        if watch is None:                 # a robot in its harness cannot fall
+            trace = sim.run(bridge, duration=duration, perturb=perturb)
+        else:
+            with watch.kept_on_the_bus():
+                trace = sim.run(bridge, duration=duration, perturb=perturb, height_check=False, on_tick=watch)
         outcome = getattr(trace, "reason", None)
     except BusClosed as exc:
         why = str(exc)
@@ -220,6 +264,8 @@ def serve(sim: Any, robot: RobotFile, *, baudrate: int = 1_000_000, link: str | 
         os.close(slave)
         if link is not None and os.path.islink(link):
             os.unlink(link)
+    if watch is not None and watch.t_fall is not None:
+        outcome = f"fell at t = {watch.t_fall:.2f} s (the simulator's fall criteria; served on, lying, after it)"
     # a real bus is half duplex at ``baudrate``: 10 bits a byte (start, 8 data, stop), both ways in turn
     per_tick = (bridge.bytes_in + bridge.bytes_out) / max(bridge.ticks, 1)
     return {"ticks": bridge.ticks, "ended": why, "outcome": outcome, "ignored": bridge.ignored,

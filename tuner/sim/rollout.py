@@ -394,6 +394,12 @@ class Simulator:
             controller = Stabilised(controller, stabiliser)
         return self.run(controller, duration=duration, perturb=perturb, record_qpos=record_qpos)
 
+    def tilt_and_height(self, d: mujoco.MjData | None = None) -> tuple[float, float]:
+        """(cos of the torso's tilt from upright, the height the fall check reads [m]) of the state
+        in ``d`` (default this simulator's) after a step: the two numbers the fall criteria judge."""
+        s = (self.data if d is None else d).sensordata
+        return float(s[self._s_tilt]), float(s[self._s_height])
+
     def run(self, controller: Controller, *, duration: float | None = None, perturb: Perturbation | None = None,
             commands=None, pushes=(), record_qpos: bool = False, start=None, height_check: bool = True,
             hooks=None, on_tick=None) -> Trace:
