@@ -5,7 +5,7 @@ Usage: ``python benchmarks/bench_simulate.py [--repeats 5]``
 For each surface, one model, one gait (TLIPFM Table 2, 10.96 s). ``simulate`` is the full
 rollout (the table player, the rate limiter and joint ranges, the grass drag gate, sensors
 copied every tick, fall and divergence checks, trace post-processing); nothing reads the state
-between ticks (on grass the drag gate runs inside MuJoCo's step, ``tuner/sim/drag_gate.c``), so
+between ticks (on grass the drag gate runs inside MuJoCo's step, ``tuner/sim/native_step.c``), so
 it runs the walk through MuJoCo's native rollout in chunks of ``NATIVE_CHUNK`` ticks, judged
 after each. On grass, ``py-gate`` is the same rollout with the gate in Python between ticks (the
 tick loop; ``Simulator(..., native_gate=False)``, what runs where no C compiler is), checked
@@ -38,7 +38,7 @@ import numpy as np
 
 import gaits
 from tuner.robots import load_robot
-from tuner.sim import native_gate
+from tuner.sim import native_step as native_gate
 from tuner.sim.rollout import Simulator
 from tuner.sim.surfaces import SURFACES
 

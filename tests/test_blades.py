@@ -23,7 +23,7 @@ BLADES = load_surface(str(EXAMPLES / "grass50-blades.yaml"))
 CREEP = load_surface(str(EXAMPLES / "grass50-blades-creep.yaml"))
 JAM = load_surface(str(EXAMPLES / "grass50-blades-jam.yaml"))
 SLIDE = load_surface(str(EXAMPLES / "grass50-blades-slide.yaml"))
-ROBOT = load_robot("kidsize")
+ROBOT = load_robot("kidsize-pd")     # the papers' walks on round one's servos (the pd law)
 
 
 def test_the_example_files_are_blade_layers_of_the_pedestals_height():

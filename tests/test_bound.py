@@ -76,7 +76,8 @@ def test_bottle_figures_invert_the_drop():
 
 def test_a_robots_limits_come_from_its_model():
     lim = leg_limits(load_robot("kidsize"), 0.02)
-    assert lim.mass == pytest.approx(4.95) and lim.hip_speed == 6.5 and lim.ankle_torque == 6.0
+    mx64 = load_robot("kidsize").servo_of("l_knee")
+    assert lim.mass == pytest.approx(4.95) and lim.hip_speed == mx64.speed and lim.ankle_torque == mx64.torque
     assert lim.sole_front + lim.sole_back == pytest.approx(0.10) and lim.reach == pytest.approx(0.8 * 0.22)
     assert lim.leg_inertia > lim.shank_inertia > 0
 

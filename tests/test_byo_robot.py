@@ -13,6 +13,7 @@ import third_party_robot as T
 from tuner.errors import UserError
 from tuner.sim.metrics import summarize
 from tuner.robots import load_robot
+from tuner.servos import preset
 from tuner.sim.scene import PREFIX
 from tuner.robots.mjcf_geometry import axis_line_distance
 from tuner.report.robot_check import robot_report
@@ -153,7 +154,8 @@ def test_map_servo_overrides_and_presets(tmp_path):
                                                         "sim: {control_period: 0.02, max_tilt_deg: 40}\n"))
     r = load_robot(str(path))
     assert r.servo_of("l_knee").kp == pytest.approx(21.1) and r.servo_of("l_knee").speed == 5.0
-    assert r.servo_of("l_elbow").torque == pytest.approx(8.4)
+    assert r.servo_of("l_elbow") == preset("MX-106")            # a preset is the law its name gives, as it is
+    assert r.servo_of("l_elbow").torque == pytest.approx(10.67, abs=0.01)
     sim = Simulator(r, SURFACES["rigid"])
     assert sim.control_period == 0.02 and sim.nstep == 10
     assert sim.fall.max_tilt == pytest.approx(math.radians(40))
@@ -180,15 +182,17 @@ BAD_MAPS = [
     ("knee and hip pitch", lambda: T.map_yaml({**T.joint_map(), "l_knee": "HipPitch_L", "l_hip_pitch": "Knee_L"}),
      "joints.l_hip_pitch and joints.l_knee look swapped"),
     ("negative kp", lambda: T.map_yaml(extra="servo:\n  legs: {kp: -3}\n"),
-     "servo.legs: servo.kp = -3 N m/rad is out of range (0, 1000] N m/rad"),
+     "servo.legs.kp = -3 N m/rad is out of range (0, 1000] N m/rad"),
     ("nan torque", lambda: T.map_yaml(extra="servo:\n  legs: {torque: .nan}\n"),
-     "servo.legs: servo.torque = nan N m is out of range (0, 200] N m"),
+     "servo.legs.torque = nan N m is out of range (0, 200] N m"),
     ("string speed", lambda: T.map_yaml(extra="servo:\n  arms: {speed: fast}\n"),
-     "servo.arms: servo.speed = 'fast': expected a number"),
+     "servo.arms.speed = 'fast': expected a number"),
     ("unknown servo field", lambda: T.map_yaml(extra="servo:\n  legs: {gain: 3}\n"),
-     "servo.legs: unknown field 'gain' (allowed: preset, kp, kv, torque, speed, armature, damping, frictionloss, backlash, latency)"),
+     "servo.legs: unknown field 'gain' (allowed for the pd law: preset, law, kp, kv, torque, speed, armature, damping, "
+     "frictionloss, backlash, latency)"),
     ("unknown preset", lambda: T.map_yaml(extra="servo:\n  legs: MX-9000\n"),
-     "servo.legs.preset = 'MX-9000': unknown (allowed: MX-28, MX-64, MX-106, XM430-W350)"),
+     "servo.legs.preset = 'MX-9000': unknown (did you mean 'MX-106'?) (allowed: MX-64, MX-106, XL-320, XL-330, STS3215, "
+     "MX-28, XM430-W350, XH540-W270, XM540-W270, MX-28-pd, MX-64-pd, MX-106-pd, XM430-W350-pd)"),
     ("unknown servo group", lambda: T.map_yaml(extra="servo:\n  wheels: MX-64\n"),
      "servo: unknown group 'wheels' (allowed: legs, arms, head, other, hips, knees, ankles, or one of the map's joints by our name)"),
     ("unknown leg field", lambda: T.map_yaml(extra="leg:\n  thigh_length: 0.1\n"),

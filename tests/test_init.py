@@ -85,17 +85,26 @@ def test_init_for_speed_and_push(tmp_path, gait_tuner_cmd, run_env, purpose, kin
 
 
 def test_gains_are_sized_to_the_weight_only_where_nothing_states_them(tmp_path):
-    """A URDF has no servo gains: the legs' kp is GAIN_MARGIN x m g z_c, kv keeps the preset's damping
-    ratio; a map that states the legs' kp (or a preset) keeps it; the built-in robot keeps its own."""
+    """A URDF has no servo gains: the legs' stiffness is GAIN_MARGIN x m g z_c, written as the P
+    register that gives it on the default MX-64 at its voltage (its back-EMF damps it; a pd preset's
+    kp and a kv keeping its damping ratio); a map that states the legs' kp (or a preset) keeps it;
+    the built-in robot keeps its own."""
+    import dataclasses
+
     import test_urdf as U
+    from tuner.servos import preset
     path = U.workspace(tmp_path, U.mesh_urdf())
     robot = load_robot(str(path))
     assert "legs" in robot.preset_gains
     mass = float(np.sum(robot.model().body_mass))
     gains, why = leg_gains(robot, mass, 0.2)
     expected = 5.0 * round(GAIN_MARGIN * mass * 9.81 * 0.2 / 5.0)
-    assert gains["kp"] == expected and gains["kv"] == pytest.approx(0.5 * np.sqrt(expected / 40.0), abs=0.005)
-    assert f"{mass:.2f} kg x 9.81 x 0.200 m" in why
+    knee = robot.servo_of("l_knee")
+    assert gains["p_gain"] == pytest.approx(expected / (knee.gain / knee.p_gain), abs=0.05)
+    assert f"{mass:.2f} kg x 9.81 x 0.200 m" in why and "P " in why
+    old = dataclasses.replace(robot, servos={k: preset("MX-64-pd") for k in robot.servos})
+    pd_gains, _ = leg_gains(old, mass, 0.2)
+    assert pd_gains["kp"] == expected and pd_gains["kv"] == pytest.approx(0.5 * np.sqrt(expected / 40.0), abs=0.005)
     stated = U.workspace(tmp_path / "stated", U.mesh_urdf(), extra="servo: {knees: {kp: 70}}\n")
     assert "legs" not in load_robot(str(stated)).preset_gains
     assert leg_gains(load_robot(str(stated)), mass, 0.2)[0] == {}
@@ -113,13 +122,13 @@ def test_init_writes_the_sized_gains_into_a_copy_of_the_map(tmp_path, gait_tuner
     r = subprocess.run(gait_tuner_cmd + ["init", "--robot", str(path), "--surface", "rigid", "--out", str(out)],
                        capture_output=True, text=True, env=run_env)
     assert r.returncode == 0, r.stderr
-    assert "legs kp" in r.stdout and "sized to the weight" in r.stdout
+    assert "legs p_gain" in r.stdout and "sized to the weight" in r.stdout
     copy = out / f"{load_robot(str(path)).name}-rigid-match-robot.yaml"
     spec = load_study(str(next(out.glob("*-match.yaml"))))
     assert spec.robot == str(copy.resolve())
     robot = load_robot(str(copy))
     knee = robot.servos[robot.joint_map["l_knee"][0]]
-    assert knee.kp > 5 and knee.kp % 5 == 0 and knee.kp != 40.0
+    assert knee.kp > 5 and abs(knee.kp - 5 * round(knee.kp / 5)) < 0.05 and knee.p_gain != 32.0
     assert "legs" not in robot.preset_gains
     assert path.read_text() == before
 

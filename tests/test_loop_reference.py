@@ -22,7 +22,7 @@ _spec = importlib.util.spec_from_file_location("record_reference_traces", DATA /
 ref = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(ref)
 REFERENCE = np.load(DATA / "reference_traces.npz")
-ROBOT = ref.load_robot("kidsize")
+ROBOT = ref.load_robot("kidsize-pd")      # recorded on round one's servos (the pd law)
 SIMS: dict = {}
 
 

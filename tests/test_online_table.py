@@ -12,7 +12,7 @@ from tuner.robots import load_robot
 from tuner.sim.cache import simulator
 from tuner.sim.metrics import tracking
 
-ROBOT = load_robot("kidsize")
+ROBOT = load_robot("kidsize-pd")     # the papers' walks on round one's servos (the pd law)
 
 
 def _controller(name: str) -> OnlineTable:

@@ -167,10 +167,10 @@ def test_a_walk_held_in_place_is_counted_stalled_not_just_survived():
 def test_robustness_says_when_a_ground_holds_the_robot_in_place(gait_tuner_cmd, run_env):
     """The blade layer the calibration chose for 50 mm grass (creeping tips) holds the omni set's
     feet: every walk stays up and none walks. Survival says 100 %; ``stalled`` says why that is not
-    a walk. On the built-in grass50 the same walks cover their plan."""
+    a walk. On the built-in grass50 the same walks cover their plan (round one's servos: the calibration's)."""
     from conftest import ROOT
     args = ["robustness", "--params", "kidsize-omni-grass50", "--command", "0.2,0,0", "--rollouts", "2",
-            "--pushes", "0.5", "--push-rollouts", "1", "--json", "--surface"]
+            "--pushes", "0.5", "--push-rollouts", "1", "--json", "--robot", "kidsize-pd", "--surface"]
     held = run(gait_tuner_cmd, args + [str(ROOT / "examples/surfaces/calibrated/grass50-blades.yaml")], run_env)
     assert held.returncode == 0, held.stderr
     doc = json.loads(held.stdout)

@@ -329,15 +329,19 @@ def test_non_finite_numbers_in_a_robot_file_are_named(tmp_path, gait_tuner_cmd, 
     (lambda x: x.replace("<position name=", "<motor name="), "is not a position servo"),
 ])
 def test_servo_sources_say_per_field_where_the_numbers_came_from(tmp_path, edit, why):
-    """A file whose actuators cannot be used gets the preset, and the source says so and why, also
-    when the map overrides only the speed (it used to say "the file's actuators")."""
+    """A file whose actuators cannot be used gets the preset (BAM's MX-64, at 15 V), and the source
+    says so and why, also when the map overrides only its voltage and P register (it used to say
+    "the file's actuators"); a pd field on it is one line naming the law."""
     xml = edit(T.mjcf())
     assert xml != T.mjcf()
-    r = load_robot(str(T.write(tmp_path, xml, T.map_yaml(extra="servo: {legs: {speed: 5.5, kv: 0.4}}\n"))))
+    r = load_robot(str(T.write(tmp_path, xml, T.map_yaml(extra="servo: {legs: {voltage: 14.8, p_gain: 40}}\n"))))
     src = r.sources["servos.legs"]
-    assert "the file's actuators" not in src and f"preset MX-64 on 12 joint(s) (its actuator {why}" in src, src
-    assert "speed from the map" in src and "map servo.legs sets kv" in src, src
-    assert r.servo_of("l_knee").kp == pytest.approx(40.0) and r.servo_of("l_knee").speed == pytest.approx(5.5)
+    assert "the file's actuators" not in src and f"preset MX-64 at 15 V on 12 joint(s) (its actuator {why}" in src, src
+    assert "map servo.legs sets p_gain, voltage" in src, src
+    knee = r.servo_of("l_knee")
+    assert (knee.law, knee.voltage, knee.p_gain) == ("dc-motor", 14.8, 40.0)
+    with pytest.raises(UserError, match=r"servo.legs.speed: not a field of the dc-motor law"):
+        load_robot(str(T.write(tmp_path / "pd", xml, T.map_yaml(extra="servo: {legs: {speed: 5.5}}\n"))))
     ok = load_robot(str(T.write(tmp_path / "ok", T.mjcf())))
     assert ok.sources["servos.legs"].startswith("the file's actuators on 12 joint(s)")
 

@@ -38,7 +38,8 @@ from .errors import UserError
 from .sim.metrics import DEFINITIONS, Metrics, summarize
 from .params_io import resolve_params
 from .sim.randomisation import Randomisation
-from .robots import RobotModel, RobotSpec, ServoSpec, load_robot
+from .robots import RobotModel, RobotSpec, load_robot
+from .servos import ServoLaw
 from .sim.rollout import FallCriteria, Simulator, Trace
 from .sim.surfaces import SURFACES, Surface, load_surface
 
@@ -50,7 +51,7 @@ __all__ = [
     "RobotModel",
     "RobotSpec",
     "SURFACES",
-    "ServoSpec",
+    "ServoLaw",
     "Simulator",
     "Surface",
     "Trace",

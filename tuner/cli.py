@@ -576,7 +576,9 @@ def simulate(robot_name: str, surface_name: str, family: str | None, params_spec
 
 @cli.command()
 @click.argument("paper", type=click.Choice(["eros", "tlipfm"]))
-@robot_option()
+@robot_option("kidsize-pd", help="Built-in robot name or a robot map YAML (default: the built-in robot on round "
+                                "one's servos, which the papers' figures and the surfaces' calibration were made "
+                                "on; kidsize for its real servos).")
 @surface_option("rigid", help="tlipfm only: the surface of the Table 3 walk.")
 @click.option("--lift-scale", default=1.0, show_default=True, type=Span(0.05, 1.0),
               help="eros only: multiply the paper's foot lift (Z = 90-100 mm) by this (1: the paper's own).")
@@ -1588,9 +1590,9 @@ def surfaces(run_tests: bool, surface_names: tuple[str, ...], as_json: bool) -> 
             click.echo(f"{s.name:8s} layer {s.layer_height * 1000:4.0f} mm  drag {s.drag:5.1f} N s/m  "
                        f"friction {s.friction:.2f}  {s.description}")
         if any(s.drag_gated for s in chosen):
-            from .sim import native_gate
-            native_gate.install()
-            click.echo(f"\ngrass drag gate on this machine: {native_gate.status()}")
+            from .sim import native_step
+            native_step.install()
+            click.echo(f"\ngrass drag gate on this machine: {native_step.status()}")
         return
     from .report.surface_tests import surface_tests
     from .report.tables import format_surface_tests
@@ -1690,7 +1692,8 @@ def init(robot_name: str, surface_name: str, purpose: str, top_speed: float, out
     for share, rung in iw.ladder:
         click.echo(f"  {'also tried':11s} {rung.period:8.4g}  the period whose swing asks the knee {share:.0%} of its speed")
     if iw.servo:
-        click.echo(f"  {'legs kp':11s} {iw.servo['kp']:8.4g}  {iw.servo_source}")
+        key, value = next(iter(iw.servo.items()))
+        click.echo(f"  {'legs ' + key:11s} {value:8.4g}  {iw.servo_source}")
     else:
         click.echo(f"  {'servo gains':11s} {'':8s}  {iw.servo_source}")
     click.echo("".join(f"wrote {p}\n" for p in files) + f"tune it: gait-tuner tune {study} --workers 2")
@@ -1750,14 +1753,19 @@ def _robot_map_path(robot_name: str) -> Path | None:
               help="Highest frequency of the chirp [Hz] (it rises from 0.2 Hz).")
 @click.option("--amplitude", default=0.4, show_default=True, type=Span(0.01, 1.5),
               help="Largest swing of a joint about the middle of its range [rad].")
+@click.option("--steps/--no-steps", default=True, show_default=True,
+              help="After the sweep, large steps one joint at a time (held 0.4 s each): they drive the motors at "
+                   "full duty along their torque-speed line, which tells the stall torque from the back-EMF.")
+@click.option("--step-size", default=0.6, show_default=True, type=Span(0.05, 1.5),
+              help="The steps' size [rad] (less where a joint's range or its limbs leave less room).")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(0, 2**31 - 1),
               help="The joints' phases.")
 @click.option("--simulate", "simulate_to", type=OutPath(dir_okay=False), metavar="REC.mcap",
               help="Also play the sweep on the simulated robot in its harness and write the recording "
                    "a robot would make of it (the map's servos, 1 mrad encoder noise).")
 @JSON_OPTION
-def excite(robot_name: str, out: Path, duration: float, f_max: float, amplitude: float, seed: int,
-           simulate_to: Path | None, as_json: bool) -> None:
+def excite(robot_name: str, out: Path, duration: float, f_max: float, amplitude: float, steps: bool, step_size: float,
+           seed: int, simulate_to: Path | None, as_json: bool) -> None:
     """Write the joint sweep to play on the robot hanging in a harness (feet off the ground), the
     recording to identify its servos from: a chirp per joint within its range, at most 60 % of its
     servo's speed and, played on the simulated harness, 80 % of its torque. Play it with
@@ -1767,11 +1775,15 @@ def excite(robot_name: str, out: Path, duration: float, f_max: float, amplitude:
     from gaits.files import write_text_atomic
 
     from .robots import load_robot
-    from .sim.harness import Harness, excitation, record_sweep
+    from .sim.harness import Harness, excitation, record_sweep, step_train
     robot = load_robot(robot_name)
     h = Harness(robot)
     try:
         t, targets = excitation(h, duration=duration, f1=f_max, amplitude=amplitude, seed=seed)
+        sweep_s = float(t[-1])
+        if steps:
+            targets = np.vstack([targets, step_train(h, targets[-1], amplitude=step_size, seed=seed)])
+            t = np.arange(len(targets)) * h.control_period
     except ValueError as exc:
         raise UserError(f"excite: {exc}") from None
     header = "t," + ",".join(f"target.{j}" for j in h.joint_names)
@@ -1779,18 +1791,22 @@ def excite(robot_name: str, out: Path, duration: float, f_max: float, amplitude:
     write_text_atomic(out, header + "\n" + rows + "\n")
     s = h.servo_arrays()
     lo, hi = h.range_ours()
-    speed = np.abs(np.diff(targets, axis=0)).max(axis=0) / h.control_period
+    n_sweep = int(round(sweep_s / h.control_period)) + 1        # the sweep's rows (the steps jump, by design)
+    speed = np.abs(np.diff(targets[:n_sweep], axis=0)).max(axis=0) / h.control_period
     info = {"robot": robot.name, "sweep": str(out), "seconds": float(t[-1]), "joints": list(h.joint_names),
             "amplitude_rad": dict(zip(h.joint_names, np.round((targets.max(0) - targets.min(0)) / 2, 4).tolist())),
-            "speed_share": float(np.max(speed / s.speed))}
+            "speed_share": float(np.max(speed / h.nominal_speed())),
+            "sweep_s": sweep_s, "steps_s": float(t[-1]) - sweep_s}
     if simulate_to is not None:
         record_sweep(h, targets, s, simulate_to, seed=seed, notes=f"gait-tuner excite --robot {robot_name}")
         info["recording"] = str(simulate_to)
     if as_json:
         click.echo(json.dumps(info, allow_nan=False))
         return
-    click.echo(f"{robot.name}: a {t[-1]:.0f} s sweep of {h.n} joints at {0.2:g}-{f_max:g} Hz, at most "
-               f"{info['speed_share'] * 100:.0f} % of a servo's speed; wrote {out}")
+    click.echo(f"{robot.name}: a {sweep_s:.0f} s sweep of {h.n} joints at {0.2:g}-{f_max:g} Hz, at most "
+               f"{info['speed_share'] * 100:.0f} % of a servo's speed"
+               + (f", then {info['steps_s']:.0f} s of steps up to {step_size:g} rad, one joint at a time" if steps else "")
+               + f"; wrote {out}")
     if simulate_to is not None:
         click.echo(f"wrote {simulate_to} (the sweep on the simulated robot in its harness)")
 
@@ -1832,7 +1848,7 @@ def _running_total(desc: str, unit: str):
               help="Share the servo's numbers over hips, knees, ankles, arms and head, or fit each joint.")
 @click.option("--noise", default=0.001, show_default=True, type=Span(1e-6, 0.1),
               help="The encoders' noise [rad]: the residual's unit.")
-@click.option("--fit", "fit_fields", default="kp,damping,armature,frictionloss,torque,speed,backlash,latency",
+@click.option("--fit", "fit_fields", default="kp,damping,armature,frictionloss,torque,back_emf,speed,backlash,latency",
               show_default=True, metavar="FIELD,...", help="What to fit; the others keep the map's values.")
 @click.option("--max-iters", default=40, show_default=True, type=click.IntRange(1, 500))
 @click.option("--trace", is_flag=True, help="Print the optimiser's iterations on stderr.")
@@ -1877,7 +1893,8 @@ def identify_servos_cmd(robot_name: str | None, recordings: tuple[Path, ...], to
         why = (f"it does not follow {j} (residual RMS {fit.rms_before[j] * 1000:.2f} -> {fit.rms_after[j] * 1000:.2f} "
                f"mrad): a wrong sign or joint name in the recording, or contacts in it" if j else "not a number")
         raise UserError(f"identify servos: the fit did not converge: {why}; nothing written")
-    written = write_servo_fit(fit, _robot_map_path(robot_name), out_dir, noise)
+    laws = {ours: robot.servos[robot.joint_map[ours][0]] for ours in h.joint_names}
+    written = write_servo_fit(fit, _robot_map_path(robot_name), out_dir, noise, laws)
     if as_json:
         click.echo(json.dumps({**fit_json(fit), "written": [str(p) for p in written]}, allow_nan=False))
         return

@@ -51,7 +51,7 @@ def walk(case, robot, sims):
 
 
 def main() -> None:
-    robot = load_robot("kidsize")
+    robot = load_robot("kidsize-pd")
     sims: dict = {}
     arrays = {}
     for case in CASES:

@@ -36,6 +36,10 @@ from ..process_pool import map_in_order
 from ..robots import load_robot
 from ..sim.surfaces import SURFACES, Surface
 
+#: the robot the surfaces were calibrated with, against the EROS paper's stability matrix: the built-in
+#: robot on round one's servos (the pd law), as the calibration was made; a paper's figures keep it
+CALIBRATION_ROBOT = "kidsize-pd"
+
 __all__ = ["DEFAULT_GRID", "BLADE_GRID", "BLADE_BASE", "HEEL_GAINS", "LAYERS", "Candidate", "evaluate",
            "calibrate", "calibration_tasks", "pedestal_surface", "surface_yaml"]
 
@@ -81,7 +85,7 @@ def landing_pitch(surface) -> tuple[float, float]:
 
     import gaits
     from ..sim.rollout import Simulator
-    robot = load_robot("kidsize")
+    robot = load_robot(CALIBRATION_ROBOT)
     q0 = gaits.generate(gaits.load_baseline("eros-x8-without").params, robot.leg).q_ref[0]
     tr = Simulator(robot, surface).landing_test(q0, pitch=math.radians(3.0), forward_speed=0.1)
     return float(np.degrees(tr.pitch.max())), float(np.degrees(tr.pitch[-1]))
@@ -117,7 +121,7 @@ def evaluate(args: tuple) -> list[Candidate]:
     """One pedestal and grid point, every heel gain (runs in a worker process);
     ``args`` = (pedestal, values, gains, lift_scale, layer)."""
     pedestal, values, gains, lift_scale, layer = args
-    robot = load_robot("kidsize")
+    robot = load_robot(CALIBRATION_ROBOT)
     surface = pedestal_surface(pedestal, values, layer)
     toe, toe_ok = (float("nan"), float("nan")), True
     if pedestal in TOE_STICKING:

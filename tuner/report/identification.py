@@ -14,7 +14,7 @@ import dataclasses
 import json
 import math
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
 import yaml
@@ -52,26 +52,57 @@ def sysid_html(title: str, sysid: dict) -> str:
     return rb.build()
 
 _FIELDS = ("kp", "damping", "armature", "frictionloss", "torque", "speed", "backlash")
+#: a dc-motor servo's map fields each fitted piece moves (the stall torque and back-EMF fix kt and R,
+#: which the P register then follows so the gain stays the fitted one)
+_MOTOR_FIELDS = {"kp": ("p_gain",), "torque": ("kt", "resistance", "p_gain"), "back_emf": ("kt", "resistance", "p_gain"),
+                 "damping": ("damping",), "armature": ("armature",), "frictionloss": ("frictionloss",),
+                 "backlash": ("backlash",)}
 
 
-def servo_overlay(fit: ServoFit, base: Any) -> dict[str, dict[str, float]]:
+def _kept(fit: ServoFit, key: str) -> bool:
+    return fit.identifiable.get(key, False) or key in fit.loose or key in fit.at_least
+
+
+def servo_overlay(fit: ServoFit, laws: Mapping[str, Any] | None = None) -> dict[str, dict[str, float]]:
     """The map's ``servo:`` entries the fit sets: per fitted unit (group or joint) the fields it
-    identified (a unit whose joints differ in a field gets that field per joint), and the latency."""
+    identified (a unit whose joints differ in a field gets that field per joint), and the latency.
+    ``laws`` (our joint name -> the servo the map gave it): a dc-motor servo's fitted pieces are
+    written as its own fields (``MotorServo.with_pieces``: p_gain, kt, resistance, damping,
+    frictionloss, armature), a pd servo's as they are."""
+    from ..servos import MotorServo
     from ..sim.identify import group_of
     units: dict[str, list[int]] = {}
     for i, j in enumerate(fit.joints):
         units.setdefault(group_of(j) if fit.by == "groups" else j, []).append(i)
     out: dict[str, dict[str, float]] = {}
+
+    def put(u: str, idx: list[int], f: str, vals: np.ndarray) -> None:
+        if np.allclose(vals, vals[0], rtol=1e-9, atol=0):
+            out.setdefault(u, {})[f] = float(f"{vals[0]:.6g}")
+        else:
+            for i, v in zip(idx, vals):
+                out.setdefault(fit.joints[i], {})[f] = float(f"{v:.6g}")
+
+    s = fit.servos
     for u, idx in units.items():
-        for f in _FIELDS:
-            if not (fit.identifiable.get(f"{u}.{f}", False) or f"{u}.{f}" in fit.loose):
-                continue
-            vals = np.asarray(getattr(fit.servos, f))[idx]
-            if np.allclose(vals, vals[0], rtol=1e-9, atol=0):
-                out.setdefault(u, {})[f] = float(f"{vals[0]:.6g}")
-            else:
-                for i, v in zip(idx, vals):
-                    out.setdefault(fit.joints[i], {})[f] = float(f"{v:.6g}")
+        motors = laws is not None and all(isinstance(laws.get(fit.joints[i]), MotorServo) for i in idx)
+        if motors:
+            moved = [k for k in _MOTOR_FIELDS if _kept(fit, f"{u}.{k}")]
+            fields = list(dict.fromkeys(f for k in moved for f in _MOTOR_FIELDS[k]))
+            if fields:
+                new = []
+                for i in idx:
+                    law = laws[fit.joints[i]]
+                    new.append(law.with_pieces(
+                        kp=float(s.kp[i]), torque=float(s.torque[i]), back_emf=float(s.back_emf[i]),
+                        damping=float(s.damping[i]), frictionloss=float(s.frictionloss[i]),
+                        armature=float(s.armature[i])).replace(backlash=float(s.backlash[i])))
+                for f in fields:
+                    put(u, idx, f, np.array([getattr(x, f) for x in new]))
+        else:
+            for f in _FIELDS:
+                if _kept(fit, f"{u}.{f}"):
+                    put(u, idx, f, np.asarray(getattr(s, f))[idx])
         if fit.identifiable.get("latency", False):
             out.setdefault(u, {})["latency"] = float(f"{fit.servos.latency:.6g}")
     return out
@@ -85,7 +116,8 @@ def fit_json(fit: ServoFit) -> dict[str, Any]:
                                "unit": "mrad" if k.endswith(".backlash") else "ticks" if k == "latency"
                                else "factor of the map's",
                                "fitted": k in fit.fitted, "identifiable": fit.identifiable[k],
-                               "loose": k in fit.loose} for k in fit.values},
+                               "loose": k in fit.loose, "at_least": k in fit.at_least,
+                               "on_bound": k in fit.on_bound} for k in fit.values},
             "rms_before_rad": fit.rms_before, "rms_after_rad": fit.rms_after,
             "entangled": fit.entangled, "rollouts": fit.rollouts, "seconds": round(fit.seconds, 1), "iterations": fit.iterations}
 
@@ -124,19 +156,25 @@ def summary_lines(fit: ServoFit, noise: float) -> list[str]:
     if fit.loose:
         lines.append(f"  ~ fixed only loosely (95 % interval over 10 %; kept as fitted, their combination is what "
                      f"the recordings fix): {', '.join(fit.loose)}")
-    flat = [k for k in fit.not_identifiable if k not in fit.loose]
+    if fit.at_least:
+        lines.append(f"  at least (the fit raised it until it stopped binding; the map's lower value would bind "
+                     f"and misfit, so the fitted one is kept): {', '.join(fit.at_least)}")
+    if fit.on_bound:
+        lines.append(f"  ended on its bound (the recordings want it beyond the fit's range, 0.2-5x the map's): "
+                     f"{', '.join(fit.on_bound)}")
+    flat = [k for k in fit.not_identifiable if k not in fit.loose and k not in fit.at_least]
     if flat:
         lines.append(f"  not identifiable from these recordings (the map's value kept): {', '.join(flat)}")
     return lines
 
 
 def write_servo_fit(fit: ServoFit, robot_map: Path | None, out_dir: Path, noise: float,
-                    servos_base: Any = None) -> list[Path]:
+                    laws: Mapping[str, Any] | None = None) -> list[Path]:
     """Write ``robot.yaml`` (when the robot came from a map), ``servos.yaml``, ``fit.json`` and
     ``report.txt`` into ``out_dir``, all or none."""
     import tuner
     commit = commit_of(tuner.__file__).strip(" ()") or "unknown commit"
-    overlay = servo_overlay(fit, servos_base)
+    overlay = servo_overlay(fit, laws)
     a = np.sqrt(np.mean(np.square(list(fit.rms_after.values()))))
     header = (f"# servos identified by gait-tuner identify servos ({commit})\n"
               f"# from: {', '.join(fit.recordings)}\n"

@@ -65,9 +65,10 @@ def _servo_groups(robot: RobotModel) -> dict[str, dict[str, Any]]:
         if not joints:
             continue
         fields = {}
-        for f in ("kp", "kv", "torque", "speed", "armature", "damping", "frictionloss"):
+        for f in ("kp", "kv", "torque", "speed", "armature", "damping", "frictionloss", "back_emf"):
             vals = sorted({getattr(robot.servos[j], f) for j in joints})
             fields[f] = vals[0] if len(vals) == 1 else [vals[0], vals[-1]]
+        fields["law"] = sorted({robot.servos[j].law for j in joints})
         out[g] = {"joints": joints, **fields, "source": robot.sources.get(f"servos.{g}", "")}
     return out
 
@@ -177,10 +178,10 @@ def format_report(r: dict[str, Any]) -> str:
                      f"frame, {len(s['hull_mm'])}-vertex hull [{s['source']}]; touch: {s['touch_sensors']}")
     lines.append("servos")
     for g, s in r["servos"].items():
-        lines.append(f"  {g} ({len(s['joints'])}): kp {_fmt(s['kp'])} N m/rad, kv {_fmt(s['kv'])} N m s/rad, "
-                     f"torque {_fmt(s['torque'])} N m, speed {_fmt(s['speed'])} rad/s, armature "
-                     f"{_fmt(s['armature'])} kg m^2, damping {_fmt(s['damping'])} N m s/rad, friction "
-                     f"{_fmt(s['frictionloss'])} N m")
+        lines.append(f"  {g} ({len(s['joints'])}, {'/'.join(s['law'])} law): kp {_fmt(s['kp'])} N m/rad, kv "
+                     f"{_fmt(s['kv'])} N m s/rad, torque {_fmt(s['torque'])} N m at rest, speed {_fmt(s['speed'])} rad/s, "
+                     f"back-EMF {_fmt(s['back_emf'])} N m s/rad, armature {_fmt(s['armature'])} kg m^2, damping "
+                     f"{_fmt(s['damping'])} N m s/rad, friction {_fmt(s['frictionloss'])} N m")
         lines.append(f"      [{s['source']}]")
     held = ", ".join(f"{j} {v:+.3f}" for j, v in r["held_joints"].items()) or "none"
     lines.append(f"held pose [rad] [{r['sources'].get('pose', 'zero')}]")

@@ -11,7 +11,8 @@ leg), 52 cm tall like EROS. Where each number comes from:
   trunk 17 cm, neck and head 8.5 cm (head top at 0.52 m).
 * feet: 10 cm x 6 cm soles, a typical kid-size foot (RoboCup kid-size rules
   cap the foot area by the robot's height).
-* servos: the MX-64 preset in the legs, MX-28 in arms and head (``servo.py``); on a Dynamixel bus
+* servos: MX-64 in the legs (BAM's identification, the dc-motor law, firmware P 32), MX-28 in
+  arms and head (datasheet-derived), all at 15 V, a 4S LiPo's nominal (``tuner/servos/``); on a Dynamixel bus
   (``gait-tuner bus serve``, ``robot export``) ids 1 to 20 in ``gaits.JOINT_NAMES`` order, 4096
   ticks a turn centred on 2048, no offsets (ours: a robot built that way).
 * joint limits: typical kid-size ranges (knee 0..150 deg, hip pitch -110..60 deg).
@@ -30,12 +31,13 @@ from gaits.robot_file import ServoUnit
 
 from .mjcf_geometry import CROUCH, com_offset, crouch_angles, sole_polygon
 from .robot_model import RobotModel, joint_group
-from .servo import SERVO_PRESETS, ServoSpec
+from ..servos import ServoLaw, preset
 
-__all__ = ["RobotSpec", "kidsize_spec", "kidsize_xml", "kidsize_model", "LEG_SERVO", "ARM_SERVO"]
+__all__ = ["RobotSpec", "kidsize_spec", "kidsize_xml", "kidsize_model", "LEG_SERVO", "ARM_SERVO", "BATTERY_VOLTAGE"]
 
-LEG_SERVO = SERVO_PRESETS["MX-64"]
-ARM_SERVO = SERVO_PRESETS["MX-28"]
+BATTERY_VOLTAGE = 15.0     # [V] a 4S LiPo's nominal (ours; full 16.8, drained about 13.5)
+LEG_SERVO = preset("MX-64").replace(voltage=BATTERY_VOLTAGE)
+ARM_SERVO = preset("MX-28").replace(voltage=BATTERY_VOLTAGE)
 
 
 @dataclass(frozen=True)
@@ -60,8 +62,8 @@ class RobotSpec:
     thigh_mass: float = 0.15         # [kg] (0.2 kg thigh budget less the hip servos)
     calf_mass: float = 0.50          # [kg]
     foot_mass: float = 0.25          # [kg]
-    leg_servo: ServoSpec = LEG_SERVO
-    arm_servo: ServoSpec = ARM_SERVO
+    leg_servo: ServoLaw = LEG_SERVO
+    arm_servo: ServoLaw = ARM_SERVO
     limits: Mapping[str, tuple[float, float]] = field(default_factory=lambda: {
         "hip_yaw": (-0.8, 0.8), "hip_roll": (-0.6, 0.6), "hip_pitch": (-1.9, 1.0),
         "knee": (0.0, 2.6), "ankle_pitch": (-1.3, 1.3), "ankle_roll": (-0.6, 0.6),

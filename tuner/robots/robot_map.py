@@ -52,7 +52,7 @@ from ..yaml_input import read_yaml_file
 from .mjcf_geometry import (CROUCH, axis_line_distance, body_chain, com_offset, crouch_angles, foot_geoms,
                             self_overlaps, sole_polygon)
 from .robot_model import FINE_GROUPS, GROUPS, RobotModel, SimOptions, fine_group, joint_group
-from .servo import SERVO_FIELDS, SERVO_PRESETS, servo_from_file, servo_from_mapping
+from ..servos import SERVO_FIELDS, PDServo, preset, servo_from_file, servo_from_mapping
 from .servo_table import read_servo_units
 from .urdf import UrdfRobot, compile_checked, mujoco_message, urdf_to_mjcf
 
@@ -73,7 +73,21 @@ AXIS_ANGLE_TOLERANCE = math.radians(0.5)
 #: hip whose roll and yaw axes both lie 45 deg from the vertical (Berkeley Humanoid Lite's), and
 #: still tells a pitch joint from a roll one; its sign is the one nearer the ideal.
 AXIS_FIT = math.cos(math.radians(50.0))
+#: the servo a group gets when neither its file nor the map states one: these presets (the dc-motor
+#: law) at the built-in robot's battery voltage (kidsize.BATTERY_VOLTAGE)
 _DEFAULT_PRESET = {"legs": "MX-64", "arms": "MX-28", "head": "MX-28", "other": "MX-28"}
+DEFAULT_VOLTAGE = 15.0    # [V] a 4S LiPo's nominal (ours): what a map's default servos run at
+
+
+def default_servo(group: str):
+    """The servo of a group whose file and map state none (see ``_DEFAULT_PRESET``)."""
+    return preset(_DEFAULT_PRESET[group]).replace(voltage=DEFAULT_VOLTAGE)
+
+
+def _file_speed(group: str) -> float:
+    """[rad/s] the target speed cap a file's own position actuator gets (a file states none): the
+    round-one pd preset's of the group, as before the motor law."""
+    return preset(f"{_DEFAULT_PRESET[group]}-pd").speed
 _SIDES = (("left", "l_", 1), ("right", "r_", -1))
 
 
@@ -585,17 +599,16 @@ def _servos(model: mujoco.MjModel, final: Mapping[str, tuple[str, int]], doc: An
                  f"(the tool holds unmapped joints by name)")
         group = joint_group(ours_of.get(theirs))
         count[group] += 1
-        preset = SERVO_PRESETS[_DEFAULT_PRESET[group]]
-        spec, why = servo_from_file(model, theirs, preset.speed)
+        spec, why = servo_from_file(model, theirs, _file_speed(group))
         if spec is None:
-            spec = preset
+            spec = default_servo(group)
             why = re.sub(r"^actuator '[^']*' ", "its actuator ", why)       # one reason per kind, not per joint
             why_preset[group][why] = why_preset[group].get(why, 0) + 1
         else:
             from_file[group] += 1
         if urdf is not None:
-            lim = {}
             effort, velocity = urdf.effort.get(theirs), urdf.velocity.get(theirs)
+            lim = {}
             if effort is not None and 0 < effort <= 200:
                 lim["torque"] = effort
                 urdf_used[group]["torque"] += 1
@@ -603,7 +616,10 @@ def _servos(model: mujoco.MjModel, final: Mapping[str, tuple[str, int]], doc: An
                 lim["speed"] = velocity
                 urdf_used[group]["speed"] += 1
             if lim:
-                spec = dataclasses.replace(spec, **lim)
+                try:                   # a motor's: the stall torque and unloaded speed at its voltage (kt, R)
+                    spec = spec.replace(**lim) if isinstance(spec, PDServo) else spec.with_datasheet(**lim)
+                except UserError as exc:
+                    raise UserError(f"{source}: joint {theirs!r}: its <limit effort velocity>: {exc}") from None
         if group in doc:
             spec = servo_from_mapping(doc[group], f"servo.{group}", spec)
         ours = ours_of.get(theirs)
@@ -626,30 +642,28 @@ def _servos(model: mujoco.MjModel, final: Mapping[str, tuple[str, int]], doc: An
             parts.append(f"preset {map_preset} from the map on {n} joint(s)")
         else:
             if from_file[g]:
-                parts.append(f"the file's actuators on {from_file[g]} joint(s)")
+                parts.append(f"the file's actuators on {from_file[g]} joint(s) (the pd law)")
+                if "speed" not in map_fields and not urdf_used[g]["speed"]:
+                    parts.append(f"speed {_file_speed(g):g} rad/s from preset {_DEFAULT_PRESET[g]}-pd (a file states none)")
             for why, k in why_preset[g].items():
                 what = "a URDF has no servo gains" if urdf is not None else why
-                parts.append(f"preset {_DEFAULT_PRESET[g]} on {k} joint(s) ({what})")
-            n_t = urdf_used[g]["torque"]
+                parts.append(f"preset {_DEFAULT_PRESET[g]} at {DEFAULT_VOLTAGE:g} V on {k} joint(s) ({what})")
+            n_t, n_v = urdf_used[g]["torque"], urdf_used[g]["speed"]
+            motor = " (the stall torque at its voltage: kt and R follow)" if why_preset[g] else ""
             if urdf is not None and n_t and "torque" not in map_fields:
-                parts.append(f"torque from the URDF's <limit effort> on {n_t} joint(s)")
-        n_v = urdf_used[g]["speed"]
+                parts.append(f"torque from the URDF's <limit effort> on {n_t} joint(s){motor}")
+            if urdf is not None and n_v and "speed" not in map_fields:
+                parts.append(f"speed from the URDF's <limit velocity> on {n_v} joint(s)"
+                             + (" (the unloaded speed)" if motor else ""))
         if "speed" in map_fields:
-            speed_src = "speed from the map"
-        elif map_preset is not None:
-            speed_src = f"speed {SERVO_PRESETS[map_preset].speed:g} rad/s from preset {map_preset}"
-        elif urdf is not None and n_v:
-            speed_src = f"speed from the URDF's <limit velocity> on {n_v} joint(s)" + \
-                (f", {SERVO_PRESETS[_DEFAULT_PRESET[g]].speed:g} rad/s from preset {_DEFAULT_PRESET[g]} on "
-                 f"{n - n_v}" if n_v < n else "")
-        else:
-            speed_src = (f"speed {SERVO_PRESETS[_DEFAULT_PRESET[g]].speed:g} rad/s from preset "
-                         f"{_DEFAULT_PRESET[g]} (a file states none)")
+            parts.append("speed from the map")
         over = [f for f in map_fields if f != "speed"]
-        tail = f"; map servo.{g} sets {', '.join(over)}" if over else ""
-        sources[f"servos.{g}"] = "; ".join(parts) + f"; {speed_src}{tail}"
+        if over:
+            parts.append(f"map servo.{g} sets {', '.join(over)}")
+        first = next(sv for theirs_, sv in servos.items() if joint_group(ours_of.get(theirs_)) == g)
+        sources[f"servos.{g}"] = "; ".join(parts) + f" -> {first.describe()}"
     def states_gains(entry: Any) -> bool:
-        return isinstance(entry, str) or (isinstance(entry, Mapping) and ("kp" in entry or "preset" in entry))
+        return isinstance(entry, str) or (isinstance(entry, Mapping) and ("kp" in entry or "p_gain" in entry or "preset" in entry))
 
     stated = {g for g in GROUPS if states_gains(doc.get(g))}
     stated |= {"legs" if k in FINE_GROUPS else joint_group(k) for k in doc if k not in GROUPS and states_gains(doc[k])}

@@ -13,7 +13,7 @@ from gaits import LegGeometry
 from gaits.leg_kinematics import LEG_JOINTS
 
 from ..errors import UserError
-from .servo import ServoSpec
+from ..servos import ServoLaw
 
 __all__ = ["RobotModel", "SimOptions", "joint_group", "GROUPS"]
 
@@ -90,7 +90,7 @@ class RobotModel:
     soles: tuple[tuple[float, float, float], tuple[float, float, float]]
     foot_size: tuple[float, float]               # [m] length, width of the sole's bounding box
     leg: LegGeometry
-    servos: Mapping[str, ServoSpec]
+    servos: Mapping[str, ServoLaw]
     pose: Mapping[str, float] = field(default_factory=dict)
     sole_hulls: tuple[np.ndarray, ...] = ()
     sources: Mapping[str, str] = field(default_factory=dict)
@@ -168,7 +168,7 @@ class RobotModel:
             return mujoco.MjModel.from_xml_path(self.mjcf_path)
         return self.spec().compile()
 
-    def servo_of(self, ours: str) -> ServoSpec:
+    def servo_of(self, ours: str) -> ServoLaw:
         """The servo of one of our (mapped) joint names."""
         return self.servos[self.joint_map[ours][0]]
 

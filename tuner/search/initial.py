@@ -34,6 +34,7 @@ import numpy as np
 from gaits import TlipfmParams
 from gaits.engine import EngineParams
 
+from ..servos import MotorServo
 from ..errors import UserError
 from ..robots.mjcf_geometry import body_chain
 
@@ -227,17 +228,23 @@ def initial_walk(robot: Any, robot_ref: str, surface: Any, purpose: str = "match
 
 
 def leg_gains(robot: Any, mass: float, z_c: float) -> tuple[dict[str, float], str]:
-    """The legs' kp and kv [N m/rad, N m s/rad] sized to the robot's weight when its gains are a
-    preset's (see the module docstring), with the sentence saying so; ({}, why not) otherwise."""
+    """The legs' gains sized to the robot's weight when its gains are a preset's (see the module
+    docstring), with the sentence saying so; ({}, why not) otherwise. A dc-motor servo gets the P
+    register that gives that stiffness at its voltage (its back-EMF damps it); a pd servo a kp and
+    a kv that keeps the preset's damping ratio."""
     if "legs" not in getattr(robot, "preset_gains", ()):
         return {}, "the robot's own (its file or its map states them)"
     preset = robot.servos[robot.joint_map["l_knee"][0]]
     stiffness = mass * 9.81 * z_c
     kp = max(5.0, 5.0 * round(GAIN_MARGIN * stiffness / 5.0))
+    head = (f"sized to the weight (nothing states the legs' gains): {GAIN_MARGIN:g} x the toppling stiffness "
+            f"m g z_c = {mass:.2f} kg x 9.81 x {z_c:.3f} m = {stiffness:.1f} N m/rad")
+    if isinstance(preset, MotorServo):
+        p_gain = round(kp / (preset.gain / preset.p_gain), 1)
+        return {"p_gain": float(p_gain)}, (f"{head}: kp {kp:g} N m/rad is P {p_gain:g} on the {preset.preset or 'servo'}'s "
+                                           f"firmware at {preset.voltage:g} V")
     kv = round(preset.kv * math.sqrt(kp / preset.kp), 2)
-    why = (f"sized to the weight (nothing states the legs' gains): {GAIN_MARGIN:g} x the toppling stiffness "
-           f"m g z_c = {mass:.2f} kg x 9.81 x {z_c:.3f} m = {stiffness:.1f} N m/rad; kv {kv:g} keeps the "
-           f"preset's damping ratio (its kp {preset.kp:g}, kv {preset.kv:g})")
+    why = (f"{head}; kv {kv:g} keeps the preset's damping ratio (its kp {preset.kp:g}, kv {preset.kv:g})")
     return {"kp": float(kp), "kv": float(kv)}, why
 
 

@@ -29,6 +29,8 @@ import mujoco
 import numpy as np
 
 from ..robots.robot_model import RobotModel
+from ..servos.law import FRICTION_ROW_MIN
+from .native_step import require as require_native_step
 from .rollout import dead_band, rate_limited
 from .scene import PREFIX, build_scene
 from .surfaces import SURFACES
@@ -42,8 +44,10 @@ HANG_HEIGHT = 1.0       # [m] how far the torso is lifted above its standing pla
 class ServoArrays:
     """Every servo's numbers as arrays over the harness' servo joints (SI), plus the latency.
 
-    kp [N m/rad], kv [N m s/rad], torque [N m], speed [rad/s], armature [kg m^2], damping
-    [N m s/rad], frictionloss [N m], backlash [rad] (the dead band's full width); latency [s]."""
+    kp [N m/rad], kv [N m s/rad], torque [N m] (the clamp), speed [rad/s] (the cap on the
+    target's speed: inf where the law has none), armature [kg m^2], damping [N m s/rad] (the
+    joint's), frictionloss [N m], backlash [rad] (the dead band's full width), back_emf [N m s/rad]
+    (the motor's damping outside the clamp, ``tuner/servos/motor.py``; 0 for the pd law); latency [s]."""
 
     kp: np.ndarray
     kv: np.ndarray
@@ -53,6 +57,7 @@ class ServoArrays:
     damping: np.ndarray
     frictionloss: np.ndarray
     backlash: np.ndarray
+    back_emf: np.ndarray
     latency: float = 0.0
 
     def copy(self) -> "ServoArrays":
@@ -66,6 +71,8 @@ class Harness:
     def __init__(self, robot: RobotModel) -> None:
         self.robot = robot
         spec, layout = build_scene(robot, SURFACES["rigid"])
+        if layout.friction_terms:
+            require_native_step(f"robot {robot.name!r} in its harness: a servo's extended friction")
         for j in list(spec.joints):
             if j.type == mujoco.mjtJoint.mjJNT_FREE:
                 root = j.parent
@@ -119,9 +126,15 @@ class Harness:
         """The robot's servos as its map gives them (the latency: the largest servo's, as the
         simulator takes it)."""
         s = [self.robot.servos[t] for t in self.theirs]
-        return ServoArrays(**{f: np.array([getattr(x, f) for x in s]) for f in
-                              ("kp", "kv", "torque", "speed", "armature", "damping", "frictionloss", "backlash")},
+        p = [x.pieces() for x in s]
+        return ServoArrays(**{f: np.array([getattr(x, f) for x in p]) for f in
+                              ("kp", "kv", "torque", "armature", "damping", "frictionloss", "back_emf")},
+                           speed=np.array([x.target_speed for x in p]), backlash=np.array([x.backlash for x in s]),
                            latency=max((x.latency for x in s), default=0.0))
+
+    def nominal_speed(self) -> np.ndarray:
+        """[rad/s] each servo's fastest unloaded turn (the law's ``speed``: a motor's, or the pd cap)."""
+        return np.array([self.robot.servos[t].speed for t in self.theirs])
 
     def write_spec(self, spec: mujoco.MjSpec, s: ServoArrays) -> None:
         """The parts of the servos that live in the model (gain, feedback, torque, the joint's
@@ -132,10 +145,12 @@ class Harness:
             act.biasprm[1] = -s.kp[i]
             act.biasprm[2] = -s.kv[i]
             act.forcerange = [-s.torque[i], s.torque[i]]
+            act.damping = [s.back_emf[i], 0.0, 0.0]
             j = spec.joint(theirs)
             j.armature = s.armature[i]
             j.damping = [s.damping[i], 0.0, 0.0]
-            j.frictionloss = s.frictionloss[i]
+            # a servo with a per-step friction term keeps its friction row (servos.law.configure)
+            j.frictionloss = max(s.frictionloss[i], FRICTION_ROW_MIN) if len(act.userdata) else s.frictionloss[i]
 
     def compile(self, s: ServoArrays) -> mujoco.MjModel:
         self.write_spec(self.spec, s)
@@ -272,7 +287,7 @@ def excitation(h: Harness, duration: float = 30.0, f0: float = 0.2, f1: float = 
     fade = np.clip(np.minimum(t, duration - t), 0.0, 1.0)
     offsets = np.random.default_rng(seed).uniform(0, 2 * np.pi, h.n)
     # the peak speed of A fade sin(phase): A 2 pi f1 (the fade's own slope adds A per second)
-    a = np.minimum(room, speed_margin * s.speed / (2 * np.pi * f1 + 1.0))
+    a = np.minimum(room, speed_margin * h.nominal_speed() / (2 * np.pi * f1 + 1.0))
     model = h.compile(s)
     for _ in range(12):
         targets = centre + a * fade[:, None] * np.sin(phase[:, None] + offsets)
@@ -283,6 +298,54 @@ def excitation(h: Harness, duration: float = 30.0, f0: float = 0.2, f1: float = 
         a = np.where(over | touching, a * 0.8, a)
     raise ValueError("no sweep keeps the servos under their torque limits and the limbs apart (a servo too weak "
                      "to move its own limb, or limbs that touch at the held pose?)")
+
+
+def step_train(h: Harness, centre: np.ndarray, *, amplitude: float = 0.6, hold: float = 0.4, seed: int = 0,
+               range_margin: float = 0.05) -> np.ndarray:
+    """Large steps, one joint at a time (ours): from ``centre`` (the sweep's held pose, (n,) [rad,
+    ours]) each servo joint in turn steps out by up to ``amplitude`` [rad] one way, then the other,
+    then back, each target held ``hold`` [s], the others held still. A step well past the error at
+    which the firmware's duty saturates (0.2 rad for an MX at P 32) drives the motor at full duty
+    along its torque-speed line, which a sweep within its speed never reaches: what tells the stall
+    torque from the back-EMF. One joint at a time, so no two limbs swing into each other; a step
+    that touches another part (a hip rolling one foot into the other) or meets the joint's range is
+    made smaller, down to none. ``seed`` draws each joint's step size in U(0.7, 1) of its room and
+    which way it goes first. Returns targets (N, n)."""
+    lo, hi = h.range_ours()
+    rng = np.random.default_rng([seed, 5])
+    share = rng.uniform(0.7, 1.0, h.n)
+    first = rng.choice([-1.0, 1.0], h.n)
+    room = {1.0: np.minimum(amplitude, np.maximum(hi - range_margin - centre, 0.0)),
+            -1.0: np.minimum(amplitude, np.maximum(centre - (lo + range_margin), 0.0))}
+    ticks = int(round(hold / h.control_period))
+    s = h.servo_arrays()
+    model = h.compile(s)
+    rest = np.tile(centre, (ticks, 1))
+
+    def step(i: int, size: float) -> np.ndarray:
+        row = centre.copy()
+        row[i] += size
+        return np.tile(row, (ticks, 1))
+    size = {}
+    for i in range(h.n):
+        for sign in (1.0, -1.0):
+            a = sign * room[sign][i] * share[i]
+            for _ in range(6):             # this step alone, from rest and back: no part may touch another
+                if a == 0.0 or not h.probe(model, np.concatenate([rest, step(i, a), rest]), s)[1].any():
+                    break
+                a *= 0.6
+            else:
+                a = 0.0
+            size[i, sign] = a
+    rows = [rest]
+    for i in range(h.n):
+        for sign in (first[i], -first[i]):
+            rows.append(step(i, size[i, sign]))
+        rows.append(rest)
+    targets = np.concatenate(rows)
+    if h.probe(model, targets, s)[1].any():
+        raise ValueError("no step train keeps the limbs apart (limbs that touch at the held pose?)")
+    return targets
 
 
 def record_sweep(h: Harness, targets: np.ndarray, s: ServoArrays, path, *, noise: float = 1e-3, seed: int = 0,

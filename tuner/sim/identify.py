@@ -10,8 +10,10 @@ recording's targets and MuJoCo's controls, tick by tick.
 
 What is fitted (ours): per joint group (hips, knees, ankles, arms, head; or per joint) the
 position gain ``kp``, the joint's ``damping``, ``armature`` and ``frictionloss``, the servo's
-``torque`` and ``speed`` limits and the ``backlash`` (dead band width), and one ``latency`` for the
-robot (one bus). The velocity feedback ``kv`` is held at the map's value: it and the joint's
+``torque`` limit (a motor's stall torque), its ``back_emf`` (a dc-motor servo's damping outside the
+clamp, kt^2 / R: with the stall torque it fixes kt and R) or ``speed`` (a pd servo's cap on its
+target's speed), and the ``backlash`` (dead band width), and one ``latency`` for the robot (one
+bus). A law's piece that does not exist (a pd servo's back-EMF, a motor's target cap) is not fitted. The velocity feedback ``kv`` is held at the map's value: it and the joint's
 damping are one viscous torque on the same joint velocity, which no recording can tell apart.
 Gains, damping, armature, friction and limits are fitted as factors of the map's values
 (bounded 0.2-5x: a fit that wants more says so); the backlash in mrad and the latency in ticks.
@@ -51,7 +53,7 @@ __all__ = ["JointLog", "ServoFit", "identify_servos", "FIT_GROUPS", "group_of", 
 #: joint groups a fit shares parameters over (ours: a robot's servos are usually one model per group)
 FIT_GROUPS = ("hips", "knees", "ankles", "arms", "head")
 #: fields fitted as factors of the map's servo
-SCALED = ("kp", "damping", "armature", "frictionloss", "torque", "speed")
+SCALED = ("kp", "damping", "armature", "frictionloss", "torque", "back_emf", "speed")
 FACTOR_BOUNDS = (0.2, 5.0)
 #: the servo's limits: fitted in a second stage, kept where they lower the misfit by LIMIT_GAIN (ours)
 LIMITS = ("torque", "speed")
@@ -121,6 +123,8 @@ class ServoFit:
     entangled: list[list[str]] = field(default_factory=list)    # estimates that move together
     fitted: list[str] = field(default_factory=list)              # the parameters fitted (the others: the map's)
     loose: list[str] = field(default_factory=list)               # fitted, kept, but fixed only loosely
+    at_least: list[str] = field(default_factory=list)            # limits kept as fitted: never bound there (a lower bound)
+    on_bound: list[str] = field(default_factory=list)            # fitted values that end on their bounds
     sysid: dict = field(default_factory=dict)    # mujoco.sysid's own: initial and fitted ParameterDict, cov, half
 
     def unfollowed(self, noise: float) -> list[str]:
@@ -197,14 +201,25 @@ def identify_servos(harness: Harness, logs: list[JointLog], *, by: str = "groups
                     spec.joint(theirs).armature = base.armature[i] * f
                 elif fname == "frictionloss":
                     spec.joint(theirs).frictionloss = base.frictionloss[i] * f
+                elif fname == "back_emf":
+                    spec.actuator(f"gt/servo/{ours}").damping = [base.back_emf[i] * f, 0.0, 0.0]
         return modify
+
+    def absent(unit: str, fname: str) -> bool:
+        """A piece the unit's servos do not have: a pd servo's back-EMF, a motor's target cap."""
+        m = member[unit]
+        if fname == "back_emf":
+            return not np.any(base.back_emf[m] > 0)
+        if fname == "speed":
+            return not np.all(np.isfinite(base.speed[m]))
+        return False
 
     lo, hi = FACTOR_BOUNDS
     mapped: dict[str, float] = {}          # the map's backlash [mrad] and latency [ticks]
     for u in units:
         for fname in SCALED:
             params.add(sysid.Parameter(f"{u}.{fname}", nominal=1.0, min_value=lo, max_value=hi,
-                                       frozen=fname in LIMITS or fname not in fit,
+                                       frozen=fname in LIMITS or fname not in fit or absent(u, fname),
                                        modifier=None if fname == "speed" else scale_modifier(u, fname)))
         b_map = float(np.mean(base.backlash[member[u]])) * 1000.0
         mapped[f"{u}.backlash"] = b_map
@@ -221,7 +236,7 @@ def identify_servos(harness: Harness, logs: list[JointLog], *, by: str = "groups
             m = member[u]
             s.speed[m] = base.speed[m] * float(p[f"{u}.speed"].value[0])
             s.backlash[m] = float(p[f"{u}.backlash"].value[0]) / 1000.0
-            for fname in ("kp", "damping", "armature", "frictionloss", "torque"):
+            for fname in ("kp", "damping", "armature", "frictionloss", "torque", "back_emf"):
                 getattr(s, fname)[m] = getattr(base, fname)[m] * float(p[f"{u}.{fname}"].value[0])
         s.latency = float(p["latency"].value[0]) * dt
         return s
@@ -278,7 +293,7 @@ def identify_servos(harness: Harness, logs: list[JointLog], *, by: str = "groups
             free = opt.copy()
             for u in units:
                 for k in limits:
-                    free[f"{u}.{k}"].frozen = False
+                    free[f"{u}.{k}"].frozen = absent(u, k)
             opt2, result2, r2 = solve(free, max(5, max_iters // 3))
             if np.dot(r2, r2) < (1.0 - LIMIT_GAIN) * np.dot(r1, r1):
                 opt, result, r1 = opt2, result2, r2
@@ -318,8 +333,25 @@ def identify_servos(harness: Harness, logs: list[JointLog], *, by: str = "groups
         for n, ok in identifiable.items():
             if not ok and (not math.isfinite(intervals[n]) or n.rsplit(".", 1)[-1] in LIMITS):
                 kept[n].value[:] = 1.0 if _unit(n) == "x" else mapped[n]
+        # a limit a fit raised until it stopped binding says the servo gives at least that: where the
+        # map's value would bind and misfit, the fitted one is kept (named: a lower bound)
+        at_least = [n for n in values if n.rsplit(".", 1)[-1] in LIMITS and not identifiable[n]
+                    and n in asked and not fitted[n].frozen and kept[n].value[0] != values[n]]
+        if at_least:
+            for n in kept.keys():
+                kept[n].frozen = False
+            r_reset = residual_fn(kept.as_vector(), kept.copy())[0][0]
+            if np.dot(r_reset, r_reset) > (1.0 + LIMIT_GAIN) * np.dot(r1, r1):
+                for n in at_least:
+                    kept[n].value[:] = values[n]
+            else:
+                at_least = []
         loose = [n for n in asked if not identifiable[n] and kept[n].value[0] == values[n]
-                 and math.isfinite(intervals[n])]
+                 and math.isfinite(intervals[n]) and n not in at_least]
+        # a fitted value that ends on its bound: the recordings want it beyond what the fit allows
+        on_bound = [n for n in names if n in asked
+                    and min(abs(values[n] - float(np.ravel(fitted[n].min_value)[0])),
+                            abs(values[n] - float(np.ravel(fitted[n].max_value)[0]))) <= 1e-3 * max(1.0, abs(values[n]))]
         for n in kept.keys():
             kept[n].frozen = False
         r_kept = residual_fn(kept.as_vector(), kept.copy())[0][0]
@@ -343,7 +375,7 @@ def identify_servos(harness: Harness, logs: list[JointLog], *, by: str = "groups
                     seconds=time.monotonic() - t0, iterations=iters,
                     converged=bool(np.all(np.isfinite(r_kept))),
                     recordings=[log.name for log in logs], entangled=apart, fitted=asked,
-                    loose=loose, sysid={"initial": initial, "fitted": fitted, "cov": cov, "half": half})
+                    loose=loose, at_least=at_least, on_bound=on_bound, sysid={"initial": initial, "fitted": fitted, "cov": cov, "half": half})
 
 
 #: how narrow a 95 % interval must be for a parameter to count as identified (ours): a factor to

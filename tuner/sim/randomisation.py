@@ -12,8 +12,13 @@ Defaults (all ours; each a uniform draw unless said):
 
 * link masses x U(1 -+ 0.10) and each link's CoM moved U(-+5 mm) per axis: CAD models miss
   cables, screws and batteries by about this much;
-* servo gain x U(1 -+ 0.20), torque limit x U(1 -+ 0.15), speed x U(1 -+ 0.15): Dynamixel
-  gains and stall torque move with supply voltage (12-16 V) and temperature;
+* servos of the pd law (round one's): gain x U(1 -+ 0.20), torque limit x U(1 -+ 0.15), speed x
+  U(1 -+ 0.15): Dynamixel gains and stall torque move with supply voltage (12-16 V) and temperature;
+* servos of the dc-motor law (``tuner/servos/motor.py``), whose gain, torque, back-EMF and speed
+  follow from these: the battery's voltage x U(1 -+ 0.10), one per walk (a 4S LiPo at 15 V: 13.5 to
+  16.5 V, drained to full); per servo its torque constant kt x U(1 -+ 0.05) (unit to unit, magnet
+  temperature), its winding resistance x U(1 -+ 0.15) (copper gains 0.4 %/K: a servo 40 K warm has
+  16 % more) and its gearbox friction (dry and viscous, the extended terms' too) x U(1 -+ 0.30);
 * backlash: a dead band of U(0, 0.01) rad per joint (MX-64 gearboxes are specified at 0.33 deg
   new and wear to about twice that; learned walks of one RoboCup team randomise up to 0.035 rad,
   a study can ask for that);
@@ -62,6 +67,8 @@ _RANGES = {"mass_scale": (0.0, 0.5, "-"), "com_shift": (0.0, 0.05, "m"), "kp_sca
            "layer_height_scale": (0.0, 0.8, "-"), "drag_scale": (0.0, 0.8, "-"), "tilt_deg": (0.0, 10.0, "deg"),
            "initial_pose": (0.0, 0.2, "rad"), "push": (0.0, 50.0, "N s"),
            "accel_noise": (0.0, 5.0, "m/s^2"), "encoder_noise": (0.0, 0.1, "rad"),
+           "voltage_scale": (0.0, 0.5, "-"), "kt_scale": (0.0, 0.5, "-"), "resistance_scale": (0.0, 0.8, "-"),
+           "servo_friction_scale": (0.0, 0.9, "-"),
            "encoder_rate_noise": (0.0, 5.0, "rad/s"), "force_noise": (0.0, 20.0, "N")}
 _INTEGER = ("latency_ticks", "imu_latency_ticks")
 
@@ -91,6 +98,10 @@ class Randomisation:
     encoder_noise: float = 0.001        # [rad] std of each encoder angle per tick
     encoder_rate_noise: float = 0.05    # [rad/s] std of each encoder velocity per tick
     force_noise: float = 0.5            # [N] std of each sole force reading per tick
+    voltage_scale: float = 0.10         # [-] dc-motor servos: battery voltage x U(1 - a, 1 + a), per walk
+    kt_scale: float = 0.05              # [-] ... each servo's torque constant x U(1 - a, 1 + a)
+    resistance_scale: float = 0.15      # [-] ... each servo's winding resistance x U(1 - a, 1 + a)
+    servo_friction_scale: float = 0.30  # [-] ... each servo's gearbox friction x U(1 - a, 1 + a)
 
     def __post_init__(self) -> None:
         for name, (lo, hi, unit) in _RANGES.items():
@@ -153,6 +164,10 @@ class Perturbation:
     encoder_noise: float = 0.0   # [rad] std
     encoder_rate_noise: float = 0.0  # [rad/s] std
     force_noise: float = 0.0     # [N] std
+    voltage: float = 1.0         # factor: the battery (dc-motor servos)
+    kt: np.ndarray | None = None            # (n_act,) factor
+    resistance: np.ndarray | None = None    # (n_act,) factor
+    servo_friction: np.ndarray | None = None    # (n_act,) factor
 
 
 def draw(r: Randomisation, seed: int | tuple[int, ...], n_body: int, n_act: int, n_servo: int,
@@ -185,7 +200,12 @@ def draw(r: Randomisation, seed: int | tuple[int, ...], n_body: int, n_act: int,
     push_time = float(rng.uniform(0.1, 0.8))
     push_angle = float(rng.uniform(0.0, 2 * math.pi))
     noise_seed = int(rng.integers(0, 2 ** 63 - 1))
+    # drawn last, so that every draw before is what it was before the motor law
+    voltage = scale(r.voltage_scale)
+    kt, resistance, servo_friction = (scale(r.kt_scale, n_act), scale(r.resistance_scale, n_act),
+                                      scale(r.servo_friction_scale, n_act))
     return Perturbation(parts[-1] if len(parts) == 1 else tuple(int(v) for v in parts), int(namespace), body_mass, body_com, kp, torque, speed, backlash, latency,
                         math.radians(r.imu_noise_deg), r.gyro_noise, imu_latency, friction, timeconst, height,
                         drag, gravity_dir, initial, r.push, push_time, push_angle, noise_seed,
-                        r.accel_noise, r.encoder_noise, r.encoder_rate_noise, r.force_noise)
+                        r.accel_noise, r.encoder_noise, r.encoder_rate_noise, r.force_noise, voltage, kt,
+                        resistance, servo_friction)

@@ -11,7 +11,7 @@ surface) and runs many rollouts. :meth:`Simulator.run` is the closed loop, per c
 3. the plant: targets rate-limited to the servos' speed and clipped to the joint ranges, held
    back by the command latency and the backlash dead band, sent to the position actuators
    (torque-limited); the grass drag gated to the sole corners inside the blades (inside MuJoCo's
-   step where the C callback could be built, ``native_gate.py``; else here); pushes;
+   step where the C callback could be built, ``native_step.py``; else here); pushes;
 4. MuJoCo advances by ``nstep`` physics steps in one call;
 5. the recorder keeps the sensor vector (ground truth included, for the metrics only) and the
    loop checks for a fall or a diverging simulation.
@@ -19,7 +19,7 @@ surface) and runs many rollouts. :meth:`Simulator.run` is the closed loop, per c
 :meth:`Simulator.rollout` plays a joint table (the open loop the papers describe) through it.
 When nothing in a walk reads its state before MuJoCo does (a controller that senses nothing and
 knows its targets ahead, no backlash, no blade layer, no hook; the contact layer's drag gate runs
-inside MuJoCo's step, ``drag_gate.c``, where it could be compiled), its servo commands are all
+inside MuJoCo's step, ``native_step.c``, where it could be compiled), its servo commands are all
 known at the start, and MuJoCo's native rollout runs it in chunks, each judged by the same checks
 after it: bit for bit the tick loop's walk (tested), without its per-tick Python.
 
@@ -48,8 +48,10 @@ from .centre_of_pressure import centre_of_pressure
 from .randomisation import Perturbation
 from .sensors import SensorReader
 from ..robots import RobotModel, SimOptions
+from ..servos import MotorServo
 from .blades import BladeLayer
-from .native_gate import arm as arm_native_gate, disarm as disarm_native_gate, install as install_native_gate
+from .native_step import arm as arm_native_gate, disarm as disarm_native_gate, install as install_native_gate
+from .native_step import require as require_native_step
 from .scene import (BOTTLE_2019, CORNERS, IMU_SITE_POS, PREFIX, Bottle, add_pendulum, build_scene, drag_gate,
                     fall_height_at_com)
 from .surfaces import Surface
@@ -170,7 +172,7 @@ class Simulator:
                  pendulum: float | None = None, bottle: Bottle = BOTTLE_2019, native_gate: bool = True) -> None:
         """``pendulum`` [m]: add the push-recovery challenge's pendulum on a rope this long, with
         ``bottle`` on it (``scene.add_pendulum``; ``tuner/sim/challenge.py`` swings it). ``native_gate``: on a
-        contact-layer grass, gate the drag dampers in MuJoCo's step (``native_gate.py``) when the
+        contact-layer grass, gate the drag dampers in MuJoCo's step (``native_step.py``) when the
         callback can be installed; False keeps the Python gate (the same walk to the bit, slower)."""
         self.robot = robot
         self.surface = surface
@@ -196,7 +198,8 @@ class Simulator:
         m = self.model
         self._nominal = {name: getattr(m, name).copy() for name in
                          ("body_mass", "body_subtreemass", "body_inertia", "body_ipos", "actuator_gainprm", "actuator_biasprm",
-                          "actuator_forcerange", "geom_friction", "geom_margin", "geom_solref", "geom_solimp")}
+                          "actuator_forcerange", "actuator_damping", "actuator_user", "dof_damping", "dof_frictionloss",
+                          "geom_friction", "geom_margin", "geom_solref", "geom_solimp")}
         self._nominal_gravity = m.opt.gravity.copy()
         contact_layer = not surface.rigid and not surface.blades
         self._ground = [m.geom(PREFIX + "soil").id] + ([m.geom(PREFIX + "layer").id] if contact_layer else [])
@@ -206,8 +209,10 @@ class Simulator:
             area = np.repeat([robot.foot_size_of(i)[0] * robot.foot_size_of(i)[1] / 4 for i in range(2)], 4)
             self._blade = BladeLayer(surface, area, self._n_act, self.control_period)
             self._mu_blade = surface.friction
-        # the contact layer's drag gate: in MuJoCo's step where it can be (native_gate.py)
+        # the contact layer's drag gate: in MuJoCo's step where it can be (native_step.py)
         self._native_gate = surface.drag_gated and native_gate and install_native_gate()
+        if self.layout.friction_terms:          # a servo's extended friction runs only there
+            require_native_step(f"robot {robot.name!r}: a servo's extended friction (friction_model m2-m6)")
 
     def _index(self) -> None:
         m, r, lay = self.model, self.robot, self.layout
@@ -239,10 +244,11 @@ class Simulator:
         limited = np.array([m.jnt_limited[m.joint(t).id] for t in theirs], bool)
         self._q_lo = np.where(limited, jr[:, 0], -np.inf)
         self._q_hi = np.where(limited, jr[:, 1], np.inf)
-        speeds = np.array([r.servos[t].speed for t in theirs])
-        #: [rad/s] each servo joint's nominal speed (``joint_names`` order; a randomisation scales the played one)
-        self.servo_speed = speeds
-        self._max_step = speeds * self.control_period
+        #: [rad/s] each servo joint's nominal speed, the fastest it turns unloaded (``joint_names`` order)
+        self.servo_speed = np.array([r.servos[t].speed for t in theirs])
+        # the cap on how fast a target may move (the pd law's; a firmware's profile speed; else none):
+        # a randomisation scales the played one
+        self._max_step = np.array([r.servos[t].target_speed for t in theirs]) * self.control_period
         # an identified servo's latency (one queue: the largest, in whole ticks) and dead band
         self._latency = int(round(max((r.servos[t].latency for t in theirs), default=0.0) / self.control_period))
         self._backlash = np.array([r.servos[t].backlash for t in theirs])
@@ -255,7 +261,10 @@ class Simulator:
         self._touch_sum[np.arange(len(lay.touch_quadrant)), list(lay.touch_quadrant)] = 1.0
         self._n_servo = len(self.joint_names)
         self._n_act = self._n_servo + len(held)
-        # each corner's x damper's site (drag_gate.c finds them the same way)
+        # which servo actuators are dc-motors (the randomisation draws their voltage, kt, R, friction)
+        self._motor = np.array([isinstance(r.servos[t], MotorServo) for t in theirs + list(held)], dtype=bool)
+        self._act_dof = np.array([m.jnt_dofadr[m.actuator_trnid[k, 0]] for k in range(self._n_act)], dtype=int)
+        # each corner's x damper's site (native_step.c finds them the same way)
         self._drag_sites = m.actuator_trnid[self._n_act::2, 0].copy() if self.surface.drag_gated else np.zeros(0, int)
 
     def to_robot(self, q_gait: np.ndarray) -> np.ndarray:
@@ -327,7 +336,7 @@ class Simulator:
         every physics step), or the blade layer's stages and holds (``blades.py``)."""
         d = self.data
         if self._blade is None:
-            # the corners' heights MuJoCo computed in the last step (what drag_gate.c reads)
+            # the corners' heights MuJoCo computed in the last step (what native_step.c reads)
             inside = drag_gate(d.site_xpos[self._drag_sites, 2], self._layer_h, self.surface.drag_depth)
             d.ctrl[self._n_act:] = np.repeat(inside, 2)                     # x and y per corner
         else:
@@ -353,9 +362,26 @@ class Simulator:
         m.body_inertia[:] = nom["body_inertia"] * f[:, None]
         m.body_ipos[:] = nom["body_ipos"] + np.where(np.arange(m.nbody)[:, None] == 0, 0.0, p.body_com)
         a = slice(0, self._n_act)
-        m.actuator_gainprm[a, 0] = nom["actuator_gainprm"][a, 0] * p.kp
-        m.actuator_biasprm[a, 1] = nom["actuator_biasprm"][a, 1] * p.kp
-        m.actuator_forcerange[a] = nom["actuator_forcerange"][a] * p.torque[:, None]
+        # a pd servo's gain and torque by their factors; a dc-motor servo's from its voltage, kt and R
+        motor, volt = self._motor, p.voltage
+        if p.kt is not None:
+            fkt, fr, ff = p.kt, p.resistance, p.servo_friction
+            torque_f = np.where(motor, volt * fkt / fr, 1.0)
+            gain_f, torque_f = np.where(motor, torque_f, p.kp), np.where(motor, torque_f, p.torque)
+            m.actuator_damping[a] = nom["actuator_damping"][a] * np.where(motor, fkt * fkt / fr, 1.0)
+            dofs = self._act_dof
+            m.dof_damping[dofs] = nom["dof_damping"][dofs] * np.where(motor, ff, 1.0)
+            m.dof_frictionloss[dofs] = nom["dof_frictionloss"][dofs] * np.where(motor, ff, 1.0)
+            if m.nuser_actuator:                  # the per-step friction term's base, Stribeck part and back-EMF
+                u = nom["actuator_user"][a]
+                m.actuator_user[a, 2:4] = u[:, 2:4] * np.where(motor, ff, 1.0)[:, None]
+                if m.nuser_actuator > 14:
+                    m.actuator_user[a, 14] = u[:, 14] * np.where(motor, fkt * fkt / fr, 1.0)
+        else:
+            gain_f, torque_f = p.kp, p.torque
+        m.actuator_gainprm[a, 0] = nom["actuator_gainprm"][a, 0] * gain_f
+        m.actuator_biasprm[a, 1] = nom["actuator_biasprm"][a, 1] * gain_f
+        m.actuator_forcerange[a] = nom["actuator_forcerange"][a] * torque_f[:, None]
         for g in self._ground:
             m.geom_friction[g, 0] = nom["geom_friction"][g, 0] * p.friction
         if self._layer is not None:
@@ -502,7 +528,7 @@ class Simulator:
         sent = deque(cmd.copy() for _ in range(latency))   # commands on their way to the servos
         meas = reader.read(0.0)
         controller.reset(meas)
-        if self._native_gate:           # MuJoCo gates the drag inside its steps from here on (drag_gate.c)
+        if self._native_gate:           # MuJoCo gates the drag inside its steps from here on (native_step.c)
             arm_native_gate(m, d, height=self._layer_h, depth=self.surface.drag_depth, nstep=self.nstep,
                             first=self._n_act, n_points=len(self._drag_sites))
         try:
@@ -650,7 +676,7 @@ class Simulator:
             n = k1 - k
             mujoco.mj_getState(m, d, state0[0], full)
             warm0[0] = d.qacc_warmstart
-            user0 = d.userdata.copy()                          # the native drag gate's state (native_gate.py)
+            user0 = d.userdata.copy()                          # the native drag gate's state (native_step.py)
             st, sd = out_state[:, :n * nst], out_sens[:, :n * nst]
             _ROLLOUT.rollout([m], [d], state0, control, control_spec=spec, skip_checks=True,
                              nstep=n * nst, initial_warmstart=warm0, state=st, sensordata=sd)

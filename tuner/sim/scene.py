@@ -31,8 +31,9 @@ from gaits import JOINT_NAMES
 
 from ..robots.robot_model import RobotModel
 from ..robots.solver import SOLVER_OPTIONS
+from ..servos import configure
 from .blades import REF_SITE, add_blades
-from .native_gate import BLOCK as GATE_BLOCK
+from .native_step import BLOCK as GATE_BLOCK
 from .surfaces import Surface
 
 __all__ = ["PREFIX", "SceneLayout", "build_scene", "add_ground", "add_drag", "drag_gate", "CORNERS", "IMU_SITE_POS",
@@ -54,6 +55,7 @@ class SceneLayout:
     n_drag: int                        # drag dampers (2 per sole corner, 0 on rigid/carpet)
     sensors: tuple[tuple[str, int], ...]   # (block name, width) in sensordata order
     touch_quadrant: tuple[int, ...]    # per touch sensor, its sole quadrant 0..7 (left 0-3, right 4-7)
+    friction_terms: int = 0            # servos with a per-step friction term (native_step.c runs them)
 
 
 def fall_height_at_com(robot: RobotModel) -> bool:
@@ -215,16 +217,10 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
     servo_joints = tuple(n for n in JOINT_NAMES if n in r.joint_map)
     held = r.held_joints
     targets = [r.joint_map[n][0] for n in servo_joints] + list(held)
+    friction_terms = 0
     for theirs, label in zip(targets, [f"servo/{n}" for n in servo_joints] + [f"hold/{h}" for h in held]):
-        servo = r.servos[theirs]
-        j = spec.joint(theirs)
-        j.armature = servo.armature
-        j.damping = [servo.damping, 0.0, 0.0]
-        j.frictionloss = servo.frictionloss
         act = spec.add_actuator(default=gt, name=PREFIX + label, target=theirs, trntype=mujoco.mjtTrn.mjTRN_JOINT)
-        act.set_to_position(kp=servo.kp, kv=servo.kv)
-        act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
-        act.forcerange = [-servo.torque, servo.torque]
+        friction_terms += configure(spec, spec.joint(theirs), act, r.servos[theirs])
 
     # in-layer drag on each sole corner (add_drag)
     n_drag = 0
@@ -240,7 +236,7 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
                     n_drag += add_blades(spec, s, gt, site, f"{side}{k}")
                 else:
                     n_drag += add_drag(spec, s, gt, site, f"{side}{k}")
-        if s.drag_gated:                          # the native gate's numbers (native_gate.py), after the file's own
+        if s.drag_gated:                          # the native gate's numbers (native_step.py), after the file's own
             spec.nuserdata += GATE_BLOCK
 
     # sensors, in this order
@@ -311,7 +307,7 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
             ctrl = [float(qpos[adr[t]]) for t in targets]
         key.ctrl = ctrl + [0.0] * n_drag
         key.act = []
-    return spec, SceneLayout(servo_joints, held, n_drag, tuple(blocks), tuple(touch_quadrant))
+    return spec, SceneLayout(servo_joints, held, n_drag, tuple(blocks), tuple(touch_quadrant), friction_terms)
 
 
 #: The push-recovery challenge's pendulum (RoboCup Humanoid League, technical challenges, Part A,

@@ -122,7 +122,7 @@ class Surface(GaitParams):
     @property
     def drag_gated(self) -> bool:
         """The contact layer's drag dampers, switched per sole corner by its depth (``scene.drag_gate``;
-        in MuJoCo's step by ``drag_gate.c`` where it could be built): drag and no blade layer."""
+        in MuJoCo's step by ``native_step.c`` where it could be built): drag and no blade layer."""
         return self.drag > 0.0 and not self.blades
 
     @property

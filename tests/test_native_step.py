@@ -1,4 +1,4 @@
-"""The grass drag gate in MuJoCo's step (``tuner/sim/drag_gate.c`` through ``native_gate.py``): the
+"""The grass drag gate in MuJoCo's step (``tuner/sim/native_step.c`` through ``native_step.py``): the
 Python gate's numbers to the bit, walk by walk, and inert on every model it was not armed on."""
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import gaits
 from gaits import CommandStream, EngineParams, WalkEngine
 from tuner.params_io import resolve_params
 from tuner.robots import load_robot
-from tuner.sim import native_gate
+from tuner.sim import native_step as native_gate
 from tuner.sim.randomisation import EVALUATE, Randomisation, draw
 from tuner.sim.rollout import Simulator
 from tuner.sim.scene import drag_gate
@@ -131,21 +131,21 @@ def test_the_callback_leaves_other_models_and_unarmed_walks_alone():
 
 
 def test_without_the_callback_the_python_gate_walks(tmp_path):
-    """GAIT_TUNER_NATIVE_GATE=0 (or no compiler, or another callback) keeps the gate in Python and
+    """GAIT_TUNER_NATIVE_STEP=0 (or no compiler, or another callback) keeps the gate in Python and
     says so."""
-    code = ("from tuner.sim import native_gate; from tuner.sim.cache import simulator; import gaits\n"
+    code = ("from tuner.sim import native_step as native_gate; from tuner.sim.cache import simulator; import gaits\n"
             "s = simulator('kidsize', 'grass50'); assert not s._native_gate\n"
             "t = gaits.generate(gaits.load_baseline('tkux-table2').params, s.robot.leg, s.control_period)\n"
             "print(native_gate.status()); print(s.rollout(t).completed)")
-    env = {**os.environ, "GAIT_TUNER_NATIVE_GATE": "0"}
+    env = {**os.environ, "GAIT_TUNER_NATIVE_STEP": "0"}
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
-    assert out.stdout.split("\n")[:2] == ["off (GAIT_TUNER_NATIVE_GATE=0): the drag gate runs in Python", "True"]
+    assert out.stdout.split("\n")[:2] == ["off (GAIT_TUNER_NATIVE_STEP=0): the drag gate runs in Python", "True"]
 
 
 def test_a_broken_compiler_keeps_the_python_gate(tmp_path):
     """A compiler that fails (here CC=false, with an empty cache): one status line, the Python gate."""
-    code = ("from tuner.sim import native_gate; from tuner.sim.cache import simulator\n"
+    code = ("from tuner.sim import native_step as native_gate; from tuner.sim.cache import simulator\n"
             "s = simulator('kidsize', 'grass10'); print(s._native_gate); print(native_gate.status())")
     env = {**os.environ, "CC": "false", "XDG_CACHE_HOME": str(tmp_path)}
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
@@ -157,29 +157,29 @@ def test_a_broken_compiler_keeps_the_python_gate(tmp_path):
 
 def test_the_gate_compiles_into_an_empty_cache(tmp_path):
     """On a machine that has not built it yet: compiled once into the user cache, then used."""
-    code = ("from tuner.sim import native_gate; from tuner.sim.cache import simulator\n"
+    code = ("from tuner.sim import native_step as native_gate; from tuner.sim.cache import simulator\n"
             "s = simulator('kidsize', 'grass30'); print(s._native_gate); print(native_gate.status())")
     env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path)}
     env.pop("CC", None)
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
-    assert out.stdout.split("\n")[:2] == ["True", "native (drag_gate.c as mjcb_control)"]
-    built = list((tmp_path / "gait-tuner").glob("drag_gate-*.so"))
+    assert out.stdout.split("\n")[:2] == ["True", "native (native_step.c as mjcb_control)"]
+    built = list((tmp_path / "gait-tuner").glob("native_step-*.so"))
     assert len(built) == 1 and not [p for p in (tmp_path / "gait-tuner").iterdir() if p not in built]
 
 
 def test_a_damaged_cached_library_is_rebuilt(tmp_path):
     """A cached file that does not load (here overwritten with text) is built again, once."""
     env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path)}
-    code = "from tuner.sim import native_gate; print(native_gate.install(), native_gate.status())"
+    code = "from tuner.sim import native_step as native_gate; print(native_gate.install(), native_gate.status())"
     first = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
-    assert first.stdout.strip() == "True native (drag_gate.c as mjcb_control)", first.stderr
-    [built] = list((tmp_path / "gait-tuner").glob("drag_gate-*.so"))
+    assert first.stdout.strip() == "True native (native_step.c as mjcb_control)", first.stderr
+    [built] = list((tmp_path / "gait-tuner").glob("native_step-*.so"))
     built.unlink()                                             # not in place: a loaded copy keeps its pages
     built.write_text("not a library")
     again = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
     assert again.returncode == 0, again.stderr
-    assert again.stdout.strip() == "True native (drag_gate.c as mjcb_control)"
+    assert again.stdout.strip() == "True native (native_step.c as mjcb_control)"
     assert built.stat().st_size > 1000 and b"not a library" not in built.read_bytes()
 
 
