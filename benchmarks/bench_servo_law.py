@@ -51,17 +51,19 @@ def main() -> None:
              "table (native rollout)": lambda s: s.rollout(table, duration=10.0)}
     for label, walk in walks.items():
         times: dict[str, list[float]] = {k: [] for k in sims}
+        walked: dict[str, float] = {}
         for _ in range(a.repeats + 1):                      # the first round warms up, not counted
             for k, sim in sims.items():
                 t0 = time.process_time()
-                walk(sim)
+                trace = walk(sim)
                 times[k].append(time.process_time() - t0)
+                walked[k] = float(trace.t[-1])
         base = times["pd"][1:]
         print(f"{label} on {a.surface}, {a.repeats} repeats (CPU seconds, median; ratio to pd, median of pairs):")
         for k, ts in times.items():
             ts = ts[1:]
             ratio = statistics.median(t / b for t, b in zip(ts, base))
-            print(f"  {k:3s} {statistics.median(ts):7.3f} s   x{ratio:.3f}")
+            print(f"  {k:3s} {statistics.median(ts):7.3f} s   x{ratio:.3f}   ({walked[k]:.2f} s walked, {sims[k].robot.name})")
 
 
 if __name__ == "__main__":
