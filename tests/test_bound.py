@@ -93,3 +93,47 @@ def test_challenge_bound_through_the_cli(gait_tuner_cmd, run_env):
         assert len(b["plan"]) == 2 and b["delta_v_mps"] >= b["one_step_closed_form_mps"] - 1e-6
         assert b["momentum_Ns"] == pytest.approx((3.0 + out["model"]["mass_kg"]) * b["delta_v_mps"])
     assert out["speed"]["froude"] > 0 and out["leaves_out"]
+
+
+def test_a_motors_fastest_move_follows_its_torque_speed_line():
+    """move_time: the bang-bang move of a motor whose torque falls with speed, checked against the ODE
+    integrated finely (full duty forward, then back until rest); no shorter than the old bounds (at
+    no-load speed throughout, at stall torque throughout); a swing on real MX-64s takes longer than
+    the same swing with round one's servos, and the bound of kidsize is smaller than kidsize-pd's."""
+    from tuner.search.bound import _move_bounds, move_time
+    tau, droop, inertia = 5.84, 0.678, 0.03
+    for angle in (0.1, 0.6, 1.2):
+        t_exact = move_time(angle, tau, droop, inertia)
+        # the ODE: switch when the braking from here (at full reverse duty) just reaches the angle
+        dt, w, x, t = 1e-5, 0.0, 0.0, 0.0
+        while True:
+            # where braking from (x, w) ends: x + w/c - (a/c) ln(1 + w c / a) / c
+            a, c = tau / inertia, droop / inertia
+            if x + w / c - (a / c) * math.log1p(w * c / a) / c >= angle:
+                break
+            w += (tau - droop * w) / inertia * dt
+            x += w * dt
+            t += dt
+        t += math.log1p(w * c / a) / c
+        assert t_exact == pytest.approx(t, rel=2e-3)
+        assert t_exact >= max(_move_bounds(angle, tau / droop, tau, inertia))
+    real, old = leg_limits(load_robot("kidsize"), 0.02), leg_limits(load_robot("kidsize-pd"), 0.02)
+    assert real.knee_droop > 0.6 and old.knee_droop == 0.0
+    assert swing_time(real, 0.1) > swing_time(old, 0.1)
+    assert speed_bound(real)["speed_mps"] < speed_bound(old)["speed_mps"]
+
+
+def test_a_robot_whose_servos_cannot_swing_a_leg_is_one_line(tmp_path):
+    """Servos at 1 V (their stall torque below their friction) move nothing: refused in one line, not
+    an internal error of the solver."""
+    import dataclasses
+
+    from tuner.errors import UserError
+    from tuner.search.bound import robot_bound
+    from tuner.sim.surfaces import load_surface
+    weak = load_robot("kidsize")
+    weak = dataclasses.replace(weak, servos={k: s.replace(voltage=0.05) for k, s in weak.servos.items()})
+    with pytest.raises(UserError, match="cannot swing a leg"):
+        robot_bound(weak, load_surface("carpet4"), 3.0, 1.5, 2)
+    out = robot_bound(load_robot("kidsize"), load_surface("grass30"), 3.0, 1.5, 1)
+    assert "grass30's layer of 30 mm" in out["surface_terms"] and "rigid floor" in out["surface_terms"]

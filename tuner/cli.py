@@ -1356,34 +1356,18 @@ def challenge_bound(robot_name: str, surface_name: str, bottle: str, rope: float
     import json
 
     from .robots import load_robot
-    from .search.bound import LEAVES_OUT, bottle_figures, leg_limits, push_bounds, speed_bound
-    from .sim.challenge import rank_2025
+    from .search.bound import robot_bound
     from .sim.surfaces import load_surface
-    robot = load_robot(robot_name)
-    surface = load_surface(surface_name)
-    lift = max(0.02, float(getattr(surface, "layer_height", 0.0)) + 0.01)
-    lim = leg_limits(robot, lift)
-    m_b = float(bottle)
-    pushes = push_bounds(lim, steps)
-    out: dict = {"robot": robot.name, "surface": surface.name, "bottle_kg": m_b, "rope_m": rope,
-                 "model": {"mass_kg": lim.mass, "z_c_m": lim.z_c, "zmp_front_m": lim.zmp_front(),
-                           "zmp_back_m": lim.zmp_back(), "reach_m": lim.reach, "lift_m": lift,
-                           "hip_speed_radps": lim.hip_speed, "knee_speed_radps": lim.knee_speed},
-                 "leaves_out": list(LEAVES_OUT)}
-    for side, b in pushes.items():
-        fig = bottle_figures(b["delta_v_mps"], m_b, lim.mass, rope)
-        d = fig["distance_m"]
-        within = d is not None and d <= 0.75 * rope
-        fig["within_rules"] = within
-        fig["M"] = rank_2025(rope, d, m_b, lim.mass, lim.z_c, lim.z_c) if within else None
-        out[side] = {**b, **fig}
-    out["speed"] = speed_bound(lim)
+    out = robot_bound(load_robot(robot_name), load_surface(surface_name), float(bottle), rope, steps)
     if as_json:
         click.echo(json.dumps(out, indent=2, allow_nan=False))
         return
-    click.echo(f"bound for {robot.name} on {surface.name} (an upper bound of the LIPM within the servos' limits, "
-               f"{steps} step(s) at most; {lim.mass:.2f} kg, z_c {lim.z_c:.3f} m, ZMP {lim.zmp_back() * 1000:.0f} mm "
-               f"back / {lim.zmp_front() * 1000:.0f} mm ahead, reach {lim.reach * 1000:.0f} mm, lift {lift * 1000:.0f} mm)")
+    m, m_b = out["model"], out["bottle_kg"]
+    click.echo(f"bound for {out['robot']} on {out['surface']} (an upper bound of the LIPM within the servos' limits, "
+               f"{steps} step(s) at most; {m['mass_kg']:.2f} kg, z_c {m['z_c_m']:.3f} m, ZMP {m['zmp_back_m'] * 1000:.0f} mm "
+               f"back / {m['zmp_front_m'] * 1000:.0f} mm ahead, reach {m['reach_m'] * 1000:.0f} mm, lift "
+               f"{m['lift_m'] * 1000:.0f} mm)")
+    click.echo(f"  from the surface: {out['surface_terms']}")
     for side, label in (("from_behind", "from behind"), ("from_the_front", "from the front")):
         r = out[side]
         where = (f"D {r['distance_m']:.2f} m" + ("" if r["within_rules"] else f" (beyond the rules' 0.75 L = "
@@ -1396,7 +1380,7 @@ def challenge_bound(robot_name: str, surface_name: str, bottle: str, rope: float
     sp = out["speed"]
     click.echo(f"  forward speed: {sp['speed_mps']:.2f} m/s (steps of {sp['step_m'] * 1000:.0f} mm every "
                f"{sp['period_s']:.3f} s), Froude number {sp['froude']:.2f}")
-    click.echo("  left out (so an upper bound only within it): " + "; ".join(LEAVES_OUT))
+    click.echo("  left out (so an upper bound only within it): " + "; ".join(out["leaves_out"]))
 
 
 def _challenge_said(sim, drive, report: dict, record_dir: Path | None, as_json: bool) -> bool:

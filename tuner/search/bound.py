@@ -15,10 +15,12 @@ what it cannot absorb no controller on this robot can (an upper bound, within wh
   whole weight (tau / (m g)). Each step lands within ``reach`` (thigh + shank times the reach
   ratio, as the engine's ``reach_forward``, default 0.8, the parameter's range's top) and takes
   at least the swing time the leg's servos allow: the hip pitch turning the leg through the step,
-  the knee bending to lift the foot by ``lift`` and straightening, each no faster than its servo's
-  no-load speed and its stall torque allow (the leg as point masses, the servo's armature added;
-  ``_move_bounds``: gravity and the torque-speed droop left out, shorter than any real swing). Double
-  support is instantaneous.
+  the knee bending to lift the foot by ``lift`` and straightening, each the fastest rest-to-rest move
+  its servo allows (the leg as point masses, the servo's armature added): a motor's along its
+  torque-speed line (full duty one way then the other, the torque falling with speed by the
+  back-EMF and the viscous friction, less its dry friction: ``move_time``, exact for that model);
+  a pd servo's at its no-load speed and stall torque (``_move_bounds``). Gravity on the swing leg
+  left out, so shorter than any real swing. Double support is instantaneous.
 * **Captured**: after the last step the capture point lies on the last sole (the robot can then
   stop over it).
 
@@ -44,13 +46,13 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-__all__ = ["LegLimits", "leg_limits", "lipm_phase_function", "one_step_capture", "push_bound", "push_bounds",
+__all__ = ["robot_bound", "LegLimits", "leg_limits", "lipm_phase_function", "one_step_capture", "push_bound", "push_bounds",
            "speed_bound", "swing_time", "bottle_figures", "LEAVES_OUT"]
 
 #: what the model leaves out, said with every bound
 LEAVES_OUT = ("angular momentum (arm or trunk swing, a flywheel)", "friction and the turf (a rigid floor)",
-              "the servos' torque-speed droop and gravity on the swing leg", "double support's duration",
-              "the stance knee's torque under load", "the bottle's bounce (inelastic)")
+              "gravity on the swing leg (and a pd servo's torque-speed droop: a motor's is in)",
+              "double support's duration", "the stance knee's torque under load", "the bottle's bounce (inelastic)")
 
 GRAVITY = 9.81
 
@@ -76,6 +78,10 @@ class LegLimits:
     hip_torque: float = math.inf      # [N m] hip pitch servo
     leg_inertia: float = 0.0          # [kg m^2] the swing leg about the hip pitch axis (its servo's armature in)
     shank_inertia: float = 0.0        # [kg m^2] the shank and foot about the knee (its armature in)
+    hip_droop: float = 0.0            # [N m s/rad] the hip pitch motor's torque lost per rad/s (back-EMF and viscous)
+    knee_droop: float = 0.0           # [N m s/rad] the knee motor's
+    hip_friction: float = 0.0         # [N m] the hip pitch servo's dry friction (a motor's: it takes that from the stall torque)
+    knee_friction: float = 0.0        # [N m]
 
     @property
     def omega(self) -> float:
@@ -95,15 +101,56 @@ def _knee_angle(height: float, thigh: float, shank: float) -> float:
     return math.pi - math.acos(max(-1.0, min(1.0, c)))
 
 
-def _move_bounds(angle: Any, speed: float, torque: float, inertia: float) -> list[Any]:
-    """Lower bounds [s] of the shortest move through ``angle`` [rad] from rest to rest: no shorter
-    than at full speed throughout (angle / speed), nor than at full torque throughout (bang-bang
-    accelerate-decelerate, 2 sqrt(angle / (torque / inertia))). The true shortest move (ramps at
-    full torque, then full speed) is longer than both, so the bound stays an upper bound, a little
-    looser, and each term is smooth for the optimiser. Gravity and the servo's torque-speed droop
-    are left out. Works on numbers and CasADi expressions."""
-    sqrt = ca.sqrt if isinstance(angle, (ca.SX, ca.MX)) else math.sqrt
-    out = [angle / speed]
+def move_time(angle: np.ndarray | float, torque: float, droop: float, inertia: float) -> np.ndarray:
+    """[s] The fastest move through ``angle`` [rad] from rest to rest of an ``inertia`` [kg m^2] driven
+    along a torque-speed line, I w' = u torque - droop w with |u| <= 1 (a motor at full duty, its
+    stall torque ``torque`` less its dry friction, losing ``droop`` [N m s/rad] per rad/s to its
+    back-EMF and viscous friction): full duty forward then full duty back (bang-bang, the switch where
+    the braking ends at rest on the angle). Exact for the model; solved for the switch by bisection."""
+    theta = np.atleast_1d(np.asarray(angle, dtype=float))
+    a, c = torque / inertia, droop / inertia
+    top = a / c                                            # [rad/s] the no-load speed
+
+    def reached(t1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        w1 = top * (1.0 - np.exp(-c * t1))                 # speed at the switch
+        s2 = np.log1p(w1 / top) / c                        # braking time to rest
+        return top * (t1 - (1.0 - np.exp(-c * t1)) / c) + w1 / c - top * s2, t1 + s2
+    lo, hi = np.zeros_like(theta), np.full_like(theta, 1.0)
+    while np.any(reached(hi)[0] < theta):
+        hi = np.where(reached(hi)[0] < theta, 2 * hi, hi)
+    for _ in range(80):
+        mid = 0.5 * (lo + hi)
+        low = reached(mid)[0] < theta
+        lo, hi = np.where(low, mid, lo), np.where(low, hi, mid)
+    out = reached(hi)[1]
+    return out if np.ndim(angle) else out[0]
+
+
+def _move_time_function(torque: float, droop: float, inertia: float, top: float) -> ca.Function:
+    """``move_time`` over [0, ``top``] rad as a named CasADi block (a B-spline through 400 exact
+    points: smooth for the optimiser)."""
+    grid = np.linspace(0.0, top, 400)
+    return ca.interpolant("move_time", "bspline", [grid], move_time(grid, torque, droop, inertia))
+
+
+def _move_bounds(angle: Any, speed: float, torque: float, inertia: float, droop: float = 0.0,
+                 friction: float = 0.0) -> list[Any]:
+    """Lower bounds [s] of the shortest move through ``angle`` [rad] from rest to rest. A motor
+    (``droop`` > 0): its exact fastest move along its torque-speed line (``move_time``, its stall
+    torque less its dry ``friction``). A pd servo: no shorter than at full speed throughout (angle /
+    speed), nor than at full torque throughout (bang-bang accelerate-decelerate, 2 sqrt(angle /
+    (torque / inertia))): the true shortest move (ramps at full torque, then full speed) is longer
+    than both, so the bound stays an upper bound, a little looser, and each term is smooth for the
+    optimiser. Gravity is left out. Works on numbers and CasADi expressions."""
+    symbolic = isinstance(angle, (ca.SX, ca.MX))
+    if droop > 0 and inertia > 0 and math.isfinite(torque) and torque > friction:
+        if symbolic:
+            return [_move_time_function(torque - friction, droop, inertia, math.pi)(angle)]
+        return [float(move_time(angle, torque - friction, droop, inertia))]
+    sqrt = ca.sqrt if symbolic else math.sqrt
+    if droop > 0 and not symbolic and torque <= friction:
+        return [math.inf]                          # a motor too weak to overcome its own friction
+    out = [angle / speed if speed > 0 else math.inf]
     if inertia > 0 and math.isfinite(torque):
         out.append(2 * sqrt(angle * inertia / torque + 1e-12))
     return out
@@ -125,8 +172,10 @@ def _swing_bounds(lim: LegLimits, step: Any) -> list[Any]:
     """Lower bounds [s] of a swing ``step`` [m] long: the hip pitch turning the leg through the step
     (``_hip_turn``) and the knee bending to lift the foot ``lift`` then straightening (two moves),
     each at its servo's torque and speed (``_move_bounds``)."""
-    knee = [2 * b for b in _move_bounds(_knee_bend(lim), lim.knee_speed, lim.knee_torque, lim.shank_inertia)]
-    return _move_bounds(_hip_turn(lim, step), lim.hip_speed, lim.hip_torque, lim.leg_inertia) + knee
+    knee = [2 * b for b in _move_bounds(_knee_bend(lim), lim.knee_speed, lim.knee_torque, lim.shank_inertia,
+                                        lim.knee_droop, lim.knee_friction)]
+    return _move_bounds(_hip_turn(lim, step), lim.hip_speed, lim.hip_torque, lim.leg_inertia, lim.hip_droop,
+                        lim.hip_friction) + knee
 
 
 def swing_time(lim: LegLimits, step: float) -> float:
@@ -192,8 +241,12 @@ def push_bound(lim: LegLimits, steps: int = 3) -> dict[str, Any]:
     opti.solver("ipopt", {"print_time": False}, {"print_level": 0, "sb": "yes", "max_iter": 3000, "tol": 1e-9})
     try:
         sol = opti.solve()
-    except RuntimeError as exc:                       # pragma: no cover - the problem is always feasible (dv = 0)
-        raise RuntimeError(f"the bound's optimisation did not converge: {exc}") from None
+    except RuntimeError as exc:       # dv = 0 is always feasible: a failure is numbers the solver cannot take
+        from ..errors import UserError
+        why = str(exc).strip().splitlines()[-1] if str(exc).strip() else "no reason given"
+        raise UserError(f"the bound's optimisation failed ({why}): a robot whose servos cannot swing a leg "
+                        f"(stall torque {lim.hip_torque:.3g} / {lim.knee_torque:.3g} N m at hip / knee, swing "
+                        f"{swing_time(lim, lim.reach):.3g} s) or whose soles carry no ZMP gives it no room") from None
     return {"delta_v_mps": float(sol.value(dv)), "steps": steps,
             "plan": [{"swing_s": float(sol.value(t)), "zmp_m": float(sol.value(p)), "step_m": float(sol.value(s))}
                      for t, p, s in plan],
@@ -239,11 +292,17 @@ def leg_limits(robot: Any, lift: float, reach_ratio: float = 0.8) -> LegLimits:
     shank_inertia = m_calf * (leg.shank / 2) ** 2 + servo["knee"].armature
     leg_inertia = (m_thigh * (leg.thigh / 2) ** 2 + m_calf * (leg.thigh + leg.shank / 2) ** 2
                    + servo["hip_pitch"].armature)
+    # a motor's torque-speed line: the torque it loses per rad/s (back-EMF and viscous friction), and
+    # its dry friction; none for a pd servo (its stall torque holds at any speed)
+    droop = {k: (s.back_emf + s.damping if s.back_emf > 0 else 0.0) for k, s in servo.items()}
+    dry = {k: (s.frictionloss if s.back_emf > 0 else 0.0) for k, s in servo.items()}
     return LegLimits(mass=mass, z_c=z_c, sole_front=length / 2 + centre, sole_back=length / 2 - centre,
                      reach=reach_ratio * (leg.thigh + leg.shank), leg=crouch, thigh=leg.thigh, shank=leg.shank,
                      crouch_height=crouch, hip_speed=servo["hip_pitch"].speed, knee_speed=servo["knee"].speed,
                      ankle_torque=servo["ankle_pitch"].torque, knee_torque=servo["knee"].torque, lift=lift,
-                     hip_torque=servo["hip_pitch"].torque, leg_inertia=leg_inertia, shank_inertia=shank_inertia)
+                     hip_torque=servo["hip_pitch"].torque, leg_inertia=leg_inertia, shank_inertia=shank_inertia,
+                     hip_droop=droop["hip_pitch"], knee_droop=droop["knee"], hip_friction=dry["hip_pitch"],
+                     knee_friction=dry["knee"])
 
 
 def bottle_figures(delta_v: float, bottle_mass: float, robot_mass: float, rope: float) -> dict[str, float | None]:
@@ -254,3 +313,38 @@ def bottle_figures(delta_v: float, bottle_mass: float, robot_mass: float, rope: 
     drop = (momentum / bottle_mass) ** 2 / (2 * GRAVITY)
     distance = math.sqrt(rope * rope - (rope - drop) ** 2) if drop <= rope else None
     return {"momentum_Ns": momentum, "drop_m": drop, "distance_m": distance}
+
+
+def robot_bound(robot: Any, surface: Any, bottle_kg: float, rope: float, steps: int) -> dict[str, Any]:
+    """``challenge bound``'s figures for a loaded robot and surface: the model's numbers, the pushes
+    from behind and from the front with what they mean in the challenge (momentum, release
+    distance, the 2025 rules' M where within them), the forward speed, what is left out, and which
+    of the surface's terms the bound uses (its layer's height sets the swing's lift; the rest of the
+    turf, its friction, stiffness and drag, is left out: a rigid floor)."""
+    from ..sim.challenge import rank_2025
+    layer = float(getattr(surface, "layer_height", 0.0))
+    lift = max(0.02, layer + 0.01)
+    lim = leg_limits(robot, lift)
+    swing = swing_time(lim, lim.reach)
+    if not math.isfinite(swing) or swing > 5.0:
+        from ..errors import UserError
+        raise UserError(f"robot {robot.name}: its hip and knee servos cannot swing a leg (stall torque "
+                        f"{lim.hip_torque:.3g} / {lim.knee_torque:.3g} N m, unloaded speed {lim.hip_speed:.3g} / "
+                        f"{lim.knee_speed:.3g} rad/s): no step, so no bound")
+    out: dict[str, Any] = {
+        "robot": robot.name, "surface": surface.name, "bottle_kg": bottle_kg, "rope_m": rope,
+        "model": {"mass_kg": lim.mass, "z_c_m": lim.z_c, "zmp_front_m": lim.zmp_front(), "zmp_back_m": lim.zmp_back(),
+                  "reach_m": lim.reach, "lift_m": lift, "hip_speed_radps": lim.hip_speed,
+                  "knee_speed_radps": lim.knee_speed, "hip_droop_Nms": lim.hip_droop, "knee_droop_Nms": lim.knee_droop},
+        "surface_terms": (f"the lift: {surface.name}'s layer of {layer * 1000:.0f} mm cleared by 10 mm (at least 20 mm); "
+                          f"its friction, stiffness and drag are left out (a rigid floor)"),
+        "leaves_out": list(LEAVES_OUT)}
+    for side, b in push_bounds(lim, steps).items():
+        fig = bottle_figures(b["delta_v_mps"], bottle_kg, lim.mass, rope)
+        d = fig["distance_m"]
+        within = d is not None and d <= 0.75 * rope
+        fig["within_rules"] = within
+        fig["M"] = rank_2025(rope, d, bottle_kg, lim.mass, lim.z_c, lim.z_c) if within else None
+        out[side] = {**b, **fig}
+    out["speed"] = speed_bound(lim)
+    return out
