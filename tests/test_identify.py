@@ -187,3 +187,17 @@ def test_a_recording_the_fit_cannot_follow_writes_nothing(tmp_path, gait_tuner_c
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert "does not follow l_knee" in r.stderr and "nothing written" in r.stderr
     assert not (tmp_path / "fit").exists()
+
+
+def test_a_walk_recording_is_refused_at_once_naming_why(tmp_path, capsys):
+    """A walk (what a team has from games) is not a sweep in a harness: refused in one line before any
+    fit, naming what shows it (it used to run ~36 min, then say the fit did not follow a joint)."""
+    from tuner.cli import main
+    assert main(["simulate", "--params", "kidsize-engine-carpet4", "--command", "0.2,0,0", "--duration", "3",
+                 "--surface", "carpet4", "--record", str(tmp_path / "walk")]) == 0
+    [rec] = (tmp_path / "walk").glob("*.mcap")
+    capsys.readouterr()
+    assert main(["identify", "servos", "--robot", "kidsize", "--recording", str(rec), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "is not of the robot hanging in a harness" in err
+    assert "walk command that moves" in err and not (tmp_path / "o").exists()

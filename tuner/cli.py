@@ -1861,6 +1861,11 @@ def identify_servos_cmd(robot_name: str | None, recordings: tuple[Path, ...], to
             t, targets, measured = rec.on_grid(h.control_period, h.joint_names)
         except RecordingError as exc:
             raise UserError(str(exc)) from None
+        walking = rec.not_hanging()
+        if walking is not None:
+            raise UserError(f"identify servos: {path} is not of the robot hanging in a harness ({walking}): the fit's "
+                            f"model holds the torso and lets no foot touch, which a walk's contacts break; record a "
+                            f"sweep hanging (gait-tuner excite), and fit the ground from walks (identify ground)")
         for gap in rec.gaps[:3]:
             click.echo(f"note: {path}: {gap}", err=True)
         logs.append(JointLog(str(path), h.control_period, tuple(h.joint_names), targets, measured))

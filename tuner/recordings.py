@@ -105,6 +105,23 @@ class FieldRecording:
         return t - t0, qt[k][:, idx], meas
 
 
+    def not_hanging(self) -> str | None:
+        """Why this recording is not of a robot hanging in a harness (None when nothing says so): a
+        walk command that moves, soles that carry weight, or a torso that turns (ours: a sweep in a
+        harness holds the torso; 0.3 rad/s RMS of gyro and 10 N on the soles are far above a held one)."""
+        if self.walk is not None and len(self.walk[1]) and float(np.max(np.abs(self.walk[1]))) > 1e-6:
+            return "it carries a walk command that moves"
+        if self.foot_force is not None and len(self.foot_force[1]):
+            load = float(np.median(np.sum(self.foot_force[1], axis=1)))
+            if load > 10.0:
+                return f"its soles carry {load:.0f} N (median)"
+        gyro = self.imu.get("gyro")
+        if gyro is not None and len(gyro[1]):
+            rms = float(np.sqrt(np.mean(np.sum(np.square(gyro[1]), axis=1))))
+            if rms > 0.3:
+                return f"its torso turns ({rms:.2f} rad/s RMS on the gyro)"
+        return None
+
     def imu_on_grid(self, t: np.ndarray, t_start: float) -> dict[str, np.ndarray | None]:
         """The IMU's ``rpy``, ``gyro`` and ``accel`` at ``t`` [s after ``t_start``] (linear
         interpolation; None where not recorded); roll, pitch and gyro are required."""
