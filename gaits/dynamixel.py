@@ -148,13 +148,18 @@ class DynamixelBus:
         for _, j in self.joints:
             self._read.addParam(j.servo.id)
 
-    def check(self) -> None:
-        """Ping every servo (and the IMU) once: one that does not answer is one line naming it."""
+    def check(self, attempts: int = 3) -> None:
+        """Ping every servo (and the IMU), each up to ``attempts`` times (a reply lost to noise on
+        the bus, or late from a busy simulated one, is not a missing servo): one that never answers
+        is one line naming it."""
         ids = [j.servo.id for _, j in self.joints] + ([IMU_ID] if self.imu else [])
         silent = []
         for dxl_id in ids:
-            _, result, _ = self.packets.ping(self.port, dxl_id)
-            if result != self.sdk.COMM_SUCCESS:
+            for _ in range(attempts):
+                _, result, _ = self.packets.ping(self.port, dxl_id)
+                if result == self.sdk.COMM_SUCCESS:
+                    break
+            else:
                 silent.append(dxl_id)
         if silent and len(silent) == len(ids):
             raise BusError(f"{self.port_name}: no device answers at {self.baudrate} baud (ids "

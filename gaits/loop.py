@@ -27,6 +27,7 @@ core, see ``benchmarks/bench_engine.py``).
 from __future__ import annotations
 
 import argparse
+import math
 import signal
 from typing import Any
 import sys
@@ -156,29 +157,57 @@ def controller(gait: gaits.GaitFile, geometry: RobotGeometry, dt: float):
     return engine, engine
 
 
+class _OneLine(argparse.ArgumentParser):
+    """argparse whose refusals are one line and exit 2, as every other refusal of the loop's."""
+
+    def error(self, message: str):
+        print(f"robot_loop: error: {message} (see --help)", file=sys.stderr)
+        raise SystemExit(2)
+
+
+def _number(low: float, high: float, unit: str, *, integer: bool = False, low_open: bool = True):
+    """An option's type: a finite number in (low, high] ([low, high] when not ``low_open``) [unit]:
+    NaN, an infinity or one outside it is refused naming the range (a NaN tilt limit would never
+    read a fall; a zero or negative --seconds ran no tick)."""
+    def parse(text: str):
+        try:
+            v = int(text) if integer else float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a {'whole number' if integer else 'number'}") from None
+        if not math.isfinite(v) or (v <= low if low_open else v < low) or v > high:
+            raise argparse.ArgumentTypeError(f"{text!r} is outside {'(' if low_open else '['}{low:g}, {high:g}] {unit}")
+        return v
+    return parse
+
+
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = _OneLine(description=" ".join(__doc__.split("\n\n", 1)[0].split()))     # the first paragraph, whole
     ap.add_argument("gait", nargs="?", help="a gait file with an engine: section (e.g. "
                                             "studies/results/kidsize-engine-carpet4.yaml); not with --sweep")
     ap.add_argument("--sweep", help="play this joint sweep (gait-tuner excite's CSV) on the robot hanging in a "
                                     "harness instead of walking: record it (--record) to identify the servos")
     ap.add_argument("--dry-run", action="store_true", help="walk the stand-in robot (no hardware)")
-    ap.add_argument("--seconds", type=float, default=None, help="how long [s] (default 8; a sweep: its length)")
+    ap.add_argument("--seconds", type=_number(0.0, 86400.0, "s"), default=None,
+                    help="how long [s] (default 8; a sweep: its length)")
     ap.add_argument("--robot", help="the robot file (gait-tuner robot export MAP --out robot.yaml): its legs, soles "
                                     "and servos; default: the built-in robot's geometry")
     ap.add_argument("--record", help="record every tick (what the engine read and asked) as an MCAP file "
                                      "(gaits/recording.py; needs the mcap package)")
     ap.add_argument("--port", help="the Dynamixel bus (a serial device, or `gait-tuner bus serve`'s pseudo-terminal): "
                                    "walk the robot on it (needs --robot and dynamixel-sdk)")
-    ap.add_argument("--baud", type=int, default=1_000_000, help="the bus's baud rate")
-    ap.add_argument("--watchdog", type=int, default=5, help="ticks without readings before the safe stop")
-    ap.add_argument("--max-tilt", type=float, default=50.0, help="torso tilt [deg] read as a fall: torque off")
+    ap.add_argument("--baud", type=_number(0, 10_000_000, "baud", integer=True), default=1_000_000,
+                    help="the bus's baud rate")
+    ap.add_argument("--watchdog", type=_number(0, 100_000, "ticks", integer=True), default=5,
+                    help="ticks without readings before the safe stop")
+    ap.add_argument("--max-tilt", type=_number(0.0, 90.0, "deg"), default=50.0,
+                    help="torso tilt [deg] read as a fall: torque off")
     ap.add_argument("--commands", metavar="STREAM.csv", help="walk this command stream (t,vx,vy,wz CSV) instead of "
                                                           "the built-in behaviour; --seconds defaults to its length")
     ap.add_argument("--udp", metavar="[HOST:]PORT", help="take the walk command from UDP datagrams of JSON "
                                                       "{\"vx\": .., \"vy\": .., \"wz\": ..} (bound to 127.0.0.1 "
                                                       "unless HOST says otherwise); --seconds defaults to 600")
-    ap.add_argument("--udp-timeout", type=float, default=0.5, help="seconds without a UDP command before a stop")
+    ap.add_argument("--udp-timeout", type=_number(0.0, 3600.0, "s"), default=0.5,
+                    help="seconds without a UDP command before a stop")
     args = ap.parse_args(argv)
     if (args.gait is None) == (args.sweep is None):
         print("robot_loop: error: give a gait file to walk, or --sweep SWEEP.csv to play (not both)", file=sys.stderr)

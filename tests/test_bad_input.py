@@ -512,3 +512,20 @@ def test_compare_of_an_engine_set_compares_its_table(capsys, workdir):
     out = capsys.readouterr()
     assert code == 0, out.err
     assert "kidsize-engine-carpet4 (its table)" in (workdir / "cmp" / "compare.md").read_text()
+
+
+def test_an_out_path_inside_a_file_is_one_line(tmp_path, capsys):
+    """`--out a_file/x.yaml` where a_file is a file: one line naming it (export said 'internal error:
+    FileExistsError' when it made the folder)."""
+    (tmp_path / "a_file").write_text("mine")
+    assert main(["robot", "export", "kidsize", "--out", str(tmp_path / "a_file" / "robot.yaml")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "a file stands where a folder is needed" in err and "internal" not in err
+    assert (tmp_path / "a_file").read_text() == "mine"
+
+
+def test_versus_with_nothing_to_measure_is_one_line(tmp_path, capsys):
+    assert main(["versus", "kidsize-engine-carpet4", "--speeds", "0,0,0,0", "--walks", "0", "--no-challenge",
+                 "--out", str(tmp_path / "vs")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "nothing to measure" in err and not (tmp_path / "vs").exists()

@@ -153,7 +153,7 @@ def test_a_sweep_through_the_bus_on_the_hanging_robot_identifies_its_servos(tmp_
     import json
     sweep = tmp_path / "sweep.csv"
     r = subprocess.run([sys.executable, "-m", "tuner.cli", "excite", "--robot", str(MAP), "--out", str(sweep),
-                        "--duration", "5"], capture_output=True, text=True)
+                        "--duration", "5", "--no-steps"], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     link = tmp_path / "bus"
     server = subprocess.Popen([sys.executable, "-m", "tuner.cli", "bus", "serve", "--robot", str(MAP), "--hang",
@@ -275,3 +275,26 @@ def test_duplicate_servo_ids_in_a_robot_file_are_one_line(tmp_path, robot_file):
     (lo, le), = _finish(loop)
     assert loop.returncode == 2 and len(le.strip().splitlines()) == 1, le
     assert "servo id 3 given to" in le, le
+
+
+def test_a_link_onto_a_users_file_or_into_no_folder_is_one_line(tmp_path, capsys):
+    """`bus serve --link PATH`: a file of the user's there is kept and named (it was deleted); a
+    folder that does not exist is one line (it was an internal error)."""
+    from tuner.cli import main
+    mine = tmp_path / "notes.txt"
+    mine.write_text("mine")
+    assert main(["bus", "serve", "--robot", str(MAP), "--link", str(mine), "--idle", "0.5"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "a file of yours is there" in err and mine.read_text() == "mine"
+    assert main(["bus", "serve", "--robot", str(MAP), "--link", str(tmp_path / "nope" / "bus"), "--idle", "0.5"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "does not exist" in err
+
+
+def test_seed_or_walk_without_a_randomisation_is_one_line(capsys):
+    """`bus serve --walk 5` / `--seed 7` without --randomisation were ignored without a word."""
+    from tuner.cli import main
+    for extra in (["--walk", "5"], ["--seed", "7"]):
+        assert main(["bus", "serve", "--robot", str(MAP), *extra]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "give --randomisation default" in err, err

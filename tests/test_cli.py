@@ -113,7 +113,7 @@ def test_progress_in_a_log_is_plain_lines(capsys):
     """Off a terminal a bar is never silent for long: a plain line every 15 s, no carriage returns."""
     from tqdm import tqdm
 
-    from tuner.cli import _bar_options
+    from tuner.cli.options import bar_options as _bar_options
     opts = _bar_options()
     assert opts["disable"] is False and opts["mininterval"] == 15.0 and opts["delay"] == 15.0
     opts.update(mininterval=0.0, delay=0.0, miniters=1)

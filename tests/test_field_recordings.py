@@ -172,3 +172,30 @@ def test_a_topics_file_that_is_wrong_is_one_line(tmp_path):
     topics.write_text("joint_states: /nowhere\n")
     with pytest.raises(RecordingError, match="no topic /nowhere"):
         read_field_recording(bag, topics=topics)
+
+
+def test_a_csv_teams_write_reads_or_is_one_line(tmp_path):
+    """A spreadsheet's byte-order mark is skipped; a column twice, a cell past csv's size limit, a
+    quote left open and a FIFO are each one error naming the file (they were a silent pick, internal
+    errors and a hang)."""
+    import os
+
+    from tuner.recordings import RecordingError, read_field_recording
+    rows = "".join(f"{k * 0.01:.2f},{0.1 * k:.3f},{0.1 * k:.3f}\n" for k in range(20))
+    bom = tmp_path / "bom.csv"
+    bom.write_bytes("\ufefft,measured.l_knee,target.l_knee\n".encode("utf-8") + rows.encode())
+    assert read_field_recording(bom).joints == ("l_knee",)
+    cases = {"twice.csv": "t,measured.l_knee,measured.l_knee,target.l_knee\n" + "".join(
+                 f"{k * 0.01:.2f},0,0,0\n" for k in range(20)),
+             "huge.csv": "t,measured.l_knee,target.l_knee\n0," + "9" * 200_000 + ",0\n",
+             "quote.csv": 't,measured.l_knee,target.l_knee\n0,"0,0\n0.01,0,0\n'}
+    words = {"twice.csv": "appears twice", "huge.csv": "does not read as CSV", "quote.csv": "quote.csv: a value that is not a number"}
+    for name, text in cases.items():
+        f = tmp_path / name
+        f.write_text(text)
+        with pytest.raises(RecordingError, match=words[name]):
+            read_field_recording(f)
+    fifo = tmp_path / "pipe.mcap"
+    os.mkfifo(fifo)
+    with pytest.raises(RecordingError, match="not a regular file"):
+        read_field_recording(fifo)

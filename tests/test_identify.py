@@ -61,7 +61,7 @@ def test_a_sweep_stays_within_every_servos_range_speed_and_torque(kind):
     lo, hi = h.range_ours()
     assert np.all(targets >= lo + 0.05 - 1e-12) and np.all(targets <= hi - 0.05 + 1e-12)
     speed = np.abs(np.diff(targets, axis=0)) / h.control_period
-    assert np.all(speed.max(axis=0) <= 0.6 * s.speed)
+    assert np.all(speed.max(axis=0) <= 0.6 * h.nominal_speed() + 1e-9)
     tau, touching = h.probe(h.compile(s), targets, s)
     assert np.all(tau <= 0.8 * s.torque) and not touching.any()
     swing = (targets.max(axis=0) - targets.min(axis=0)) / 2
@@ -132,7 +132,7 @@ def test_excite_then_identify_writes_a_map_the_tool_walks(tmp_path, gait_tuner_c
     6 mrad): the gains, latency and backlash recovered within 10 %, and the written map loads with
     them (the simulator then delays by two ticks)."""
     r = _cli(gait_tuner_cmd, run_env, "excite", "--robot", KID3KG, "--out", "sweep.csv", "--duration", "7",
-             "--json", cwd=tmp_path)
+             "--no-steps", "--json", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     info = json.loads(r.stdout)
     assert info["speed_share"] <= 0.6
@@ -201,3 +201,41 @@ def test_a_walk_recording_is_refused_at_once_naming_why(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "is not of the robot hanging in a harness" in err
     assert "walk command that moves" in err and not (tmp_path / "o").exists()
+
+
+def test_excite_adds_large_steps_one_joint_at_a_time_and_a_gap_is_not_compared(tmp_path, capsys):
+    """The step train after the sweep: one joint at a time, each out one way, the other, and back,
+    within its range and touching nothing; a recording whose measured angles have a gap compares
+    only the ticks measured (a step interpolated across the gap would misfit by the step)."""
+    from tuner.cli import main
+    from tuner.sim.harness import step_train
+    h = Harness(load_robot("kidsize"))
+    _, sweep = excitation(h, duration=4.0)
+    train = step_train(h, sweep[-1], amplitude=0.6, seed=3)
+    moved = np.abs(train - sweep[-1]) > 1e-9
+    assert moved.sum(axis=1).max() == 1                                # never two joints at once
+    assert np.all(moved.any(axis=0))                                   # every joint steps
+    lo, hi = h.range_ours()
+    assert np.all(train >= lo + 0.05 - 1e-12) and np.all(train <= hi - 0.05 + 1e-12)
+    assert not h.probe(h.compile(h.servo_arrays()), train, h.servo_arrays())[1].any()
+    big = np.abs(train - sweep[-1]).max(axis=0)
+    knee = h.joint_names.index("l_knee")
+    assert big[knee] > 0.4                                             # past the duty's saturation (~0.2 rad)
+    assert main(["excite", "--robot", "kidsize", "--out", str(tmp_path / "s.csv"), "--duration", "5", "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["sweep_s"] == pytest.approx(5.0) and info["steps_s"] > 20 and info["speed_share"] <= 0.6
+    # a gap: ticks 50-59 not measured; the fit's weights leave exactly those out
+    log = JointLog("gap", h.control_period, h.joint_names, train[:100], train[:100],
+                   valid=np.r_[np.ones(50, bool), np.zeros(10, bool), np.ones(40, bool)])
+    w = log.weights()
+    assert w.shape == (99, 1) and w.sum() == 89 and not w[49:59].any()
+
+
+def test_a_recording_where_nothing_moved_is_refused(kid3kg):
+    """A robot at rest (measured = commanded = constant): every parameter would be fitted to noise
+    (gains written as 2x the map with intervals of +-160): refused in one line."""
+    from tuner.errors import UserError
+    h = kid3kg
+    still = np.zeros((200, h.n)) + np.random.default_rng(1).normal(0, 1e-4, (200, h.n))
+    with pytest.raises(UserError, match="nothing moved in the recordings"):
+        identify_servos(h, [JointLog("still", h.control_period, h.joint_names, np.zeros((200, h.n)), still)])

@@ -125,3 +125,19 @@ def test_a_walk_whose_controller_reports_no_steps_is_tracked_in_one_second_windo
     assert [s["steps"] for s in tk["segments"]] == [2, 1]
     # the controller's own steps, when it reports them, as before
     assert tracking(trace, stream, np.array([0.0, 0.5, 1.5, 2.5, 3.0, 4.0, 5.0]))["steps"] == 4
+
+
+def test_a_walk_shorter_than_its_steady_window_says_so_not_nan(capsys):
+    """`simulate --command 0.2,0,0 --duration 3` ends before the held command's steady window: the
+    velocities are '-' and the line says why (it printed 'vx nan' and '0.2 -> nan (nan%)'); in
+    JSON they are null with that reason (it said the robot fell)."""
+    import json
+
+    from tuner.cli import main
+    args = ["simulate", "--params", "kidsize-engine-carpet4", "--command", "0.2,0,0", "--duration", "3"]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    assert "nan" not in out and "not measured (the walk ended at 3.00 s, before its steady window" in out
+    assert main(args + ["--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["metrics"]["vx_mps"] is None and "the walk ended at 3.00 s" in doc["metrics"]["undefined"]["vx_mps"]

@@ -21,7 +21,8 @@ from conftest import ROOT
 
 BUDGET = {"tune": ["--trials", "2"], "robustness": ["--rollouts", "4", "--push-rollouts", "2"],
           "identify": ["--max-iters", "3"], "versus": ["--walks", "1", "--no-challenge", "--speeds", "0.2,0,0,0"],
-          "compare": ["--random-rollouts", "2"], "render": ["--duration", "3"], "transfer": ["--walks", "1"]}
+          "compare": ["--random-rollouts", "2"], "render": ["--duration", "3"], "transfer": ["--walks", "1"],
+          "excite": ["--no-steps"]}
 SLOW_ONLY = {"calibrate"}
 
 

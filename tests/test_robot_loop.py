@@ -60,3 +60,23 @@ def test_the_stabiliser_of_a_set_is_in_the_robot_loop():
         if stabilised:       # only the ankles and hips: pitch by the 0.05 rad tilt
             assert {gaits.JOINT_NAMES[i] for i in np.flatnonzero(moved)} <= {
                 f"{s}_{j}" for s in "lr" for j in ("ankle_pitch", "hip_pitch", "ankle_roll", "hip_roll")}
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--max-tilt", "nan"], "--max-tilt: 'nan' is outside (0, 90] deg"),
+    (["--max-tilt", "-5"], "--max-tilt: '-5' is outside (0, 90] deg"),
+    (["--seconds", "0"], "--seconds: '0' is outside (0, 86400] s"),
+    (["--seconds", "nan"], "--seconds: 'nan' is outside"),
+    (["--seconds", "-2"], "--seconds: '-2' is outside"),
+    (["--watchdog", "0"], "--watchdog: '0' is outside"),
+    (["--udp-timeout", "inf"], "--udp-timeout: 'inf' is outside"),
+])
+def test_a_number_the_loop_cannot_use_is_one_line(capsys, args, words):
+    """A NaN tilt limit would never read a fall, a negative one read one at t = 0, --seconds 0 ran
+    no tick (an IndexError): each is refused in one line naming the option and its range."""
+    from gaits.loop import main
+    with pytest.raises(SystemExit) as stop:
+        main([str(ROOT / "studies" / "results" / "kidsize-engine-carpet4.yaml"), "--dry-run", *args])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and words in err and err.startswith("robot_loop: error:"), err

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import math
+from typing import ClassVar       # at module level: dataclasses read a string annotation's ClassVar here
 
 import numpy as np
 import pytest
@@ -161,3 +162,46 @@ def test_a_bad_map_entry_is_one_line_naming_the_field(entry, words):
     with pytest.raises(UserError) as err:
         servo_from_mapping(entry, "servo.legs", preset("MX-64"))
     assert words in str(err.value) and "\n" not in str(err.value)
+
+
+def test_a_new_servo_law_is_one_class_and_one_registration(tmp_path):
+    """What docs/architecture.md promises: a law of one's own (here a servo with a torque limit that
+    halves beyond a speed: not physics, a test) is a dataclass giving MuJoCo its pieces, registered
+    once; a map names it by ``law:`` and the simulator walks it."""
+    from dataclasses import dataclass
+
+    from tuner.servos import LAWS, ServoLaw, ServoPieces, register
+    from tuner.sim.rollout import Simulator
+    from tuner.sim.surfaces import SURFACES
+
+    @register
+    @dataclass(frozen=True)
+    class TestStiff(ServoLaw):
+        law: ClassVar[str] = "test-stiff"
+        RANGES: ClassVar = {"gain": (0.0, 500.0, "N m/rad")}
+        gain: float = 80.0
+        backlash: float = 0.0
+        latency: float = 0.0
+        armature: float = 0.01
+        damping: float = 1.0
+        frictionloss: float = 0.05
+        speed: float = 6.0
+
+        def pieces(self) -> ServoPieces:
+            return ServoPieces(kp=self.gain, kv=0.0, torque=8.0, back_emf=0.0, damping=self.damping,
+                               frictionloss=self.frictionloss, armature=self.armature, target_speed=math.inf)
+    try:
+        import third_party_robot as T
+        path = T.write(tmp_path, T.mjcf(), T.map_yaml(extra="servo: {legs: {law: test-stiff, gain: 90}}\n"))
+        from tuner.robots import load_robot as load
+        robot = load(str(path))
+        assert robot.servo_of("l_knee") == TestStiff(gain=90.0)
+        sim = Simulator(robot, SURFACES["rigid"])
+        k = sim.joint_names.index("l_knee")
+        assert sim.model.actuator_gainprm[k, 0] == 90.0 and sim.model.actuator_forcerange[k, 1] == 8.0
+        import gaits
+        trace = sim.rollout(gaits.generate(gaits.load_baseline("tkux-table2").params, robot.leg, sim.control_period),
+                            duration=1.0)
+        assert len(trace.t) > 50
+    finally:
+        del LAWS["test-stiff"]

@@ -99,6 +99,8 @@ _STANDS = ("import numpy as np\nfrom gaits.control import HoldPose\n\n\n"
      "controller {path}:C: start_pose() raised KeyError: 'l_knee' ({path}, line 13)"),
     ("    def step(self, m, command=None):\n        return self.q[:19]\n",
      "the controller ({path}:C) returned targets of shape (19,) at t = 0.00 s; expected (20,)"),
+    ("    def step(self, m, command=None):\n        return ['up'] * 20\n",
+     "returned targets that are not numbers at t = 0.00 s (e.g. 'up')"),
     ("    def step(self, m, command=None):\n        return self.q + 0j\n",
      "controller {path}:C: step() at t = 0.00 s returned complex targets"),
     ("    def start_pose(self):\n        return None\n",

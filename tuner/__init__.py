@@ -34,30 +34,23 @@ if _os.path.basename(_sys.argv[0] if _sys.argv else "") == "gait-tuner":
             and _signal.getsignal(_signal.SIGINT) is _signal.default_int_handler):
         _signal.signal(_signal.SIGINT, _interrupted_while_loading)
 
-from .errors import UserError
-from .sim.metrics import DEFINITIONS, Metrics, summarize
-from .params_io import resolve_params
-from .sim.randomisation import Randomisation
-from .robots import RobotModel, RobotSpec, load_robot
-from .servos import ServoLaw
-from .sim.rollout import FallCriteria, Simulator, Trace
-from .sim.surfaces import SURFACES, Surface, load_surface
+from .errors import UserError  # noqa: F401 - the package's face: tuner.UserError
 
-__all__ = [
-    "DEFINITIONS",
-    "FallCriteria",
-    "Metrics",
-    "Randomisation",
-    "RobotModel",
-    "RobotSpec",
-    "SURFACES",
-    "ServoLaw",
-    "Simulator",
-    "Surface",
-    "Trace",
-    "UserError",
-    "load_robot",
-    "load_surface",
-    "resolve_params",
-    "summarize",
-]
+#: the public names and where they live: imported when first asked for (PEP 562), so that
+#: ``import tuner`` (every verb's first step, ``gait-tuner --help`` included) loads no simulator
+_PUBLIC = {"DEFINITIONS": "sim.metrics", "Metrics": "sim.metrics", "summarize": "sim.metrics",
+           "resolve_params": "params_io", "Randomisation": "sim.randomisation", "RobotModel": "robots",
+           "RobotSpec": "robots", "load_robot": "robots", "ServoLaw": "servos", "FallCriteria": "sim.rollout",
+           "Simulator": "sim.rollout", "Trace": "sim.rollout", "SURFACES": "sim.surfaces", "Surface": "sim.surfaces",
+           "load_surface": "sim.surfaces"}
+
+__all__ = sorted(["UserError", *_PUBLIC])
+
+
+def __getattr__(name: str):
+    if name in _PUBLIC:
+        import importlib
+        value = getattr(importlib.import_module(f".{_PUBLIC[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'tuner' has no attribute {name!r}")

@@ -74,6 +74,9 @@ class FieldRecording:
     surface: str = ""
     gaps: list[str] = field(default_factory=list)
     grid_start: float = 0.0                    # [s] where the last on_grid began
+    #: the last on_grid's ticks whose measured angles were recorded within half a tick (not
+    #: interpolated across a gap): what a fit may compare
+    grid_valid: np.ndarray | None = None
 
     @property
     def duration(self) -> float:
@@ -102,6 +105,9 @@ class FieldRecording:
         meas = np.stack([np.interp(t, tm, qm[:, i]) for i in idx], axis=1)
         k = np.clip(np.searchsorted(tt, t + 1e-9, side="right") - 1, 0, len(tt) - 1)
         self.grid_start = float(t0)
+        j = np.clip(np.searchsorted(tm, t), 1, len(tm) - 1)
+        nearest = np.minimum(np.abs(tm[j] - t), np.abs(t - tm[j - 1]))
+        self.grid_valid = nearest <= 0.5 * dt + 1e-9
         return t - t0, qt[k][:, idx], meas
 
 
@@ -396,12 +402,12 @@ _CSV_IMU = {"rpy": ("roll", "pitch", "yaw"), "gyro": ("gyro_x", "gyro_y", "gyro_
 def _csv(path: Path, robot_joints) -> FieldRecording:
     name = str(path)
     try:
-        with open(path, newline="") as fh:
+        with open(path, newline="", encoding="utf-8-sig") as fh:     # a spreadsheet's byte-order mark skipped
             reader = csv.reader(fh)
             header = next(reader, None)
             body = [r for r in reader if r and not r[0].startswith("#")]
-    except (OSError, UnicodeDecodeError) as exc:
-        raise RecordingError(f"{name}: does not read as CSV ({exc})") from None
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:       # a cell past csv's size limit, a quote left open
+        raise RecordingError(f"{name}: does not read as CSV ({' '.join(str(exc).split())})") from None
     if not header:
         raise RecordingError(f"{name}: an empty CSV (expected a header row: t, measured.<joint>, target.<joint>, ...)")
     cols, scale = [], []
@@ -413,6 +419,9 @@ def _csv(path: Path, robot_joints) -> FieldRecording:
         scale.append(math.pi / 180 if deg else 1.0)
     if "t" not in cols:
         raise RecordingError(f"{name}: no t column (seconds) in its header")
+    twice = sorted({c for c in cols if cols.count(c) > 1})
+    if twice:
+        raise RecordingError(f"{name}: the column {twice[0]!r} appears twice in its header: which is meant?")
     try:
         a = np.array([[float(x) for x in r] for r in body], dtype=float)
     except ValueError as exc:
@@ -464,6 +473,8 @@ def read_field_recording(path: str | Path, *, topics: str | Path | dict | None =
     p = Path(path)
     if not p.exists():
         raise RecordingError(f"{p}: no such file or folder")
+    if not p.is_dir() and not p.is_file():          # a FIFO, a device: reading it would wait forever
+        raise RecordingError(f"{p}: not a regular file (a pipe or a device): record to a file")
     if robot_joints is not None:
         robot_joints = tuple(robot_joints)
     if p.suffix.lower() == ".csv":

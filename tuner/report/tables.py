@@ -24,8 +24,8 @@ def json_finite(x: Any) -> Any:
 
 
 def format_value(value) -> str:
-    """A metric as a table cell: '-' for none, three decimals for a number."""
-    if value is None:
+    """A metric as a table cell: '-' for none (or a number that is not one), three decimals for a number."""
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
         return "-"
     return f"{value:.3f}" if isinstance(value, float) else str(value)
 

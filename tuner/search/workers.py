@@ -429,3 +429,10 @@ def run_workers(spec: StudySpec, store: StudyStore, study: optuna.Study, budget:
     if on_progress is not None:
         on_progress(study)
     return study
+
+
+def tuned_study(study_file: str, storage: str | None, runs_dir: Path):
+    """(spec, optuna study) of a study that has been tuned; a one-line error if it has not."""
+    from .study import load_study
+    spec = load_study(study_file)
+    return spec, load_tuned_study(spec, storage, runs_dir)

@@ -239,9 +239,16 @@ def serve(sim: Any, robot: RobotFile, *, baudrate: int = 1_000_000, link: str | 
     """Serve the robot of ``sim`` on a new pty until its client stops; ``link``: a symbolic link to
     the pty's path (a fixed name for the client); ``ready(path)`` is called once it listens. Returns
     what happened: ticks walked, why it ended, the trace's outcome."""
+    if link is not None:                # checked before the pty: a user's own file is never replaced
+        from ..errors import UserError
+        if os.path.lexists(link) and not os.path.islink(link):
+            raise UserError(f"--link {link}: a file of yours is there; give a path where nothing is (the bus "
+                            f"makes a symbolic link to its pseudo-terminal there, and removes it at the end)")
+        if not os.path.isdir(os.path.dirname(os.path.abspath(link))):
+            raise UserError(f"--link {link}: its folder {os.path.dirname(os.path.abspath(link))} does not exist")
     master, slave, path = open_pty(baudrate)
     if link is not None:
-        if os.path.lexists(link):
+        if os.path.lexists(link):       # a link left by an earlier bus: ours to replace
             os.unlink(link)
         os.symlink(path, link)
     if ready is not None:

@@ -89,13 +89,21 @@ def group_of(ours: str) -> str:
 class JointLog:
     """One recording's joints on the control period's grid: ``targets`` (N, n) what the controller
     asked at each tick, ``measured`` (N, n) the encoders at each tick [rad, gait-tuner's frame],
-    columns ``joints`` (ours). ``name``: where it came from."""
+    columns ``joints`` (ours). ``name``: where it came from. ``valid`` (N,): the ticks whose angles
+    were measured there (not interpolated across a gap in the recording); the fit compares only
+    those (None: all)."""
 
     name: str
     dt: float
     joints: tuple[str, ...]
     targets: np.ndarray
     measured: np.ndarray
+    valid: np.ndarray | None = None
+
+    def weights(self) -> np.ndarray:
+        """(N - 1, 1): 1 for each compared tick after the first, 0 for one in a gap."""
+        v = np.ones(len(self.measured), dtype=bool) if self.valid is None else np.asarray(self.valid, dtype=bool)
+        return v[1:, None].astype(float)
 
     def columns(self, names) -> tuple[np.ndarray, np.ndarray]:
         idx = [self.joints.index(n) for n in names]
@@ -150,12 +158,14 @@ FITTABLE = SCALED + ("backlash", "latency")
 
 def identify_servos(harness: Harness, logs: list[JointLog], *, by: str = "groups", noise: float = 1e-3,
                     max_iters: int = 40, threads: int | None = None, progress=None,
-                    fit: tuple[str, ...] = FITTABLE, trace=None) -> ServoFit:
+                    fit: tuple[str, ...] = FITTABLE, trace=None, budget=None) -> ServoFit:
     """Fit the harness robot's servos to ``logs`` (see the module's docstring). ``by``: "groups"
     (:data:`FIT_GROUPS`) or "joints". ``noise`` [rad]: the encoders' noise, the residual's unit.
     ``fit``: the fields fitted (:data:`FITTABLE`); the others keep the map's values.
-    ``progress(evaluations)`` is called after each batch of rollouts; ``trace`` (a text stream)
-    gets the optimiser's iterations."""
+    ``progress(evaluations)`` is called after each batch of rollouts; ``budget(rollouts)``, once,
+    with the most rollouts the fit can take (its iterations' Jacobians and a second stage: a
+    progress bar's total, so it can say how long at most); ``trace`` (a text stream) gets the
+    optimiser's iterations."""
     bad = [f for f in fit if f not in FITTABLE]
     if bad or not fit:
         raise UserError(f"--fit {','.join(fit)}: expected some of {', '.join(FITTABLE)}")
@@ -175,6 +185,12 @@ def identify_servos(harness: Harness, logs: list[JointLog], *, by: str = "groups
             raise UserError(f"{log.name}: no measured and commanded angles for {', '.join(missing[:4])}"
                             f"{' ...' if len(missing) > 4 else ''}")
     data = [log.columns(h.joint_names) for log in logs]
+    weights = [log.weights() for log in logs]
+    moved = max(float(np.max(np.ptp(m, axis=0))) for _, m in data)
+    if moved < 10 * noise:                 # a recording of a robot at rest: every fit would be noise
+        raise UserError(f"nothing moved in the recordings: no joint's measured angle varies by more than "
+                        f"{moved * 1000:.2f} mrad, within 10x the {noise * 1000:g} mrad sensor noise; record the sweep "
+                        f"`gait-tuner excite` writes, played on the robot")
     base = h.servo_arrays()
     keys = [group_of(j) for j in h.joint_names] if by == "groups" else list(h.joint_names)
     units = list(dict.fromkeys(keys))                           # the fitted units, in order
@@ -241,15 +257,18 @@ def identify_servos(harness: Harness, logs: list[JointLog], *, by: str = "groups
         s.latency = float(p["latency"].value[0]) * dt
         return s
 
+    if budget is not None:                 # each iteration: a Jacobian (one rollout per free parameter) and a step
+        free = len(params.get_non_frozen_parameter_names())
+        budget((max_iters + max(5, max_iters // 3) + 3) * (free + 2) * len(logs))
     n_threads = max(1, min(threads or os.cpu_count() or 1, 8))
     pool = ThreadPoolExecutor(n_threads) if n_threads > 1 else None
     counter = {"rollouts": 0}
 
     def one(model: mujoco.MjModel, s: ServoArrays) -> np.ndarray:
         out = []
-        for targets, measured in data:
+        for (targets, measured), w in zip(data, weights):
             q = h.run(model, targets, s, q0=measured[0])
-            out.append(((measured[1:] - q[1:]) / noise).ravel())
+            out.append((w * (measured[1:] - q[1:]) / noise).ravel())
         return np.concatenate(out)
 
     def residual_fn(x: np.ndarray, p):
@@ -360,6 +379,7 @@ def identify_servos(harness: Harness, logs: list[JointLog], *, by: str = "groups
         if pool is not None:
             pool.shutdown()
     n_res = [len(m) - 1 for _, m in data]
+    compared = max(1.0, float(sum(w.sum() for w in weights)))     # the ticks a residual counts
 
     def per_joint(r: np.ndarray) -> dict[str, float]:
         parts, o = [], 0
@@ -367,7 +387,7 @@ def identify_servos(harness: Harness, logs: list[JointLog], *, by: str = "groups
             parts.append(r[o:o + k * h.n].reshape(k, h.n))
             o += k * h.n
         a = np.concatenate(parts)
-        return {j: float(np.sqrt(np.mean(a[:, i] ** 2))) for i, j in enumerate(h.joint_names)}
+        return {j: float(np.sqrt(np.sum(a[:, i] ** 2) / compared)) for i, j in enumerate(h.joint_names)}
     iters = len(result.extras.get("objective", [])) if getattr(result, "extras", None) else 0
     return ServoFit(servos=servos, joints=tuple(h.joint_names), by=by, values=values, intervals=intervals,
                     identifiable=identifiable, rms_before=per_joint(r0.reshape(-1) * noise),

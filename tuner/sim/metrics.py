@@ -87,6 +87,9 @@ class Metrics:
     vy_mps: float = float("nan")
     wz_radps: float = float("nan")
     outcome: str = "completed"
+    #: why the steady window's velocities are not numbers (a fall in it, or a walk that ended before
+    #: it); "" when they are
+    velocity_note: str = ""
 
     @property
     def survived(self) -> bool:
@@ -99,8 +102,9 @@ class Metrics:
         with no sample that loads the soles, e.g. an early fall) is null, and ``undefined``
         says why."""
         out = asdict(self)
+        note = out.pop("velocity_note")
         out["survived"] = self.survived
-        undefined = {k: ("the robot fell before the steady window ended" if k in _VELOCITY else
+        undefined = {k: ((note or "the robot fell before the steady window ended") if k in _VELOCITY else
                          "no sample with at least 10% of the robot's weight on its sole sensors")
                      for k, v in out.items() if isinstance(v, float) and not math.isfinite(v)}
         for k in undefined:
@@ -177,12 +181,21 @@ def summarize(trace: Trace) -> Metrics:
     t0, t1 = trace.meta.get("steady", (trace.walk_start, float(trace.t[-1])))
     vel = (heading_velocity(trace.t, trace.p_torso, trace.yaw, t0, t1) if trace.yaw is not None
            else np.full(3, np.nan))
+    note = ""
+    if not np.all(np.isfinite(vel)):
+        if trace.fell and trace.t_fall is not None and trace.t_fall < t1:
+            note = f"the robot fell at {trace.t_fall:.2f} s, before the steady window ({t0:.2f}-{t1:.2f} s) ended"
+        elif float(trace.t[-1]) < t1 or t1 <= t0:
+            note = (f"the walk ended at {float(trace.t[-1]):.2f} s, before its steady window ({t0:.2f}-{t1:.2f} s) "
+                    f"did: walk longer")
+        else:
+            note = "no heading was recorded"
     return Metrics(pitch_rms_deg=pitch_rms(pitch), pitch_pm_deg=pitch_pm(t, pitch, trace.cycle_time),
                    fell=trace.fell, t_fall_s=trace.t_fall, distance_m=dist,
                    speed_mps=dist / walk if walk > 0 else 0.0,
                    zmp_error_x_cm=ex * 100, zmp_error_y_cm=ey * 100, walk_time_s=walk,
                    reason=trace.reason, vx_mps=float(vel[0]), vy_mps=float(vel[1]),
-                   wz_radps=float(vel[2]), outcome=trace.outcome)
+                   wz_radps=float(vel[2]), outcome=trace.outcome, velocity_note=note)
 
 
 #: [s] the windows a walk is cut into when its controller reports no steps (a learned policy, a

@@ -565,7 +565,13 @@ class Simulator:
                                         f"returned targets of shape "
                                         f"{np.shape(target)} at t = {(k - 1) * dt:.2f} s; expected ({n_gait},), "
                                         f"one per gaits.JOINT_NAMES")
-                    targets[k] = target
+                    try:
+                        targets[k] = target
+                    except (TypeError, ValueError):        # strings, None: not joint angles
+                        raise UserError(f"the controller ({getattr(controller, 'source', type(controller).__name__)}) "
+                                        f"returned targets that are not numbers at t = {(k - 1) * dt:.2f} s "
+                                        f"(e.g. {next(iter(np.ravel(np.asarray(target, dtype=object))))!r}); "
+                                        f"expected {n_gait} angles [rad]") from None
                     target = targets[k]
                     if not math.isfinite(float(target.dot(target))):   # MuJoCo would zero every servo's target
                         j = int(np.argmax(~np.isfinite(target) | (np.abs(target) > 1e150)))    # the first

@@ -1,0 +1,5 @@
+"""``python -m tuner.cli``: the command line."""
+
+from .main import run
+
+run()

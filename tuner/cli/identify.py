@@ -1,0 +1,274 @@
+"""Recordings and identification: what a recording holds (log info), a sweep to record (excite), servos and ground fitted (identify servos, identify ground)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+import numpy as np
+
+
+from ..errors import UserError
+from .options import OutPath, Span, robot_option, surface_option, JSON_OPTION, RECORDING_OPTION, TOPICS_OPTION, running_total
+
+
+@click.group()
+def log() -> None:
+    """Recordings of what a robot (or the simulator) did: MCAP files in the RoboCup HumanoidDataset
+    layout (gaits/recording.py)."""
+
+
+@log.command(name="info")
+@click.argument("recording", type=click.Path(dir_okay=False, path_type=Path))
+@JSON_OPTION
+def log_info(recording: Path, as_json: bool) -> None:
+    """Say what RECORDING holds: its robot, task and controller, its duration, and per channel the
+    messages, the rate and the gaps (intervals over three times the median) or times that go back."""
+    import json
+
+    from gaits.files import MAX_BYTES, read_bytes_checked
+    from gaits.recording import read_recording, recording_info
+    read_bytes_checked(recording, "recording", 1000 * MAX_BYTES["csv"], UserError)     # a regular file of a sane size
+    try:
+        info = recording_info(read_recording(recording))
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
+    if as_json:
+        click.echo(json.dumps(info, allow_nan=False))
+        return
+    meta = info["meta"]
+    click.echo(f"{recording}: robot {meta['robot']}, task {meta['task']}, "
+               f"{'simulated' if meta['simulated'] else 'on the robot'}"
+               + (f" on {meta['surface']}" if meta["surface"] else "") + f"; {info['duration_s']:.2f} s"
+               + ("; the file is cut short: what it held up to the cut" if info["truncated"] else ""))
+    if meta["controller"]:
+        click.echo(f"  controller: {meta['controller']}")
+    for topic, c in info["channels"].items():
+        rate = "-" if c["rate_hz"] is None else f"{c['rate_hz']:.1f} Hz"
+        extra = (f"; {len(c['gaps'])} gap(s), the longest {max(g[1] for g in c['gaps']):.3f} s at "
+                 f"{max(c['gaps'], key=lambda g: g[1])[0]:.2f} s" if c["gaps"] else "")
+        extra += f"; time goes back at {c['backwards'][0]:.3f} s" if c["backwards"] else ""
+        click.echo(f"  {topic:18s} {c['messages']:7d} messages  {rate:>9s}{extra}")
+
+
+def _robot_map_path(robot_name: str) -> Path | None:
+    """The robot map file behind ``--robot`` (None for a built-in robot)."""
+    from ..robots import BUILTIN_ROBOTS
+    return None if robot_name in BUILTIN_ROBOTS else Path(robot_name)
+
+
+@click.command()
+@robot_option(help="Built-in robot name or a robot map YAML.")
+@click.option("--out", required=True, type=OutPath(dir_okay=False), metavar="SWEEP.csv",
+              help="Where to write the sweep: t, then target.<joint> per servo joint [rad, our names and signs].")
+@click.option("--duration", default=30.0, show_default=True, type=Span(5.0, 600.0), help="Length of the sweep [s].")
+@click.option("--f-max", default=2.5, show_default=True, type=Span(0.5, 20.0),
+              help="Highest frequency of the chirp [Hz] (it rises from 0.2 Hz).")
+@click.option("--amplitude", default=0.4, show_default=True, type=Span(0.01, 1.5),
+              help="Largest swing of a joint about the middle of its range [rad].")
+@click.option("--steps/--no-steps", default=True, show_default=True,
+              help="After the sweep, large steps one joint at a time (held 0.4 s each): they drive the motors at "
+                   "full duty along their torque-speed line, which tells the stall torque from the back-EMF.")
+@click.option("--step-size", default=0.6, show_default=True, type=Span(0.05, 1.5),
+              help="The steps' size [rad] (less where a joint's range or its limbs leave less room).")
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(0, 2**31 - 1),
+              help="The joints' phases.")
+@click.option("--simulate", "simulate_to", type=OutPath(dir_okay=False), metavar="REC.mcap",
+              help="Also play the sweep on the simulated robot in its harness and write the recording "
+                   "a robot would make of it (the map's servos, 1 mrad encoder noise).")
+@JSON_OPTION
+def excite(robot_name: str, out: Path, duration: float, f_max: float, amplitude: float, steps: bool, step_size: float,
+           seed: int, simulate_to: Path | None, as_json: bool) -> None:
+    """Write the joint sweep to play on the robot hanging in a harness (feet off the ground), the
+    recording to identify its servos from: a chirp per joint within its range, at most 60 % of its
+    servo's speed and, played on the simulated harness, 80 % of its torque. Play it with
+    `gait-tuner-loop --sweep SWEEP.csv --port ... --robot robot.yaml --record sweep.mcap`."""
+    import json
+
+    from gaits.files import write_text_atomic
+
+    from ..robots import load_robot
+    from ..sim.harness import Harness, excitation, record_sweep, step_train
+    robot = load_robot(robot_name)
+    h = Harness(robot)
+    try:
+        t, targets = excitation(h, duration=duration, f1=f_max, amplitude=amplitude, seed=seed)
+        sweep_s = float(t[-1])
+        if steps:
+            targets = np.vstack([targets, step_train(h, targets[-1], amplitude=step_size, seed=seed)])
+            t = np.arange(len(targets)) * h.control_period
+    except ValueError as exc:
+        raise UserError(f"excite: {exc}") from None
+    header = "t," + ",".join(f"target.{j}" for j in h.joint_names)
+    rows = "\n".join(",".join([f"{t[k]:.4f}"] + [f"{v:.6f}" for v in targets[k]]) for k in range(len(t)))
+    write_text_atomic(out, header + "\n" + rows + "\n")
+    s = h.servo_arrays()
+    lo, hi = h.range_ours()
+    n_sweep = int(round(sweep_s / h.control_period)) + 1        # the sweep's rows (the steps jump, by design)
+    speed = np.abs(np.diff(targets[:n_sweep], axis=0)).max(axis=0) / h.control_period
+    info = {"robot": robot.name, "sweep": str(out), "seconds": float(t[-1]), "joints": list(h.joint_names),
+            "amplitude_rad": dict(zip(h.joint_names, np.round((targets.max(0) - targets.min(0)) / 2, 4).tolist())),
+            "speed_share": float(np.max(speed / h.nominal_speed())),
+            "sweep_s": sweep_s, "steps_s": float(t[-1]) - sweep_s}
+    if simulate_to is not None:
+        record_sweep(h, targets, s, simulate_to, seed=seed, notes=f"gait-tuner excite --robot {robot_name}")
+        info["recording"] = str(simulate_to)
+    if as_json:
+        click.echo(json.dumps(info, allow_nan=False))
+        return
+    click.echo(f"{robot.name}: a {sweep_s:.0f} s sweep of {h.n} joints at {0.2:g}-{f_max:g} Hz, at most "
+               f"{info['speed_share'] * 100:.0f} % of a servo's speed"
+               + (f", then {info['steps_s']:.0f} s of steps up to {step_size:g} rad, one joint at a time" if steps else "")
+               + f"; wrote {out}")
+    if simulate_to is not None:
+        click.echo(f"wrote {simulate_to} (the sweep on the simulated robot in its harness)")
+
+
+@click.group()
+def identify() -> None:
+    """Fit the simulator to recordings of your robot: its servos (a sweep in a harness), then its
+    ground (walks on the field). MuJoCo's system identification toolbox (mujoco[sysid])."""
+
+
+@identify.command(name="servos")
+@robot_option(default=None, help="The robot map YAML (or a built-in robot name).")
+@RECORDING_OPTION
+@TOPICS_OPTION
+@click.option("--out", "out_dir", required=True, type=OutPath(file_okay=False), metavar="DIR",
+              help="Where to write robot.yaml (your map with the servos identified), servos.yaml, fit.json "
+                   "and report.txt.")
+@click.option("--by", type=click.Choice(["groups", "joints"]), default="groups", show_default=True,
+              help="Share the servo's numbers over hips, knees, ankles, arms and head, or fit each joint.")
+@click.option("--noise", default=0.001, show_default=True, type=Span(1e-6, 0.1),
+              help="The encoders' noise [rad]: the residual's unit.")
+@click.option("--fit", "fit_fields", default="kp,damping,armature,frictionloss,torque,back_emf,speed,backlash,latency",
+              show_default=True, metavar="FIELD,...", help="What to fit; the others keep the map's values.")
+@click.option("--max-iters", default=40, show_default=True, type=click.IntRange(1, 500))
+@click.option("--trace", is_flag=True, help="Print the optimiser's iterations on stderr.")
+@JSON_OPTION
+def identify_servos_cmd(robot_name: str | None, recordings: tuple[Path, ...], topics_file: Path | None,
+                        out_dir: Path, by: str, noise: float, fit_fields: str, max_iters: int, trace: bool,
+                        as_json: bool) -> None:
+    """Identify the robot's servos from recordings of its joints (commanded and measured angles; best a
+    sweep from `gait-tuner excite` on the robot hanging in a harness): per group or joint the gain,
+    damping, armature, friction loss, torque and speed limits and backlash, and the latency."""
+    import json
+
+    from ..recordings import RecordingError, read_field_recording
+    from ..report.identification import fit_json, summary_lines, write_servo_fit
+    from ..robots import load_robot
+    from ..sim.harness import Harness
+    from ..sim.identify import JointLog, identify_servos
+    if robot_name is None:
+        raise UserError("identify servos: give --robot (your robot map)")
+    robot = load_robot(robot_name)
+    h = Harness(robot)
+    logs = []
+    for path in recordings:
+        try:
+            rec = read_field_recording(path, topics=topics_file, robot_joints=robot.joint_map)
+            t, targets, measured = rec.on_grid(h.control_period, h.joint_names)
+        except RecordingError as exc:
+            raise UserError(str(exc)) from None
+        walking = rec.not_hanging()
+        if walking is not None:
+            raise UserError(f"identify servos: {path} is not of the robot hanging in a harness ({walking}): the fit's "
+                            f"model holds the torso and lets no foot touch, which a walk's contacts break; record a "
+                            f"sweep hanging (gait-tuner excite), and fit the ground from walks (identify ground)")
+        for gap in rec.gaps[:3]:
+            click.echo(f"note: {path}: {gap}", err=True)
+        logs.append(JointLog(str(path), h.control_period, tuple(h.joint_names), targets, measured,
+                             valid=rec.grid_valid))
+    bar, progress = running_total("identify servos", "rollouts")
+    try:
+        def budget(most: int) -> None:
+            bar.total = most
+            bar.set_postfix_str("at most; it stops sooner when the fit converges", refresh=False)
+        fit = identify_servos(h, logs, by=by, noise=noise, max_iters=max_iters, progress=progress,
+                              fit=tuple(f.strip() for f in fit_fields.split(",") if f.strip()),
+                              trace=sys.stderr if trace else None, budget=budget)
+    finally:
+        bar.close()
+    lost = fit.unfollowed(noise)
+    if not fit.converged or lost:
+        j = lost[0] if lost else None
+        why = (f"it does not follow {j} (residual RMS {fit.rms_before[j] * 1000:.2f} -> {fit.rms_after[j] * 1000:.2f} "
+               f"mrad): a wrong sign or joint name in the recording, or contacts in it" if j else "not a number")
+        raise UserError(f"identify servos: the fit did not converge: {why}; nothing written")
+    laws = {ours: robot.servos[robot.joint_map[ours][0]] for ours in h.joint_names}
+    written = write_servo_fit(fit, _robot_map_path(robot_name), out_dir, noise, laws)
+    if as_json:
+        click.echo(json.dumps({**fit_json(fit), "written": [str(p) for p in written]}, allow_nan=False))
+        return
+    for line in summary_lines(fit, noise):
+        click.echo(line)
+    for p in written:
+        click.echo(f"wrote {p}")
+
+
+@identify.command(name="ground")
+@robot_option(default=None, help="The robot map YAML (its servos identified: identify servos' robot.yaml).")
+@surface_option(default="grass30", help="The surface to start from: rigid, carpet4, grass10, grass30, grass50 "
+                                        "or a surface YAML.")
+@RECORDING_OPTION
+@TOPICS_OPTION
+@click.option("--out", "out_dir", required=True, type=OutPath(file_okay=False), metavar="DIR",
+              help="Where to write surface.yaml (the ground identified), fit.json and report.txt.")
+@click.option("--horizon", default=3.0, show_default=True, type=Span(0.5, 60.0),
+              help="Seconds of each recording fitted (a replay is open loop: record several short walks).")
+@click.option("--max-iters", default=25, show_default=True, type=click.IntRange(1, 500))
+@click.option("--trace", is_flag=True, help="Print the optimiser's iterations on stderr.")
+@JSON_OPTION
+def identify_ground_cmd(robot_name: str | None, surface_name: str, recordings: tuple[Path, ...],
+                        topics_file: Path | None, out_dir: Path, horizon: float, max_iters: int, trace: bool,
+                        as_json: bool) -> None:
+    """Identify the ground from recordings of the robot walking on it: the simulated walk replays
+    each recording's joint targets on the surface, whose layer (stiffness, damping, friction, drag)
+    is fitted until the replay's roll, pitch, gyro and encoders match the robot's."""
+    import json
+
+    from ..recordings import RecordingError, read_field_recording
+    from ..report.identification import ground_lines, write_ground_fit
+    from ..robots import load_robot
+    from ..sim.identify_ground import identify_ground, walk_log
+    from ..sim.surfaces import load_surface
+    if robot_name is None:
+        raise UserError("identify ground: give --robot (your robot map, its servos identified)")
+    robot = load_robot(robot_name)
+    start = load_surface(surface_name)
+    dt = robot.sim.control_period
+    logs = []
+    for path in recordings:
+        try:
+            rec = read_field_recording(path, topics=topics_file, robot_joints=robot.joint_map)
+            joints = [j for j in rec.joints if j in robot.joint_map]
+            grid = rec.on_grid(dt, joints)
+            imu = rec.imu_on_grid(grid[0], rec.grid_start)
+        except RecordingError as exc:
+            raise UserError(str(exc)) from None
+        for gap in rec.gaps[:3]:
+            click.echo(f"note: {path}: {gap}", err=True)
+        logs.append(walk_log(str(path), dt, grid, imu["rpy"], imu["gyro"], imu["accel"], joints))
+    bar, progress = running_total("identify ground", "replays")
+    try:
+        fit = identify_ground(robot, start, logs, max_iters=max_iters, progress=progress, horizon=horizon,
+                              trace=sys.stderr if trace else None)
+    finally:
+        bar.close()
+    worse = [k for k in fit.rms_after if not np.isfinite(fit.rms_after[k])]
+    if worse or sum(fit.rms_after.values()) > sum(fit.rms_before.values()) * 1.0001:
+        raise UserError("identify ground: the fit did not converge (its replays match the recordings no better than "
+                        f"{start.name} does); nothing written")
+    written = write_ground_fit(fit, out_dir)
+    if as_json:
+        click.echo(json.dumps({"surface": str(written[0]), "values": fit.values,
+                               "intervals": {k: (v if np.isfinite(v) else None) for k, v in fit.intervals.items()},
+                               "identifiable": fit.identifiable, "rms_before": fit.rms_before,
+                               "rms_after": fit.rms_after, "replays": fit.rollouts}, allow_nan=False))
+        return
+    for line in ground_lines(fit):
+        click.echo(line)
+    for p in written:
+        click.echo(f"wrote {p}")
+
