@@ -64,8 +64,9 @@ def test_a_servo_table_through_the_cli_round_trips_and_refuses_a_too_fast_gait(t
     assert r.returncode == 0, r.stderr
     lines = (tmp_path / "slow" / "servo.csv").read_text().splitlines()
     assert lines[0].startswith(f"# gait-tuner servo table for robot {robot.name}") and "every 10 ms (100 Hz)" in lines[0]
-    header = lines[2].split(",")
-    ticks = np.array([[float(v) for v in ln.split(",")] for ln in lines[3:]])
+    assert lines[2].startswith("# the servos it was tuned with (write these into them): pd kp 21.1 N m/rad")
+    header = lines[3].split(",")
+    ticks = np.array([[float(v) for v in ln.split(",")] for ln in lines[4:]])
     # the same gait in radians, in the robot's names
     r = run(gait_tuner_cmd, ["trajectory", "--robot", path, "--gait", "tlipfm", "--out", tmp_path / "rad",
                              "--no-plot"], run_env)

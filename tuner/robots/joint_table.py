@@ -84,6 +84,22 @@ def joint_table_file(traj: GaitTrajectory, robot: RobotModel, path: Path, joint_
             ("; clipped to the servos' speed and range" if notes else ""),
             "# " + ", ".join(f"id{u.id} = {n} ({u.units_per_rad * 2 * np.pi:g} per turn, centre {u.centre:g}, "
                              f"direction {u.direction:+d}, offset {u.offset:g} rad)" for n, u in zip(names, units)),
+            "# the servos it was tuned with (write these into them): " + servo_settings(robot, names),
             "t_s," + ",".join(f"id{u.id}" for u in units)]
     rows += [f"{t:.4f}," + ",".join(str(int(v)) for v in r) for t, r in zip(table.t, ticks)]
     return out, "\n".join(rows) + "\n", said
+
+
+def servo_settings(robot: RobotModel, names) -> str:
+    """What the simulated servos of ``names`` (the robot's joints) were, as a team sets its own: a
+    motor's P register and supply voltage, a pd servo's gain and torque; ids grouped by setting."""
+    from ..servos import MotorServo
+    groups: dict[str, list[str]] = {}
+    for n in names:
+        s = robot.servos[n]
+        if isinstance(s, MotorServo):
+            key = f"{s.preset or 'motor'} P {s.p_gain:.4g} at {s.voltage:g} V ({s.friction_model})"
+        else:
+            key = f"pd kp {s.kp:g} N m/rad, kv {s.kv + 0.0:g}, {s.torque:g} N m"
+        groups.setdefault(key, []).append(n)
+    return "; ".join(f"{k}: {', '.join(v)}" for k, v in groups.items())

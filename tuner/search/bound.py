@@ -46,7 +46,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-__all__ = ["robot_bound", "LegLimits", "leg_limits", "lipm_phase_function", "one_step_capture", "push_bound", "push_bounds",
+__all__ = ["robot_bound", "LegLimits", "leg_limits", "swing_times", "lipm_phase_function", "one_step_capture", "push_bound", "push_bounds",
            "speed_bound", "swing_time", "bottle_figures", "LEAVES_OUT"]
 
 #: what the model leaves out, said with every bound
@@ -180,7 +180,27 @@ def _swing_bounds(lim: LegLimits, step: Any) -> list[Any]:
 
 def swing_time(lim: LegLimits, step: float) -> float:
     """[s] The shortest swing of a step ``step`` [m] long: the largest of ``_swing_bounds``."""
-    return max(max(_swing_bounds(lim, abs(step))), 1e-3)
+    return float(swing_times(lim, np.array([abs(step)]))[0])
+
+
+def swing_times(lim: LegLimits, steps: np.ndarray) -> np.ndarray:
+    """``swing_time`` of many steps [m] at once (numpy: a motor's exact move solved for all together)."""
+    steps = np.abs(np.asarray(steps, dtype=float))
+    hip = 2 * np.arcsin(np.clip(steps / (2 * lim.leg), -1.0, 1.0))
+
+    def bounds(angle, speed, torque, inertia, droop, friction):
+        if droop > 0 and inertia > 0 and math.isfinite(torque):
+            if torque <= friction:
+                return np.full(np.shape(angle), math.inf)
+            return np.asarray(move_time(angle, torque - friction, droop, inertia), dtype=float)
+        out = np.asarray(angle, dtype=float) / speed if speed > 0 else np.full(np.shape(angle), math.inf)
+        if inertia > 0 and math.isfinite(torque):
+            out = np.maximum(out, 2 * np.sqrt(np.asarray(angle) * inertia / torque + 1e-12))
+        return out
+    knee = 2 * bounds(np.array([_knee_bend(lim)]), lim.knee_speed, lim.knee_torque, lim.shank_inertia, lim.knee_droop,
+                      lim.knee_friction)[0]
+    swing = np.maximum(bounds(hip, lim.hip_speed, lim.hip_torque, lim.leg_inertia, lim.hip_droop, lim.hip_friction), knee)
+    return np.maximum(swing, 1e-3)
 
 
 def lipm_phase_function() -> ca.Function:
@@ -200,7 +220,8 @@ def one_step_capture(lim: LegLimits, step: float | None = None) -> float:
     w = lim.omega
     if step is not None:
         return w * (lim.zmp_front() + step * math.exp(-w * swing_time(lim, step)))
-    return max(one_step_capture(lim, s) for s in np.linspace(0.0, lim.reach, 2001))
+    steps = np.linspace(0.0, lim.reach, 2001)
+    return float(np.max(w * (lim.zmp_front() + steps * np.exp(-w * swing_times(lim, steps)))))
 
 
 def push_bound(lim: LegLimits, steps: int = 3) -> dict[str, Any]:
@@ -267,7 +288,7 @@ def speed_bound(lim: LegLimits) -> dict[str, Any]:
     """The largest sustained forward speed [m/s]: step / swing_time(step) over steps up to the
     reach (a periodic LIPM gait with instantaneous double support), and its Froude number."""
     steps = np.linspace(lim.reach / 200, lim.reach, 200)
-    speeds = np.array([s / swing_time(lim, s) for s in steps])
+    speeds = steps / swing_times(lim, steps)
     k = int(np.argmax(speeds))
     v = float(speeds[k])
     return {"speed_mps": v, "step_m": float(steps[k]), "period_s": float(swing_time(lim, steps[k])),
