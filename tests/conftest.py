@@ -1,4 +1,5 @@
 import os
+import subprocess
 import sys
 from pathlib import Path
 
@@ -21,3 +22,41 @@ def run_env():
     env = dict(os.environ)
     env["MPLBACKEND"] = "Agg"
     return env
+
+
+def run_in_process(args, cwd=None) -> "subprocess.CompletedProcess":
+    """The command line run in this process (``tuner.cli.main``, what the console script calls), its
+    output captured: a ``subprocess.CompletedProcess`` (returncode, stdout, stderr), as a subprocess
+    run would give it, without a second of imports per call. For what a verb says and writes; a
+    test of processes (a kill, Ctrl-C, the environment) keeps the subprocess."""
+    import contextlib
+    import io
+    import signal
+    import subprocess
+
+    from tuner.cli import main
+    args = [str(a) for a in args]
+    out, err = io.StringIO(), io.StringIO()
+    here, handler = os.getcwd(), signal.getsignal(signal.SIGINT)
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    try:
+        if cwd is not None:
+            os.chdir(cwd)
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            code = main(args)
+    finally:
+        os.chdir(here)
+        signal.signal(signal.SIGINT, handler)
+    return subprocess.CompletedProcess(["gait-tuner", *args], code, out.getvalue(), err.getvalue())
+
+
+def run_cli(cmd, args, env=None, cwd=None, timeout=600, **kw) -> "subprocess.CompletedProcess":
+    """``cmd + args`` as the tests' helpers ran it: in this process when nothing about the process
+    is asked (the test's own environment, no input, no other keyword), in a subprocess otherwise."""
+    import subprocess
+    same_env = env is None or {k: v for k, v in env.items() if k != "MPLBACKEND"} == \
+        {k: v for k, v in os.environ.items() if k != "MPLBACKEND"}
+    if same_env and not kw:
+        return run_in_process(args, cwd=cwd)
+    return subprocess.run(list(cmd) + [str(a) for a in args], capture_output=True, text=True, env=env,
+                          cwd=cwd, timeout=timeout, **kw)

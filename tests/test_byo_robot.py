@@ -2,7 +2,6 @@
 
 import json
 import math
-import subprocess
 
 import mujoco
 import numpy as np
@@ -19,6 +18,7 @@ from tuner.robots.mjcf_geometry import axis_line_distance
 from tuner.report.robot_check import robot_report
 from tuner.sim.rollout import Simulator
 from tuner.sim.surfaces import SURFACES
+from conftest import run_cli
 
 
 def test_axis_line_distance_hand_checked():
@@ -162,7 +162,8 @@ def test_map_servo_overrides_and_presets(tmp_path):
 
 
 def _run(cmd, args, env, cwd=None):
-    return subprocess.run(cmd + args, capture_output=True, text=True, env=env, timeout=300, cwd=cwd)
+    """In this process unless the test asks for a process (conftest.run_cli)."""
+    return run_cli(cmd, args, env, cwd=cwd)
 
 
 def _swap_lr(jmap, kinds):

@@ -7,7 +7,6 @@ import dataclasses
 import json
 import math
 import re
-import subprocess
 from pathlib import Path
 
 import mujoco
@@ -20,12 +19,14 @@ from tuner.sim.challenge import challenge, drop_height, push_trial, rank
 from tuner.sim.rollout import Simulator
 from tuner.sim.scene import BOTTLE_MASS
 from tuner.sim.surfaces import SURFACES
+from conftest import run_cli
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def run(cmd, args, env, **kw):
-    return subprocess.run(cmd + [str(a) for a in args], capture_output=True, text=True, env=env, timeout=900, **kw)
+    """In this process unless the test asks for a process (conftest.run_cli)."""
+    return run_cli(cmd, args, env, **kw)
 
 
 @pytest.fixture(scope="module")

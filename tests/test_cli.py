@@ -1,15 +1,16 @@
 """The real ``gait-tuner`` CLI, run in a subprocess: outputs, exit codes, one-line errors."""
 
 import csv
-import subprocess
 
 import pytest
 
 from gaits import JOINT_NAMES
+from conftest import run_cli
 
 
 def run(cmd, args, env, cwd=None):
-    return subprocess.run(cmd + args, capture_output=True, text=True, env=env, cwd=cwd, timeout=120)
+    """In this process unless the test asks for a process (conftest.run_cli)."""
+    return run_cli(cmd, args, env, cwd=cwd)
 
 
 @pytest.mark.parametrize("family", ["tlipfm", "eros", "cosine"])

@@ -1,13 +1,14 @@
 """The simulate / experiment / surfaces verbs through the real CLI."""
 
 import json
-import subprocess
 
 import pytest
+from conftest import run_cli
 
 
 def run(cmd, args, env):
-    return subprocess.run(cmd + args, capture_output=True, text=True, env=env, timeout=600)
+    """In this process unless the test asks for a process (conftest.run_cli)."""
+    return run_cli(cmd, args, env)
 
 
 def test_simulate_prints_metrics_json_and_plots(gait_tuner_cmd, run_env, tmp_path):
@@ -151,9 +152,8 @@ def test_compare_rows_do_not_depend_on_workers(tmp_path):
 
 def test_simulate_json_is_strict_when_a_metric_is_undefined(gait_tuner_cmd, run_env):
     import json as _json
-    r = subprocess.run(gait_tuner_cmd + ["simulate", "--params", "tkux-table2", "--surface", "grass50",
-                                         "--duration", "0.01", "--json"], capture_output=True, text=True,
-                       env=run_env, timeout=120)
+    r = run_cli(gait_tuner_cmd, ["simulate", "--params", "tkux-table2", "--surface", "grass50",
+                                         "--duration", "0.01", "--json"], run_env)
     assert r.returncode == 0, r.stderr
     assert "NaN" not in r.stdout
     m = _json.loads(r.stdout)["metrics"]

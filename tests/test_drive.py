@@ -4,7 +4,6 @@ turns it off, and a command stream is walked (planned per step by a table) and i
 from __future__ import annotations
 
 import json
-import subprocess
 
 import numpy as np
 import pytest
@@ -13,13 +12,15 @@ import gaits
 from gaits import CommandStream, Drive, ParamError
 from tuner.params_io import resolve_params
 from tuner.robots import load_robot
+from conftest import run_cli
 
 FB = "kidsize-robust-fb-grass50"
 ROBOT = load_robot("kidsize")
 
 
 def run(cmd, args, env, **kw):
-    return subprocess.run(cmd + [str(a) for a in args], capture_output=True, text=True, env=env, timeout=300, **kw)
+    """In this process unless the test asks for a process (conftest.run_cli)."""
+    return run_cli(cmd, args, env, **kw)
 
 
 def test_simulate_uses_the_files_stabiliser_and_no_stabiliser_turns_it_off(gait_tuner_cmd, run_env):
@@ -171,11 +172,10 @@ def test_robustness_walks_a_command(gait_tuner_cmd, run_env):
 def test_a_stream_row_shorter_than_a_step_is_said_not_walked(tmp_path, gait_tuner_cmd, run_env):
     """A table plans one command per step from the row at its start: a row between two starts was
     never walked, and nothing said so."""
-    import subprocess
     stream = tmp_path / "short.csv"
     stream.write_text("t,vx,vy,wz\n0,0.1,0,0\n2.0,0.2,0,0\n2.05,0,0,0.5\n2.1,0.1,0,0\n")
-    r = subprocess.run(gait_tuner_cmd + ["simulate", "--params", "kidsize-omni-carpet4", "--surface", "rigid",
-                                         "--commands", str(stream)], capture_output=True, text=True, env=run_env)
+    r = run_cli(gait_tuner_cmd, ["simulate", "--params", "kidsize-omni-carpet4", "--surface", "rigid",
+                                         "--commands", str(stream)], run_env)
     assert r.returncode == 0, r.stderr
     assert "note: 2 row(s) of the stream last less than a step of this set and are not walked" in r.stderr
     assert "the rows at 2 s, 2.05 s" in r.stderr

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import subprocess
 
 import pytest
 
@@ -18,6 +17,7 @@ from tuner.robots import load_robot
 from tuner.sim.randomisation import NONE, draw
 from tuner.sim.rollout import Simulator
 from tuner.sim.surfaces import SURFACES, load_surface
+from conftest import run_cli
 
 NOISE = dataclasses.replace(NONE, imu_noise_deg=0.5, gyro_noise=0.05, accel_noise=0.05, encoder_noise=0.001,
                             encoder_rate_noise=0.05, force_noise=0.5)
@@ -42,9 +42,8 @@ def record_walk(path, command: str, seconds: float, surface=HIDDEN, seed: int = 
 
 
 def _identify(gait_tuner_cmd, run_env, tmp_path, recording, out):
-    r = subprocess.run(gait_tuner_cmd + ["identify", "ground", "--robot", "kidsize", "--surface", "grass30",
-                                         "--recording", str(recording), "--out", str(tmp_path / out), "--json"],
-                       capture_output=True, text=True, env=run_env)
+    r = run_cli(gait_tuner_cmd, ["identify", "ground", "--robot", "kidsize", "--surface", "grass30",
+                                         "--recording", str(recording), "--out", str(tmp_path / out), "--json"], run_env)
     assert r.returncode == 0, r.stderr
     return json.loads(r.stdout)
 
@@ -80,9 +79,8 @@ def test_a_walk_without_an_imu_is_one_line(tmp_path, gait_tuner_cmd, run_env):
     with Recorder(tmp_path / "r.mcap", RecordingMeta(robot="kidsize")) as rec:
         for k in range(100):
             rec.record(Measurement(k * 0.01, q=[0.0] * 20), None, [0.0] * 20)
-    r = subprocess.run(gait_tuner_cmd + ["identify", "ground", "--robot", "kidsize", "--recording",
-                                         str(tmp_path / "r.mcap"), "--out", str(tmp_path / "g")],
-                       capture_output=True, text=True, env=run_env)
+    r = run_cli(gait_tuner_cmd, ["identify", "ground", "--robot", "kidsize", "--recording",
+                                         str(tmp_path / "r.mcap"), "--out", str(tmp_path / "g")], run_env)
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert "no IMU orientation channel" in r.stderr and not (tmp_path / "g").exists()
 
@@ -92,15 +90,13 @@ def test_transfer_walks_a_set_in_both_worlds(tmp_path, gait_tuner_cmd, run_env):
     identified file's start; a file whose name does not say it is one line asking for it."""
     from tuner.report.calibration import surface_yaml
     (tmp_path / "s.yaml").write_text(surface_yaml(dataclasses.replace(HIDDEN, name="grass30-identified"), "test"))
-    r = subprocess.run(gait_tuner_cmd + ["transfer", "kidsize-engine-carpet4", "--robot", "kidsize", "--surface",
-                                         str(tmp_path / "s.yaml"), "--walks", "2", "--json"],
-                       capture_output=True, text=True, env=run_env)
+    r = run_cli(gait_tuner_cmd, ["transfer", "kidsize-engine-carpet4", "--robot", "kidsize", "--surface",
+                                         str(tmp_path / "s.yaml"), "--walks", "2", "--json"], run_env)
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
     assert out["default"]["world"] == "kidsize on grass30" and out["identified"]["world"] == "kidsize on grass30-identified"
     assert all(out[k]["walks"] == 2 and 0.0 <= out[k]["survival"] <= 1.0 for k in out)
     (tmp_path / "t.yaml").write_text(surface_yaml(dataclasses.replace(HIDDEN, name="field-a"), "test"))
-    r = subprocess.run(gait_tuner_cmd + ["transfer", "kidsize-engine-carpet4", "--robot", "kidsize", "--surface",
-                                         str(tmp_path / "t.yaml"), "--walks", "2"], capture_output=True, text=True,
-                       env=run_env)
+    r = run_cli(gait_tuner_cmd, ["transfer", "kidsize-engine-carpet4", "--robot", "kidsize", "--surface",
+                                         str(tmp_path / "t.yaml"), "--walks", "2"], run_env)
     assert r.returncode == 2 and "give --default-surface" in r.stderr and len(r.stderr.strip().splitlines()) == 1

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import subprocess
 
 import numpy as np
 import pytest
@@ -13,6 +12,7 @@ from tuner.robots import load_robot
 from tuner.search.initial import GAIN_MARGIN, REACH_MAX, SPEED_MARGIN, initial_walk, leg_gains, leg_masses
 from tuner.sim.surfaces import load_surface
 from tuner.search.study import load_study
+from conftest import run_cli
 
 MAP = ROOT / "examples" / "robots" / "kid3kg" / "kid3kg.yaml"
 
@@ -33,8 +33,7 @@ def test_a_robots_masses_add_up_to_its_model():
 
 def test_init_writes_a_study_and_a_start_that_walk_the_robot(tmp_path, gait_tuner_cmd, run_env):
     out = tmp_path / "init"
-    r = subprocess.run(gait_tuner_cmd + ["init", "--robot", str(MAP), "--surface", "grass30", "--out", str(out)],
-                       capture_output=True, text=True, env=run_env)
+    r = run_cli(gait_tuner_cmd, ["init", "--robot", str(MAP), "--surface", "grass30", "--out", str(out)], run_env)
     assert r.returncode == 0, r.stderr
     assert "mass_upper" in r.stdout and "from the model's" in r.stdout and "servo's 6.5 rad/s" in r.stdout
     # kid3kg's MJCF states its servos' gains: init keeps them and writes no robot file of its own
@@ -55,20 +54,18 @@ def test_init_writes_a_study_and_a_start_that_walk_the_robot(tmp_path, gait_tune
     assert len(ours) == len(rungs) and all(b.period < spec.base.period for b in ours)
     assert "also tried" in r.stdout
     start = out / "kid3kg-grass30-match-start.yaml"
-    r = subprocess.run(gait_tuner_cmd + ["simulate", "--robot", str(MAP), "--params", str(start), "--surface",
-                                         "grass30", "--command", "0.1,0,0", "--json"], capture_output=True, text=True,
-                       env=run_env)
+    r = run_cli(gait_tuner_cmd, ["simulate", "--robot", str(MAP), "--params", str(start), "--surface",
+                                         "grass30", "--command", "0.1,0,0", "--json"], run_env)
     m = json.loads(r.stdout)["metrics"]
     assert m["outcome"] == "completed" and 0.08 < m["vx_mps"] < 0.14, m
-    r = subprocess.run(gait_tuner_cmd + ["tune", str(study), "--trials", "2", "--workers", "1", "--runs",
-                                         str(tmp_path / "runs")], capture_output=True, text=True, env=run_env)
+    r = run_cli(gait_tuner_cmd, ["tune", str(study), "--trials", "2", "--workers", "1", "--runs",
+                                         str(tmp_path / "runs")], run_env)
     assert r.returncode == 0, r.stderr[-2000:]
     # two trials of match walks may all stop at their falls: then it says so (it was an internal error)
     assert r.stdout.strip().splitlines()[-1].startswith(("export it with", "no trial of study kid3kg-grass30-match "
                                                                           "completed yet",
                                                          "no feasible trial of study kid3kg-grass30-match")), r.stdout
-    r = subprocess.run(gait_tuner_cmd + ["trials", str(study), "--runs", str(tmp_path / "runs"), "--json"],
-                       capture_output=True, text=True, env=run_env)
+    r = run_cli(gait_tuner_cmd, ["trials", str(study), "--runs", str(tmp_path / "runs"), "--json"], run_env)
     shown = json.loads(r.stdout)["shown"]
     # two walked (the CasADi seed, the start); the shorter-period starts wait for the next run
     assert [t["state"] for t in shown].count("waiting") == len(rungs) and len(shown) == 2 + len(rungs)
@@ -78,8 +75,7 @@ def test_init_writes_a_study_and_a_start_that_walk_the_robot(tmp_path, gait_tune
 @pytest.mark.parametrize("purpose, kind", [("speed", "speed"), ("push", "challenge")])
 def test_init_for_speed_and_push(tmp_path, gait_tuner_cmd, run_env, purpose, kind):
     out = tmp_path / purpose
-    r = subprocess.run(gait_tuner_cmd + ["init", "--surface", "carpet4", "--for", purpose, "--out", str(out)],
-                       capture_output=True, text=True, env=run_env)
+    r = run_cli(gait_tuner_cmd, ["init", "--surface", "carpet4", "--for", purpose, "--out", str(out)], run_env)
     assert r.returncode == 0, r.stderr
     assert load_study(str(out / f"kidsize-carpet4-{purpose}.yaml")).kind == kind
 
@@ -119,8 +115,7 @@ def test_init_writes_the_sized_gains_into_a_copy_of_the_map(tmp_path, gait_tuner
     path = U.workspace(tmp_path, U.mesh_urdf())
     before = path.read_text()
     out = tmp_path / "elsewhere" / "init"
-    r = subprocess.run(gait_tuner_cmd + ["init", "--robot", str(path), "--surface", "rigid", "--out", str(out)],
-                       capture_output=True, text=True, env=run_env)
+    r = run_cli(gait_tuner_cmd, ["init", "--robot", str(path), "--surface", "rigid", "--out", str(out)], run_env)
     assert r.returncode == 0, r.stderr
     assert "legs p_gain" in r.stdout and "sized to the weight" in r.stdout
     copy = out / f"{load_robot(str(path)).name}-rigid-match-robot.yaml"

@@ -1,17 +1,18 @@
 """The robust objective, the robustness command and shipped robust results, through the real CLI."""
 
 import json
-import subprocess
 
 import pytest
 
 import gaits
 from tuner.errors import UserError
 from tuner.search.study import load_study
+from conftest import run_cli
 
 
 def run(cmd, args, env, cwd=None):
-    return subprocess.run(cmd + args, capture_output=True, text=True, env=env, timeout=600, cwd=cwd)
+    """In this process unless the test asks for a process (conftest.run_cli)."""
+    return run_cli(cmd, args, env, cwd=cwd)
 
 
 def test_robustness_command_strict_json_and_plot(gait_tuner_cmd, run_env, tmp_path):

@@ -4,7 +4,6 @@ checked against each servo's speed and range (issue: team robots, item 4)."""
 from __future__ import annotations
 
 import math
-import subprocess
 
 import numpy as np
 import pytest
@@ -13,6 +12,7 @@ import third_party_robot as T
 from tuner.errors import UserError
 from tuner.robots import load_robot
 from tuner.robots.servo_table import ServoUnit, check_table, from_units, read_servo_units, to_units
+from conftest import run_cli
 
 JOINTS = [T.joint_name("head_pan", "c"), T.joint_name("head_tilt", "c")] + \
     [T.joint_name(k, s) for s in "lr" for k in T.ARM] + [T.joint_name(k, s) for s in "lr" for k in T.LEG]
@@ -29,7 +29,8 @@ def servos_yaml(skip: str | None = None, extra: str = "") -> str:
 
 
 def run(cmd, args, env):
-    return subprocess.run(cmd + [str(a) for a in args], capture_output=True, text=True, env=env, timeout=600)
+    """In this process unless the test asks for a process (conftest.run_cli)."""
+    return run_cli(cmd, args, env)
 
 
 def test_units_round_trip_within_half_a_tick():

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import subprocess
 
 import numpy as np
 import pytest
@@ -15,12 +14,14 @@ from tuner.sim.rollout import Simulator
 from tuner.search.study import load_study
 from tuner.sim.surfaces import load_surface
 from tuner.sim.walk_speed import command_limit, speed_test
+from conftest import run_cli
 
 SPEEDY = dict(period=0.3, t1=0.0375, t2=0.2625, h_z=0.025, a=0.0)
 
 
 def _run(cmd, args, env, cwd=None):
-    return subprocess.run(cmd + args, capture_output=True, text=True, env=env, cwd=cwd, timeout=300)
+    """In this process unless the test asks for a process (conftest.run_cli)."""
+    return run_cli(cmd, args, env, cwd=cwd)
 
 
 def test_simulate_command_json_reports_achieved_beside_commanded(gait_tuner_cmd, run_env):

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 import re
-import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -16,12 +15,14 @@ import pytest
 import third_party_robot as T
 from tuner.errors import UserError
 from tuner.robots import load_robot
+from conftest import run_cli
 
 PKG = "kid_description"
 
 
 def run(cmd, args, env):
-    return subprocess.run(cmd + [str(a) for a in args], capture_output=True, text=True, env=env, timeout=600)
+    """In this process unless the test asks for a process (conftest.run_cli)."""
+    return run_cli(cmd, args, env)
 
 
 def one_line_exit_2(r) -> str:

@@ -4,20 +4,21 @@ by a study through the CLI, like the built-in gaits; every mistake in its file i
 from __future__ import annotations
 
 import json
-import subprocess
 from pathlib import Path
 
 import pytest
 import yaml
 
 from tuner.controllers import load_controller
+from conftest import run_cli
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "controllers"
 
 
 def run(cmd, args, env, **kw):
-    return subprocess.run(cmd + [str(a) for a in args], capture_output=True, text=True, env=env, timeout=600, **kw)
+    """In this process unless the test asks for a process (conftest.run_cli)."""
+    return run_cli(cmd, args, env, **kw)
 
 
 def test_the_example_controller_walks_and_reports_its_plan(gait_tuner_cmd, run_env):

@@ -2,7 +2,6 @@
 a model that any MuJoCo loop walks exactly as our simulator did, `view` without a display is one
 line."""
 
-import subprocess
 
 import mujoco
 import numpy as np
@@ -13,6 +12,7 @@ from tuner.report.video import frame_ticks, video_info
 from tuner.robots import load_robot
 from tuner.sim.rollout import Simulator
 from tuner.sim.surfaces import SURFACES
+from conftest import run_cli
 
 
 def test_frame_ticks_play_in_real_time():
@@ -24,10 +24,9 @@ def test_frame_ticks_play_in_real_time():
 
 def test_render_writes_the_expected_video(gait_tuner_cmd, run_env, tmp_path):
     out = tmp_path / "walk.mp4"
-    r = subprocess.run(gait_tuner_cmd + ["render", "--params", "tkux-table2", "--surface", "grass50",
+    r = run_cli(gait_tuner_cmd, ["render", "--params", "tkux-table2", "--surface", "grass50",
                                          "--duration", "1.5", "--size", "320x240", "--fps", "20",
-                                         "--out", str(out)], capture_output=True, text=True, env=run_env,
-                       timeout=300)
+                                         "--out", str(out)], run_env)
     assert r.returncode == 0, r.stderr
     info = video_info(out)
     # 1.5 s at 20 fps: 31 frames of the walk, then the last one held for 1 s (20 frames)
@@ -37,10 +36,9 @@ def test_render_writes_the_expected_video(gait_tuner_cmd, run_env, tmp_path):
 
 @pytest.mark.slow   # the MP4 writer is tested by render's test above; this films two whole walks at 640x480
 def test_compare_video_films_every_set_on_every_surface(gait_tuner_cmd, run_env, tmp_path):
-    r = subprocess.run(gait_tuner_cmd + ["compare", "tkux-table2", "--no-baselines", "--surfaces", "rigid,carpet4",
+    r = run_cli(gait_tuner_cmd, ["compare", "tkux-table2", "--no-baselines", "--surfaces", "rigid,carpet4",
                                          "--random-rollouts", "0", "--workers", "1", "--video",
-                                         "--out", str(tmp_path)], capture_output=True, text=True, env=run_env,
-                       timeout=600)
+                                         "--out", str(tmp_path)], run_env)
     assert r.returncode == 0, r.stderr
     videos = sorted((tmp_path / "videos").glob("*.mp4"))
     assert [v.name for v in videos] == ["tkux-table2--carpet4.mp4", "tkux-table2--rigid.mp4"]
@@ -56,24 +54,22 @@ def test_compare_video_films_every_set_on_every_surface(gait_tuner_cmd, run_env,
     (["--fps", "0"], "fps"),
 ])
 def test_render_bad_options_are_one_line(gait_tuner_cmd, run_env, tmp_path, args, words):
-    r = subprocess.run(gait_tuner_cmd + ["render", "--params", "tkux-table2", "--out", str(tmp_path / "w.mp4")]
-                       + args, capture_output=True, text=True, env=run_env, timeout=300)
+    r = run_cli(gait_tuner_cmd, ["render", "--params", "tkux-table2", "--out", str(tmp_path / "w.mp4")]
+                       + args, run_env)
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and words in r.stderr
 
 
 def test_view_without_a_display_is_one_line(gait_tuner_cmd, run_env):
     env = {k: v for k, v in run_env.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
-    r = subprocess.run(gait_tuner_cmd + ["view", "--params", "tkux-table2"], capture_output=True, text=True,
-                       env=env, timeout=300)
+    r = run_cli(gait_tuner_cmd, ["view", "--params", "tkux-table2"], env)
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "display" in r.stderr
 
 
 @pytest.mark.parametrize("surface", ["rigid", "carpet4"])
 def test_saved_scene_walks_as_the_simulator(gait_tuner_cmd, run_env, tmp_path, surface):
     scene = tmp_path / "scene.xml"
-    r = subprocess.run(gait_tuner_cmd + ["simulate", "--params", "tkux-table2", "--surface", surface,
-                                         "--duration", "2", "--save-scene", str(scene)],
-                       capture_output=True, text=True, env=run_env, timeout=300)
+    r = run_cli(gait_tuner_cmd, ["simulate", "--params", "tkux-table2", "--surface", surface,
+                                 "--duration", "2", "--save-scene", str(scene)], run_env)
     assert r.returncode == 0, r.stderr
     robot = load_robot("kidsize")
     sim = Simulator(robot, SURFACES[surface])
