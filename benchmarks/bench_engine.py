@@ -56,7 +56,7 @@ sys.path.insert(0, str(ROOT))
 import gaits  # noqa: E402
 from gaits import list_baselines  # noqa: E402
 from tuner.params_io import list_results, resolve_params  # noqa: E402
-from tuner.sim.challenge import challenge  # noqa: E402
+from tuner.challenge.rules import challenge  # noqa: E402
 from tuner.sim.metrics import AXES, steady_tracking, tracking_by_axis, tracking_shares  # noqa: E402
 from tuner.sim.robustness import evaluate  # noqa: E402
 from tuner.sim.rollout import Simulator  # noqa: E402
@@ -245,7 +245,7 @@ def challenge_row(sim, surface: str, label: str, seeds, gf: gaits.GaitFile | Non
 
 def directions(surface: str, labels) -> None:
     """Print, per set, the largest single push per direction (``challenge.push_by_direction``)."""
-    from tuner.sim.challenge import push_by_direction
+    from tuner.challenge.rules import push_by_direction
     sim = challenge_sim(surface)
     for label in labels:
         rows = push_by_direction(sim, gaits.Drive.of(resolve_params(label, None), source=label))
@@ -258,7 +258,7 @@ def directions(surface: str, labels) -> None:
 def limits(surface: str) -> None:
     """Print, for the engine set's last successful and first failing challenge trial on ``surface``,
     the re-plans per limit and the servos at a limit in the second after each push."""
-    from tuner.sim.challenge import PUSH_TIMES_S, push_trial
+    from tuner.challenge.rules import PUSH_TIMES_S, push_trial
     from tuner.sim.walk_speed import saturation
     sim = challenge_sim(surface)
     drive = gaits.Drive.of(resolve_params("kidsize-engine-carpet4", None), source="kidsize-engine-carpet4")
@@ -302,7 +302,7 @@ def transfer(surface: str, label: str = "kidsize-engine-carpet4") -> None:
     the 50 ms before), its momentum as a share of the bottle's, and the capture point's jump; then
     the LIPM's N-step capture bound for the set's reach, sole and step, and what issue 21's target
     (twice the best open-loop set's momentum) asks of it at the measured share."""
-    from tuner.sim.challenge import impact_momentum, push_trial
+    from tuner.challenge.rules import impact_momentum, push_trial
     sim = challenge_sim(surface)
     gf = resolve_params(label, None)
     drive = gaits.Drive.of(gf, source=label)

@@ -25,8 +25,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from tuner.robots import load_robot                       # noqa: E402
 from tuner.servos import MotorServo, preset               # noqa: E402
-from tuner.sim.harness import Harness, excitation, step_train   # noqa: E402
-from tuner.sim.identify import JointLog, identify_servos  # noqa: E402
+from tuner.identify.harness import Harness, excitation, step_train   # noqa: E402
+from tuner.identify.servos import JointLog, identify_servos  # noqa: E402
 
 NOISE = 1e-3       # [rad] the encoders' noise in the recordings (and the fit's unit)
 

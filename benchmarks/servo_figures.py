@@ -63,7 +63,7 @@ def walks(robot: str, surface: str, set_name: str, scenario: MatchDistribution, 
 
 
 def push_d(robot: str, set_name: str) -> float | None:
-    from tuner.sim.challenge import challenge_2025
+    from tuner.challenge.rules import challenge_2025
     from tuner.sim.rollout import Simulator
     from tuner.robots import load_robot
     from tuner.sim.surfaces import load_surface

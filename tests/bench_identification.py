@@ -111,7 +111,7 @@ def main() -> None:
 
     # 1. what a team records: a sweep in the harness, two walks on the field
     from tuner.robots import load_robot
-    from tuner.sim.harness import Harness, record_sweep
+    from tuner.identify.harness import Harness, record_sweep
     sh(out, "excite", "--robot", str(KID3KG), "--out", "sweep.csv", "--duration", "30")
     targets = np.loadtxt(out / "sweep.csv", delimiter=",", skiprows=1)[:, 1:]
     h = Harness(load_robot(hidden_robot))

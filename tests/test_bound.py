@@ -1,4 +1,4 @@
-"""The push-recovery challenge's physical bound (tuner/search/bound.py, `challenge bound`): the
+"""The push-recovery challenge's physical bound (tuner/challenge/bound.py, `challenge bound`): the
 trajectory optimisation against the closed-form one-step capture region, and what it reports."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from tuner.robots import load_robot
-from tuner.search.bound import (LegLimits, bottle_figures, leg_limits, lipm_phase_function,
+from tuner.challenge.bound import (LegLimits, bottle_figures, leg_limits, lipm_phase_function,
                                 push_bound, speed_bound, swing_time)
 
 LIM = LegLimits(mass=5.0, z_c=0.25, sole_front=0.06, sole_back=0.04, reach=0.16, leg=0.19, thigh=0.11, shank=0.11,
@@ -100,7 +100,7 @@ def test_a_motors_fastest_move_follows_its_torque_speed_line():
     integrated finely (full duty forward, then back until rest); no shorter than the old bounds (at
     no-load speed throughout, at stall torque throughout); a swing on real MX-64s takes longer than
     the same swing with round one's servos, and the bound of kidsize is smaller than kidsize-pd's."""
-    from tuner.search.bound import _move_bounds, move_time
+    from tuner.challenge.bound import _move_bounds, move_time
     tau, droop, inertia = 5.84, 0.678, 0.03
     for angle in (0.1, 0.6, 1.2):
         t_exact = move_time(angle, tau, droop, inertia)
@@ -129,7 +129,7 @@ def test_a_robot_whose_servos_cannot_swing_a_leg_is_one_line(tmp_path):
     import dataclasses
 
     from tuner.errors import UserError
-    from tuner.search.bound import robot_bound
+    from tuner.challenge.bound import robot_bound
     from tuner.sim.surfaces import load_surface
     weak = load_robot("kidsize")
     weak = dataclasses.replace(weak, servos={k: s.replace(voltage=0.05) for k, s in weak.servos.items()})

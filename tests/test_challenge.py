@@ -15,7 +15,7 @@ import pytest
 import gaits
 from tuner.params_io import resolve_params
 from tuner.robots import load_robot
-from tuner.sim.challenge import challenge, drop_height, push_trial, rank
+from tuner.challenge.rules import challenge, drop_height, push_trial, rank
 from tuner.sim.rollout import Simulator
 from tuner.sim.scene import BOTTLE_MASS
 from tuner.sim.surfaces import SURFACES
@@ -250,7 +250,7 @@ def test_an_explicit_push_comes_from_the_direction_asked():
 def test_push_by_direction_raises_d_until_a_push_time_fails(monkeypatch):
     """Per direction, D grows by the step until one of the push times fails; the best is the last D
     every push time survived (a stand-in trial that fails beyond a known D per direction)."""
-    import tuner.sim.challenge as ch
+    import tuner.challenge.rules as ch
     limit = {0.0: 0.75, 90.0: 0.45, 180.0: 0.35}
     calls = []
 
@@ -298,7 +298,7 @@ def test_challenge_by_direction_through_the_cli(gait_tuner_cmd, run_env):
 # --- the 2025 rules ---------------------------------------------------------------------------
 
 def test_the_2025_trial_pushes_from_the_front_from_behind_then_the_third_side():
-    from tuner.sim.challenge import PUSH_TIMES_2025, pushes_2025
+    from tuner.challenge.rules import PUSH_TIMES_2025, pushes_2025
     for third, last in (("front", 180.0), ("back", 0.0)):
         p = pushes_2025(7, 0.4, third)
         assert all(abs(d - want) <= 10.0 for (_, d), want in zip(p, (180.0, 0.0, last)))
@@ -316,14 +316,14 @@ def test_the_2025_trial_pushes_from_the_front_from_behind_then_the_third_side():
     (4.0, [False, False, False], False, False),   # fell after the first
 ])
 def test_absorbed_pushes_and_partial_success(t_fall, absorbed, full, partial):
-    from tuner.sim import challenge as C
+    from tuner.challenge import rules as C
     trial = {"pushes": [{"t_s": 3.2}, {"t_s": 7.8}, {"t_s": 12.3}], "t_fall_s": t_fall}
     got = C.absorbed(trial)
     assert got == absorbed and (sum(got) == 3) == full and (sum(got) >= 2) == partial
 
 
 def test_m_by_the_2025_formula():
-    from tuner.sim.challenge import rank_2025
+    from tuner.challenge.rules import rank_2025
     # L 1.5 m, D 0.5 m: H = 1.5 - sqrt(2.0) = 0.0857864 m; h_c 0.25, h_i 0.25, m_B 3, m_R 5
     H = 1.5 - math.sqrt(2.0)
     assert rank_2025(1.5, 0.5, 3.0, 5.0, 0.25, 0.25) == pytest.approx(math.sqrt(H) / 0.25 * 0.6)
@@ -364,7 +364,7 @@ def test_the_2025_challenge_through_the_cli(gait_tuner_cmd, run_env):
 
 
 def test_the_2025_challenge_refuses_the_2019_bottle():
-    from tuner.sim.challenge import challenge_2025
+    from tuner.challenge.rules import challenge_2025
     sim = Simulator(load_robot("kidsize"), SURFACES["carpet4"], pendulum=1.5)      # the default: the 2019 bottle
     with pytest.raises(ValueError, match="the 2019 trial's"):
         challenge_2025(sim, gaits.Drive.of(resolve_params("kidsize-engine-carpet4", None)))

@@ -1,4 +1,4 @@
-"""Servo identification (tuner/sim/harness.py, tuner/sim/identify.py, `gait-tuner excite`,
+"""Servo identification (tuner/identify/harness.py, tuner/identify/servos.py, `gait-tuner excite`,
 `gait-tuner identify servos`): the harness' command path, sweeps inside every servo's limits, and
 hidden servos recovered from recordings the tests simulate in a world of their own."""
 
@@ -12,8 +12,8 @@ import pytest
 
 from conftest import ROOT
 from tuner.robots import load_robot
-from tuner.sim.harness import Harness, excitation, record_sweep
-from tuner.sim.identify import JointLog, group_of, identify_servos
+from tuner.identify.harness import Harness, excitation, record_sweep
+from tuner.identify.servos import JointLog, group_of, identify_servos
 
 KID3KG = ROOT / "examples" / "robots" / "kid3kg" / "kid3kg.yaml"
 ROBOTS = {"built-in": "kidsize", "map": str(KID3KG)}
@@ -208,7 +208,7 @@ def test_excite_adds_large_steps_one_joint_at_a_time_and_a_gap_is_not_compared(t
     within its range and touching nothing; a recording whose measured angles have a gap compares
     only the ticks measured (a step interpolated across the gap would misfit by the step)."""
     from tuner.cli import main
-    from tuner.sim.harness import step_train
+    from tuner.identify.harness import step_train
     h = Harness(load_robot("kidsize"))
     _, sweep = excitation(h, duration=4.0)
     train = step_train(h, sweep[-1], amplitude=0.6, seed=3)

@@ -1,4 +1,4 @@
-"""Ground identification (tuner/sim/identify_ground.py, `gait-tuner identify ground`): walks the
+"""Ground identification (tuner/identify/ground.py, `gait-tuner identify ground`): walks the
 tests record on a hidden surface of their own (grass30 with its layer 30 % slower and 25 % less
 drag) with the randomisation's sensor noise; the fit recovers the layer's time constant and drag
 within 15 % and its residuals come down to the noise; friction is read only from a walk that slips."""

@@ -1,4 +1,4 @@
-"""The house's layering: gaits < tuner helpers < servos < robots < sim < scenarios < search < report < cli.
+"""The house's layering: gaits < tuner helpers < servos < robots < sim < scenarios, challenge < search < report < identify < cli.
 
 Every import of a project module counts, at the top of a file or inside a function (a lazy
 import runs upward just the same). Package ``__init__`` files are faces that re-export their
@@ -11,7 +11,7 @@ import ast
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-WINGS = {"servos": 1.7, "robots": 2, "sim": 3, "scenarios": 3.5, "search": 4, "report": 5}
+WINGS = {"servos": 1.7, "robots": 2, "sim": 3, "scenarios": 3.5, "challenge": 3.5, "search": 4, "report": 5, "identify": 5.5}
 
 
 def wing(module: str) -> int:

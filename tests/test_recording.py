@@ -149,7 +149,7 @@ def test_a_challenge_trial_records_its_walk(tmp_path):
     """push_trial(record=...) writes the trial's walk with its pushes named in the notes."""
     from tuner.robots import load_robot
     from tuner.params_io import resolve_drive
-    from tuner.sim.challenge import push_trial
+    from tuner.challenge.rules import push_trial
     from tuner.sim.rollout import Simulator
     from tuner.sim.surfaces import load_surface
     sim = Simulator(load_robot("kidsize"), load_surface("carpet4"), pendulum=1.5)

@@ -58,11 +58,11 @@ def challenge_push(params_spec: str | None, controller_file: Path | None, robot_
     successful at three, partially at two; D (at most 0.75 L) grows by --step while a trial is at
     least partially successful; the largest D of each, the bottle's momentum at impact and M =
     sqrt(H) / h_c * m_B / m_R * h_i / h_c are reported. --rules 2019: a 1 kg bottle, three random
-    directions, the rank sqrt(H) / (m_robot H_com). tuner/sim/challenge.py says what is ours.
+    directions, the rank sqrt(H) / (m_robot H_com). tuner/challenge/rules.py says what is ours.
     """
 
     from ..robots import load_robot
-    from ..sim.challenge import challenge as run_challenge
+    from ..challenge.rules import challenge as run_challenge
     from ..sim.rollout import Simulator
     from ..sim.surfaces import load_surface
 
@@ -128,11 +128,11 @@ def challenge_bound(robot_name: str, surface_name: str, bottle: str, rope: float
     advance: step places and timings free, the ZMP anywhere on the sole (and within the ankle's
     torque), steps within the reach, each swing no shorter than the hip and knee servos' torque and
     speed allow. An upper bound within what it models; what it leaves out is said
-    (tuner/search/bound.py)."""
+    (tuner/challenge/bound.py)."""
     import json
 
     from ..robots import load_robot
-    from ..search.bound import robot_bound
+    from ..challenge.bound import robot_bound
     from ..sim.surfaces import load_surface
     out = robot_bound(load_robot(robot_name), load_surface(surface_name), float(bottle), rope, steps)
     if as_json:
@@ -174,7 +174,7 @@ def _challenge_2025(sim, drive, seed: int, step: float, third: str, as_json: boo
     """``challenge push`` by the 2025 rules (``challenge.challenge_2025``)."""
     import math
 
-    from ..sim.challenge import challenge_2025
+    from ..challenge.rules import challenge_2025
 
     def shown(trial: dict) -> None:
         if as_json:
@@ -207,7 +207,7 @@ def _challenge_by_direction(sim, drive, directions: str, step: float, as_json: b
     """``challenge push --by-direction``: single pushes per direction (``challenge.push_by_direction``)."""
     import json
 
-    from ..sim.challenge import push_by_direction
+    from ..challenge.rules import push_by_direction
 
     try:
         dirs = tuple(float(v) for v in directions.split(",") if v.strip())

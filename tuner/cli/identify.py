@@ -89,7 +89,7 @@ def excite(robot_name: str, out: Path, duration: float, f_max: float, amplitude:
     from gaits.files import write_text_atomic
 
     from ..robots import load_robot
-    from ..sim.harness import Harness, excitation, record_sweep, step_train
+    from ..identify.harness import Harness, excitation, record_sweep, step_train
     robot = load_robot(robot_name)
     h = Harness(robot)
     try:
@@ -156,10 +156,10 @@ def identify_servos_cmd(robot_name: str | None, recordings: tuple[Path, ...], to
     import json
 
     from ..recordings import RecordingError, read_field_recording
-    from ..report.identification import fit_json, summary_lines, write_servo_fit
+    from ..identify.report import fit_json, summary_lines, write_servo_fit
     from ..robots import load_robot
-    from ..sim.harness import Harness
-    from ..sim.identify import JointLog, identify_servos
+    from ..identify.harness import Harness
+    from ..identify.servos import JointLog, identify_servos
     if robot_name is None:
         raise UserError("identify servos: give --robot (your robot map)")
     robot = load_robot(robot_name)
@@ -229,9 +229,9 @@ def identify_ground_cmd(robot_name: str | None, surface_name: str, recordings: t
     import json
 
     from ..recordings import RecordingError, read_field_recording
-    from ..report.identification import ground_lines, write_ground_fit
+    from ..identify.report import ground_lines, write_ground_fit
     from ..robots import load_robot
-    from ..sim.identify_ground import identify_ground, walk_log
+    from ..identify.ground import identify_ground, walk_log
     from ..sim.surfaces import load_surface
     if robot_name is None:
         raise UserError("identify ground: give --robot (your robot map, its servos identified)")

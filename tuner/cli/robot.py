@@ -276,7 +276,7 @@ def bus_serve(robot_name: str, surface_name: str, link: Path | None, baud: str, 
     if missing:
         raise UserError(f"{robot_name}: no servo id for {', '.join(missing)}: give the map a servos: section")
     if hang:
-        from ..sim.harness import Harness, HangingSim
+        from ..identify.harness import Harness, HangingSim
         sim = HangingSim(Harness(robot))
     else:
         sim = Simulator(robot, load_surface(surface_name))

@@ -109,7 +109,7 @@ def versus_cell(robot_name: str, surface_name: str, drive: gaits.Drive, *, speed
                               workers=workers, progress=progress)
         out["match"] = world_summary(rows)
     if challenge:
-        from ..sim.challenge import challenge_2025
+        from ..challenge.rules import challenge_2025
         from ..sim.scene import BOTTLES
         csim = Simulator(robot, surface, pendulum=1.5, bottle=BOTTLES[3])
         rep = challenge_2025(csim, dataclasses.replace(drive, command=None, stream=None), seed=seed, step=0.05)

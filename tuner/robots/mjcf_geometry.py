@@ -22,7 +22,7 @@ from typing import Mapping
 import mujoco
 import numpy as np
 
-__all__ = ["axis_line_distance", "SolePolygon", "sole_polygon", "com_offset", "body_chain",
+__all__ = ["axis_line_distance", "SolePolygon", "sole_polygon", "com_offset", "body_chain", "leg_masses",
            "foot_geoms", "welded_bodies", "CROUCH"]
 
 #: The walking crouch at which the CoM offset is taken: hip height as a fraction of the
@@ -269,3 +269,39 @@ def self_overlaps(model: mujoco.MjModel, poses: list[Mapping[str, float]],
             pair = tuple(sorted((model.body(b1).name, model.body(b2).name)))
             found[pair] = max(found.get(pair, 0.0), -float(c.dist))
     return [(a, b, v) for (a, b), v in sorted(found.items())]
+
+
+def _subtree(model: mujoco.MjModel, body: int) -> list[int]:
+    """``body`` and every body below it."""
+    children: dict[int, list[int]] = {}
+    for c in range(1, model.nbody):
+        children.setdefault(int(model.body_parentid[c]), []).append(c)
+    out, todo = [], [body]
+    while todo:
+        b = todo.pop()
+        out.append(b)
+        todo += children.get(b, [])
+    return out
+
+
+def leg_masses(robot) -> tuple[float, float, float, dict[str, str]]:
+    """(upper body, thigh, calf with foot) [kg] of a robot model (means of the two legs), and where
+    each came from."""
+    model = robot.model()
+    total = float(np.sum(model.body_mass))
+    thighs, calves = [], []
+    for side in ("l_", "r_"):
+        # the leg from its first hip joint (the one nearest the torso: yaw on most robots, roll first on some)
+        hip = min((model.jnt_bodyid[model.joint(robot.joint_map[side + k][0]).id]
+                   for k in ("hip_yaw", "hip_roll", "hip_pitch")), key=lambda b: len(body_chain(model, b)))
+        knee = model.jnt_bodyid[model.joint(robot.joint_map[side + "knee"][0]).id]
+        leg = set(_subtree(model, hip))
+        calf = set(_subtree(model, knee))
+        calves.append(float(sum(model.body_mass[b] for b in calf)))
+        thighs.append(float(sum(model.body_mass[b] for b in leg - calf)))
+    m_t, m_c = float(np.mean(thighs)), float(np.mean(calves))
+    upper = total - 2 * (m_t + m_c)
+    return upper, m_t, m_c, {
+        "mass_upper": f"the model's {total:.3f} kg less both legs (2 x {m_t + m_c:.3f} kg)",
+        "mass_thigh": f"the bodies from the first hip joint to the knee, mean of both legs ({', '.join(f'{v:.3f}' for v in thighs)} kg)",
+        "mass_calf": f"the bodies from the knee down, foot included, mean of both legs ({', '.join(f'{v:.3f}' for v in calves)} kg)"}

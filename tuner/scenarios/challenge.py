@@ -1,5 +1,5 @@
 """The push-recovery challenge as a study (a study's ``challenge:`` section, ours): the challenge
-(``tuner/sim/challenge.py``) on each surface for each push seed.
+(``tuner/challenge/rules.py``) on each surface for each push seed.
 
 The one objective, ``push_distance`` (maximised), is per surface the mean over the seeds of the
 largest fully successful D [m] (by the rules the section names; 2025 by default) (``start - step`` where even ``start`` fails: worse than any
@@ -27,7 +27,7 @@ import numpy as np
 
 from gaits import ParamError, UnreachableTargetError
 
-from ..sim.challenge import challenge, challenge_2025
+from ..challenge.rules import challenge, challenge_2025
 from ..sim.scene import BOTTLE_2019, BOTTLES
 from .base import MAX_SEED, Scenario, TrialResult, check_section, fail, invalid_result, number, register
 

@@ -29,14 +29,13 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
 
 from gaits import TlipfmParams
 from gaits.engine import EngineParams
 
 from ..servos import MotorServo
 from ..errors import UserError
-from ..robots.mjcf_geometry import body_chain
+from ..robots.mjcf_geometry import leg_masses
 
 __all__ = ["InitialWalk", "initial_walk", "PURPOSES", "leg_masses", "leg_gains", "GAIN_MARGIN"]
 
@@ -72,42 +71,6 @@ class InitialWalk:
     #: no trial that stands to learn from; these are other places to start (on Wolfgang they fell too:
     #: docs/robots.md).
     ladder: list[tuple[float, TlipfmParams]] = field(default_factory=list)
-
-
-def _subtree(model: Any, body: int) -> list[int]:
-    """``body`` and every body below it."""
-    children: dict[int, list[int]] = {}
-    for c in range(1, model.nbody):
-        children.setdefault(int(model.body_parentid[c]), []).append(c)
-    out, todo = [], [body]
-    while todo:
-        b = todo.pop()
-        out.append(b)
-        todo += children.get(b, [])
-    return out
-
-
-def leg_masses(robot: Any) -> tuple[float, float, float, dict[str, str]]:
-    """(upper body, thigh, calf with foot) [kg] of a robot model (means of the two legs), and where
-    each came from."""
-    model = robot.model()
-    total = float(np.sum(model.body_mass))
-    thighs, calves = [], []
-    for side in ("l_", "r_"):
-        # the leg from its first hip joint (the one nearest the torso: yaw on most robots, roll first on some)
-        hip = min((model.jnt_bodyid[model.joint(robot.joint_map[side + k][0]).id]
-                   for k in ("hip_yaw", "hip_roll", "hip_pitch")), key=lambda b: len(body_chain(model, b)))
-        knee = model.jnt_bodyid[model.joint(robot.joint_map[side + "knee"][0]).id]
-        leg = set(_subtree(model, hip))
-        calf = set(_subtree(model, knee))
-        calves.append(float(sum(model.body_mass[b] for b in calf)))
-        thighs.append(float(sum(model.body_mass[b] for b in leg - calf)))
-    m_t, m_c = float(np.mean(thighs)), float(np.mean(calves))
-    upper = total - 2 * (m_t + m_c)
-    return upper, m_t, m_c, {
-        "mass_upper": f"the model's {total:.3f} kg less both legs (2 x {m_t + m_c:.3f} kg)",
-        "mass_thigh": f"the bodies from the first hip joint to the knee, mean of both legs ({', '.join(f'{v:.3f}' for v in thighs)} kg)",
-        "mass_calf": f"the bodies from the knee down, foot included, mean of both legs ({', '.join(f'{v:.3f}' for v in calves)} kg)"}
 
 
 def initial_walk(robot: Any, robot_ref: str, surface: Any, purpose: str = "match", name: str | None = None,

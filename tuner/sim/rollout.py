@@ -171,7 +171,7 @@ class Simulator:
                  timestep: float | None = None, fall: FallCriteria | None = None,
                  pendulum: float | None = None, bottle: Bottle = BOTTLE_2019, native_gate: bool = True) -> None:
         """``pendulum`` [m]: add the push-recovery challenge's pendulum on a rope this long, with
-        ``bottle`` on it (``scene.add_pendulum``; ``tuner/sim/challenge.py`` swings it). ``native_gate``: on a
+        ``bottle`` on it (``scene.add_pendulum``; ``tuner/challenge/rules.py`` swings it). ``native_gate``: on a
         contact-layer grass, gate the drag dampers in MuJoCo's step (``native_step.py``) when the
         callback can be installed; False keeps the Python gate (the same walk to the bit, slower)."""
         self.robot = robot

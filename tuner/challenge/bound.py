@@ -307,7 +307,7 @@ def leg_limits(robot: Any, lift: float, reach_ratio: float = 0.8) -> LegLimits:
     centre = float(getattr(leg, "sole_forward", 0.0))
     servo = {k: robot.servos[robot.joint_map[f"l_{k}"][0]] for k in ("hip_pitch", "knee", "ankle_pitch")}
     crouch = CROUCH * (leg.thigh + leg.shank)
-    from .initial import leg_masses
+    from ..robots.mjcf_geometry import leg_masses
     _, m_thigh, m_calf, _ = leg_masses(robot)
     # point masses (ours): the thigh's at its middle, the calf and foot's at the shank's middle
     shank_inertia = m_calf * (leg.shank / 2) ** 2 + servo["knee"].armature
@@ -342,7 +342,7 @@ def robot_bound(robot: Any, surface: Any, bottle_kg: float, rope: float, steps: 
     distance, the 2025 rules' M where within them), the forward speed, what is left out, and which
     of the surface's terms the bound uses (its layer's height sets the swing's lift; the rest of the
     turf, its friction, stiffness and drag, is left out: a rigid floor)."""
-    from ..sim.challenge import rank_2025
+    from .rules import rank_2025
     layer = float(getattr(surface, "layer_height", 0.0))
     lift = max(0.02, layer + 0.01)
     lim = leg_limits(robot, lift)

@@ -21,9 +21,9 @@ import yaml
 
 from gaits.files import write_files_atomic
 
-from ..sim.identify import SCALED, ServoFit
-from .tables import json_finite
-from .provenance import commit_of
+from .servos import SCALED, ServoFit
+from ..report.tables import json_finite
+from ..report.provenance import commit_of
 
 __all__ = ["servo_overlay", "write_servo_fit", "summary_lines", "fit_json", "write_ground_fit", "ground_lines",
            "sysid_html"]
@@ -70,7 +70,7 @@ def servo_overlay(fit: ServoFit, laws: Mapping[str, Any] | None = None) -> dict[
     written as its own fields (``MotorServo.with_pieces``: p_gain, kt, resistance, damping,
     frictionloss, armature), a pd servo's as they are."""
     from ..servos import MotorServo
-    from ..sim.identify import group_of
+    from .servos import group_of
     units: dict[str, list[int]] = {}
     for i, j in enumerate(fit.joints):
         units.setdefault(group_of(j) if fit.by == "groups" else j, []).append(i)
@@ -221,7 +221,7 @@ def write_ground_fit(fit: Any, out_dir: Path) -> list[Path]:
     ``report.txt`` into ``out_dir``, all or none."""
     import tuner
 
-    from .calibration import surface_yaml
+    from ..report.calibration import surface_yaml
     commit = commit_of(tuner.__file__).strip(" ()") or "unknown commit"
     a = fit.rms_after
     header = (f"{fit.surface.name}: {fit.start.name} with its ground identified by gait-tuner identify ground "

@@ -45,9 +45,9 @@ from gaits.control import PlanRecord, StartPose
 
 from ..errors import UserError
 from ..robots.robot_model import RobotModel
-from .identify import ENTANGLED, _sysid
-from .rollout import Simulator
-from .surfaces import Surface
+from .servos import ENTANGLED, _sysid
+from ..sim.rollout import Simulator
+from ..sim.surfaces import Surface
 
 __all__ = ["WalkLog", "GroundFit", "identify_ground", "ground_fields", "Replay", "replay", "walk_statistics",
            "NOISE"]

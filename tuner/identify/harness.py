@@ -30,10 +30,10 @@ import numpy as np
 
 from ..robots.robot_model import RobotModel
 from ..servos.law import FRICTION_ROW_MIN
-from .native_step import require as require_native_step
-from .rollout import dead_band, rate_limited
-from .scene import PREFIX, build_scene
-from .surfaces import SURFACES
+from ..sim.native_step import require as require_native_step
+from ..sim.rollout import dead_band, rate_limited
+from ..sim.scene import PREFIX, build_scene
+from ..sim.surfaces import SURFACES
 
 __all__ = ["Harness", "ServoArrays", "HANG_HEIGHT"]
 

@@ -5,7 +5,7 @@
 their modifiers and compiled by ``apply_param_modifiers``), the optimiser (``optimize``: MuJoCo's
 box-bounded Levenberg-Marquardt, finite differences batched) and the confidence intervals
 (``calculate_intervals``). What it has no piece for is ours: the rollout, because a servo's command
-path (rate limit, latency, backlash dead band: :mod:`tuner.sim.harness`) runs between the
+path (rate limit, latency, backlash dead band: :mod:`tuner.identify.harness`) runs between the
 recording's targets and MuJoCo's controls, tick by tick.
 
 What is fitted (ours): per joint group (hips, knees, ankles, arms, head; or per joint) the

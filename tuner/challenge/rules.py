@@ -40,9 +40,9 @@ from scipy.special import ellipk
 import gaits
 from gaits import CommandStream
 
-from .recorded import recording, recording_stem
-from .rollout import Simulator
-from .scene import BOTTLE_2019, BOTTLE_LENGTH, BOTTLE_MASS, PREFIX
+from ..sim.recorded import recording, recording_stem
+from ..sim.rollout import Simulator
+from ..sim.scene import BOTTLE_2019, BOTTLE_LENGTH, BOTTLE_MASS, PREFIX
 
 __all__ = ["challenge", "push_trial", "push_by_direction", "drop_height", "impact_momentum", "rank", "PUSH_TIMES_S", "TRIAL_S"]
 
