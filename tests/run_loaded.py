@@ -2,8 +2,8 @@
 
 Starts one busy process per core (pure Python loops, ``os.nice`` 0, so they compete with the
 tests on equal terms), runs pytest on the given arguments, stops the busy processes, and exits
-with pytest's code. ``make test`` runs the storage (kill and resume) and bad-input tests this
-way after the default run: a test that waits for a window in wall time fails here.
+with pytest's code: a test that waits for a window in wall time fails here. ``make test`` keeps
+both cores busy with its own two workers (pytest-xdist); this loads a machine for any other run.
 """
 
 from __future__ import annotations

@@ -156,6 +156,7 @@ def test_randomised_walks_run_on_the_blade_layer(gait_tuner_cmd, run_env):
     assert doc["rollouts"] == 3 and sum(doc["outcomes"].values()) == 3 and doc["outcomes"]["diverged"] == 0
 
 
+@pytest.mark.slow   # ~18 s: a whole EROS experiment
 def test_the_eros_experiment_walks_a_pedestal_on_a_surface_file(gait_tuner_cmd, run_env):
     """`experiment eros --pedestal 1=FILE`: pedestal 1's cells walk on that surface (the JSON says which),
     the others on the built-in pedestals; a bad pedestal is one line, exit 2."""

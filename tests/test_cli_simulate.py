@@ -141,6 +141,7 @@ def test_compare_reports_the_stair_held_per_direction(tmp_path):
     assert re.search(r"Stair held: per direction", text)
 
 
+@pytest.mark.slow   # ~15 s: two whole compares
 def test_compare_rows_do_not_depend_on_workers(tmp_path):
     from tuner.report.compare import run_compare
     args = (["tkux-table2"], "kidsize", ["rigid", "carpet4"], False, None, tmp_path / "runs")

@@ -127,6 +127,7 @@ def _cli(gait_tuner_cmd, run_env, *args, cwd):
                           cwd=cwd)
 
 
+@pytest.mark.slow   # ~40 s: excite -> identify -> walk end to end; the bus sweep's identification stays in the default run
 def test_excite_then_identify_writes_a_map_the_tool_walks(tmp_path, gait_tuner_cmd, run_env):
     """End to end through the command line, on a recording of hidden servos (kp 30 % up, 20 ms,
     6 mrad): the gains, latency and backlash recovered within 10 %, and the written map loads with
@@ -203,6 +204,7 @@ def test_a_walk_recording_is_refused_at_once_naming_why(tmp_path, capsys):
     assert "walk command that moves" in err and not (tmp_path / "o").exists()
 
 
+@pytest.mark.slow   # ~17 s: a fit over the steps
 def test_excite_adds_large_steps_one_joint_at_a_time_and_a_gap_is_not_compared(tmp_path, capsys):
     """The step train after the sweep: one joint at a time, each out one way, the other, and back,
     within its range and touching nothing; a recording whose measured angles have a gap compares

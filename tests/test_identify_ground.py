@@ -48,6 +48,7 @@ def _identify(gait_tuner_cmd, run_env, tmp_path, recording, out):
     return json.loads(r.stdout)
 
 
+@pytest.mark.slow   # ~25 s: a whole ground fit
 def test_a_hidden_layer_is_recovered_from_a_walk(tmp_path, gait_tuner_cmd, run_env):
     walk = record_walk(tmp_path / "walk.mcap", "0.15,0,0", 3.0)
     out = _identify(gait_tuner_cmd, run_env, tmp_path, walk, "ground")

@@ -55,13 +55,18 @@ def _alive(pid: int) -> bool:
 def _as_a_terminal_starts_it() -> None:
     """In the child before it runs: Ctrl-C as a shell gives it to a program it starts (default,
     unblocked), whatever this test process inherited or had changed by an earlier test or library
-    (a full run once left SIGINT ignored in the children of this process, not reproducible alone)."""
+    (the test process's own handler is inherited until the exec: :func:`_maps_mujoco` waits for it)."""
     signal.signal(signal.SIGINT, signal.SIG_DFL)
     signal.pthread_sigmask(signal.SIG_UNBLOCK, [signal.SIGINT])
 
 
 def _maps_mujoco(pid: int) -> bool:
+    """The program has loaded MuJoCo: its command line is no longer this process's (it has exec'd: a child
+    between its fork and its exec maps this test process's own MuJoCo, and a Ctrl-C sent then is
+    taken by this process's handler in the child and lost at the exec), then its maps hold it."""
     try:
+        if Path(f"/proc/{pid}/cmdline").read_bytes() == Path("/proc/self/cmdline").read_bytes():
+            return False                # not exec'd yet
         return "mujoco" in Path(f"/proc/{pid}/maps").read_text()
     except OSError:
         return False

@@ -214,7 +214,7 @@ def test_the_dashboard_shows_the_objectives_names(tmp_path):
     assert study.metric_names == ["pitch score [deg]"]
 
 
-@pytest.mark.parametrize("study, min_survival", [("kidsize-robust-grass50", 0.0), ("kidsize-robust-grass50", 0.99),
+@pytest.mark.parametrize("study, min_survival", [pytest.param("kidsize-robust-grass50", 0.0, marks=pytest.mark.slow), ("kidsize-robust-grass50", 0.99),
                                                   ("kidsize-engine-carpet4", 0.0), ("kidsize-omni-rigid", None)])
 def test_a_trial_on_two_threads_is_the_one_at_a_time_trial(study, min_survival):
     """Threads change only when the walks run: every walk (robust, match, speed), the early stop

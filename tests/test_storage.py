@@ -312,6 +312,7 @@ def test_full_disk_is_one_line_and_loses_nothing(gait_tuner_cmd, run_env, tmp_pa
     assert after["done"] == 8 and after["running"] == 0
 
 
+@pytest.mark.slow   # ~16 s; the journal's full disk stays in the default run
 def test_full_disk_on_sqlite_is_one_line_and_every_trial_is_walked_on_resume(gait_tuner_cmd, run_env, tmp_path):
     """SQLite as the journal: one line (exit 3), no worker traceback; on resume every trial the full
     disk interrupted is retried (none left failed without a retry, but one whose parameters were
@@ -404,6 +405,7 @@ def postgres():
         yield pg
 
 
+@pytest.mark.slow   # ~13 s: a PostgreSQL study of three processes
 def test_postgres_two_workers_and_a_tune_share_one_budget(postgres, gait_tuner_cmd, run_env, tmp_path):
     url = postgres.create_database("share")
     study = write_study(tmp_path, "share", trials=14)
@@ -448,6 +450,7 @@ def test_postgres_budget_lock_excludes_another_process_and_is_released_on_error(
     other.dispose()
 
 
+@pytest.mark.slow   # ~14 s; the journal's stays in the default run
 def test_postgres_killed_worker_trial_is_failed_and_retried(postgres, gait_tuner_cmd, run_env, tmp_path):
     url = postgres.create_database("retry")
     study = write_study(tmp_path, "retry", trials=10, surfaces=LONG)
@@ -463,7 +466,7 @@ def test_postgres_killed_worker_trial_is_failed_and_retried(postgres, gait_tuner
     assert retry.params == failed.params and retry.state in DONE
 
 
-@pytest.mark.parametrize("kind, n", [("postgresql", 5), ("sqlite", 4)])
+@pytest.mark.parametrize("kind, n", [pytest.param("postgresql", 5, marks=pytest.mark.slow), ("sqlite", 4)])
 def test_many_processes_meeting_a_fresh_database(kind, n, request, gait_tuner_cmd, run_env, tmp_path):
     url = (request.getfixturevalue("postgres").create_database("fresh") if kind == "postgresql"
            else f"sqlite:///{tmp_path / 'fresh.db'}")

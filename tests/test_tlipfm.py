@@ -13,8 +13,9 @@ from gaits.trajectory import GRAVITY
 TABLE2 = load_baseline("tkux-table2").params
 
 
-@pytest.mark.parametrize("model,accel", [("tlipfm", 0.0), ("tlipfm", 3.0), ("dlipm", 0.0),
-                                         ("lipm", 0.0)])
+@pytest.mark.parametrize("model,accel", [("tlipfm", 0.0), pytest.param("tlipfm", 3.0, marks=pytest.mark.slow),
+                                         pytest.param("dlipm", 0.0, marks=pytest.mark.slow),
+                                         pytest.param("lipm", 0.0, marks=pytest.mark.slow)])   # ~9 s each
 def test_closed_form_matches_integration_over_14_steps(model, accel):
     """Eqs 23-26 against solve_ivp of eqs 12-13, each step from the same initial state."""
     p = TABLE2.replace(model=model, flywheel_accel=accel)

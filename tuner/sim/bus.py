@@ -89,6 +89,7 @@ class BusBridge:
         self.ignored = 0                  # packets at the wrong baud rate, or for no device here
         self.bytes_in = self.bytes_out = 0    # on the wire, both ways: what a real bus would carry
         self._last = np.zeros(len(JOINT_NAMES))
+        self.heard = 0.0                  # when the client was last heard (time.monotonic)
 
     # --- the controller protocol ----------------------------------------------------------
     def start_pose(self) -> StartPose:
@@ -112,16 +113,12 @@ class BusBridge:
     # --- the bus ---------------------------------------------------------------------------
     def _goal(self) -> np.ndarray:
         """Answer packets until a sync write of goal positions arrives; our 20 targets of it."""
-        waited = time.monotonic()
+        self.heard = time.monotonic()
         while True:
-            got = False
-            for packet in self._packets(waited, 0.3 if not self.state.torque else self.idle):
-                got = True
+            for packet in self._packets(self.heard, 0.3 if not self.state.torque else self.idle):
                 q = self._answer(packet)
                 if q is not None:
                     return q
-            if got:
-                waited = time.monotonic()
 
     def _packets(self, since: float, idle: float):
         ready, _, _ = select.select([self.master], [], [], 0.05)
@@ -134,6 +131,9 @@ class BusBridge:
             chunk = os.read(self.master, 4096)
         except OSError:
             raise BusClosed("the client closed the bus") from None
+        # heard: a client talking, even at another baud rate or in packets for no device here, is not
+        # silent (a loaded machine's client retrying its pings must not find the bus gone)
+        self.heard = time.monotonic()
         if termios.tcgetattr(self.master)[4] != self.speed:
             self.ignored += 1             # another baud rate: a real servo hears noise, answers nothing
             return
