@@ -18,6 +18,9 @@ layout; a *policy file* says that layout, so any of them walks here and on the r
         - {term: joint_vel, scale: 0.05}             # (n) [rad/s]
         - {term: last_action}         # (n) the policy's last output (after its clip)
         - {term: phase, period: 0.6}  # (2) sin, cos of 2 pi t / period
+        - {term: feet_phase, period: 0.667}   # (4) cos pL, cos pR, sin pL, sin pR: two feet half a
+                                      #   cycle apart, pL = 2 pi t / period, pR = pL + pi (the biped
+                                      #   joysticks of mujoco_playground: Berkeley Humanoid, G1, T1)
         - {term: imu_rpy}             # (3) roll, pitch, yaw [rad]
       action: {scale: 0.25, clip: 5.0}  # target = default_pose + scale * clip(output, +-clip)
       gains: {kp: 21.0, kd: 0.6}      # optional: the servos it was trained with (checked, said)
@@ -51,7 +54,9 @@ __all__ = ["PolicySpec", "Term", "PolicyController", "PolicyFactory", "policy_fr
 
 #: Each observation term and its length (None: one per policy joint).
 TERMS = {"gyro": 3, "gravity": 3, "command": 3, "joint_pos": None, "joint_vel": None, "last_action": None,
-         "phase": 2, "imu_rpy": 3}
+         "phase": 2, "feet_phase": 4, "imu_rpy": 3}
+#: The terms that advance with the gait's period (``period`` [s] required).
+PHASED = ("phase", "feet_phase")
 #: The readings each term needs (the controller's ``senses``).
 _NEEDS = {"gyro": ("gyro",), "gravity": ("imu_rpy",), "imu_rpy": ("imu_rpy",), "joint_pos": ("q",),
           "joint_vel": ("dq",)}
@@ -69,7 +74,7 @@ class Term:
     scale: Any = 1.0
     offset: Any = 0.0
     clip: Any = math.inf
-    period: float = 0.0          # [s] ``phase`` only
+    period: float = 0.0          # [s] ``phase`` and ``feet_phase`` only
 
 
 @dataclass(frozen=True)
@@ -189,16 +194,16 @@ def policy_from_mapping(doc: Any, source: str) -> PolicySpec:
         extra = set(t) - {"term", "scale", "offset", "clip", "period"}
         if extra:
             raise ParamError(f"{source}: policy.observation[{i}] ({name}): unknown key {sorted(extra)[0]!r} "
-                             f"(allowed: term, scale, offset, clip{', period' if name == 'phase' else ''})")
+                             f"(allowed: term, scale, offset, clip{', period' if name in PHASED else ''})")
         length = n if TERMS[name] is None else TERMS[name]
         where = f"policy.observation[{i}] ({name})"
         p = 0.0
-        if name == "phase":
+        if name in PHASED:
             p = t.get("period")
             if isinstance(p, bool) or not isinstance(p, (int, float)) or not 0.05 <= p <= 10.0:
                 raise ParamError(f"{source}: {where}.period = {p!r}: expected the gait's period in [0.05, 10] s")
         elif "period" in t:
-            raise ParamError(f"{source}: {where}: period is the phase term's")
+            raise ParamError(f"{source}: {where}: period is the phase terms' ({', '.join(PHASED)})")
         terms.append(Term(name, _numbers(t.get("scale", 1.0), length, f"{where}.scale", source),
                           _numbers(t.get("offset", 0.0), length, f"{where}.offset", source),
                           _numbers(t.get("clip", math.inf), length, f"{where}.clip", source, positive=True),
@@ -347,9 +352,12 @@ class PolicyController:
                     v = v - self.default[self.index]
             elif name == "last_action":
                 v = self.last_action.copy()
-            else:                                   # phase
+            elif name == "phase":
                 a = 2.0 * math.pi * float(m.t) / t.period
                 v = np.array([math.sin(a), math.cos(a)])
+            else:                                   # feet_phase: the right foot half a cycle behind
+                a = 2.0 * math.pi * float(m.t) / t.period
+                v = np.array([math.cos(a), math.cos(a + math.pi), math.sin(a), math.sin(a + math.pi)])
             parts.append(np.clip((v - t.offset) * t.scale, -t.clip, t.clip))
         return np.concatenate(parts)
 

@@ -118,6 +118,26 @@ def test_the_observation_and_the_targets_tick_by_tick_against_a_hand_built_one(t
     np.testing.assert_allclose(gravity_in_body(np.array([0.0, 0.0, 1.0])), [0.0, 0.0, -1.0], atol=1e-15)
 
 
+def test_the_two_feet_phase_of_playgrounds_bipeds(tmp_path):
+    """mujoco_playground's biped joysticks observe [cos pL, cos pR, sin pL, sin pR], the feet half a
+    cycle apart (pL = 0 at the start): the term gives exactly that, after the terms before it."""
+    from gaits.policy import onnx_runner
+    doc = spec_doc(observation=[{"term": "gyro"}, {"term": "feet_phase", "period": 0.667}])
+    write_onnx(tmp_path / "walk.onnx", 3 + 4, 12)
+    spec = policy_from_mapping(doc, "policy.yaml")
+    run, n_in, n_out = onnx_runner(tmp_path / "walk.onnx")
+    ctl = PolicyController(spec, run, None, 0.01, (n_in, n_out))
+    ctl.start_pose()
+    for t, pl in ((0.0, 0.0), (0.02, 2 * math.pi * 0.02 / 0.667), (0.5, 2 * math.pi * 0.5 / 0.667)):
+        m = Measurement(t, q=np.zeros(20), dq=np.zeros(20), imu_rpy=np.zeros(3), gyro=np.array([0.1, 0.2, 0.3]))
+        obs = ctl.observe(m, None)
+        pr = pl + math.pi
+        np.testing.assert_allclose(obs, [0.1, 0.2, 0.3, math.cos(pl), math.cos(pr), math.sin(pl), math.sin(pr)],
+                                   atol=1e-12)
+    with pytest.raises(ParamError, match=r"feet_phase\)\.period = None"):
+        policy_from_mapping(spec_doc(observation=[{"term": "feet_phase"}]), "policy.yaml")
+
+
 @pytest.mark.parametrize("edit, needle", [
     (lambda d: d["observation"].append({"term": "gyro"}), "the observation has 53 numbers (gyro 3, gravity 3, command 3, "
                                                            "joint_pos 12, joint_vel 12, last_action 12, phase 2, imu_rpy 3, "
