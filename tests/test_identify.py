@@ -241,3 +241,37 @@ def test_a_recording_where_nothing_moved_is_refused(kid3kg):
     still = np.zeros((200, h.n)) + np.random.default_rng(1).normal(0, 1e-4, (200, h.n))
     with pytest.raises(UserError, match="nothing moved in the recordings"):
         identify_servos(h, [JointLog("still", h.control_period, h.joint_names, np.zeros((200, h.n)), still)])
+
+
+def test_excite_names_swings_the_encoders_cannot_resolve(tmp_path, monkeypatch):
+    """A sweep shrunk below three encoder ticks (a robot whose joints have no room) identifies
+    nothing: refused in one line when every joint is that small, the joints named when some are."""
+    import tuner.identify.harness as harness
+    from conftest import run_in_process
+    real = harness.excitation
+
+    def shrunk(h, *a, scale=None, **kw):
+        t, q = real(h, *a, **kw)
+        centre = q[0]
+        return t, centre + (q - centre) * scale
+
+    for scale, code in ((0.001, 2), (None, 0)):
+        if scale is None:                     # one joint tiny, the others as they were
+            def one_small(h, *a, **kw):
+                t, q = real(h, *a, **kw)
+                q = q.copy()
+                q[:, 0] = q[0, 0] + (q[:, 0] - q[0, 0]) * 0.001
+                return t, q
+            monkeypatch.setattr(harness, "excitation", one_small)
+        else:
+            monkeypatch.setattr(harness, "excitation", lambda h, *a, **kw: shrunk(h, *a, scale=scale, **kw))
+        r = run_in_process(["excite", "--robot", "kidsize", "--out", tmp_path / "s.csv", "--duration", "5",
+                            "--no-steps", "--json"])
+        assert r.returncode == code, r.stderr
+        if code == 2:
+            assert len(r.stderr.strip().splitlines()) == 1 and "below 3 encoder ticks" in r.stderr
+            assert not (tmp_path / "s.csv").exists()
+        else:
+            first = Harness(load_robot("kidsize")).joint_names[0]
+            assert json.loads(r.stdout)["below_encoder"] == [first]
+            assert f"({first} " in r.stderr and "tells the fit nothing" in r.stderr

@@ -100,17 +100,29 @@ def excite(robot_name: str, out: Path, duration: float, f_max: float, amplitude:
             t = np.arange(len(targets)) * h.control_period
     except ValueError as exc:
         raise UserError(f"excite: {exc}") from None
+    # a swing the encoders cannot resolve identifies nothing: 3 ticks of a 4096-count encoder (ours)
+    n_sweep = int(round(sweep_s / h.control_period)) + 1        # the sweep's rows (the steps jump, by design)
+    half = (targets[:n_sweep].max(0) - targets[:n_sweep].min(0)) / 2
+    least = 3 * 2 * np.pi / 4096
+    small = [f"{j} {a * 1000:.2f} mrad" for j, a in zip(h.joint_names, half) if a < least]
+    if len(small) == len(half):
+        raise UserError(f"excite: the largest swing is {half.max() * 1000:.2f} mrad, below 3 encoder ticks "
+                        f"({least * 1000:.1f} mrad at 4096 counts a turn): nothing could be identified from it; "
+                        f"give --amplitude more (its range allows {float(np.max((h.range_ours()[1] - h.range_ours()[0]) / 2)):.3g} rad at most)")
     header = "t," + ",".join(f"target.{j}" for j in h.joint_names)
     rows = "\n".join(",".join([f"{t[k]:.4f}"] + [f"{v:.6f}" for v in targets[k]]) for k in range(len(t)))
     write_text_atomic(out, header + "\n" + rows + "\n")
     s = h.servo_arrays()
     lo, hi = h.range_ours()
-    n_sweep = int(round(sweep_s / h.control_period)) + 1        # the sweep's rows (the steps jump, by design)
     speed = np.abs(np.diff(targets[:n_sweep], axis=0)).max(axis=0) / h.control_period
     info = {"robot": robot.name, "sweep": str(out), "seconds": float(t[-1]), "joints": list(h.joint_names),
             "amplitude_rad": dict(zip(h.joint_names, np.round((targets.max(0) - targets.min(0)) / 2, 4).tolist())),
             "speed_share": float(np.max(speed / h.nominal_speed())),
-            "sweep_s": sweep_s, "steps_s": float(t[-1]) - sweep_s}
+            "sweep_s": sweep_s, "steps_s": float(t[-1]) - sweep_s,
+            "below_encoder": [x.split(" ")[0] for x in small]}
+    if small:
+        click.echo(f"note: {len(small)} joint(s) swing less than 3 encoder ticks ({least * 1000:.1f} mrad) in "
+                   f"the sweep: it tells the fit nothing of their servos ({', '.join(small)})", err=True)
     if simulate_to is not None:
         record_sweep(h, targets, s, simulate_to, seed=seed, notes=f"gait-tuner excite --robot {robot_name}")
         info["recording"] = str(simulate_to)
