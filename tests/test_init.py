@@ -12,7 +12,7 @@ from tuner.robots import load_robot
 from tuner.search.initial import GAIN_MARGIN, REACH_MAX, SPEED_MARGIN, initial_walk, leg_gains, leg_masses
 from tuner.sim.surfaces import load_surface
 from tuner.search.study import load_study
-from conftest import run_cli
+from conftest import run_cli, run_in_process
 
 MAP = ROOT / "examples" / "robots" / "kid3kg" / "kid3kg.yaml"
 
@@ -35,6 +35,7 @@ def test_init_writes_a_study_and_a_start_that_walk_the_robot(tmp_path, gait_tune
     out = tmp_path / "init"
     r = run_cli(gait_tuner_cmd, ["init", "--robot", str(MAP), "--surface", "grass30", "--out", str(out)], run_env)
     assert r.returncode == 0, r.stderr
+    assert "warning" not in r.stderr, r.stderr            # it stands in the start's pose
     assert "mass_upper" in r.stdout and "from the model's" in r.stdout and "servo's 6.5 rad/s" in r.stdout
     # kid3kg's MJCF states its servos' gains: init keeps them and writes no robot file of its own
     assert "the robot's own (its file or its map states them)" in r.stdout
@@ -187,3 +188,18 @@ def test_the_start_is_also_tried_at_the_periods_the_knee_carries_at_higher_share
     asked = math.pi * fast.params.h_z / (fast.params.t2 - fast.params.t1) / lever / knee
     assert [s for s, _ in fast.ladder] == [s for s in LADDER_SHARES if s > asked * 1.01]
     assert len(fast.ladder) < len(iw.ladder)
+
+
+def test_init_says_when_the_robot_falls_standing(tmp_path):
+    """Legs whose servos cannot hold the robot's weight (0.4 N m): init still writes its files, and
+    says on stderr that the robot falls standing in the start's pose, so a study would keep nothing."""
+    text = MAP.read_text().replace("  legs: {speed: 6.5}", "  legs: {speed: 6.5, kp: 40, torque: 0.4}")
+    text = text.replace("mjcf: kid3kg.xml", f"mjcf: {MAP.parent / 'kid3kg.xml'}")
+    weak = tmp_path / "weak.yaml"
+    weak.write_text(text)
+    r = run_in_process(["init", "--robot", weak, "--surface", "rigid", "--out", tmp_path / "init"])
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "init" / "kid3kg-rigid-match.yaml").exists()
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("warning: standing still in the start set's pose the robot "
+                                                   "falls (fell at t = "), r.stderr

@@ -181,7 +181,7 @@ def init(robot_name: str, surface_name: str, purpose: str, top_speed: float, out
     import yaml
 
     from ..robots import BUILTIN_ROBOTS, load_robot
-    from ..search.initial import initial_walk
+    from ..search.initial import falls_standing, initial_walk
     from ..sim.surfaces import load_surface
     robot = load_robot(robot_name)
     surface = load_surface(surface_name)
@@ -203,6 +203,7 @@ def init(robot_name: str, surface_name: str, purpose: str, top_speed: float, out
         rungs.append(path.name)
     if rungs:
         iw.study["baselines"] = rungs
+    walked = ref                        # the robot the study walks
     if iw.servo and robot.map_path:
         # the weight-sized gains go into a copy of the team's map beside the study, which walks it
         from ..robots.robot_map import map_with_servo
@@ -212,6 +213,7 @@ def init(robot_name: str, surface_name: str, purpose: str, top_speed: float, out
                              + yaml.safe_dump(map_with_servo(Path(robot.map_path), out_dir, {"legs": iw.servo}),
                                               sort_keys=False))
         iw.study["robot"] = robot_file.name
+        walked = str(robot_file)
     files[study] = ("# written by gait-tuner init; edit the space and the budget as you like\n"
                     + yaml.safe_dump(iw.study, sort_keys=False))
     write_files_atomic(files)
@@ -227,6 +229,11 @@ def init(robot_name: str, surface_name: str, purpose: str, top_speed: float, out
     else:
         click.echo(f"  {'servo gains':11s} {'':8s}  {iw.servo_source}")
     click.echo("".join(f"wrote {p}\n" for p in files) + f"tune it: gait-tuner tune {study} --workers 2")
+    fell = falls_standing(walked, surface, str(start))
+    if fell is not None:
+        click.echo(f"warning: standing still in the start set's pose the robot falls ({fell}): a study from it "
+                   f"will keep nothing; give its legs servos that hold its weight (the map's servo:, "
+                   f"`gait-tuner robot check`)", err=True)
 
 
 @click.group()

@@ -37,7 +37,7 @@ from ..servos import MotorServo
 from ..errors import UserError
 from ..robots.mjcf_geometry import leg_masses
 
-__all__ = ["InitialWalk", "initial_walk", "PURPOSES", "leg_masses", "leg_gains", "GAIN_MARGIN"]
+__all__ = ["InitialWalk", "initial_walk", "PURPOSES", "leg_masses", "leg_gains", "GAIN_MARGIN", "falls_standing"]
 
 PURPOSES = ("match", "speed", "push")
 #: TKU-X's Table 2 step timing, as shares of the step (t1, t2 of T = 0.64 s)
@@ -220,3 +220,19 @@ def _range(low: float, high: float, floor: float, ceil: float) -> dict[str, floa
     """A search range from ``low`` to ``high`` within the parameter's [floor, ceil]."""
     low, high = max(floor, low), min(ceil, high)
     return {"low": round(low, 4), "high": round(max(high, low * 1.05), 4)}
+
+
+def falls_standing(robot_ref: str, surface: Any, start: str, seconds: float = 3.0) -> str | None:
+    """How the robot falls standing in a start set's pose with no command (the engine holding it for
+    ``seconds``), or None when it stands (or the set is a table, which has no standing). A robot that
+    falls standing leaves a study nothing to keep: its servos cannot hold its weight (ours)."""
+    import numpy as np
+
+    from ..params_io import resolve_drive
+    from ..sim.cache import simulator
+    drive = resolve_drive(start, None, command=np.zeros(3))
+    if not drive.online:
+        return None
+    sim = simulator(robot_ref, surface)
+    trace = sim.run(drive.controller(sim.robot, sim.control_period), **{**drive.run_options(), "duration": seconds})
+    return None if trace.survived else str(trace.reason)
