@@ -105,7 +105,9 @@ def test_a_robot_that_falls_stays_on_the_bus_and_the_loop_sees_the_fall(tmp_path
     push = tmp_path / "push.yaml"
     push.write_text("push: 20\n")
     server, link = _serve(tmp_path, "--duration", "3", "--randomisation", str(push))
-    loop = _loop(robot_file, link, "--seconds", "5")
+    # the loop's fall stop past the simulator's 50 deg: the simulator has seen the fall when the loop
+    # stops (at the same 50 deg, which of the two saw it first depends on the loop's pace, a wall clock's)
+    loop = _loop(robot_file, link, "--seconds", "5", "--max-tilt", "70")
     (lo, le), (so, se) = _finish(loop, server)
     assert loop.returncode == 3 and "fall detected at t = " in lo.strip().splitlines()[-1], lo + le
     assert server.returncode == 0 and "the walk: fell at t = " in so and "the client turned the torque off" in so, \
@@ -298,3 +300,23 @@ def test_seed_or_walk_without_a_randomisation_is_one_line(capsys):
         assert main(["bus", "serve", "--robot", str(MAP), *extra]) == 2
         err = capsys.readouterr().err.strip()
         assert len(err.splitlines()) == 1 and "give --randomisation default" in err, err
+
+
+def test_the_bus_waits_for_its_first_client_then_counts_silence_from_it(robot_file, monkeypatch):
+    """A person starts the loop in a second shell: before a client's first byte the bus waits
+    FIRST_CLIENT_S, not --idle; once heard, --idle counts (here with no client: it says so)."""
+    import os
+    import tuner.sim.bus as bus
+    from gaits.robot_file import load_robot_file
+    monkeypatch.setattr(bus, "FIRST_CLIENT_S", 0.4)
+    master, slave, _ = bus.open_pty(1_000_000)
+    try:
+        bridge = bus.BusBridge(master, load_robot_file(robot_file), 0.01, 1_000_000, idle=0.05)
+        with pytest.raises(bus.BusClosed, match=r"no client came in 0\.4 s"):
+            bridge.start_pose()
+        bridge.client = True                  # heard once: then silence ends it after --idle
+        with pytest.raises(bus.BusClosed, match=r"silent for 0\.05 s"):
+            bridge.start_pose()
+    finally:
+        os.close(master)
+        os.close(slave)

@@ -252,7 +252,7 @@ def bus() -> None:
 @click.option("--duration", default=600.0, show_default=True, type=Span(0.1, 86400.0),
               help="Longest walk [s] of simulated time.")
 @click.option("--idle", default=5.0, show_default=True, type=Span(0.5, 600.0),
-              help="End once the client has been silent this long [s].")
+              help="End once the client has been silent this long [s] (counted from its first byte; before it the bus waits up to 300 s for a client).")
 @click.option("--hang", is_flag=True, help="The robot hangs in a harness (for a sweep: gait-tuner-loop --sweep).")
 @click.option("--randomisation", "randomisation_spec", metavar="YAML|default|none", default="none", show_default=True,
               help="Perturb the simulated robot and field as `robustness` does (default: its defaults; a YAML "

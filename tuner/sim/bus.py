@@ -13,7 +13,8 @@ the walk is the same however fast the two processes run; the first sync write pl
 
 A client at another baud rate than the bus's gets no answer (as on a real bus); a packet whose CRC
 does not match is ignored. The bus ends when its client has been silent for ``idle`` seconds
-after it started, or has turned the torque off.
+after it started, or has turned the torque off; before a client's first byte it waits up to
+``FIRST_CLIENT_S`` (a person starts the loop in another shell).
 """
 
 from __future__ import annotations
@@ -62,6 +63,10 @@ def open_pty(baudrate: int) -> tuple[int, int, str]:
     return master, slave, os.ttyname(slave)
 
 
+#: [s] how long the bus waits for its client's first byte (a person starting the loop by hand; ours)
+FIRST_CLIENT_S = 300.0
+
+
 @dataclass
 class _State:
     m: Measurement | None = None
@@ -90,6 +95,7 @@ class BusBridge:
         self.bytes_in = self.bytes_out = 0    # on the wire, both ways: what a real bus would carry
         self._last = np.zeros(len(JOINT_NAMES))
         self.heard = 0.0                  # when the client was last heard (time.monotonic)
+        self.client = False               # a client has been heard: ``idle`` counts from then on
 
     # --- the controller protocol ----------------------------------------------------------
     def start_pose(self) -> StartPose:
@@ -123,6 +129,10 @@ class BusBridge:
     def _packets(self, since: float, idle: float):
         ready, _, _ = select.select([self.master], [], [], 0.05)
         if not ready:
+            if not self.client:           # no client yet: a person starting the loop in another shell
+                if time.monotonic() - since > FIRST_CLIENT_S:
+                    raise BusClosed(f"no client came in {FIRST_CLIENT_S:g} s")
+                return
             if time.monotonic() - since > idle:
                 raise BusClosed("the client turned the torque off" if not self.state.torque else
                                 f"the client has been silent for {idle:g} s")
@@ -134,6 +144,7 @@ class BusBridge:
         # heard: a client talking, even at another baud rate or in packets for no device here, is not
         # silent (a loaded machine's client retrying its pings must not find the bus gone)
         self.heard = time.monotonic()
+        self.client = True
         if termios.tcgetattr(self.master)[4] != self.speed:
             self.ignored += 1             # another baud rate: a real servo hears noise, answers nothing
             return
