@@ -60,3 +60,18 @@ def run_cli(cmd, args, env=None, cwd=None, timeout=600, **kw) -> "subprocess.Com
         return run_in_process(args, cwd=cwd)
     return subprocess.run(list(cmd) + [str(a) for a in args], capture_output=True, text=True, env=env,
                           cwd=cwd, timeout=timeout, **kw)
+
+
+#: The default run's longest tests (over 15 s on this 2-core machine), started first: on two
+#: workers (make test) a long test begun last would run alone at the end.
+LONG_FIRST = ("test_readme.py::test_readme_commands_run", "test_group_write.py::test_a_kill_at_every_step",
+              "test_bus.py::test_a_sweep_through_the_bus", "test_init.py::test_init_writes_a_study",
+              "test_identify.py::test_a_sweep_stays_within", "test_packaging.py::test_the_robot_part_installs",
+              "test_calibration.py::test_a_one_point_blade_calibration", "test_byo_robot.py::test_compare_uses")
+
+
+def pytest_collection_modifyitems(config, items):
+    """The longest tests first (:data:`LONG_FIRST`), the rest in their order: the same on every worker."""
+    def rank(item) -> int:
+        return next((k for k, key in enumerate(LONG_FIRST) if key in item.nodeid), len(LONG_FIRST))
+    items[:] = sorted(items, key=rank)            # stable: the rest keep their order

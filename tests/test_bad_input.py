@@ -31,7 +31,14 @@ PARAMS = {"gait": "tlipfm", "params": {"period": 0.64}}
 SURFACE = {"layer_height": 0.01, "friction": 0.9}
 RANDOM = {"mass_scale": 0.1}
 
-DELETE = object()
+class _Delete:
+    """The field removed (a stable name in test ids: two workers must collect the same tests)."""
+
+    def __repr__(self) -> str:
+        return "DELETE"
+
+
+DELETE = _Delete()
 
 
 def _set(doc: dict, path: str, value) -> dict:

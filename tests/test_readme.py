@@ -2,7 +2,7 @@
 
 The block is read from README.md itself, so an example that stops working fails here. Run in
 order in a scratch directory (``studies/`` and ``examples/`` linked in), so that ``export`` finds
-what ``tune`` made and ``compare`` what ``export`` wrote. In the default run nine long commands
+what ``tune`` made and ``compare`` what ``export`` wrote. In the default run ten long commands
 get a smaller budget, appended and listed in ``BUDGET`` (the same command, fewer trials,
 rollouts or iterations), and ``calibrate`` (~10 minutes) runs only in the slow suite, where every line runs
 exactly as written (``pytest -m slow tests/test_readme.py``). ``worker`` joins the study
@@ -22,7 +22,8 @@ from conftest import ROOT, run_in_process
 BUDGET = {"tune": ["--trials", "2"], "robustness": ["--rollouts", "4", "--push-rollouts", "2"],
           "identify": ["--max-iters", "3"], "versus": ["--walks", "1", "--no-challenge", "--speeds", "0.2,0,0,0"],
           "compare": ["--random-rollouts", "2"], "render": ["--duration", "3"], "transfer": ["--walks", "1"],
-          "excite": ["--no-steps"], "experiment eros": ["--steps", "4"]}
+          "excite": ["--no-steps"], "experiment eros": ["--steps", "4"],
+          "bus serve": ["--wait", "1"]}
 SLOW_ONLY = {"calibrate"}
 
 

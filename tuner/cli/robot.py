@@ -252,7 +252,9 @@ def bus() -> None:
 @click.option("--duration", default=600.0, show_default=True, type=Span(0.1, 86400.0),
               help="Longest walk [s] of simulated time.")
 @click.option("--idle", default=5.0, show_default=True, type=Span(0.5, 600.0),
-              help="End once the client has been silent this long [s] (counted from its first byte; before it the bus waits up to 300 s for a client).")
+              help="End once the client has been silent this long [s] (counted from its first byte).")
+@click.option("--wait", default=300.0, show_default=True, type=Span(0.5, 86400.0),
+              help="How long the bus waits for its client's first byte [s] (you start the loop in another shell).")
 @click.option("--hang", is_flag=True, help="The robot hangs in a harness (for a sweep: gait-tuner-loop --sweep).")
 @click.option("--randomisation", "randomisation_spec", metavar="YAML|default|none", default="none", show_default=True,
               help="Perturb the simulated robot and field as `robustness` does (default: its defaults; a YAML "
@@ -262,7 +264,7 @@ def bus() -> None:
 @click.option("--walk", "walk_index", default=0, show_default=True, type=click.IntRange(0, 999_999),
               help="With --randomisation: which of the seed's walks (robustness's rollout number).")
 def bus_serve(robot_name: str, surface_name: str, link: Path | None, baud: str, duration: float, idle: float,
-              hang: bool, randomisation_spec: str, seed: int, walk_index: int) -> None:
+              wait: float, hang: bool, randomisation_spec: str, seed: int, walk_index: int) -> None:
     """Serve ROBOT's servos and IMU on a pseudo-terminal, answered by MuJoCo in lockstep (a tick of
     physics per sync write of goal positions). Prints the bus's path, then what the walk did.
     With --hang the robot hangs in a harness (its torso held, feet off the ground): play a sweep
@@ -301,8 +303,8 @@ def bus_serve(robot_name: str, surface_name: str, link: Path | None, baud: str, 
         click.echo(f"bus of {robot.name} on {sim.surface.name} at {path} ({baud} baud, "
                    f"{len(rf.joints)} servos, IMU id 200)", err=False)
         sys.stdout.flush()
-    out = serve(sim, rf, baudrate=int(baud), link=None if link is None else str(link), idle=idle, duration=duration,
-                ready=ready, perturb=perturb)
+    out = serve(sim, rf, baudrate=int(baud), link=None if link is None else str(link), idle=idle, wait=wait,
+                duration=duration, ready=ready, perturb=perturb)
     click.echo(f"served {out['ticks']} ticks ({out['ticks'] * sim.control_period:.2f} s); ended: {out['ended']}"
                + (f"; the walk: {out['outcome']}" if out["outcome"] else "")
                + (f"; {out['ignored']} packet(s) not answered" if out["ignored"] else "")

@@ -13,8 +13,8 @@ the walk is the same however fast the two processes run; the first sync write pl
 
 A client at another baud rate than the bus's gets no answer (as on a real bus); a packet whose CRC
 does not match is ignored. The bus ends when its client has been silent for ``idle`` seconds
-after it started, or has turned the torque off; before a client's first byte it waits up to
-``FIRST_CLIENT_S`` (a person starts the loop in another shell).
+after it started, or has turned the torque off; before a client's first byte it waits up to ``wait``
+seconds (``FIRST_CLIENT_S`` by default: a person starts the loop in another shell).
 """
 
 from __future__ import annotations
@@ -81,8 +81,9 @@ class BusBridge:
     senses = frozenset({"q", "dq", "imu_rpy", "gyro", "accel"})
 
     def __init__(self, master: int, robot: RobotFile, dt: float, baudrate: int, *, idle: float = 5.0,
-                 duration: float = 600.0) -> None:
+                 duration: float = 600.0, wait: float | None = None) -> None:
         self.master, self.robot, self.dt, self.idle = master, robot, float(dt), float(idle)
+        self.wait = FIRST_CLIENT_S if wait is None else float(wait)     # [s] for the client's first byte
         self.duration = float(duration)
         self.walk_start = 0.0
         self.speed = getattr(termios, f"B{baudrate}")
@@ -130,8 +131,8 @@ class BusBridge:
         ready, _, _ = select.select([self.master], [], [], 0.05)
         if not ready:
             if not self.client:           # no client yet: a person starting the loop in another shell
-                if time.monotonic() - since > FIRST_CLIENT_S:
-                    raise BusClosed(f"no client came in {FIRST_CLIENT_S:g} s")
+                if time.monotonic() - since > self.wait:
+                    raise BusClosed(f"no client came in {self.wait:g} s")
                 return
             if time.monotonic() - since > idle:
                 raise BusClosed("the client turned the torque off" if not self.state.torque else
@@ -246,6 +247,7 @@ class _FallWatch:
 
 
 def serve(sim: Any, robot: RobotFile, *, baudrate: int = 1_000_000, link: str | None = None, idle: float = 5.0,
+          wait: float | None = None,
           duration: float = 600.0, perturb: Any = None, ready: Any = None) -> dict[str, Any]:
     """Serve the robot of ``sim`` on a new pty until its client stops; ``link``: a symbolic link to
     the pty's path (a fixed name for the client); ``ready(path)`` is called once it listens. Returns
@@ -264,7 +266,7 @@ def serve(sim: Any, robot: RobotFile, *, baudrate: int = 1_000_000, link: str | 
         os.symlink(path, link)
     if ready is not None:
         ready(link or path)
-    bridge = BusBridge(master, robot, sim.control_period, baudrate, idle=idle, duration=duration)
+    bridge = BusBridge(master, robot, sim.control_period, baudrate, idle=idle, duration=duration, wait=wait)
     why = "the walk's duration ran out"
     outcome = None
     watch = _FallWatch(sim) if isinstance(sim, Simulator) else None
