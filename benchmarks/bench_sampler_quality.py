@@ -66,7 +66,7 @@ def study_run(name: str, seed: int, arm: str, trials: int) -> float:
     import optuna
 
     from tuner.search import workers
-    from tuner.search.storage import StudyStore
+    from tuner.store.storage import StudyStore
     from tuner.search.study import load_study
     from tuner.search.trials import best_trial
 

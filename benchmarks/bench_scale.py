@@ -94,7 +94,7 @@ def fill(args) -> None:
 
 
 def _store(args):
-    from tuner.search.storage import StudyStore
+    from tuner.store.storage import StudyStore
     return StudyStore.open(args.name, args.url or None, Path(args.runs))
 
 
@@ -118,8 +118,8 @@ def measure(args) -> None:
     import optuna
 
     import tuner.search.objective as objective
-    import tuner.search.journal as journal
-    import tuner.search.storage as storage
+    import tuner.store.journal as journal
+    import tuner.store.storage as storage
     import tuner.search.workers as workers
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
@@ -191,7 +191,7 @@ def measure(args) -> None:
     t0 = time.perf_counter()
     store = _store(args)
     study = workers.open_study(spec, store.optuna_storage(), args.seed)
-    from tuner.search.rdb import lean
+    from tuner.store.rdb import lean
     rdb = lean(study._storage)
     # the study's size; on a database without reading it into Optuna's cache, which would count
     # the benchmark's own read in the worker's memory

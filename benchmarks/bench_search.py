@@ -31,7 +31,7 @@ import gaits
 from gaits.params import ParamError
 
 from tuner.search.objective import Evaluator, objective_for
-from tuner.search.storage import StudyStore
+from tuner.store.storage import StudyStore
 from tuner.search.trials import trial_feasible, trial_fell
 from tuner.search.workers import enqueue_starts, run_study
 from tuner.search.seed import SeedProblem

@@ -45,7 +45,7 @@ def main() -> None:
     import optuna
 
     from postgres_server import PostgresServer
-    from tuner.search.storage import StudyStore
+    from tuner.store.storage import StudyStore
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--trials", type=int, default=40)

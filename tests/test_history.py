@@ -11,7 +11,7 @@ from optuna.trial import TrialState
 
 from tuner.search import history
 from tuner.search.history import TrialIndex, WindowedTPESampler
-from tuner.search.journal import PackedJournalStorage, SafeJournalBackend
+from tuner.store.journal import PackedJournalStorage, SafeJournalBackend
 
 optuna.logging.set_verbosity(optuna.logging.WARNING)
 
@@ -146,7 +146,7 @@ def test_windowed_sampler_samples_what_tpe_samples_while_the_history_fits_the_wi
 
 
 def test_windowed_sampler_reads_the_window_only(monkeypatch):
-    from tuner.search.optuna_compat import tpe_sampler_module as tpe
+    from tuner.store.optuna_compat import tpe_sampler_module as tpe
     seen = []
     split = tpe._split_trials
 
@@ -166,7 +166,8 @@ def test_a_worker_never_scans_the_study_under_the_budget_lock(monkeypatch, tmp_p
     only: no call lists the study's trials while the lock is held."""
     import contextlib
 
-    from tuner.search import objective, storage, workers
+    from tuner.search import objective, workers
+    from tuner.store import storage
     from tuner.search.objective import TrialResult
     from tuner.search.study import load_study
 
@@ -229,7 +230,7 @@ def test_the_journal_syncs_once_per_trial_and_at_once_for_what_must_last(tmp_pat
 
 
 def test_a_retry_is_enqueued_once_and_an_old_studys_retries_are_found(tmp_path):
-    from tuner.search.storage import WORKER_DIED, StudyStore
+    from tuner.store.storage import WORKER_DIED, StudyStore
 
     store = StudyStore.open("old", None, tmp_path / "runs")
     study = optuna.create_study(storage=store.optuna_storage(), study_name="old")
@@ -265,7 +266,7 @@ def test_a_trial_whose_worker_died_before_sampling_is_failed_not_retried(tmp_pat
     import socket
     import subprocess
 
-    from tuner.search.storage import WORKER_DIED, StudyStore
+    from tuner.store.storage import WORKER_DIED, StudyStore
 
     gone = subprocess.Popen(["true"])
     gone.wait()
@@ -288,7 +289,8 @@ def test_scipy_log_ndtr_stands_in_for_optunas_own():
     import numpy as np
     from scipy.special import log_ndtr
 
-    from tuner.search import history, optuna_compat
+    from tuner.search import history
+    from tuner.store import optuna_compat
     assert history.SCIPY_LOG_NDTR and optuna_compat.log_ndtr_in_use() is log_ndtr
     x = np.concatenate([np.linspace(-60.0, 12.0, 3001), [-20.0, -20.0 - 1e-9, 6.0, 6.0 + 1e-9, 0.0]])
     ours = history.OPTUNA_LOG_NDTR(x)

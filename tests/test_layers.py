@@ -11,7 +11,7 @@ import ast
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-WINGS = {"servos": 1.7, "robots": 2, "sim": 3, "scenarios": 3.5, "challenge": 3.5, "search": 4, "report": 5, "identify": 5.5}
+WINGS = {"store": 1.5, "servos": 1.7, "robots": 2, "sim": 3, "scenarios": 3.5, "challenge": 3.5, "search": 4, "report": 5, "identify": 5.5}
 
 
 def wing(module: str) -> int:

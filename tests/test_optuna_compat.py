@@ -1,4 +1,4 @@
-"""Every private Optuna touchpoint of ``tuner/search/optuna_compat.py``, against the installed Optuna.
+"""Every private Optuna touchpoint of ``tuner/store/optuna_compat.py``, against the installed Optuna.
 
 One test per touchpoint: an Optuna release that moves, renames or re-signs one fails here by
 name, instead of a study failing in the field. A last test holds the rule itself: no module of
@@ -17,7 +17,7 @@ from optuna.distributions import FloatDistribution
 from optuna.trial import FrozenTrial, TrialState
 
 from conftest import ROOT
-from tuner.search import optuna_compat as compat
+from tuner.store import optuna_compat as compat
 
 
 def _study(storage=None):

@@ -11,7 +11,7 @@ from optuna.distributions import CategoricalDistribution, FloatDistribution, Int
 from optuna.storages import JournalStorage
 from optuna.trial import TrialState
 
-from tuner.search.journal import PackedJournalStorage, PackedTrial, SafeJournalBackend, unpacked
+from tuner.store.journal import PackedJournalStorage, PackedTrial, SafeJournalBackend, unpacked
 
 optuna.logging.set_verbosity(optuna.logging.WARNING)
 

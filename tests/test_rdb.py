@@ -17,7 +17,7 @@ from optuna.distributions import CategoricalDistribution, FloatDistribution, Int
 from optuna.storages import RDBStorage
 from optuna.trial import TrialState
 
-from tuner.search.rdb import LeanRDBStorage, lean
+from tuner.store.rdb import LeanRDBStorage, lean
 
 optuna.logging.set_verbosity(optuna.logging.WARNING)
 

@@ -203,7 +203,7 @@ def test_the_dashboard_shows_the_objectives_names(tmp_path):
     """optuna-dashboard reads the study's metric names: set once, from the study's objectives."""
     import warnings
 
-    from tuner.search.storage import StudyStore
+    from tuner.store.storage import StudyStore
     from tuner.search.study import load_study
     from tuner.search.workers import open_study
     spec = load_study("quickstart")

@@ -19,8 +19,8 @@ import optuna
 import pytest
 
 from tuner.errors import UserError
-from tuner.search.journal import FlockLock, repair_journal
-from tuner.search.storage import StudyStore, normalise_url
+from tuner.store.journal import FlockLock, repair_journal
+from tuner.store.storage import StudyStore, normalise_url
 
 # trials of ~0.3-1 s each (two surfaces, 8 s walks): long enough to be killed mid-trial
 STUDY = """name: {name}
@@ -242,7 +242,7 @@ def test_lock_held_by_a_killed_process_is_no_obstacle(gait_tuner_cmd, run_env, t
     runs.mkdir()
     journal = runs / "lk.journal"
     holder = subprocess.Popen([sys.executable, "-c", (
-        "import sys, time; from tuner.search.journal import FlockLock; "
+        "import sys, time; from tuner.store.journal import FlockLock; "
         f"a = FlockLock({str(journal)!r}); a.acquire(); "
         f"b = FlockLock({str(journal)!r}, suffix='.budget.lock'); b.acquire(); "
         "print('held', flush=True); time.sleep(600)")], stdout=subprocess.PIPE, text=True)
@@ -427,7 +427,7 @@ def test_postgres_budget_lock_excludes_another_process_and_is_released_on_error(
     same store takes it again (nothing left held)."""
     import sqlalchemy
 
-    from tuner.search.storage import advisory_key
+    from tuner.store.storage import advisory_key
     url = postgres.create_database("lock")
     a = StudyStore.open("lock", normalise_url(url), tmp_path / "runs")
     other = sqlalchemy.create_engine(normalise_url(url), poolclass=sqlalchemy.pool.NullPool)

@@ -55,8 +55,8 @@ def _storage_errors(store):
     """A database's full disk met in this process (opening, enqueueing, reaping) as one line."""
     import contextlib
 
-    from ..search.journal import StorageFull
-    from ..search.storage import storage_full
+    from ..store.journal import StorageFull
+    from ..store.storage import storage_full
 
     @contextlib.contextmanager
     def guard():
@@ -147,7 +147,7 @@ def tune(study_file: str, trials: int | None, workers: int, storage: str | None,
     time left. Ctrl-C stops cleanly: finished trials stay in the storage. A trial
     whose worker was killed is retried with the same parameters (up to 3 times).
     """
-    from ..search.storage import StudyStore
+    from ..store.storage import StudyStore
     from ..search.study import load_study
 
     spec = load_study(study_file)
@@ -173,7 +173,7 @@ def worker(study_file: str, storage: str | None, workers: int, seed: int | None,
     """
     import zlib
 
-    from ..search.storage import StudyStore
+    from ..store.storage import StudyStore
     from ..search.study import load_study
 
     spec = load_study(study_file)

@@ -24,9 +24,9 @@ the best found with and without the window (on a smooth 8-dimensional bowl after
 median of 5 seeds: 0.0015 against TPE's 0.0012; with the latest 90 only, 0.0024).
 
 On the journal, reads go through Optuna's storage interface (a trial's id by number,
-``get_trial``, trials by state). On a database (:class:`~tuner.search.rdb.LeanRDBStorage`) they
+``get_trial``, trials by state). On a database (:class:`~tuner.store.rdb.LeanRDBStorage`) they
 go around Optuna's cache, which would keep every trial the worker reads
-(:meth:`~tuner.search.rdb.LeanRDBStorage.read_trials`): a worker keeps only what the index
+(:meth:`~tuner.store.rdb.LeanRDBStorage.read_trials`): a worker keeps only what the index
 keeps, and under the budget lock it recounts the states in one statement (:meth:`TrialIndex.recount`).
 """
 
@@ -44,9 +44,9 @@ from optuna.storages import JournalStorage
 from optuna.study import StudyDirection
 from optuna.trial import FrozenTrial, TrialState
 
-from .journal import unpacked
-from . import optuna_compat as compat
-from .rdb import lean
+from ..store.journal import unpacked
+from ..store import optuna_compat as compat
+from ..store.rdb import lean
 from .trials import DONE_STATES
 
 __all__ = ["TrialIndex", "WindowedTPESampler", "params_key", "N_BEST", "N_RECENT"]
@@ -200,7 +200,7 @@ class TrialIndex:
 
     def recount(self, study: optuna.Study, attr: str = "budget") -> Any:
         """The counts exact for the storage's state at this call, for the budget lock; returns
-        the study's user attribute ``attr``. On a database (:class:`~tuner.search.rdb.LeanRDBStorage`)
+        the study's user attribute ``attr``. On a database (:class:`~tuner.store.rdb.LeanRDBStorage`)
         one statement reads the states of the trials created or unfinished since the last
         :meth:`refresh` (which the worker makes before taking the lock) and the attribute:
         ``n_done``, ``running`` and ``waiting`` are set from them, the trials themselves are read

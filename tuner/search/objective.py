@@ -25,7 +25,7 @@ from gaits import ParamError
 from ..scenarios import World
 from ..scenarios.base import FALL_PENALTY_DEG, PROGRESS_PENALTY_DEG, TrialResult, rollout_score
 from ..sim.metrics import MIN_PROGRESS
-from . import optuna_compat as compat
+from ..store import optuna_compat as compat
 from .study import OBJECTIVES, StudySpec
 
 __all__ = ["FALL_PENALTY_DEG", "PROGRESS_PENALTY_DEG", "MIN_PROGRESS", "TrialResult", "Evaluator", "rollout_score",

@@ -31,13 +31,13 @@ from gaits import ParamError
 
 from ..errors import UserError
 from ..process_pool import die_with_parent, forking_without_ctrl_c, ignore_ctrl_c, mp_context
-from . import optuna_compat as compat
-from .liveness import Heartbeat, process_identity
+from ..store import optuna_compat as compat
+from ..store.liveness import Heartbeat, process_identity
 from .history import IndexedMedianPruner, TrialIndex, WindowedTPESampler
 from .objective import Evaluator, objective_for, record_constraint, suggest
-from .journal import StorageFull
-from .rdb import lean
-from .storage import StudyStore, storage_full
+from ..store.journal import StorageFull
+from ..store.rdb import lean
+from ..store.storage import StudyStore, storage_full
 from .study import CTRL_PREFIX, ENGINE_PREFIX, STAB_PREFIX, StudySpec
 from .trials import n_done, trial_result
 

@@ -73,7 +73,7 @@ class Heartbeat:
     """A daemon thread beating for this process every ``interval_s`` while it works a trial."""
 
     def __init__(self, store: Any, study_name: str) -> None:
-        """``store``: the study's ``tuner.search.storage.StudyStore`` (it writes the beats)."""
+        """``store``: the study's ``tuner.store.storage.StudyStore`` (it writes the beats)."""
         self.store, self.study_name = store, study_name
         self.trial_id: int | None = None
         self._stop = threading.Event()

@@ -124,13 +124,13 @@ def log_ndtr_in_use() -> Callable[..., Any] | None:
 
 #: FrozenTrial's fields (its ``__dict__``) in the order its constructor sets them (its repr and hash
 #: follow it): the journal's packed trial keeps a few of them and rebuilds the rest
-#: (``tuner/search/journal.py``).
+#: (``tuner/store/journal.py``).
 FROZEN_TRIAL_FIELDS = ("_number", "state", "_values", "_datetime_start", "datetime_complete", "_params",
                        "_user_attrs", "_system_attrs", "intermediate_values", "_distributions", "_trial_id")
 
 
-#: Optuna's private methods our storages override (``tuner/search/journal.py``,
-#: ``tuner/search/rdb.py``) or whose state they set up, with the arguments we pass (after self):
+#: Optuna's private methods our storages override (``tuner/store/journal.py``,
+#: ``tuner/store/rdb.py``) or whose state they set up, with the arguments we pass (after self):
 #: (module, class, method, parameter names)
 OVERRIDDEN: tuple[tuple[str, str, str, tuple[str, ...]], ...] = (
     ("optuna.storages.journal._storage", "JournalStorageReplayResult", "_apply_create_trial", ("log",)),
