@@ -70,8 +70,9 @@ def test_tune_export_simulate_reproduces(gait_tuner_cmd, run_env, tmp_path):
 
 
 def test_a_study_with_no_feasible_trial_says_so_and_offers_no_export(gait_tuner_cmd, run_env, tmp_path):
-    """Every draw here ends single support after the step (t2 > period): rejected, infeasible. The
-    summary names the best of them and says there is nothing worth exporting (not `export it with`)."""
+    """Every draw here ends single support after the step (t2 > period): rejected before it walked.
+    No rejected trial is named best (its penalty is not a walk's score): the summary says none walked,
+    why, and that there is nothing to export (not `export it with`)."""
     study = tmp_path / "rej.yaml"
     study.write_text("name: rej\nrobot: kidsize\nsurfaces: [rigid]\ngait: tlipfm\nbase: tkux-table2\n"
                      "space:\n  period: {low: 0.2, high: 0.21}\n  t2: {low: 0.3, high: 0.4}\n"
@@ -79,8 +80,26 @@ def test_a_study_with_no_feasible_trial_says_so_and_offers_no_export(gait_tuner_
     r = run(gait_tuner_cmd, ["tune", str(study), "--runs", str(tmp_path / "runs"), "--workers", "1"], run_env)
     assert r.returncode == 0, r.stderr
     last = r.stdout.strip().splitlines()
-    assert last[-2].startswith("best trial") and last[-1].startswith("no feasible trial of study rej yet")
-    assert "export it with" not in r.stdout
+    assert last[-1].startswith("no trial walked yet: study 'rej': every completed trial was rejected before it "
+                               "walked (the first: ") and "t2" in last[-1], r.stdout
+    assert not any(line.startswith("best trial") for line in last) and "export it with" not in r.stdout
+
+
+def test_a_rejected_trial_is_never_the_best_even_when_every_walk_fell():
+    """A rejected draw scores a penalty (twice a fall's) that can be lower than a fallen walk's
+    score: the walked trial is the best, not the rejected one."""
+    from optuna.distributions import FloatDistribution
+    from tuner.search.trials import NothingWalked, best_trial
+    study = optuna.create_study(direction="minimize")
+    dist = {"period": FloatDistribution(0.1, 1.0)}
+    rejected = {"fell": True, "fall_constraint": 1.0, "invalid": "t2 0.4 s is past the period 0.2 s"}
+    study.add_trial(optuna.trial.create_trial(params={"period": 0.2}, distributions=dist, value=200.0,
+                                              user_attrs={"result": rejected}))
+    with pytest.raises(NothingWalked, match="rejected before it walked"):
+        best_trial(study)
+    study.add_trial(optuna.trial.create_trial(params={"period": 0.3}, distributions=dist, value=250.0,
+                                              user_attrs={"result": {"fell": True, "fall_constraint": 1.0}}))
+    assert best_trial(study).params == {"period": 0.3}
 
 
 def test_resume_after_kill_keeps_finished_trials(gait_tuner_cmd, run_env, tmp_path):

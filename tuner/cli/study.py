@@ -75,7 +75,7 @@ def _storage_errors(store):
 
 def _run_study_and_report(spec, store, study_file: str, storage: str | None, total: int | None, workers: int,
                           seed: int, verb: str) -> None:
-    from ..search.trials import DONE_STATES, best_trial, trial_feasible, trial_fell
+    from ..search.trials import DONE_STATES, NothingWalked, best_trial, trial_feasible, trial_fell
     from ..search.workers import WorkersDying, prepare_study, run_workers
     study, budget, run = prepare_study(spec, store, total, seed)
     done = len(study.get_trials(deepcopy=False, states=DONE_STATES))
@@ -110,6 +110,10 @@ def _run_study_and_report(spec, store, study_file: str, storage: str | None, tot
         return
     try:
         t = best_trial(study)
+    except NothingWalked as exc:
+        click.echo(f"no trial walked yet: {exc}; no best trial to export: narrow the space "
+                   f"to draws that can walk")
+        return
     except KeyError:          # every trial was pruned (a randomised trial stopped at its falls) or failed
         states = [x.state.name.lower() for x in study.get_trials(deepcopy=False)]
         counts = ", ".join(f"{states.count(k)} {k}" for k in dict.fromkeys(states))

@@ -16,7 +16,7 @@ from optuna.trial import TrialState
 
 import gaits
 
-__all__ = ["DONE_STATES", "best_trial", "PARETO_PICKS", "pareto_pick", "trial_params", "trial_stabiliser",
+__all__ = ["DONE_STATES", "NothingWalked", "best_trial", "PARETO_PICKS", "pareto_pick", "trial_params", "trial_stabiliser",
            "trial_result", "trial_fell", "trial_feasible", "n_done", "trial_engine"]
 
 DONE_STATES = (TrialState.COMPLETE, TrialState.PRUNED)
@@ -24,6 +24,13 @@ DONE_STATES = (TrialState.COMPLETE, TrialState.PRUNED)
 
 def n_done(study: optuna.Study) -> int:
     return len(study.get_trials(deepcopy=False, states=DONE_STATES))
+
+class NothingWalked(KeyError):
+    """A study whose completed trials were all rejected before they walked: no best trial."""
+
+    def __str__(self) -> str:
+        return str(self.args[0])
+
 
 def best_trial(study: optuna.Study, number: int | None = None) -> optuna.trial.FrozenTrial:
     """A chosen trial, or the best feasible one (lowest pitch score; the Pareto point with the
@@ -36,7 +43,13 @@ def best_trial(study: optuna.Study, number: int | None = None) -> optuna.trial.F
         raise KeyError(f"study {study.study_name!r} has no completed trial {number}")
     if not trials:
         raise KeyError(f"study {study.study_name!r} has no completed trial yet")
-    feasible = [t for t in trials if trial_result(t).get("fall_constraint", 1.0) <= 0] or trials
+    # a rejected trial (its draw could not be walked: ``invalid``) scores a penalty, not a walk: never
+    # the best, even in a study where every walk fell
+    walked = [t for t in trials if not trial_result(t).get("invalid")]
+    if not walked:
+        raise NothingWalked(f"study {study.study_name!r}: every completed trial was rejected before it walked (the first: "
+                            f"{trial_result(trials[0]).get('invalid')})")
+    feasible = [t for t in walked if trial_result(t).get("fall_constraint", 1.0) <= 0] or walked
     if study.directions[0] == optuna.study.StudyDirection.MAXIMIZE:
         return max(feasible, key=lambda t: t.values[0])
     return min(feasible, key=lambda t: t.values[0])
