@@ -52,3 +52,16 @@ def test_bad_input_is_one_line(tmp_path, gait_tuner_cmd, run_env, args, needle):
     lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
     assert len(lines) == 1 and "Traceback" not in r.stderr, r.stderr
     assert needle in lines[0], lines[0]
+
+
+def test_the_table_says_what_its_columns_are_and_a_walk_with_no_d_shows_none():
+    """A walk that fell at the challenge's first D has no D, momentum or M (it read 0.00 / 0.00 /
+    0.000, as if measured); the columns are defined under the table."""
+    from tuner.report.versus import VERSUS_COLUMNS, versus_markdown
+    cell = {"speeds": {"forward": {"reached": 0.2, "fell": False, "outcome": "completed"}},
+            "match": {"survival": 0.0, "walks": 5, "vx_rmse_mps": None}, "pitch_rms_deg": 1.5,
+            "challenge": {"full_m": 0.0, "momentum_Ns": 0.0, "M": 0.0}, "tick_ms": None}
+    text = versus_markdown("kidsize", [("engine", "rigid", cell)], {"forward": 0.2})
+    row = [line for line in text.splitlines() if line.startswith("| engine")][0]
+    assert row.endswith("| none | - | - | - |") and "0.00" not in row.split("| 1.50 |")[1], row
+    assert VERSUS_COLUMNS in text and "challenge D" in VERSUS_COLUMNS

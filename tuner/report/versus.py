@@ -141,11 +141,25 @@ def versus_markdown(robot: str, cells: Sequence[tuple[str, str, dict[str, Any]]]
         row += [f"{m['survival'] * 100:.0f} % of {m['walks']}" if m else "-", _f(c.get("pitch_rms_deg"), ".2f"),
                 _f(m and m["vx_rmse_mps"], ".3f")]
         ch = c.get("challenge")
-        row += [_f(ch and ch["full_m"], ".2f"), _f(ch and ch["momentum_Ns"], ".2f"), _f(ch and ch["M"], ".3f")]
+        if ch and not ch["full_m"]:          # not even the first D fully successful: no figure, not 0.00
+            row += ["none", "-", "-"]
+        else:
+            row += [_f(ch and ch["full_m"], ".2f"), _f(ch and ch["momentum_Ns"], ".2f"), _f(ch and ch["M"], ".3f")]
         t = c.get("tick_ms")
         row.append(f"{t['median']:.3f} / {t['p99']:.3f}" if t else "-")
         lines.append("| " + " | ".join(row) + " |")
+    lines += ["", VERSUS_COLUMNS]
     return "\n".join(lines) + "\n"
+
+
+#: What each column of the table means (written under it).
+VERSUS_COLUMNS = (
+    "Columns: per direction, the speed reached while that command was held (m/s, rad/s; the walk's outcome "
+    "where it fell); match survival, the share of randomised match walks that did not fall; pitch RMS, the "
+    "torso's pitch over those walks; vx RMSE, the forward speed's error against the command over the walks "
+    "that survived; challenge D, the largest bottle release distance of the 2025 push challenge (3 kg, rope "
+    "1.5 m) fully successful ('none': not even the first), with its momentum and rank M; tick, the walk's "
+    "controller call time on this machine (median / p99).")
 
 
 def versus_plots(out: Path, cells: Sequence[tuple[str, str, dict[str, Any]]], speeds: dict[str, float]) -> list[Path]:
