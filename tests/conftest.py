@@ -32,7 +32,6 @@ def run_in_process(args, cwd=None) -> "subprocess.CompletedProcess":
     import contextlib
     import io
     import signal
-    import subprocess
 
     from tuner.cli import main
     args = [str(a) for a in args]
@@ -53,7 +52,6 @@ def run_in_process(args, cwd=None) -> "subprocess.CompletedProcess":
 def run_cli(cmd, args, env=None, cwd=None, timeout=600, **kw) -> "subprocess.CompletedProcess":
     """``cmd + args`` as the tests' helpers ran it: in this process when nothing about the process
     is asked (the test's own environment, no input, no other keyword), in a subprocess otherwise."""
-    import subprocess
     same_env = env is None or {k: v for k, v in env.items() if k != "MPLBACKEND"} == \
         {k: v for k, v in os.environ.items() if k != "MPLBACKEND"}
     if same_env and not kw:

@@ -14,7 +14,7 @@ from ..search.workers import tuned_study
 from ..params_io import resolve_drive, resolve_params
 from ..sim.randomisation import DEFAULT_PUSHES
 from .walks import _envelope_note, _skipped_rows_note, _tail
-from .options import OutPath, robot_option, surface_option, workers_option, JSON_OPTION, RECORD_OPTION, RUNS_OPTION, STABILISER_OPTION, COMMANDS_OPTION, CONTROLLER_OPTION, COMMAND_OPTION, parse_command, bar_options
+from .options import OutPath, robot_option, surface_option, workers_option, JSON_OPTION, RECORD_OPTION, RUNS_OPTION, STABILISER_OPTION, COMMANDS_OPTION, TAIL_OPTION, CONTROLLER_OPTION, COMMAND_OPTION, parse_command, bar_options
 
 
 @click.command()
@@ -94,7 +94,7 @@ def compare(params_specs: tuple[str, ...], robot_name: str | None, surface_names
               help="Rollouts per push size.")
 @COMMAND_OPTION
 @COMMANDS_OPTION
-@click.option("--duration", type=float, help="With --commands: seconds walked after the stream's last row [s] (default 2).")
+@TAIL_OPTION
 @STABILISER_OPTION
 @CONTROLLER_OPTION
 @workers_option()

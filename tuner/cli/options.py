@@ -12,7 +12,7 @@ from pathlib import Path
 import click
 
 
-__all__ = ["OutPath", "Span", "FamilyChoice", "robot_option", "surface_option", "workers_option", "GAIT_OPTION",
+__all__ = ["OutPath", "TAIL_OPTION", "Span", "FamilyChoice", "robot_option", "surface_option", "workers_option", "GAIT_OPTION",
            "PARAMS_OPTION", "JSON_OPTION", "RECORD_OPTION", "RUNS_OPTION", "STABILISER_OPTION", "COMMANDS_OPTION",
            "CONTROLLER_OPTION", "COMMAND_OPTION", "parse_command", "JOINT_NAMES_OPTION", "FORMAT_OPTION", "CLIP_OPTION",
            "SAVE_SCENE_OPTION", "walk_options", "bar_options", "storage_option", "RECORDING_OPTION", "TOPICS_OPTION",
@@ -107,6 +107,9 @@ COMMANDS_OPTION = click.option(
     help="Walk a command stream: CSV with the header t,vx,vy,wz (s, m/s, m/s, rad/s), each row holding "
          "until the next; the walk lasts until the last row plus --duration (default 2 s). A set without "
          "an engine walks it planned per step before the walk.")
+#: With --commands: how long the walk goes on after the stream's last row (every verb that walks one)
+TAIL_OPTION = click.option("--duration", type=float,
+                           help="With --commands: seconds walked after the stream's last row [s] (default 2).")
 
 
 CONTROLLER_OPTION = click.option(

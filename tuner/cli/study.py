@@ -18,7 +18,7 @@ from ..robots.joint_table import joint_table_file
 from ..search.workers import tuned_study
 from ..report.provenance import commit_of
 from .walks import _tail, _walk
-from .options import OutPath, workers_option, JSON_OPTION, RUNS_OPTION, COMMANDS_OPTION, COMMAND_OPTION, parse_command, JOINT_NAMES_OPTION, FORMAT_OPTION, CLIP_OPTION, bar_options, storage_option
+from .options import OutPath, workers_option, JSON_OPTION, RUNS_OPTION, COMMANDS_OPTION, TAIL_OPTION, COMMAND_OPTION, parse_command, JOINT_NAMES_OPTION, FORMAT_OPTION, CLIP_OPTION, bar_options, storage_option
 
 
 def _study_progress(spec, total: int):
@@ -268,7 +268,7 @@ def trials(study_file: str, storage: str | None, runs_dir: Path, pareto: bool, s
                    "beside it (<out>.joints.csv).")
 @COMMAND_OPTION
 @COMMANDS_OPTION
-@click.option("--duration", type=float, help="With --commands: seconds walked after the stream's last row [s] (default 2).")
+@TAIL_OPTION
 @JOINT_NAMES_OPTION
 @FORMAT_OPTION
 @CLIP_OPTION

@@ -15,7 +15,7 @@ from gaits.files import write_files_atomic
 from ..errors import UserError
 from ..robots.joint_table import joint_table_file
 from ..params_io import resolve_drive, resolve_params
-from .options import OutPath, FamilyChoice, robot_option, GAIT_OPTION, PARAMS_OPTION, JSON_OPTION, RECORD_OPTION, COMMANDS_OPTION, COMMAND_OPTION, parse_command, JOINT_NAMES_OPTION, FORMAT_OPTION, CLIP_OPTION, SAVE_SCENE_OPTION, walk_options, bar_options
+from .options import OutPath, FamilyChoice, robot_option, GAIT_OPTION, PARAMS_OPTION, JSON_OPTION, RECORD_OPTION, COMMANDS_OPTION, TAIL_OPTION, COMMAND_OPTION, parse_command, JOINT_NAMES_OPTION, FORMAT_OPTION, CLIP_OPTION, SAVE_SCENE_OPTION, walk_options, bar_options
 
 
 @click.command()
@@ -30,7 +30,7 @@ from .options import OutPath, FamilyChoice, robot_option, GAIT_OPTION, PARAMS_OP
               help="tlipfm only: override the parameter file's CoM model.")
 @COMMAND_OPTION
 @COMMANDS_OPTION
-@click.option("--duration", type=float, help="With --commands: seconds walked after the stream's last row [s] (default 2).")
+@TAIL_OPTION
 @JOINT_NAMES_OPTION
 @FORMAT_OPTION
 @CLIP_OPTION
