@@ -55,7 +55,7 @@ def walks(robot: str, surface: str, set_name: str, scenario: MatchDistribution, 
           workers: int) -> dict:
     rows = scenario_walks(robot, surface, resolve_drive(set_name, None), scenario, walks=n, seed=seed,
                           workers=workers)
-    alive = [r for r in rows if not r["fell"]]
+    alive = [r for r in rows if r["survived"]]   # completed: not fallen, diverged or impossible
     rmse = [r["tracking"]["vx_rmse_mps"] for r in alive if r.get("tracking") and r["tracking"].get("vx_rmse_mps")
             is not None]
     return {"survival": len(alive) / len(rows), "vx_rmse": float(np.mean(rmse)) if rmse else None}
