@@ -4,7 +4,7 @@
                                                [--bowl-trials 600] [--study-trials 30]
 
 Two arms: "full" is the sampler every study used before (Optuna's multivariate TPE reading every
-trial, 8 random start-up trials); "window" is ``tuner.search.history.WindowedTPESampler`` (the
+trial, 8 random start-up trials); "window" is ``tuner.store.history.WindowedTPESampler`` (the
 same TPE given the best 30 and the latest 90 trials, with the constant liar). Per part and sampler
 seed, the best value each arm found within the same budget, and the median over the seeds:
 
@@ -40,7 +40,7 @@ def _full(spec, seed, index=None):
 def bowl(seed: int, arm: str, trials: int) -> float:
     import optuna
 
-    from tuner.search.history import WindowedTPESampler
+    from tuner.store.history import WindowedTPESampler
     from tuner.search.study import load_study
     from tuner.search.workers import trial_distributions
 

@@ -9,8 +9,8 @@ from optuna.distributions import FloatDistribution
 from optuna.storages import InMemoryStorage, JournalStorage
 from optuna.trial import TrialState
 
-from tuner.search import history
-from tuner.search.history import TrialIndex, WindowedTPESampler
+from tuner.store import history
+from tuner.store.history import TrialIndex, WindowedTPESampler
 from tuner.store.journal import PackedJournalStorage, SafeJournalBackend
 
 optuna.logging.set_verbosity(optuna.logging.WARNING)
@@ -283,17 +283,20 @@ def test_a_trial_whose_worker_died_before_sampling_is_failed_not_retried(tmp_pat
 
 def test_scipy_log_ndtr_stands_in_for_optunas_own():
     """TPE's truncated normals use SciPy's log Phi in C in place of Optuna 5's element-by-element Python
-    (tuner/search/history.py): the same function to 1e-12 of its size (at least 1) over the left tail,
+    (tuner/store/history.py): the same function to 1e-12 of its size (at least 1) over the left tail,
     the centre and the right, where Optuna's series switches branches (-20, 6), and Optuna's sampler
     module uses it."""
     import numpy as np
     from scipy.special import log_ndtr
 
-    from tuner.search import history
+    from optuna.distributions import FloatDistribution
+
     from tuner.store import optuna_compat
-    assert history.SCIPY_LOG_NDTR and optuna_compat.log_ndtr_in_use() is log_ndtr
+    WindowedTPESampler({"x": FloatDistribution(0, 1)}, seed=0)
+    optuna_own = optuna_compat.use_scipy_log_ndtr()
+    assert callable(optuna_own) and optuna_compat.log_ndtr_in_use() is log_ndtr
     x = np.concatenate([np.linspace(-60.0, 12.0, 3001), [-20.0, -20.0 - 1e-9, 6.0, 6.0 + 1e-9, 0.0]])
-    ours = history.OPTUNA_LOG_NDTR(x)
+    ours = optuna_own(x)
     assert np.all(np.abs(ours - log_ndtr(x)) <= 1e-12 * np.maximum(1.0, np.abs(ours)))
 
 
@@ -316,7 +319,7 @@ def test_a_worker_freezes_what_it_has_read_once_and_every_thousand_trials():
 @pytest.mark.parametrize("kind", ["journal", "database"])
 def test_the_indexed_median_pruner_decides_as_optunas_without_reading_the_study(kind, tmp_path, monkeypatch):
     import random
-    from tuner.search.history import IndexedMedianPruner
+    from tuner.store.history import IndexedMedianPruner
     study = optuna.create_study(storage=_storage(kind, tmp_path), study_name="m")
     index = TrialIndex()
     ours = IndexedMedianPruner(index, n_startup_trials=3, n_warmup_steps=0)

@@ -9,6 +9,8 @@ import ast
 import datetime
 import importlib
 import inspect
+import subprocess
+import sys
 
 import numpy as np
 import optuna
@@ -130,12 +132,60 @@ def test_rdb_models_and_into_cache(tmp_path):
     compat.into_cache(optuna.storages.InMemoryStorage(), 0, frozen)      # no cache: nothing to do
 
 
-def test_scipy_log_ndtr_is_in_use():
+def test_scipy_log_ndtr_is_in_use_once_a_windowed_sampler_is_made():
     from scipy.special import log_ndtr
-    importlib.import_module("tuner.search.history")          # puts it in place on import
+    from tuner.store.history import WindowedTPESampler
+    WindowedTPESampler({"x": FloatDistribution(0, 1)}, seed=0)      # puts it in place
     assert compat.log_ndtr_in_use() is log_ndtr
     own = compat.use_scipy_log_ndtr()          # again: idempotent, returns Optuna's own
     assert callable(own) and own is not log_ndtr
+
+
+def test_importing_the_project_changes_nothing_in_optuna():
+    """No monkeypatch runs at import: every module of the house imported, TPE's truncated normal
+    still calls Optuna's own log normal CDF (a fresh interpreter: this one may have made a sampler)."""
+    code = ("import importlib, pathlib, sys\n"
+            "for p in sorted(pathlib.Path('tuner').rglob('*.py')):\n"
+            "    mod = '.'.join(p.with_suffix('').parts)\n"
+            "    mod = mod[:-len('.__init__')] if mod.endswith('.__init__') else mod\n"
+            "    if not mod.endswith('__main__'): importlib.import_module(mod)\n"
+            "from scipy.special import log_ndtr\n"
+            "from tuner.store import optuna_compat as c\n"
+            "sys.exit(0 if c.log_ndtr_in_use() is not log_ndtr else 3)\n")
+    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+
+
+def _private_names():
+    """Every private name of Optuna's the compat module declares (attributes and methods)."""
+    return {a for _, _, a in compat.ATTRIBUTES} | {m for _, _, m, _ in compat.OVERRIDDEN}
+
+
+def _private_touches(path, names):
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    where = path.relative_to(ROOT) if ROOT in path.parents else path.name
+    return [f"{where}:{node.lineno} {getattr(node, 'attr', getattr(node, 'name', 'getattr'))}"
+            for node in ast.walk(tree)
+            if (isinstance(node, ast.Attribute) and node.attr in names)
+            or (isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.name in names)
+            or (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in ("getattr", "setattr")
+                and len(node.args) > 1 and isinstance(node.args[1], ast.Constant) and node.args[1].value in names)]
+
+
+def test_no_module_outside_the_store_touches_optunas_private_attributes():
+    """Outside ``tuner/store/``, no module of the house reads, sets or implements a private name of
+    Optuna's that the compat module declares (``study._storage``, ``Study._get_trials``, ...)."""
+    names = _private_names()
+    files = [p for d in ("tuner", "gaits") for p in (ROOT / d).rglob("*.py")
+             if (ROOT / "tuner" / "store") not in p.parents]
+    assert [f for p in files for f in _private_touches(p, names)] == []
+
+
+def test_the_private_touch_scan_can_fail(tmp_path):
+    bad = tmp_path / "probe.py"
+    bad.write_text("def f(study):\n    return study._storage\nclass V:\n    def _get_trials(self):\n        return []\n"
+                   "g = getattr(object(), '_study_id', None)\n")
+    assert sorted(f.split()[-1] for f in _private_touches(bad, _private_names())) == ["_get_trials", "_storage", "getattr"]
 
 
 def _private_optuna_imports(path):

@@ -241,7 +241,7 @@ def test_a_workers_index_reads_around_optunas_cache(url):
     """The index on ours counts and windows the study as on Optuna's storage, reads it in
     chunks, and leaves Optuna's cache empty (so a worker does not hold the whole study); a
     waiting trial it pops is put in the cache, where suggest needs it."""
-    from tuner.search.history import TrialIndex
+    from tuner.store.history import TrialIndex
     ours, theirs, _ = _pair(url)
     study = optuna.create_study(storage=theirs, study_name="w")
     for i in range(12):

@@ -579,7 +579,7 @@ def test_pareto_pick_chooses_on_the_front(gait_tuner_cmd, run_env, tmp_path):
 KILL_AFTER_POP = """
 import os, signal, sys
 from pathlib import Path
-from tuner.search import history
+from tuner.store import history
 reserve = history.TrialIndex.reserve
 mark = Path(os.environ["KILL_MARK"])
 def killing(self, study, user_attrs=None):

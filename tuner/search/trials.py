@@ -16,14 +16,15 @@ from optuna.trial import TrialState
 
 import gaits
 
+from ..store.history import DONE_STATES
+
 __all__ = ["DONE_STATES", "NothingWalked", "best_trial", "PARETO_PICKS", "pareto_pick", "trial_params", "trial_stabiliser",
            "trial_result", "trial_fell", "trial_feasible", "n_done", "trial_engine"]
-
-DONE_STATES = (TrialState.COMPLETE, TrialState.PRUNED)
 
 
 def n_done(study: optuna.Study) -> int:
     return len(study.get_trials(deepcopy=False, states=DONE_STATES))
+
 
 class NothingWalked(KeyError):
     """A study whose completed trials were all rejected before they walked: no best trial."""

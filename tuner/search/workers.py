@@ -33,7 +33,7 @@ from ..errors import UserError
 from ..process_pool import die_with_parent, forking_without_ctrl_c, ignore_ctrl_c, mp_context
 from ..store import optuna_compat as compat
 from ..store.liveness import Heartbeat, process_identity
-from .history import IndexedMedianPruner, TrialIndex, WindowedTPESampler
+from ..store.history import IndexedMedianPruner, TrialIndex, WindowedTPESampler
 from .objective import Evaluator, objective_for, record_constraint, suggest
 from ..store.journal import StorageFull
 from ..store.rdb import lean

@@ -130,7 +130,9 @@ FROZEN_TRIAL_FIELDS = ("_number", "state", "_values", "_datetime_start", "dateti
 
 
 #: Optuna's private methods our storages override (``tuner/store/journal.py``,
-#: ``tuner/store/rdb.py``) or whose state they set up, with the arguments we pass (after self):
+#: ``tuner/store/rdb.py``) or whose state they set up, and the one a study view implements for
+#: Optuna's TPE sampler and median pruner, which read a study's trials through it
+#: (``tuner/store/history.py``: ``_WindowStudy``, ``_CurveStudy``), with the arguments (after self):
 #: (module, class, method, parameter names)
 OVERRIDDEN: tuple[tuple[str, str, str, tuple[str, ...]], ...] = (
     ("optuna.storages.journal._storage", "JournalStorageReplayResult", "_apply_create_trial", ("log",)),
@@ -143,6 +145,7 @@ OVERRIDDEN: tuple[tuple[str, str, str, tuple[str, ...]], ...] = (
     ("optuna.storages", "RDBStorage", "_set_trial_param",
      ("trial_id", "param_name", "param_value_internal", "distribution", "previous_distribution")),
     ("optuna.storages._cached_storage", "_CachedStorage", "_add_trials_to_cache", ("study_id", "trials")),
+    ("optuna", "Study", "_get_trials", ("deepcopy", "states", "use_cache")),
 )
 
 #: Optuna's private attributes our storages read or set: (module, class, attribute). The packed

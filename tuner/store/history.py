@@ -44,12 +44,11 @@ from optuna.storages import JournalStorage
 from optuna.study import StudyDirection
 from optuna.trial import FrozenTrial, TrialState
 
-from ..store.journal import unpacked
-from ..store import optuna_compat as compat
-from ..store.rdb import lean
-from .trials import DONE_STATES
+from .journal import unpacked
+from . import optuna_compat as compat
+from .rdb import lean
 
-__all__ = ["TrialIndex", "WindowedTPESampler", "params_key", "N_BEST", "N_RECENT"]
+__all__ = ["DONE_STATES", "TrialIndex", "WindowedTPESampler", "params_key", "N_BEST", "N_RECENT"]
 
 #: The window's size (ours): the best trials kept, and the latest ones. (A uniform sample of
 #: the whole history in place of half the latest was tried and made the search worse on the bowl
@@ -57,6 +56,8 @@ __all__ = ["TrialIndex", "WindowedTPESampler", "params_key", "N_BEST", "N_RECENT
 N_BEST = 30
 N_RECENT = 170
 
+#: A trial that is over and counts toward a study's budget (a failed one does not).
+DONE_STATES = (TrialState.COMPLETE, TrialState.PRUNED)
 _UNFINISHED = (TrialState.RUNNING, TrialState.WAITING)
 
 
@@ -64,13 +65,11 @@ _UNFINISHED = (TrialState.RUNNING, TrialState.WAITING)
 #: in Python. Late in a long study the kernels are narrow, the bounds sit far in their tails, and
 #: the Newton inversion calls it a thousand times a trial: at 10k trials that was most of the
 #: sampling time (``benchmarks/bench_scale.py``). SciPy's ``special.log_ndtr`` is the same function
-#: in C; ours is to put it in place of Optuna's, in this process, where that private function
-#: exists as expected (:func:`optuna_compat.use_scipy_log_ndtr`). They agree to 1e-12 of the value
-#: (tested, ``tests/test_history.py``); draws may differ from an unpatched Optuna's in their last
-#: bits, a seeded study still gives the same draws on every run. ``OPTUNA_LOG_NDTR`` is Optuna's
-#: own function, kept for that test.
-OPTUNA_LOG_NDTR = compat.use_scipy_log_ndtr()
-SCIPY_LOG_NDTR = OPTUNA_LOG_NDTR is not None
+#: in C; ours is to put it in place of Optuna's, in this process, when the first
+#: :class:`WindowedTPESampler` is made (nothing is changed by importing this module), where that
+#: private function exists as expected (:func:`optuna_compat.use_scipy_log_ndtr`). They agree to
+#: 1e-12 of the value (tested, ``tests/test_history.py``); draws may differ from an unpatched
+#: Optuna's in their last bits, a seeded study still gives the same draws on every run.
 
 
 def params_key(params: dict[str, Any]) -> int:
@@ -92,7 +91,7 @@ class TrialIndex:
     def __init__(self, n_best: int = N_BEST, n_recent: int = N_RECENT) -> None:
         self.n_best = n_best
         self.n_recent = n_recent
-        self._storage: Any = None
+        self._source: Any = None
         self._study_id: int | None = None
         self._signs: tuple[float, ...] = ()
         self.seen = 0                                   # trials numbered below this were read
@@ -111,8 +110,8 @@ class TrialIndex:
         self._curves: list[_Curve] = []                 # every COMPLETE trial's intermediate values
 
     def _bind(self, study: optuna.Study) -> None:
-        if self._storage is None:
-            self._storage = study._storage
+        if self._source is None:
+            self._source = compat.study_storage(study)
             self._study_id = compat.study_id(study)
             self._signs = tuple(1.0 if d == StudyDirection.MINIMIZE else -1.0 for d in study.directions)
 
@@ -123,10 +122,10 @@ class TrialIndex:
         trials are found by number, the unfinished ones re-read (by id from the journal, which
         holds them in memory; in one query by state from a database, whose Optuna cache then
         reads only the unfinished and newer rows), never the whole study."""
-        storage = self._storage
+        storage = self._source
         if storage is None:
             self._bind(study)
-            storage = self._storage
+            storage = self._source
         rdb = lean(storage)
         if rdb is not None:
             return self._refresh_lean(rdb)
@@ -207,7 +206,7 @@ class TrialIndex:
         at the next refresh (``running`` then holds the running trials read at the last refresh
         plus any found running now, as ids only). The journal holds the study in memory: a
         :meth:`refresh`."""
-        rdb = lean(self._storage) if self._storage is not None else None
+        rdb = lean(self._source) if self._source is not None else None
         if rdb is None:
             self.refresh(study)
             return study.user_attrs.get(attr)
@@ -238,7 +237,7 @@ class TrialIndex:
         index's waiting trials instead of a scan of the study. ``user_attrs`` are stored with it
         (a new trial: in the write that creates it). Sampling is left to the caller (relative
         parameters are sampled at the first ``suggest``)."""
-        storage = self._storage
+        storage = self._source
         attrs = dict(user_attrs or {})
         rdb = lean(storage)
         for t in sorted(self.waiting, key=lambda t: t.number):
@@ -296,7 +295,7 @@ class TrialIndex:
         """A finished trial (COMPLETE or PRUNED) that walked exactly ``trial``'s parameters."""
         params = trial.params
         for tid in self._by_params.get(params_key(params), ()):
-            t = self._storage.get_trial(tid)
+            t = self._source.get_trial(tid)
             if t.params == params and t.number != trial.number:
                 return t
         return None
@@ -373,7 +372,7 @@ class IndexedMedianPruner(optuna.pruners.MedianPruner):
         self._index = index
 
     def prune(self, study: optuna.Study, trial: FrozenTrial) -> bool:
-        if self._index._storage is None:            # not read yet: Optuna's own reading
+        if self._index._source is None:             # not read yet: Optuna's own reading
             return super().prune(study, trial)
         return super().prune(_CurveStudy(study, self._index._curves), trial)  # type: ignore[arg-type]
 
@@ -387,6 +386,7 @@ class WindowedTPESampler(optuna.samplers.TPESampler):
     def __init__(self, space: dict[str, BaseDistribution], index: TrialIndex | None = None, **kw: Any) -> None:
         kw.setdefault("multivariate", True)
         super().__init__(**kw)
+        compat.use_scipy_log_ndtr()                     # see the note above params_key
         compat.set_tpe_gamma(self, self._good)
         # sorted by name, as Optuna's own inferred space is: the same draws in the same order
         self._space = {k: space[k] for k in sorted(space) if not space[k].single()}
