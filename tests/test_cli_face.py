@@ -35,3 +35,56 @@ def test_help_and_a_refusal_load_no_simulator_optimiser_or_gait():
 def test_no_cli_module_is_over_400_lines():
     sizes = {p.name: len(p.read_text().splitlines()) for p in (ROOT / "tuner" / "cli").glob("*.py")}
     assert max(sizes.values()) <= 400, sizes
+
+
+#: The root's own (tuner/cli/main.py): the entry points, the SIGINT handler, the one-line error.
+ROOT_PLUMBING = {"main": {"cli", "main", "run", "_bad_input", "_on_ctrl_c", "_said"}}
+
+
+def _kind_of(node, module: str) -> str | None:
+    """What a CLI module's top-level function is: a click command, the root's plumbing, a shared
+    option (options.py), a printer (it says something: click.echo or a progress bar) or a refusal
+    (it raises UserError); None for anything else (domain code: it belongs in a wing)."""
+    import ast
+    decorators = [ast.unparse(d) for d in node.decorator_list]
+    if any(d.startswith(("click.command", "click.group")) or ".command(" in d for d in decorators):
+        return "command"
+    if node.name in ROOT_PLUMBING.get(module, ()):
+        return "root"
+    if module == "options":
+        return "option"
+    text = ast.unparse(node)
+    if "click.echo" in text or "tqdm(" in text or "running_total(" in text:
+        return "printer"
+    if "raise UserError" in text:
+        return "refusal"
+    return None
+
+
+def _cli_functions(folder):
+    import ast
+    out = {}
+    for p in sorted(folder.glob("*.py")):
+        tree = ast.parse(p.read_text(encoding="utf-8"))
+        for node in tree.body:
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                out[f"{p.stem}.{node.name}"] = _kind_of(node, p.stem)
+    return out
+
+
+def test_every_cli_function_is_a_command_or_a_printer():
+    """``tuner/cli/`` holds no function a wing could own: each top-level function is a click command,
+    the root's plumbing, a shared option, a printer or a refusal, and no CLI module computes with
+    numpy (its arithmetic is a wing's)."""
+    found = _cli_functions(ROOT / "tuner" / "cli")
+    assert sum(k == "command" for k in found.values()) >= 29
+    assert [name for name, kind in found.items() if kind is None] == []
+    numeric = [p.name for p in (ROOT / "tuner" / "cli").glob("*.py")
+               if "import numpy" in p.read_text(encoding="utf-8")]
+    assert numeric == []
+
+
+def test_the_cli_function_census_can_fail(tmp_path):
+    (tmp_path / "fake.py").write_text("import click\n\n@click.command()\ndef verb():\n    click.echo(_sum([1]))\n\n"
+                                      "def _sum(xs):\n    return sum(xs)\n")
+    assert _cli_functions(tmp_path) == {"fake.verb": "command", "fake._sum": None}

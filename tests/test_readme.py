@@ -2,7 +2,7 @@
 
 The block is read from README.md itself, so an example that stops working fails here. Run in
 order in a scratch directory (``studies/`` and ``examples/`` linked in), so that ``export`` finds
-what ``tune`` made and ``compare`` what ``export`` wrote. In the default run ten long commands
+what ``tune`` made and ``compare`` what ``export`` wrote. In the default run twelve long commands
 get a smaller budget, appended and listed in ``BUDGET`` (the same command, fewer trials,
 rollouts or iterations), and ``calibrate`` (~10 minutes) runs only in the slow suite, where every line runs
 exactly as written (``pytest -m slow tests/test_readme.py``). ``worker`` joins the study
@@ -20,10 +20,12 @@ import pytest
 from conftest import ROOT, run_in_process
 
 BUDGET = {"tune": ["--trials", "2"], "robustness": ["--rollouts", "4", "--push-rollouts", "2"],
-          "identify": ["--max-iters", "3"], "versus": ["--walks", "1", "--no-challenge", "--speeds", "0.2,0,0,0"],
-          "compare": ["--random-rollouts", "2"], "render": ["--duration", "3"], "transfer": ["--walks", "1"],
-          "excite": ["--no-steps"], "experiment eros": ["--steps", "4"],
-          "bus serve": ["--wait", "1"]}
+          "identify servos": ["--max-iters", "3"], "identify ground": ["--max-iters", "3", "--horizon", "1"],
+          "versus": ["--walks", "1", "--no-challenge", "--speeds", "0.2,0,0,0"],
+          "compare": ["--random-rollouts", "2", "--surfaces", "grass50", "--workers", "1"],
+          "render": ["--duration", "2"], "transfer": ["--walks", "1"],
+          "excite": ["--no-steps", "--duration", "5"], "experiment eros": ["--steps", "4", "--workers", "1"],
+          "challenge push": ["--third", "front", "--step", "0.25"], "bus serve": ["--wait", "1"]}
 SLOW_ONLY = {"calibrate"}
 
 
@@ -82,3 +84,22 @@ def test_readme_commands_run(monkeypatch, tmp_path):
 @pytest.mark.slow
 def test_readme_commands_run_exactly_as_written(monkeypatch, tmp_path):
     _run_block(monkeypatch, tmp_path, literal=True)
+
+
+def _layout_section() -> str:
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    return text[text.index("## Layout"):]
+
+
+def test_the_layout_names_every_module_and_nothing_that_is_not_there():
+    """The README's Layout section cannot drift: every module of ``gaits/`` and ``tuner/`` is named there
+    (as often as its file name recurs in the house) and every file it names exists."""
+    import collections
+    section = _layout_section()
+    named = collections.Counter(n.split("/")[-1] for n in re.findall(r"`([\w./-]+\.(?:py|c|yaml|toml))`", section))
+    modules = [p for d in ("tuner", "gaits") for p in (ROOT / d).rglob("*.py")
+               if p.name not in ("__init__.py", "__main__.py")] + list((ROOT / "tuner").rglob("*.c"))
+    counts = collections.Counter(p.name for p in modules)
+    assert {n: c for n, c in counts.items() if named[n] < c} == {}
+    there = {p.name for p in ROOT.rglob("*") if ".venv" not in p.parts and ".git" not in p.parts}
+    assert sorted(n for n in named if n not in there) == []

@@ -13,7 +13,7 @@ from ..errors import UserError
 from ..search.workers import tuned_study
 from ..params_io import resolve_drive, resolve_params
 from ..sim.randomisation import DEFAULT_PUSHES
-from .walks import _envelope_note, _skipped_rows_note, _tail
+from .walks import _skipped_rows_note, _tail
 from .options import OutPath, robot_option, surface_option, workers_option, JSON_OPTION, RECORD_OPTION, RUNS_OPTION, STABILISER_OPTION, COMMANDS_OPTION, TAIL_OPTION, CONTROLLER_OPTION, COMMAND_OPTION, parse_command, bar_options
 
 
@@ -148,7 +148,10 @@ def robustness(params_spec: str | None, robot_name: str, surface_name: str, roll
     if not drive.online:
         drive.table(load_robot(robot_name), 0.01)      # a command the set cannot walk: one line, before any work
     else:                                              # an engine clips a command to its envelope: said
-        _envelope_note(drive, drive.controller(load_robot(robot_name), 0.01))
+        from ..sim.walk import envelope_note
+        said = envelope_note(drive, drive.controller(load_robot(robot_name), 0.01))
+        if said:
+            click.echo(said, err=True)
     total = rollouts + len(sizes) * push_rollouts
     with tqdm(total=total, desc="robustness", unit="rollout", **bar_options()) as bar:
         report = evaluate(robot_name, surface_name, drive, rollouts=rollouts, seed=seed, randomisation=rnd,

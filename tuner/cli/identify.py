@@ -6,7 +6,6 @@ import sys
 from pathlib import Path
 
 import click
-import numpy as np
 
 
 from ..errors import UserError
@@ -52,12 +51,6 @@ def log_info(recording: Path, as_json: bool) -> None:
         click.echo(f"  {topic:18s} {c['messages']:7d} messages  {rate:>9s}{extra}")
 
 
-def _robot_map_path(robot_name: str) -> Path | None:
-    """The robot map file behind ``--robot`` (None for a built-in robot)."""
-    from ..robots import BUILTIN_ROBOTS
-    return None if robot_name in BUILTIN_ROBOTS else Path(robot_name)
-
-
 @click.command()
 @robot_option(help="Built-in robot name or a robot map YAML.")
 @click.option("--out", required=True, type=OutPath(dir_okay=False), metavar="SWEEP.csv",
@@ -89,47 +82,28 @@ def excite(robot_name: str, out: Path, duration: float, f_max: float, amplitude:
     from gaits.files import write_text_atomic
 
     from ..robots import load_robot
-    from ..identify.harness import Harness, excitation, record_sweep, step_train
+    from ..identify.harness import ENCODER_TICKS_LEAST, Harness, plan_sweep, record_sweep
     robot = load_robot(robot_name)
     h = Harness(robot)
     try:
-        t, targets = excitation(h, duration=duration, f1=f_max, amplitude=amplitude, seed=seed)
-        sweep_s = float(t[-1])
-        if steps:
-            targets = np.vstack([targets, step_train(h, targets[-1], amplitude=step_size, seed=seed)])
-            t = np.arange(len(targets)) * h.control_period
+        sweep = plan_sweep(h, duration=duration, f_max=f_max, amplitude=amplitude, steps=steps, step_size=step_size,
+                           seed=seed)
     except ValueError as exc:
         raise UserError(f"excite: {exc}") from None
-    # a swing the encoders cannot resolve identifies nothing: 3 ticks of a 4096-count encoder (ours)
-    n_sweep = int(round(sweep_s / h.control_period)) + 1        # the sweep's rows (the steps jump, by design)
-    half = (targets[:n_sweep].max(0) - targets[:n_sweep].min(0)) / 2
-    least = 3 * 2 * np.pi / 4096
-    small = [f"{j} {a * 1000:.2f} mrad" for j, a in zip(h.joint_names, half) if a < least]
-    if len(small) == len(half):
-        raise UserError(f"excite: the largest swing is {half.max() * 1000:.2f} mrad, below 3 encoder ticks "
-                        f"({least * 1000:.1f} mrad at 4096 counts a turn): nothing could be identified from it; "
-                        f"give --amplitude more (its range allows {float(np.max((h.range_ours()[1] - h.range_ours()[0]) / 2)):.3g} rad at most)")
-    header = "t," + ",".join(f"target.{j}" for j in h.joint_names)
-    rows = "\n".join(",".join([f"{t[k]:.4f}"] + [f"{v:.6f}" for v in targets[k]]) for k in range(len(t)))
-    write_text_atomic(out, header + "\n" + rows + "\n")
-    s = h.servo_arrays()
-    lo, hi = h.range_ours()
-    speed = np.abs(np.diff(targets[:n_sweep], axis=0)).max(axis=0) / h.control_period
-    info = {"robot": robot.name, "sweep": str(out), "seconds": float(t[-1]), "joints": list(h.joint_names),
-            "amplitude_rad": dict(zip(h.joint_names, np.round((targets.max(0) - targets.min(0)) / 2, 4).tolist())),
-            "speed_share": float(np.max(speed / h.nominal_speed())),
-            "sweep_s": sweep_s, "steps_s": float(t[-1]) - sweep_s,
-            "below_encoder": [x.split(" ")[0] for x in small]}
-    if small:
-        click.echo(f"note: {len(small)} joint(s) swing less than 3 encoder ticks ({least * 1000:.1f} mrad) in "
-                   f"the sweep: it tells the fit nothing of their servos ({', '.join(small)})", err=True)
+    write_text_atomic(out, sweep.csv_text())
+    info = {"robot": robot.name, "sweep": str(out), **sweep.info()}
+    if sweep.below_encoder:
+        small = ", ".join(f"{j} {a * 1000:.2f} mrad" for j, a in sweep.below_encoder.items())
+        click.echo(f"note: {len(sweep.below_encoder)} joint(s) swing less than 3 encoder ticks "
+                   f"({ENCODER_TICKS_LEAST * 1000:.1f} mrad) in the sweep: it tells the fit nothing of their servos "
+                   f"({small})", err=True)
     if simulate_to is not None:
-        record_sweep(h, targets, s, simulate_to, seed=seed, notes=f"gait-tuner excite --robot {robot_name}")
+        record_sweep(h, sweep.targets, h.servo_arrays(), simulate_to, seed=seed, notes=f"gait-tuner excite --robot {robot_name}")
         info["recording"] = str(simulate_to)
     if as_json:
         click.echo(json.dumps(info, allow_nan=False))
         return
-    click.echo(f"{robot.name}: a {sweep_s:.0f} s sweep of {h.n} joints at {0.2:g}-{f_max:g} Hz, at most "
+    click.echo(f"{robot.name}: a {sweep.sweep_s:.0f} s sweep of {h.n} joints at {0.2:g}-{f_max:g} Hz, at most "
                f"{info['speed_share'] * 100:.0f} % of a servo's speed"
                + (f", then {info['steps_s']:.0f} s of steps up to {step_size:g} rad, one joint at a time" if steps else "")
                + f"; wrote {out}")
@@ -209,7 +183,7 @@ def identify_servos_cmd(robot_name: str | None, recordings: tuple[Path, ...], to
                f"mrad): a wrong sign or joint name in the recording, or contacts in it" if j else "not a number")
         raise UserError(f"identify servos: the fit did not converge: {why}; nothing written")
     laws = {ours: robot.servos[robot.joint_map[ours][0]] for ours in h.joint_names}
-    written = write_servo_fit(fit, _robot_map_path(robot_name), out_dir, noise, laws)
+    written = write_servo_fit(fit, None if robot.map_path is None else Path(robot.map_path), out_dir, noise, laws)
     if as_json:
         click.echo(json.dumps({**fit_json(fit), "written": [str(p) for p in written]}, allow_nan=False))
         return
@@ -268,16 +242,12 @@ def identify_ground_cmd(robot_name: str | None, surface_name: str, recordings: t
                               trace=sys.stderr if trace else None)
     finally:
         bar.close()
-    worse = [k for k in fit.rms_after if not np.isfinite(fit.rms_after[k])]
-    if worse or sum(fit.rms_after.values()) > sum(fit.rms_before.values()) * 1.0001:
+    if not fit.converged:
         raise UserError("identify ground: the fit did not converge (its replays match the recordings no better than "
                         f"{start.name} does); nothing written")
     written = write_ground_fit(fit, out_dir)
     if as_json:
-        click.echo(json.dumps({"surface": str(written[0]), "values": fit.values,
-                               "intervals": {k: (v if np.isfinite(v) else None) for k, v in fit.intervals.items()},
-                               "identifiable": fit.identifiable, "rms_before": fit.rms_before,
-                               "rms_after": fit.rms_after, "replays": fit.rollouts}, allow_nan=False))
+        click.echo(json.dumps({"surface": str(written[0]), **fit.to_json()}, allow_nan=False))
         return
     for line in ground_lines(fit):
         click.echo(line)

@@ -6,7 +6,6 @@ import sys
 from pathlib import Path
 
 import click
-import numpy as np
 
 import gaits
 from gaits import list_baselines, load_baseline
@@ -21,25 +20,6 @@ def robot() -> None:
     """Check a robot before you tune for it (the built-in `kidsize` or your robot map YAML)."""
 
 
-def _robot_file_of(robot, spec: str):
-    """The robot side's robot file (gaits.robot_file.RobotFile) of a loaded robot."""
-    from gaits.robot_file import JointSpec, RobotFile
-    model = robot.model()
-    names = [theirs for theirs, _ in robot.joint_map.values()]
-    lo, hi = robot.joint_ranges(names)
-    joints = {}
-    for (ours, (theirs, sign)), low, high in zip(robot.joint_map.items(), lo, hi):
-        servo = robot.servos.get(theirs)
-        joints[ours] = JointSpec(theirs, int(sign), float(low) if np.isfinite(low) else -np.pi,
-                                 float(high) if np.isfinite(high) else np.pi,
-                                 float(servo.speed) if servo else 6.5, float(servo.torque) if servo else 6.0,
-                                 robot.servo_units.get(theirs))
-    held = {j: float(v) for j, v in robot.pose.items() if j not in names}
-    return RobotFile(robot.name, robot.leg, tuple(float(v) for v in robot.foot_size), joints,
-                     robot.sim.control_period, float(np.sum(model.body_mass)), held,
-                     bool(getattr(robot, "foot_sensors", True)))
-
-
 @robot.command(name="export")
 @click.argument("robot_spec", metavar="MAP|NAME")
 @click.option("--out", "out", required=True, type=OutPath(dir_okay=False),
@@ -52,7 +32,7 @@ def robot_export(robot_spec: str, out: Path) -> None:
     from ..report.provenance import commit_of
     from ..robots import load_robot
     robot = load_robot(robot_spec)
-    rf = _robot_file_of(robot, robot_spec)
+    rf = robot.robot_file()
     joints, held = rf.joints, rf.held
     source = robot.map_path or robot_spec
     save_robot_file(out, rf, f"gait-tuner robot file of {robot.name} (from {source}{commit_of(__file__)}); "
@@ -280,7 +260,7 @@ def bus_serve(robot_name: str, surface_name: str, link: Path | None, baud: str, 
     from ..sim.rollout import Simulator
     from ..sim.surfaces import load_surface
     robot = load_robot(robot_name)
-    rf = _robot_file_of(robot, robot_name)
+    rf = robot.robot_file()
     missing = [o for o, j in rf.joints.items() if j.servo is None]
     if missing:
         raise UserError(f"{robot_name}: no servo id for {', '.join(missing)}: give the map a servos: section")

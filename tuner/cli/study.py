@@ -2,22 +2,19 @@
 
 from __future__ import annotations
 
-import dataclasses
 import os
 from pathlib import Path
 
 import click
-import numpy as np
 
 import gaits
-from gaits import ParamError
 from gaits.files import write_files_atomic
 
 from ..errors import EXIT_INTERNAL, UserError
 from ..robots.joint_table import joint_table_file
 from ..search.workers import tuned_study
 from ..report.provenance import commit_of
-from .walks import _tail, _walk
+from .walks import _tail
 from .options import OutPath, workers_option, JSON_OPTION, RUNS_OPTION, COMMANDS_OPTION, TAIL_OPTION, COMMAND_OPTION, parse_command, JOINT_NAMES_OPTION, FORMAT_OPTION, CLIP_OPTION, bar_options, storage_option
 
 
@@ -44,93 +41,69 @@ def _study_progress(spec, total: int):
 
 def _run_and_report(spec, store, study_file: str, storage: str | None, total: int | None, workers: int,
                     seed: int, verb: str) -> None:
+    """Prepare the study, run its workers here with a bar, then say its best trial and how to export it
+    (a full disk said in one line)."""
     import optuna
 
-    optuna.logging.set_verbosity(optuna.logging.WARNING)
-    with _storage_errors(store):
-        _run_study_and_report(spec, store, study_file, storage, total, workers, seed, verb)
-
-
-def _storage_errors(store):
-    """A database's full disk met in this process (opening, enqueueing, reaping) as one line."""
-    import contextlib
-
-    from ..store.journal import StorageFull
-    from ..store.storage import storage_full
-
-    @contextlib.contextmanager
-    def guard():
-        try:
-            yield
-        except (UserError, ParamError, KeyboardInterrupt, SystemExit):
-            raise
-        except Exception as exc:  # noqa: BLE001
-            full = storage_full(exc)
-            if full is None:
-                raise
-            raise StorageFull(f"disk full writing the study's storage {store.where} ({full}); free space "
-                              f"and run the same command to resume") from None
-    return guard()
-
-
-def _run_study_and_report(spec, store, study_file: str, storage: str | None, total: int | None, workers: int,
-                          seed: int, verb: str) -> None:
     from ..search.trials import DONE_STATES, NothingWalked, best_trial, trial_feasible, trial_fell
     from ..search.workers import WorkersDying, prepare_study, run_workers
-    study, budget, run = prepare_study(spec, store, total, seed)
-    done = len(study.get_trials(deepcopy=False, states=DONE_STATES))
-    click.echo(f"study {spec.name}: {spec.gait} on {spec.robot} / {', '.join(spec.surfaces)} "
-               f"({spec.aggregate if len(spec.surfaces) > 1 else 'single surface'}), "
-               f"budget {budget} trials ({done} finished), {workers} worker(s) here, storage {store.where}")
-    if spec.controller is not None:
-        click.echo(f"study {spec.name} runs the code of a controller of your own: {spec.controller.source}")
-    if done >= budget:
-        click.echo(f"study {spec.name} is finished: {done} of {budget} trials "
-                   f"(raise the budget with `gait-tuner tune {study_file} --trials N`)")
-    else:
-        if workers > 1:
-            click.echo("note: with several workers the trials' order, and so the best trial, depends on "
-                       "timing; --workers 1 --seed S gives the same study every run")
-        bar, progress = _study_progress(spec, budget)
+    from ..store.storage import full_disk_in_one_line
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    with full_disk_in_one_line(store.where):
+        study, budget, run = prepare_study(spec, store, total, seed)
+        done = len(study.get_trials(deepcopy=False, states=DONE_STATES))
+        click.echo(f"study {spec.name}: {spec.gait} on {spec.robot} / {', '.join(spec.surfaces)} "
+                   f"({spec.aggregate if len(spec.surfaces) > 1 else 'single surface'}), "
+                   f"budget {budget} trials ({done} finished), {workers} worker(s) here, storage {store.where}")
+        if spec.controller is not None:
+            click.echo(f"study {spec.name} runs the code of a controller of your own: {spec.controller.source}")
+        if done >= budget:
+            click.echo(f"study {spec.name} is finished: {done} of {budget} trials "
+                       f"(raise the budget with `gait-tuner tune {study_file} --trials N`)")
+        else:
+            if workers > 1:
+                click.echo("note: with several workers the trials' order, and so the best trial, depends on "
+                           "timing; --workers 1 --seed S gives the same study every run")
+            bar, progress = _study_progress(spec, budget)
+            try:
+                study = run_workers(spec, store, study, budget, workers, seed, progress, run=run)
+            except KeyboardInterrupt:
+                bar.close()
+                click.echo(f"interrupted: finished trials are kept in {store.where}; "
+                           f"run the same command to resume", err=True)
+                raise SystemExit(130) from None
+            except WorkersDying as exc:
+                bar.close()
+                click.echo(f"gait-tuner: error: {exc}", err=True)
+                raise SystemExit(EXIT_INTERNAL) from None
+            finally:
+                bar.close()
+        if verb == "worker":
+            click.echo(f"study {spec.name}: budget reached")
+            return
         try:
-            study = run_workers(spec, store, study, budget, workers, seed, progress, run=run)
-        except KeyboardInterrupt:
-            bar.close()
-            click.echo(f"interrupted: finished trials are kept in {store.where}; "
-                       f"run the same command to resume", err=True)
-            raise SystemExit(130) from None
-        except WorkersDying as exc:
-            bar.close()
-            click.echo(f"gait-tuner: error: {exc}", err=True)
-            raise SystemExit(EXIT_INTERNAL) from None
-        finally:
-            bar.close()
-    if verb == "worker":
-        click.echo(f"study {spec.name}: budget reached")
-        return
-    try:
-        t = best_trial(study)
-    except NothingWalked as exc:
-        click.echo(f"no trial walked yet: {exc}; no best trial to export: narrow the space "
-                   f"to draws that can walk")
-        return
-    except KeyError:          # every trial was pruned (a randomised trial stopped at its falls) or failed
-        states = [x.state.name.lower() for x in study.get_trials(deepcopy=False)]
-        counts = ", ".join(f"{states.count(k)} {k}" for k in dict.fromkeys(states))
-        click.echo(f"no trial of study {spec.name} completed yet ({counts}): no best trial to export; give it "
-                   f"more trials (resume with the same command and --trials N), or a wider space")
-        return
-    n_fell = sum(1 for x in study.get_trials(deepcopy=False, states=DONE_STATES) if trial_fell(x))
-    n_infeasible = sum(1 for x in study.get_trials(deepcopy=False, states=DONE_STATES) if not trial_feasible(x))
-    click.echo(spec.scenario_room.describe_best(spec.settings, t, fell=trial_fell(t), falls=n_fell,
-                                                infeasible=n_infeasible))
-    if not trial_feasible(t):
-        click.echo(f"no feasible trial of study {spec.name} yet: nothing worth exporting; give it more trials "
-                   f"(resume with the same command and --trials N), or a wider space (`export --trial N` "
-                   f"writes one anyway)")
-        return
-    click.echo(f"export it with: gait-tuner export {study_file}"
-               + (f" --storage {storage}" if storage else "") + (" --pareto-pick knee" if len(spec.objectives) > 1 else ""))
+            t = best_trial(study)
+        except NothingWalked as exc:
+            click.echo(f"no trial walked yet: {exc}; no best trial to export: narrow the space "
+                       f"to draws that can walk")
+            return
+        except KeyError:          # every trial was pruned (a randomised trial stopped at its falls) or failed
+            states = [x.state.name.lower() for x in study.get_trials(deepcopy=False)]
+            counts = ", ".join(f"{states.count(k)} {k}" for k in dict.fromkeys(states))
+            click.echo(f"no trial of study {spec.name} completed yet ({counts}): no best trial to export; give it "
+                       f"more trials (resume with the same command and --trials N), or a wider space")
+            return
+        n_fell = sum(1 for x in study.get_trials(deepcopy=False, states=DONE_STATES) if trial_fell(x))
+        n_infeasible = sum(1 for x in study.get_trials(deepcopy=False, states=DONE_STATES) if not trial_feasible(x))
+        click.echo(spec.scenario_room.describe_best(spec.settings, t, fell=trial_fell(t), falls=n_fell,
+                                                    infeasible=n_infeasible))
+        if not trial_feasible(t):
+            click.echo(f"no feasible trial of study {spec.name} yet: nothing worth exporting; give it more trials "
+                       f"(resume with the same command and --trials N), or a wider space (`export --trial N` "
+                       f"writes one anyway)")
+            return
+        click.echo(f"export it with: gait-tuner export {study_file}"
+                   + (f" --storage {storage}" if storage else "") + (" --pareto-pick knee" if len(spec.objectives) > 1 else ""))
 
 
 @click.command()
@@ -317,7 +290,8 @@ def export(study_file: str, storage: str | None, runs_dir: Path, number: int | N
     if engine is not None and table_format == "servo":
         # what the engine sends: its targets as it walks the command in the simulator, on the study's
         # first surface (on the robot it re-plans from what it senses there: the same engine, other targets)
-        traj = _engine_targets(drive, robot, spec.surfaces[0])
+        from ..sim.walk import engine_targets
+        traj = engine_targets(drive, robot, spec.surfaces[0], note=lambda line: click.echo(line, err=True))
         what += f"; the engine's own targets walking it on {spec.surfaces[0]} in the simulator"
     else:
         traj = gaits.Drive(params, trial_stabiliser(t), cmd, stream).table(robot, robot.sim.control_period)
@@ -330,25 +304,6 @@ def export(study_file: str, storage: str | None, runs_dir: Path, number: int | N
     # the set and its table as one: after a kill at any moment both are new or both old
     write_files_atomic({table: table_text, out: gaits.gait_file_text(params, desc, trial_stabiliser(t), engine)})
     click.echo(f"trial {t.number} (score {t.values[0]:.4f}) -> {out} and {table}")
-
-
-def _engine_targets(drive, robot, surface_name: str) -> "gaits.GaitTrajectory":
-    """The targets an engine set sends walking its command (or a stop: standing) in the simulator,
-    as a joint table (the robot's unmapped joints at zero: held), with the walk's references."""
-    from ..sim.rollout import Simulator
-    from ..sim.surfaces import load_surface
-    if drive.command is None and drive.stream is None:
-        drive = dataclasses.replace(drive, command=gaits.WalkCommand(0.0, 0.0, 0.0))
-    sim = Simulator(robot, load_surface(surface_name))
-    trace = _walk(drive, robot, sim, None)
-    if trace.fell:
-        click.echo(f"note: the engine's walk fell ({trace.reason}): the table ends there", err=True)
-    q = np.zeros((len(trace.t), len(gaits.JOINT_NAMES)))
-    for j, name in enumerate(sim.joint_names):
-        q[:, gaits.JOINT_NAMES.index(name)] = trace.q_ref[:, j]
-    return gaits.GaitTrajectory("engine", trace.t - trace.t[0], q, trace.p_torso, trace.p_com,
-                                np.asarray(trace.zmp_ref)[:, :2], trace.p_sole_l, trace.p_sole_r,
-                                np.asarray(trace.support, dtype=int), meta={"engine": True})
 
 
 def _export_controller(spec, t, out: Path) -> None:

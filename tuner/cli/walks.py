@@ -6,7 +6,6 @@ import os
 from pathlib import Path
 
 import click
-import numpy as np
 
 import gaits
 from gaits import family_class
@@ -127,53 +126,11 @@ def _walk_setup(robot_name: str, surface_name: str, family: str | None, params_s
     return drive, robot, sim, (None if commands_file is not None else duration)
 
 
-def _envelope_note(drive, controller) -> None:
-    """One note line when an engine's stream or command asks more than its envelope (the engine walks
-    it clipped there, gaits/engine/), naming the direction, the asked and the largest speed."""
-    engine = getattr(controller, "inner", controller)
-    stream = drive.the_stream()
-    if stream is None or not hasattr(engine, "envelope"):
-        return
-    e = engine.envelope()
-    c = np.asarray(stream.commands, dtype=float)
-    over = []
-    for name, k, sign in (("forward", 0, 1), ("backward", 0, -1), ("left", 1, 1), ("right", 1, -1),
-                          ("turn_left", 2, 1), ("turn_right", 2, -1)):
-        asked = float(np.max(sign * c[:, k])) if len(c) else 0.0
-        if asked > e[name] + 1e-9:
-            unit = "rad/s" if k == 2 else "m/s"
-            over.append(f"{name} {asked:g} {unit} (envelope {e[name]:.3g})")
-    if over:
-        click.echo(f"note: {drive.source}: the engine walks these commands clipped to its envelope: "
-                   f"{', '.join(over)}", err=True)
-
-
 def _walk(drive, robot, sim, duration: float | None, record_qpos: bool = False, record: Path | None = None):
-    """The rollout of a drive on the simulator (the controller it names, for ``duration`` or its own
-    length); with ``record`` (a folder) every tick the controller saw and asked is recorded there as
-    an MCAP file (``gaits/recording.py``), whose path is said on stderr."""
-    options = drive.run_options()
-    if duration is not None:
-        options["duration"] = duration
-    from ..sim.recorded import recording, recording_stem
-    path = None if record is None else record / f"{recording_stem(drive)}--{sim.surface.name}.mcap"
-    try:
-        with recording(drive.controller(robot, sim.control_period), sim, drive, path, "walk") as controller:
-            _envelope_note(drive, controller)
-            table = getattr(getattr(controller, "inner", controller), "traj", None)    # planned in advance: checked
-            if table is not None:
-                problem = sim.range_error(table.q_ref, table.t)
-                if problem is not None:   # said, not refused: the papers' own EROS tables ask the built-in robot so
-                    click.echo(f"note: {drive.source}: {problem}", err=True)
-            trace = sim.run(controller, record_qpos=record_qpos, **options)
-    finally:
-        if path is not None and path.exists():
-            click.echo(f"recorded {path}", err=True)
-    if drive.online and drive.command is not None:
-        # a held command: its velocity is measured from 2 s after the first step to the stop
-        start = float(getattr(drive.engine, "t_stand", 0.0) or 0.0) + 2.0
-        trace.meta["steady"] = (start, float(drive.the_stream().t[-1]))
-    return trace
+    """The walk (``tuner/sim/walk.py``) with its notes said on stderr."""
+    from ..sim.walk import walk
+    return walk(drive, robot, sim, duration, record_qpos=record_qpos, record=record,
+                note=lambda line: click.echo(line, err=True))
 
 
 def _parse_size(size: str) -> tuple[int, int]:

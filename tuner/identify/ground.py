@@ -210,6 +210,21 @@ class GroundFit:
     def not_identifiable(self) -> list[str]:
         return [k for k, ok in self.identifiable.items() if not ok]
 
+    @property
+    def converged(self) -> bool:
+        """Every channel's residual finite after the fit, their sum no larger than the start's (to 1e-4):
+        a fit that matches the recordings no better than the start did is not written (ours)."""
+        if not all(np.isfinite(v) for v in self.rms_after.values()):
+            return False
+        return sum(self.rms_after.values()) <= sum(self.rms_before.values()) * 1.0001
+
+    def to_json(self) -> dict:
+        """The fit as ``identify ground --json`` gives it (an interval with no bound: null)."""
+        return {"values": self.values,
+                "intervals": {k: (v if np.isfinite(v) else None) for k, v in self.intervals.items()},
+                "identifiable": self.identifiable, "rms_before": self.rms_before, "rms_after": self.rms_after,
+                "replays": self.rollouts}
+
 
 def _channels(r: np.ndarray, log: WalkLog) -> dict[str, float]:
     n = len(log.targets)

@@ -35,7 +35,7 @@ from ..sim.rollout import dead_band, rate_limited
 from ..sim.scene import PREFIX, build_scene
 from ..sim.surfaces import SURFACES
 
-__all__ = ["Harness", "ServoArrays", "HANG_HEIGHT"]
+__all__ = ["Harness", "ServoArrays", "HANG_HEIGHT", "Sweep", "plan_sweep", "ENCODER_TICKS_LEAST"]
 
 HANG_HEIGHT = 1.0       # [m] how far the torso is lifted above its standing place (ours: no foot reaches the floor)
 
@@ -346,6 +346,61 @@ def step_train(h: Harness, centre: np.ndarray, *, amplitude: float = 0.6, hold: 
     if h.probe(model, targets, s)[1].any():
         raise ValueError("no step train keeps the limbs apart (limbs that touch at the held pose?)")
     return targets
+
+
+#: A swing the encoders cannot resolve identifies nothing: 3 ticks of a 4096-count encoder [rad] (ours).
+ENCODER_TICKS_LEAST = 3 * 2 * math.pi / 4096
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """What ``excite`` writes: the sweep (``sweep_s`` [s]) and, after it, the step train, as targets
+    [rad, our names and signs] on the control grid ``t`` [s]."""
+
+    joint_names: tuple[str, ...]
+    t: np.ndarray
+    targets: np.ndarray
+    sweep_s: float
+    speed_share: float                       # the sweep's fastest target speed / the servo's nominal speed
+    below_encoder: dict[str, float]          # joint -> its sweep's half swing [rad], under ENCODER_TICKS_LEAST
+
+    def csv_text(self) -> str:
+        """t, then target.<joint> per servo joint."""
+        header = "t," + ",".join(f"target.{j}" for j in self.joint_names)
+        rows = "\n".join(",".join([f"{self.t[k]:.4f}"] + [f"{v:.6f}" for v in self.targets[k]])
+                         for k in range(len(self.t)))
+        return header + "\n" + rows + "\n"
+
+    def info(self) -> dict:
+        """Its figures as ``excite --json`` gives them."""
+        return {"seconds": float(self.t[-1]), "joints": list(self.joint_names),
+                "amplitude_rad": dict(zip(self.joint_names, np.round((self.targets.max(0) - self.targets.min(0)) / 2,
+                                                                     4).tolist())),
+                "speed_share": self.speed_share, "sweep_s": self.sweep_s, "steps_s": float(self.t[-1]) - self.sweep_s,
+                "below_encoder": list(self.below_encoder)}
+
+
+def plan_sweep(h: Harness, *, duration: float, f_max: float, amplitude: float, steps: bool, step_size: float,
+               seed: int) -> Sweep:
+    """The sweep to play on the hanging robot (:func:`excitation`), then, with ``steps``, the step
+    train (:func:`step_train`). ValueError when it cannot be made, or when no joint swings more than
+    :data:`ENCODER_TICKS_LEAST` (the message says the largest amplitude the ranges allow)."""
+    t, targets = excitation(h, duration=duration, f1=f_max, amplitude=amplitude, seed=seed)
+    sweep_s = float(t[-1])
+    if steps:
+        targets = np.vstack([targets, step_train(h, targets[-1], amplitude=step_size, seed=seed)])
+        t = np.arange(len(targets)) * h.control_period
+    n_sweep = int(round(sweep_s / h.control_period)) + 1        # the sweep's rows (the steps jump, by design)
+    half = (targets[:n_sweep].max(0) - targets[:n_sweep].min(0)) / 2
+    least = ENCODER_TICKS_LEAST
+    if np.all(half < least):
+        lo, hi = h.range_ours()
+        raise ValueError(f"the largest swing is {half.max() * 1000:.2f} mrad, below 3 encoder ticks "
+                         f"({least * 1000:.1f} mrad at 4096 counts a turn): nothing could be identified from it; "
+                         f"give --amplitude more (its range allows {float(np.max((hi - lo) / 2)):.3g} rad at most)")
+    speed = np.abs(np.diff(targets[:n_sweep], axis=0)).max(axis=0) / h.control_period
+    return Sweep(tuple(h.joint_names), t, targets, sweep_s, float(np.max(speed / h.nominal_speed())),
+                 {j: float(a) for j, a in zip(h.joint_names, half) if a < least})
 
 
 def record_sweep(h: Harness, targets: np.ndarray, s: ServoArrays, path, *, noise: float = 1e-3, seed: int = 0,

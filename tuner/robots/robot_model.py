@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Mapping
+from typing import TYPE_CHECKING, Any, Mapping
 
 import mujoco
 import numpy as np
@@ -14,6 +14,9 @@ from gaits.leg_kinematics import LEG_JOINTS
 
 from ..errors import UserError
 from ..servos import ServoLaw
+
+if TYPE_CHECKING:
+    from gaits.robot_file import RobotFile
 
 __all__ = ["RobotModel", "SimOptions", "joint_group", "GROUPS"]
 
@@ -171,6 +174,26 @@ class RobotModel:
     def servo_of(self, ours: str) -> ServoLaw:
         """The servo of one of our (mapped) joint names."""
         return self.servos[self.joint_map[ours][0]]
+
+    def robot_file(self) -> "RobotFile":
+        """The robot side's robot file (``gaits.robot_file.RobotFile``) of this robot: leg geometry,
+        soles, mass, joint order, signs and ranges (an unbounded joint: +-pi), each servo's speed
+        [rad/s] and torque [N m] (a joint without a servo: the MX-64's 6.5 and 6.0, ours), units and
+        the joints held at ``pose``."""
+        from gaits.robot_file import JointSpec, RobotFile
+        names = [theirs for theirs, _ in self.joint_map.values()]
+        lo, hi = self.joint_ranges(names)
+        joints = {}
+        for (ours, (theirs, sign)), low, high in zip(self.joint_map.items(), lo, hi):
+            servo = self.servos.get(theirs)
+            joints[ours] = JointSpec(theirs, int(sign), float(low) if np.isfinite(low) else -np.pi,
+                                     float(high) if np.isfinite(high) else np.pi,
+                                     float(servo.speed) if servo else 6.5, float(servo.torque) if servo else 6.0,
+                                     self.servo_units.get(theirs))
+        held = {j: float(v) for j, v in self.pose.items() if j not in names}
+        return RobotFile(self.name, self.leg, tuple(float(v) for v in self.foot_size), joints,
+                         self.sim.control_period, float(np.sum(self.model().body_mass)), held,
+                         bool(getattr(self, "foot_sensors", True)))
 
     @property
     def held_joints(self) -> tuple[str, ...]:

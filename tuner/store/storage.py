@@ -44,7 +44,7 @@ from . import optuna_compat as compat
 from .journal import DISK_FULL, FlockLock, PackedJournalStorage, SafeJournalBackend, StorageFull, repair_journal
 from .liveness import HEARTBEAT_GRACE_S, HEARTBEAT_INTERVAL_S, alive_here, worker_file
 
-__all__ = ["StudyStore", "normalise_url", "CRASH_SIGNALS", "MAX_RETRIES", "storage_full"]
+__all__ = ["StudyStore", "normalise_url", "CRASH_SIGNALS", "MAX_RETRIES", "storage_full", "full_disk_in_one_line"]
 
 #: Signals by which a process crashes by itself (a fault in native code, an abort): the trial it
 #: walked is left failed, not retried. Any other death (SIGKILL, SIGTERM, a lost machine: killed
@@ -81,6 +81,23 @@ def storage_full(exc: BaseException) -> str | None:
                 return words
         exc = orig if orig is not None else (exc.__cause__ or exc.__context__)
     return None
+
+
+@contextlib.contextmanager
+def full_disk_in_one_line(where: str) -> Iterator[None]:
+    """A full disk met writing the storage ``where`` in the block (opening, enqueueing, reaping) raised
+    as one :class:`StorageFull` line that says how to resume; a user's error, an interruption and
+    anything else go through unchanged."""
+    try:
+        yield
+    except (UserError, KeyboardInterrupt, SystemExit):
+        raise
+    except Exception as exc:  # noqa: BLE001
+        full = storage_full(exc)
+        if full is None:
+            raise
+        raise StorageFull(f"disk full writing the study's storage {where} ({full}); free space "
+                          f"and run the same command to resume") from None
 
 
 def _retries(t: optuna.trial.FrozenTrial) -> int:
