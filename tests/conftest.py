@@ -49,11 +49,17 @@ def run_in_process(args, cwd=None) -> "subprocess.CompletedProcess":
     return subprocess.CompletedProcess(["gait-tuner", *args], code, out.getvalue(), err.getvalue())
 
 
+#: Variables whose values do not make a run in this process differ from a subprocess's: the plots'
+#: backend (Agg either way here), the test pytest is in (it changes between a fixture's setup, where
+#: ``run_env`` copies the environment, and the call) and the GL backend ``tuner`` sets when unset.
+_SAME_IN_PROCESS = frozenset({"MPLBACKEND", "PYTEST_CURRENT_TEST", "MUJOCO_GL"})
+
+
 def run_cli(cmd, args, env=None, cwd=None, timeout=600, **kw) -> "subprocess.CompletedProcess":
     """``cmd + args`` as the tests' helpers ran it: in this process when nothing about the process
     is asked (the test's own environment, no input, no other keyword), in a subprocess otherwise."""
-    same_env = env is None or {k: v for k, v in env.items() if k != "MPLBACKEND"} == \
-        {k: v for k, v in os.environ.items() if k != "MPLBACKEND"}
+    same_env = env is None or {k: v for k, v in env.items() if k not in _SAME_IN_PROCESS} == \
+        {k: v for k, v in os.environ.items() if k not in _SAME_IN_PROCESS}
     if same_env and not kw:
         return run_in_process(args, cwd=cwd)
     return subprocess.run(list(cmd) + [str(a) for a in args], capture_output=True, text=True, env=env,

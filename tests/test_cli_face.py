@@ -8,6 +8,7 @@ import subprocess
 import sys
 
 import click
+import pytest
 
 from conftest import ROOT
 from tuner.cli import VERBS, cli
@@ -37,8 +38,9 @@ def test_no_cli_module_is_over_400_lines():
     assert max(sizes.values()) <= 400, sizes
 
 
-#: The root's own (tuner/cli/main.py): the entry points, the SIGINT handler, the one-line error.
-ROOT_PLUMBING = {"main": {"cli", "main", "run", "_bad_input", "_on_ctrl_c", "_said"}}
+#: The root's own (tuner/cli/main.py): the entry points, the SIGINT handler, the one-line error, the
+#: verbs' lines in its help.
+ROOT_PLUMBING = {"main": {"cli", "main", "run", "_bad_input", "_on_ctrl_c", "_said", "_short"}}
 
 
 def _kind_of(node, module: str) -> str | None:
@@ -88,3 +90,25 @@ def test_the_cli_function_census_can_fail(tmp_path):
     (tmp_path / "fake.py").write_text("import click\n\n@click.command()\ndef verb():\n    click.echo(_sum([1]))\n\n"
                                       "def _sum(xs):\n    return sum(xs)\n")
     assert _cli_functions(tmp_path) == {"fake.verb": "command", "fake._sum": None}
+
+
+def test_the_tests_helper_runs_the_cli_in_this_process_with_the_tests_environment(run_env, monkeypatch):
+    """``conftest.run_cli`` with the ``run_env`` fixture's environment (copied at the test's setup)
+    runs the verb in this process: spawning one pays a second of imports per call (it did, for
+    every test that passed ``run_env``, until PYTEST_CURRENT_TEST was left out of the comparison)."""
+    import conftest
+
+    def spawned(*args, **kwargs):
+        raise AssertionError(f"spawned a process: {args}")
+    monkeypatch.setattr(conftest.subprocess, "run", spawned)
+    r = conftest.run_cli(["gait-tuner"], ["--help"], env=run_env)
+    assert r.returncode == 0 and "Commands:" in r.stdout
+    with pytest.raises(AssertionError, match="spawned"):          # an environment of its own: a process
+        conftest.run_cli(["gait-tuner"], ["--help"], env={**run_env, "OTHER": "1"})
+
+
+def test_a_verbs_line_in_the_roots_help_is_cut_at_a_word():
+    from tuner.cli.main import _short
+    assert _short("Walk a gait.", 40) == "Walk a gait."
+    cut = _short("Compare parameter sets side by side: stability matrix, stability %, pitch", 40)
+    assert cut == "Compare parameter sets side by side..." and len(cut) <= 40

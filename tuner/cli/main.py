@@ -90,9 +90,19 @@ class LazyGroup(click.Group):
 
     def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
         width = formatter.width - 6 - max(len(n) for n in VERBS)
-        rows = [(n, click.utils.make_default_short_help(VERBS[n][2], width)) for n in self.list_commands(ctx)]
+        rows = [(n, _short(VERBS[n][2], width)) for n in self.list_commands(ctx)]
         with formatter.section("Commands"):
             formatter.write_dl(rows)
+
+
+def _short(text: str, width: int) -> str:
+    """A verb's one-line help in ``width`` characters: whole words, "..." where it is cut (click's own
+    helper for this is deprecated in click 8.2 and goes in 9)."""
+    text = " ".join(text.split())
+    if len(text) <= width:
+        return text
+    cut = text[:max(width - 3, 1)]
+    return (cut.rsplit(" ", 1)[0] if " " in cut else cut).rstrip(" ,;:") + "..."
 
 
 @click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
