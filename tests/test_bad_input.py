@@ -19,6 +19,8 @@ import yaml
 
 from tuner.cli import main
 
+from conftest import run_cli
+
 ROOT = Path(__file__).resolve().parents[1]
 MAP = ROOT / "examples" / "robots" / "kid3kg" / "kid3kg.yaml"
 
@@ -464,22 +466,20 @@ def test_the_suite_is_as_large_as_promised():
 def test_duplicate_yaml_keys_are_refused_naming_the_key(gait_tuner_cmd, run_env, tmp_path, args, content, key):
     f = tmp_path / "dup.yaml"
     f.write_text(content)
-    r = subprocess.run(gait_tuner_cmd + args + [str(f)] + (["--runs", str(tmp_path / "runs")] if args == ["tune"] else []),
-                       capture_output=True, text=True, env=run_env, timeout=120)
+    r = run_cli(gait_tuner_cmd, args + [str(f)] + (['--runs', str(tmp_path / 'runs')] if args == ['tune'] else []), run_env,
+                timeout=120)
     assert r.returncode == 2 and f"key {key!r} appears twice" in r.stderr and len(r.stderr.strip().splitlines()) == 1
 
 
 def test_a_study_names_its_surfaces_and_overlapping_soles_are_refused(gait_tuner_cmd, run_env, tmp_path):
     study = tmp_path / "s.yaml"
     study.write_text("gait: tlipfm\nspace: {t1: {low: 0.1, high: 0.2}}\n")
-    r = subprocess.run(gait_tuner_cmd + ["tune", str(study), "--runs", str(tmp_path / "runs")], capture_output=True,
-                       text=True, env=run_env, timeout=120)
+    r = run_cli(gait_tuner_cmd, ['tune', str(study), '--runs', str(tmp_path / 'runs')], run_env, timeout=120)
     assert r.returncode == 2 and "missing 'surfaces'" in r.stderr and len(r.stderr.strip().splitlines()) == 1
     params = tmp_path / "p.yaml"
     params.write_text("gait: tlipfm\nparams:\n  half_width: 0.02\n")
     for verb in (["simulate", "--surface", "rigid"], ["trajectory", "--out", str(tmp_path / "t")]):
-        r = subprocess.run(gait_tuner_cmd + verb + ["--params", str(params)], capture_output=True, text=True,
-                           env=run_env, timeout=120)
+        r = run_cli(gait_tuner_cmd, verb + ['--params', str(params)], run_env, timeout=120)
         assert r.returncode == 2 and "the soles overlap by 20.0 mm" in r.stderr, r.stderr
 
 

@@ -18,6 +18,8 @@ from tuner.sim.rollout import Simulator
 from tuner.sim.surfaces import SURFACES, load_surface
 from tuner.sim.turf_tests import DropTest, drop_test, sole_resistance, sole_roll_stiffness, sole_sink
 
+from conftest import run_cli
+
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "surfaces"
 BLADES = load_surface(str(EXAMPLES / "grass50-blades.yaml"))
 CREEP = load_surface(str(EXAMPLES / "grass50-blades-creep.yaml"))
@@ -147,10 +149,7 @@ def test_randomised_walks_run_on_the_blade_layer(gait_tuner_cmd, run_env):
     """The randomisation scales the blades' height, friction and drag as the contact layer's; a
     robust set walks its randomised walks there through the CLI."""
     import json
-    import subprocess
-    r = subprocess.run(gait_tuner_cmd + ["robustness", "--params", "kidsize-robust-grass50", "--surface",
-                                         str(EXAMPLES / "grass50-blades.yaml"), "--rollouts", "3", "--pushes", "",
-                                         "--json"], capture_output=True, text=True, env=run_env, timeout=600)
+    r = run_cli(gait_tuner_cmd, ['robustness', '--params', 'kidsize-robust-grass50', '--surface', str(EXAMPLES / 'grass50-blades.yaml'), '--rollouts', '3', '--pushes', '', '--json'], run_env, timeout=600)
     assert r.returncode == 0, r.stderr
     doc = json.loads(r.stdout)
     assert doc["rollouts"] == 3 and sum(doc["outcomes"].values()) == 3 and doc["outcomes"]["diverged"] == 0
@@ -161,10 +160,7 @@ def test_the_eros_experiment_walks_a_pedestal_on_a_surface_file(gait_tuner_cmd, 
     """`experiment eros --pedestal 1=FILE`: pedestal 1's cells walk on that surface (the JSON says which),
     the others on the built-in pedestals; a bad pedestal is one line, exit 2."""
     import json
-    import subprocess
-    r = subprocess.run(gait_tuner_cmd + ["experiment", "eros", "--pedestal", f"1={EXAMPLES / 'grass50-blades.yaml'}",
-                                         "--json", "--steps", "2"], capture_output=True, text=True, env=run_env,
-                       timeout=900)
+    r = run_cli(gait_tuner_cmd, ['experiment', 'eros', '--pedestal', f"1={EXAMPLES / 'grass50-blades.yaml'}", '--json', '--steps', '2'], run_env, timeout=900)
     assert r.returncode == 0, r.stderr
     doc = json.loads(r.stdout)
     assert doc["surfaces"] == {"grass50": "grass50-blades", "grass30": "grass30", "grass10": "grass10",
@@ -173,8 +169,7 @@ def test_the_eros_experiment_walks_a_pedestal_on_a_surface_file(gait_tuner_cmd, 
     assert doc["stability"]["with"]["grass50"] >= 0.6                      # measured 0.7 (the contact layer: 0)
     for bad, words in (("5=grass30", "N one of 1, 2, 3, 4"), ("1=nowhere", "'nowhere' is not a built-in surface"),
                        ("grass30", "expected N=SURFACE")):
-        r = subprocess.run(gait_tuner_cmd + ["experiment", "eros", "--pedestal", bad], capture_output=True, text=True,
-                           env=run_env, timeout=300)
+        r = run_cli(gait_tuner_cmd, ['experiment', 'eros', '--pedestal', bad], run_env, timeout=300)
         assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and words in r.stderr, r.stderr
 
 

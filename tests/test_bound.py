@@ -6,7 +6,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import subprocess
 
 import numpy as np
 import pytest
@@ -14,6 +13,8 @@ import pytest
 from tuner.robots import load_robot
 from tuner.challenge.bound import (LegLimits, bottle_figures, leg_limits, lipm_phase_function,
                                 push_bound, speed_bound, swing_time)
+
+from conftest import run_cli
 
 LIM = LegLimits(mass=5.0, z_c=0.25, sole_front=0.06, sole_back=0.04, reach=0.16, leg=0.19, thigh=0.11, shank=0.11,
                 crouch_height=0.19, hip_speed=6.0, knee_speed=6.0, ankle_torque=10.0, knee_torque=6.0, lift=0.02)
@@ -83,8 +84,7 @@ def test_a_robots_limits_come_from_its_model():
 
 
 def test_challenge_bound_through_the_cli(gait_tuner_cmd, run_env):
-    r = subprocess.run(gait_tuner_cmd + ["challenge", "bound", "--surface", "grass30", "--steps", "2", "--json"],
-                       capture_output=True, text=True, env=run_env)
+    r = run_cli(gait_tuner_cmd, ['challenge', 'bound', '--surface', 'grass30', '--steps', '2', '--json'], run_env)
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
     assert out["model"]["lift_m"] == pytest.approx(0.04) and out["bottle_kg"] == 3.0

@@ -12,6 +12,8 @@ import gaits
 from gaits import CommandRamp, PlanError, StepLimits, WalkCommand, cosine_law, eros
 from gaits.footstep_planner import plan_footsteps, sole_gap
 
+from conftest import run_cli
+
 WIDE = gaits.load_baseline("eros-x8-with").params          # 95 mm stance: room to turn
 LIMITS = StepLimits(sole_length=0.10, sole_width=0.055)
 
@@ -157,11 +159,9 @@ def test_every_family_says_what_it_walks():
 
 
 def test_params_says_which_commands_a_family_walks(gait_tuner_cmd, run_env):
-    import subprocess
     for fam, text in (("cosine", "forward and backward (vx) only"), ("eros", "quarter-circle via points"),
                       ("tlipfm", "any (vx, vy, wz)")):
-        r = subprocess.run(gait_tuner_cmd + ["params", fam], capture_output=True, text=True, env=run_env,
-                           timeout=60)
+        r = run_cli(gait_tuner_cmd, ['params', fam], run_env, timeout=60)
         walk, online = r.stdout.splitlines()[-2:]
         assert r.returncode == 0 and walk.startswith("walk command (--command): ") and text in walk
         assert online.startswith("online (an engine: section): ")
@@ -171,21 +171,18 @@ def test_params_says_which_commands_a_family_walks(gait_tuner_cmd, run_env):
 def test_tiny_eros_speed_study_end_to_end(gait_tuner_cmd, run_env, tmp_path):
     """A speed study of the EROS family through the real CLI; a cosine-law study may not ask for
     a direction the family does not walk."""
-    import subprocess
     study = tmp_path / "eros-speed.yaml"
     study.write_text("name: eros-tiny-speed\nrobot: kidsize\nsurfaces: [carpet4]\ngait: eros\nbase: eros-x8-with\n"
                      "space:\n  t_mn: {low: 0.05, high: 0.09}\n  double_support: {low: 0.3, high: 0.5}\n"
                      "speed:\n  directions: {forward: {top: 0.1}, left: {top: 0.03, weight: 2}}\n  levels: 4\n"
                      "trials: 4\n")
-    r = subprocess.run(gait_tuner_cmd + ["tune", str(study), "--runs", str(tmp_path / "runs"), "--workers", "1"],
-                       capture_output=True, text=True, env=run_env, timeout=600)
+    r = run_cli(gait_tuner_cmd, ['tune', str(study), '--runs', str(tmp_path / 'runs'), '--workers', '1'], run_env, timeout=600)
     assert r.returncode == 0, r.stderr
     assert "highest stairs held: forward" in r.stdout and "left" in r.stdout
     bad = tmp_path / "cosine-speed.yaml"
     bad.write_text("name: c\ngait: cosine\nsurfaces: [carpet4]\nspace: {motion_time: {low: 1, high: 2}}\n"
                    "speed:\n  directions: {left: {top: 0.01}}\n")
-    r = subprocess.run(gait_tuner_cmd + ["tune", str(bad), "--runs", str(tmp_path / "runs")],
-                       capture_output=True, text=True, env=run_env, timeout=120)
+    r = run_cli(gait_tuner_cmd, ['tune', str(bad), '--runs', str(tmp_path / 'runs')], run_env, timeout=120)
     assert r.returncode == 2 and "gait 'cosine' does not walk left" in r.stderr
 
 

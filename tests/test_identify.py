@@ -5,12 +5,11 @@ hidden servos recovered from recordings the tests simulate in a world of their o
 from __future__ import annotations
 
 import json
-import subprocess
 
 import numpy as np
 import pytest
 
-from conftest import ROOT
+from conftest import ROOT, run_cli
 from tuner.robots import load_robot
 from tuner.identify.harness import Harness, excitation, record_sweep
 from tuner.identify.servos import JointLog, group_of, identify_servos
@@ -123,8 +122,7 @@ def test_hidden_servos_are_recovered(kid3kg):
 
 
 def _cli(gait_tuner_cmd, run_env, *args, cwd):
-    return subprocess.run(gait_tuner_cmd + [str(a) for a in args], capture_output=True, text=True, env=run_env,
-                          cwd=cwd)
+    return run_cli(gait_tuner_cmd, [str(a) for a in args], run_env, cwd=cwd)
 
 
 @pytest.mark.slow   # ~40 s: excite -> identify -> walk end to end; the bus sweep's identification stays in the default run

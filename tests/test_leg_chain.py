@@ -7,10 +7,11 @@ from __future__ import annotations
 
 import json
 import math
-import subprocess
 
 import numpy as np
 import pytest
+
+from conftest import run_cli
 
 import third_party_robot as T
 from gaits.leg_chain import IKNotConverged, LegChain, LegChains, chains_from_mapping, chains_to_mapping, ideal_chain
@@ -199,7 +200,8 @@ def bent_robot(tmp_path_factory):
 
 
 def run(cmd, args, env):
-    return subprocess.run(cmd + [str(a) for a in args], capture_output=True, text=True, env=env, timeout=900)
+    """In this process unless the test asks for a process (conftest.run_cli)."""
+    return run_cli(cmd, args, env)
 
 
 def test_the_bent_robot_loads_unedited_and_robot_check_says_which_ik(bent_robot, gait_tuner_cmd, run_env):

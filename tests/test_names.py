@@ -1,13 +1,14 @@
 """A mistyped name gets the close one suggested; family facts come from the one family registry."""
 
 import dataclasses
-import subprocess
 
 import pytest
 
 import gaits
 from gaits import did_you_mean
 from gaits.families import register
+
+from conftest import run_cli
 
 
 def test_did_you_mean_picks_the_closest_or_nothing():
@@ -25,7 +26,7 @@ def test_did_you_mean_picks_the_closest_or_nothing():
     (["tune", "quickstrat"], "did you mean 'quickstart'?"),
 ])
 def test_a_mistyped_name_is_one_line_with_the_close_one(gait_tuner_cmd, run_env, tmp_path, args, words):
-    r = subprocess.run(gait_tuner_cmd + args, capture_output=True, text=True, env=run_env, cwd=tmp_path)
+    r = run_cli(gait_tuner_cmd, args, run_env, cwd=tmp_path)
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and words in r.stderr, r.stderr
 
 

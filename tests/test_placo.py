@@ -5,7 +5,6 @@ a URDF robot through the adapter (slow)."""
 from __future__ import annotations
 
 import json
-import subprocess
 
 import pytest
 import yaml
@@ -14,6 +13,8 @@ import third_party_robot as T
 from tuner.controllers import load_controller
 from tuner.errors import UserError
 from tuner.placo_walk import PLACO_DEFAULTS, _with_frames
+
+from conftest import run_cli
 
 
 def test_a_placo_file_is_read_and_checked(tmp_path):
@@ -58,10 +59,7 @@ def test_placo_walks_a_urdf_robot_through_the_adapter(tmp_path, gait_tuner_cmd, 
                                                                    "walk_foot_height": 0.03,
                                                                    "walk_max_dx_forward": 0.05,
                                                                    "walk_trunk_pitch": 0.05}}))
-    r = subprocess.run(gait_tuner_cmd + ["simulate", "--robot", str(tmp_path / "map.yaml"), "--controller",
-                                         str(tmp_path / "placo.yaml"), "--surface", "rigid", "--command", "0.1,0,0",
-                                         "--duration", "8", "--json"], capture_output=True, text=True, env=run_env,
-                       timeout=600)
+    r = run_cli(gait_tuner_cmd, ['simulate', '--robot', str(tmp_path / 'map.yaml'), '--controller', str(tmp_path / 'placo.yaml'), '--surface', 'rigid', '--command', '0.1,0,0', '--duration', '8', '--json'], run_env, timeout=600)
     assert r.returncode == 0, r.stderr
     m = json.loads(r.stdout)["metrics"]
     # untuned for this robot it shuffles (0.05 m in 8 s, measured): it stands and steps through the adapter

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import math
-import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +15,8 @@ import gaits
 from gaits.control import Measurement
 from gaits.params import ParamError
 from gaits.policy import PolicyController, gravity_in_body, policy_from_mapping
+
+from conftest import run_cli
 
 onnx = pytest.importorskip("onnx", reason="onnx (the dev extra) builds the test's policy")
 pytest.importorskip("onnxruntime", reason="onnxruntime (the onnx extra) runs policies")
@@ -154,8 +155,7 @@ def test_a_wrong_spec_is_one_line_exit_2(tmp_path, gait_tuner_cmd, run_env, edit
     doc = spec_doc()
     edit(doc)
     (tmp_path / "policy.yaml").write_text(yaml.safe_dump({"policy": doc}))
-    r = subprocess.run(gait_tuner_cmd + ["simulate", "--controller", str(tmp_path / "policy.yaml"), "--surface", "rigid",
-                                         "--duration", "1"], capture_output=True, text=True, env=run_env, timeout=300)
+    r = run_cli(gait_tuner_cmd, ['simulate', '--controller', str(tmp_path / 'policy.yaml'), '--surface', 'rigid', '--duration', '1'], run_env, timeout=300)
     assert r.returncode == 2, (r.stdout, r.stderr)
     lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
     assert len(lines) == 1 and "Traceback" not in r.stderr, r.stderr
@@ -191,9 +191,7 @@ def test_a_policy_walks_like_any_set_and_a_study_tunes_what_its_spec_exposes(tmp
     user = load_controller(tmp_path / "policy.yaml")
     assert user.params == {"action_scale": 0.2, "vx_min": -0.1, "vx_max": 0.2, "vy_max": 0.1, "wz_max": 0.5}
     assert set(user.ranges) == {"action_scale", "vx_max"}
-    r = subprocess.run(gait_tuner_cmd + ["simulate", "--controller", str(tmp_path / "policy.yaml"), "--surface", "grass30",
-                                         "--command", "0.1,0,0", "--duration", "3", "--json"],
-                       capture_output=True, text=True, env=run_env, timeout=600)
+    r = run_cli(gait_tuner_cmd, ['simulate', '--controller', str(tmp_path / 'policy.yaml'), '--surface', 'grass30', '--command', '0.1,0,0', '--duration', '3', '--json'], run_env, timeout=600)
     assert r.returncode == 0, r.stderr
     assert json.loads(r.stdout)["metrics"]["outcome"] == "completed"
     bad = tmp_path / "bad.yaml"

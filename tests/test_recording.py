@@ -11,7 +11,7 @@ import sys
 import numpy as np
 import pytest
 
-from conftest import ROOT
+from conftest import ROOT, run_cli
 from gaits.control import Measurement
 from gaits.recording import CHANNELS, Recorder, RecordingMeta, read_recording, recording_info
 
@@ -71,19 +71,16 @@ def test_a_recording_cut_short_gives_what_it_held(tmp_path):
 def test_what_is_not_a_recording_is_one_line(tmp_path, gait_tuner_cmd, run_env, content, words):
     bad = tmp_path / "bad.mcap"
     bad.write_bytes(content)
-    r = subprocess.run(gait_tuner_cmd + ["log", "info", str(bad)], capture_output=True, text=True, env=run_env)
+    r = run_cli(gait_tuner_cmd, ['log', 'info', str(bad)], run_env)
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and words in r.stderr, r.stderr
 
 
 def test_simulate_records_and_log_info_says_what_it_holds(tmp_path, gait_tuner_cmd, run_env):
-    r = subprocess.run(gait_tuner_cmd + ["simulate", "--params", "kidsize-engine-carpet4", "--surface", "carpet4",
-                                         "--command", "0.2,0,0", "--duration", "2", "--record", str(tmp_path)],
-                       capture_output=True, text=True, env=run_env)
+    r = run_cli(gait_tuner_cmd, ['simulate', '--params', 'kidsize-engine-carpet4', '--surface', 'carpet4', '--command', '0.2,0,0', '--duration', '2', '--record', str(tmp_path)], run_env)
     assert r.returncode == 0, r.stderr
     [path] = tmp_path.glob("*.mcap")
     assert f"recorded {path}" in r.stderr
-    r = subprocess.run(gait_tuner_cmd + ["log", "info", str(path), "--json"], capture_output=True, text=True,
-                       env=run_env)
+    r = run_cli(gait_tuner_cmd, ['log', 'info', str(path), '--json'], run_env)
     info = json.loads(r.stdout)
     assert info["meta"]["robot"] == "kidsize" and info["meta"]["simulated"] and info["meta"]["surface"] == "carpet4"
     assert set(info["channels"]) == set(CHANNELS) and not info["truncated"]
@@ -122,10 +119,7 @@ def test_the_robot_loop_records(tmp_path):
 def test_robustness_records_every_walk(tmp_path, gait_tuner_cmd, run_env):
     """`robustness --record DIR`: one file per randomised walk (its rollout and push in the notes),
     each the same walk the report counts (its last tick at the walk's end, its fall included)."""
-    r = subprocess.run(gait_tuner_cmd + ["robustness", "--params", "kidsize-engine-carpet4", "--surface", "carpet4",
-                                         "--rollouts", "2", "--pushes", "1", "--push-rollouts", "1", "--command",
-                                         "0.1,0,0", "--workers", "2", "--json", "--record",
-                                         str(tmp_path / "rec")], capture_output=True, text=True, env=run_env)
+    r = run_cli(gait_tuner_cmd, ['robustness', '--params', 'kidsize-engine-carpet4', '--surface', 'carpet4', '--rollouts', '2', '--pushes', '1', '--push-rollouts', '1', '--command', '0.1,0,0', '--workers', '2', '--json', '--record', str(tmp_path / 'rec')], run_env)
     assert r.returncode == 0, r.stderr
     assert "recorded 3 walk(s) into" in r.stderr
     files = sorted((tmp_path / "rec").glob("*.mcap"))

@@ -1,6 +1,5 @@
 """Built-in robot numbers, and bringing your own MJCF with a joint map."""
 
-import subprocess
 
 import numpy as np
 import pytest
@@ -12,6 +11,8 @@ from tuner.sim.metrics import summarize
 from tuner.robots import RobotSpec, kidsize_xml, load_robot
 from tuner.sim.rollout import Simulator
 from tuner.sim.surfaces import SURFACES
+
+from conftest import run_cli
 
 
 def test_builtin_robot_matches_its_sources():
@@ -97,8 +98,7 @@ def test_bad_map_files(tmp_path):
 def test_cli_bad_robot_map_exits_2(gait_tuner_cmd, run_env, tmp_path):
     base = "\n".join(f"  {n}: J_{n}" for n in JOINT_NAMES if n != "r_ankle_roll")
     path = byo_files(tmp_path, base)
-    r = subprocess.run(gait_tuner_cmd + ["simulate", "--robot", str(path), "--gait", "tlipfm"],
-                       capture_output=True, text=True, env=run_env, timeout=120)
+    r = run_cli(gait_tuner_cmd, ['simulate', '--robot', str(path), '--gait', 'tlipfm'], run_env, timeout=120)
     assert r.returncode == 2
     assert "leg joints missing from the map: r_ankle_roll" in r.stderr
     assert r.stderr.strip().count("\n") == 0

@@ -12,7 +12,7 @@ import pytest
 import yaml
 
 import third_party_robot as T
-from conftest import ROOT
+from conftest import ROOT, run_cli
 from gaits import JOINT_NAMES, ParamError
 from gaits.robot_file import load_robot_file, to_units
 from test_servo_table import servos_yaml
@@ -22,8 +22,7 @@ from test_servo_table import servos_yaml
 def exported(tmp_path, gait_tuner_cmd, run_env):
     robot_map = T.write(tmp_path, T.mjcf(), T.map_yaml(extra=servos_yaml()))
     out = tmp_path / "robot.yaml"
-    r = subprocess.run(gait_tuner_cmd + ["robot", "export", str(robot_map), "--out", str(out)], capture_output=True,
-                       text=True, env=run_env)
+    r = run_cli(gait_tuner_cmd, ['robot', 'export', str(robot_map), '--out', str(out)], run_env)
     assert r.returncode == 0, r.stderr
     return robot_map, out
 

@@ -9,6 +9,8 @@ import time
 import optuna
 import pytest
 
+from conftest import run_cli
+
 STUDY = """name: {name}
 robot: kidsize
 surfaces: [rigid]
@@ -34,7 +36,8 @@ def write_study(tmp_path, name="tiny", text=STUDY):
 
 
 def run(cmd, args, env, **kw):
-    return subprocess.run(cmd + args, capture_output=True, text=True, env=env, timeout=600, **kw)
+    """In this process unless the test asks for a process (conftest.run_cli)."""
+    return run_cli(cmd, args, env, **kw)
 
 
 def load(tmp_path, name):

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import math
-import subprocess
 
 import numpy as np
 import pytest
@@ -14,6 +13,8 @@ import pytest
 from tuner.sim.surfaces import SURFACES
 from tuner.sim.turf_tests import (BANDS, WEBOTS_GRASS, RotationTest, SpringGround, drop_test,
                                   rigid_peak_force, rotation_test, sole_sink, webots_ground)
+
+from conftest import run_cli
 
 
 def test_the_concrete_reference_is_the_published_one():
@@ -78,8 +79,7 @@ def test_a_robot_sole_sinks_deeper_into_deeper_soft_blades():
 def test_surfaces_test_through_the_cli(gait_tuner_cmd, run_env, tmp_path):
     """Strict JSON per surface name with the four figures, the bands, the Webots grass; the text
     table names every surface; a surface YAML is tested too; a bad name is one line, exit 2."""
-    r = subprocess.run(gait_tuner_cmd + ["surfaces", "--test", "--json"], capture_output=True, text=True,
-                       env=run_env, timeout=600)
+    r = run_cli(gait_tuner_cmd, ['surfaces', '--test', '--json'], run_env, timeout=600)
     assert r.returncode == 0, r.stderr
     doc = json.loads(r.stdout)
     assert set(doc["surfaces"]) == set(SURFACES) | {"webots-grass"}
@@ -89,17 +89,14 @@ def test_surfaces_test_through_the_cli(gait_tuner_cmd, run_env, tmp_path):
             assert isinstance(row[key], float), (name, key)
     assert doc["bands"]["force_reduction_pct"]["FIFA Quality"] == list(BANDS["force_reduction_pct"]["FIFA Quality"])
     assert doc["scale"]["robot_sole_kPa"] < doc["scale"]["drop_test_static_kPa"]
-    text = subprocess.run(gait_tuner_cmd + ["surfaces", "--test"], capture_output=True, text=True, env=run_env,
-                          timeout=600)
+    text = run_cli(gait_tuner_cmd, ['surfaces', '--test'], run_env, timeout=600)
     assert text.returncode == 0 and all(n in text.stdout for n in doc["surfaces"]), text.stdout
     custom = tmp_path / "practice.yaml"
     custom.write_text("layer_height: 0.02\nlayer_timeconst: 0.02\ndrag: 100\n")
-    r = subprocess.run(gait_tuner_cmd + ["surfaces", "--test", "--json", "--surface", str(custom), "--surface",
-                                         "carpet4"], capture_output=True, text=True, env=run_env, timeout=600)
+    r = run_cli(gait_tuner_cmd, ['surfaces', '--test', '--json', '--surface', str(custom), '--surface', 'carpet4'], run_env, timeout=600)
     assert r.returncode == 0, r.stderr
     assert set(json.loads(r.stdout)["surfaces"]) == {"practice", "carpet4", "webots-grass"}
-    bad = subprocess.run(gait_tuner_cmd + ["surfaces", "--test", "--surface", "moon"], capture_output=True,
-                         text=True, env=run_env, timeout=600)
+    bad = run_cli(gait_tuner_cmd, ['surfaces', '--test', '--surface', 'moon'], run_env, timeout=600)
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1 and "moon" in bad.stderr
 
 

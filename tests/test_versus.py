@@ -4,14 +4,15 @@ JSON, a plot; bad input one line."""
 from __future__ import annotations
 
 import json
-import subprocess
 
 import pytest
 import yaml
 
+from conftest import run_cli
+
 
 def run(cmd, args, env, timeout=900):
-    return subprocess.run(cmd + [str(a) for a in args], capture_output=True, text=True, env=env, timeout=timeout)
+    return run_cli(cmd, [str(a) for a in args], env, timeout=timeout)
 
 
 def test_a_set_and_a_policy_side_by_side(tmp_path, gait_tuner_cmd, run_env):
