@@ -13,7 +13,7 @@ import time
 
 import pytest
 
-from conftest import ROOT
+from conftest import ROOT, run_in_process
 from gaits.dynamixel import PING, STATUS, SYNC_WRITE, crc16, instruction_packet, parse_packet, status_packet
 
 pytest.importorskip("dynamixel_sdk", reason="the Dynamixel driver's tests need dynamixel-sdk (the dev extra)")
@@ -35,8 +35,7 @@ def test_packets_as_the_protocol_writes_them():
 @pytest.fixture
 def robot_file(tmp_path):
     out = tmp_path / "robot.yaml"
-    r = subprocess.run([sys.executable, "-m", "tuner.cli", "robot", "export", str(MAP), "--out", str(out)],
-                       capture_output=True, text=True)
+    r = run_in_process(['robot', 'export', str(MAP), '--out', str(out)])
     assert r.returncode == 0, r.stderr
     return out
 
@@ -154,8 +153,7 @@ def test_a_sweep_through_the_bus_on_the_hanging_robot_identifies_its_servos(tmp_
     servos` reads the map's own servos back (gain factor 1, no latency) from that recording."""
     import json
     sweep = tmp_path / "sweep.csv"
-    r = subprocess.run([sys.executable, "-m", "tuner.cli", "excite", "--robot", str(MAP), "--out", str(sweep),
-                        "--duration", "5", "--no-steps"], capture_output=True, text=True)
+    r = run_in_process(['excite', '--robot', str(MAP), '--out', str(sweep), '--duration', '5', '--no-steps'])
     assert r.returncode == 0, r.stderr
     link = tmp_path / "bus"
     server = subprocess.Popen([sys.executable, "-m", "tuner.cli", "bus", "serve", "--robot", str(MAP), "--hang",
@@ -173,9 +171,8 @@ def test_a_sweep_through_the_bus_on_the_hanging_robot_identifies_its_servos(tmp_
     assert loop.returncode == 0, le
     ticks = int(re.search(r"(\d+) ticks on", lo).group(1))
     assert f"served {ticks} ticks" in so and "on a harness" in so, so + se
-    r = subprocess.run([sys.executable, "-m", "tuner.cli", "identify", "servos", "--robot", str(MAP), "--recording",
-                        str(tmp_path / "s.mcap"), "--out", str(tmp_path / "fit"), "--fit", "kp,latency", "--json"],
-                       capture_output=True, text=True)
+    r = run_in_process(['identify', 'servos', '--robot', str(MAP), '--recording', str(tmp_path / 's.mcap'),
+                        '--out', str(tmp_path / 'fit'), '--fit', 'kp,latency', '--json'])
     assert r.returncode == 0, r.stderr
     p = json.loads(r.stdout)["parameters"]
     assert all(abs(p[f"{g}.kp"]["value"] - 1) < 0.03 for g in ("hips", "knees", "ankles", "arms")), p

@@ -12,7 +12,7 @@ import sys
 import numpy as np
 import pytest
 
-from conftest import ROOT
+from conftest import ROOT, run_in_process
 from gaits import ParamError
 from gaits.command_source import FromStream, Scripted, UdpCommands, parse_udp_address
 from gaits.control import Measurement, WithoutReadings
@@ -98,8 +98,7 @@ def test_a_robot_without_foot_sensors_gives_its_controller_none(tmp_path):
     with_feet = Simulator(load_robot(str(U.workspace(tmp_path / "b", U.mesh_urdf()))), load_surface("rigid"))
     assert SensorReader(with_feet, None).read(0.0).foot_force.shape == (8,)
     out = tmp_path / "robot.yaml"
-    r = subprocess.run([sys.executable, "-m", "tuner.cli", "robot", "export", str(path), "--out", str(out)],
-                       capture_output=True, text=True)
+    r = run_in_process(['robot', 'export', str(path), '--out', str(out)])
     assert r.returncode == 0, r.stderr
     assert load_robot_file(out).foot_sensors is False
     bad = U.workspace(tmp_path / "c", U.mesh_urdf(), extra="foot_sensors: 0\n")

@@ -17,6 +17,8 @@ from pathlib import Path
 
 import pytest
 
+from conftest import run_in_process
+
 import third_party_robot as T
 from gaits.files import complete_pending_writes, write_files_atomic
 from test_servo_table import servos_yaml
@@ -70,8 +72,7 @@ def tuned(tmp_path_factory):
     robot = T.write(tmp, T.mjcf(), T.map_yaml(extra=servos_yaml()))
     study = tmp / "pair.yaml"
     study.write_text(STUDY.format(robot=robot))
-    r = subprocess.run([sys.executable, "-m", "tuner.cli", "tune", str(study), "--runs", str(tmp / "runs"),
-                        "--workers", "1"], capture_output=True, text=True)
+    r = run_in_process(['tune', str(study), '--runs', str(tmp / 'runs'), '--workers', '1'])
     assert r.returncode == 0, r.stderr
     return tmp, study
 

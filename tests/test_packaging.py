@@ -19,7 +19,7 @@ import venv
 
 import pytest
 
-from conftest import ROOT
+from conftest import ROOT, run_in_process
 
 
 def test_the_package_list_names_every_package_of_the_tree():
@@ -138,8 +138,7 @@ def test_the_robot_part_installs_and_runs_its_loop_without_the_simulator(tmp_pat
                            cwd=tmp_path)
     assert probe.stdout.strip() == "[]", probe.stdout + probe.stderr
     robot = tmp_path / "robot.yaml"
-    r = subprocess.run([sys.executable, "-m", "tuner.cli", "robot", "export", "kidsize", "--out", str(robot)],
-                       capture_output=True, text=True)
+    r = run_in_process(['robot', 'export', 'kidsize', '--out', str(robot)])
     assert r.returncode == 0, r.stderr
     r = subprocess.run([str(env_dir / "bin" / "gait-tuner-loop"), str(ROOT / "studies" / "results" /
                         "kidsize-engine-carpet4.yaml"), "--dry-run", "--seconds", "1", "--robot", str(robot)],

@@ -18,6 +18,8 @@ from pathlib import Path
 import optuna
 import pytest
 
+from conftest import run_cli
+
 from tuner.errors import UserError
 from tuner.store.journal import FlockLock, repair_journal
 from tuner.store.storage import StudyStore, normalise_url
@@ -67,8 +69,8 @@ def tally(study: optuna.Study) -> dict:
 
 
 def cli(cmd, *args, env=None, **kw):
-    return subprocess.run(cmd + [str(a) for a in args], capture_output=True, text=True, env=env,
-                          timeout=600, **kw)
+    """In this process unless the test asks for a process: an environment of its own, input (conftest.run_cli)."""
+    return run_cli(cmd, [str(a) for a in args], env, **kw)
 
 
 def start(cmd, *args, env=None):
