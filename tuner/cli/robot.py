@@ -288,6 +288,8 @@ def bus_serve(robot_name: str, surface_name: str, link: Path | None, baud: str, 
     click.echo(f"served {out['ticks']} ticks ({out['ticks'] * sim.control_period:.2f} s); ended: {out['ended']}"
                + (f"; the walk: {out['outcome']}" if out["outcome"] else "")
                + (f"; {out['ignored']} packet(s) not answered" if out["ignored"] else "")
+               + (f"; {out['held']} tick(s) the client read again without writing (the goals held)"
+                  if out["held"] else "")
                + (f"; randomised: seed {seed}, walk {walk_index}" if perturb is not None else ""))
     if out["ticks"]:
         click.echo(f"on the wire: {out['bytes_per_tick']:.0f} bytes a tick, {out['wire_ms_per_tick']:.2f} ms at {baud} "

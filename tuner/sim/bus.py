@@ -97,10 +97,22 @@ class BusBridge:
         self._last = np.zeros(len(JOINT_NAMES))
         self.heard = 0.0                  # when the client was last heard (time.monotonic)
         self.client = False               # a client has been heard: ``idle`` counts from then on
+        # A tick of the client's is a sync read of the servos, then (its reading taken) a sync write.
+        # A client whose read failed (late or garbled: a loaded machine) writes nothing that tick and
+        # reads again at the next: on a robot the servos held their goal through it, so the
+        # simulated robot does too, one tick per read, and the client's clock and the simulation's
+        # stay one (ours; before, the simulation waited for the write and fell behind the
+        # recording's clock by each tick without one)
+        self.started = False              # the start pose is set
+        self.ticking = False              # ... and the client's first tick written: a second read ends a tick
+        self.read_this_tick = False
+        self.held = 0                     # ticks the client wrote nothing (the goal held)
+        self._pending: list[Any] = []     # a read that began the next tick, answered there
 
     # --- the controller protocol ----------------------------------------------------------
     def start_pose(self) -> StartPose:
         self._last = self._goal()
+        self.started = True
         return StartPose(self._last)
 
     def reset(self, m: Measurement) -> None:
@@ -122,9 +134,22 @@ class BusBridge:
         """Answer packets until a sync write of goal positions arrives; our 20 targets of it."""
         self.heard = time.monotonic()
         while True:
-            for packet in self._packets(self.heard, 0.3 if not self.state.torque else self.idle):
+            if self._pending:
+                packets: Any = [self._pending.pop(0)]
+            else:
+                packets = self._packets(self.heard, 0.3 if not self.state.torque else self.idle)
+            for packet in packets:
+                if packet.instruction == SYNC_READ and self.ticking and self.read_this_tick:
+                    self._pending.append(packet)      # the client's next tick: this one passed, held
+                    self.read_this_tick = False
+                    self.held += 1
+                    return self._last
                 q = self._answer(packet)
+                if packet.instruction == SYNC_READ:
+                    self.read_this_tick = True
                 if q is not None:
+                    self.read_this_tick = False
+                    self.ticking = self.started       # reads before the first tick's write: the client settling
                     return q
 
     def _packets(self, since: float, idle: float):
@@ -288,5 +313,5 @@ def serve(sim: Any, robot: RobotFile, *, baudrate: int = 1_000_000, link: str | 
         outcome = f"fell at t = {watch.t_fall:.2f} s (the simulator's fall criteria; served on, lying, after it)"
     # a real bus is half duplex at ``baudrate``: 10 bits a byte (start, 8 data, stop), both ways in turn
     per_tick = (bridge.bytes_in + bridge.bytes_out) / max(bridge.ticks, 1)
-    return {"ticks": bridge.ticks, "ended": why, "outcome": outcome, "ignored": bridge.ignored,
+    return {"ticks": bridge.ticks, "held": bridge.held, "ended": why, "outcome": outcome, "ignored": bridge.ignored,
             "bytes_per_tick": per_tick, "wire_ms_per_tick": 1000.0 * 10 * per_tick / baudrate}
