@@ -20,7 +20,10 @@ run: $(STAMP)
 
 # the default run on two worker processes (pytest-xdist): both cores are busy throughout, so a
 # test that waits for a window in wall time fails here (tests/run_loaded.py loads a machine by hand)
+# (the sources byte-compiled first: where PYTHONDONTWRITEBYTECODE is set, every process the tests
+# start would compile them again)
 test: $(STAMP)
+	$(BIN)/python -m compileall -q tuner gaits > /dev/null
 	$(BIN)/python -m pytest -q -n 2
 
 clean:

@@ -84,7 +84,7 @@ def test_a_one_point_blade_calibration_chooses_what_its_evaluations_say():
     """End to end on one grid point (the jam file's layer) and one heel gain: each grass pedestal's
     candidate is that point, chosen unless pedestal 1 fails the toe-sticking test; the carpet is
     its built-in layer."""
-    gain, best, every = cal.calibrate(grid={"blade_jam_speed": (0.6,)}, gains=(0.25,), workers=2, layer="blades")
+    gain, best, every = cal.calibrate(grid={"blade_jam_speed": (0.6,)}, gains=(0.25,), workers=1, layer="blades")
     assert gain == 0.25 and len(every) == 4
     by_ped = {c.pedestal: c for c in every}
     assert by_ped[4].surface == "carpet4" and by_ped[2].surface == "grass30-blades"
