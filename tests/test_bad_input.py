@@ -466,8 +466,8 @@ def test_the_suite_is_as_large_as_promised():
 def test_duplicate_yaml_keys_are_refused_naming_the_key(gait_tuner_cmd, run_env, tmp_path, args, content, key):
     f = tmp_path / "dup.yaml"
     f.write_text(content)
-    r = run_cli(gait_tuner_cmd, args + [str(f)] + (['--runs', str(tmp_path / 'runs')] if args == ['tune'] else []), run_env,
-                timeout=120)
+    r = run_cli(gait_tuner_cmd, args + [str(f)] + (['--runs', str(tmp_path / 'runs')] if args == ['tune'] else []),
+                run_env, timeout=120)
     assert r.returncode == 2 and f"key {key!r} appears twice" in r.stderr and len(r.stderr.strip().splitlines()) == 1
 
 

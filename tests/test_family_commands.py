@@ -176,7 +176,8 @@ def test_tiny_eros_speed_study_end_to_end(gait_tuner_cmd, run_env, tmp_path):
                      "space:\n  t_mn: {low: 0.05, high: 0.09}\n  double_support: {low: 0.3, high: 0.5}\n"
                      "speed:\n  directions: {forward: {top: 0.1}, left: {top: 0.03, weight: 2}}\n  levels: 4\n"
                      "trials: 4\n")
-    r = run_cli(gait_tuner_cmd, ['tune', str(study), '--runs', str(tmp_path / 'runs'), '--workers', '1'], run_env, timeout=600)
+    r = run_cli(gait_tuner_cmd, ['tune', str(study), '--runs', str(tmp_path / 'runs'), '--workers', '1'], run_env,
+                timeout=600)
     assert r.returncode == 0, r.stderr
     assert "highest stairs held: forward" in r.stdout and "left" in r.stdout
     bad = tmp_path / "cosine-speed.yaml"

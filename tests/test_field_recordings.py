@@ -157,7 +157,8 @@ def test_a_bad_recording_is_one_line_exit_2(tmp_path, gait_tuner_cmd, run_env, k
         rec = read_field_recording(path, robot_joints=list(THEIRS) + ["r_hip_roll"])
         rec.on_grid(DT, JOINTS)
     assert says in str(exc.value), str(exc.value)
-    r = run_cli(gait_tuner_cmd, ['identify', 'servos', '--robot', str(KID3KG), '--recording', str(path), '--out', str(tmp_path / 'fit')], run_env)
+    r = run_cli(gait_tuner_cmd, ['identify', 'servos', '--robot', str(KID3KG), '--recording', str(path), '--out',
+                                 str(tmp_path / 'fit')], run_env)
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "Traceback" not in r.stderr, r.stderr
     assert not (tmp_path / "fit").exists()
 

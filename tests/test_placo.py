@@ -59,7 +59,9 @@ def test_placo_walks_a_urdf_robot_through_the_adapter(tmp_path, gait_tuner_cmd, 
                                                                    "walk_foot_height": 0.03,
                                                                    "walk_max_dx_forward": 0.05,
                                                                    "walk_trunk_pitch": 0.05}}))
-    r = run_cli(gait_tuner_cmd, ['simulate', '--robot', str(tmp_path / 'map.yaml'), '--controller', str(tmp_path / 'placo.yaml'), '--surface', 'rigid', '--command', '0.1,0,0', '--duration', '8', '--json'], run_env, timeout=600)
+    r = run_cli(gait_tuner_cmd, ['simulate', '--robot', str(tmp_path / 'map.yaml'), '--controller',
+                                 str(tmp_path / 'placo.yaml'), '--surface', 'rigid', '--command', '0.1,0,0',
+                                 '--duration', '8', '--json'], run_env, timeout=600)
     assert r.returncode == 0, r.stderr
     m = json.loads(r.stdout)["metrics"]
     # untuned for this robot it shuffles (0.05 m in 8 s, measured): it stands and steps through the adapter

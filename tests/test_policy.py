@@ -155,7 +155,8 @@ def test_a_wrong_spec_is_one_line_exit_2(tmp_path, gait_tuner_cmd, run_env, edit
     doc = spec_doc()
     edit(doc)
     (tmp_path / "policy.yaml").write_text(yaml.safe_dump({"policy": doc}))
-    r = run_cli(gait_tuner_cmd, ['simulate', '--controller', str(tmp_path / 'policy.yaml'), '--surface', 'rigid', '--duration', '1'], run_env, timeout=300)
+    r = run_cli(gait_tuner_cmd, ['simulate', '--controller', str(tmp_path / 'policy.yaml'), '--surface', 'rigid',
+                                 '--duration', '1'], run_env, timeout=300)
     assert r.returncode == 2, (r.stdout, r.stderr)
     lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
     assert len(lines) == 1 and "Traceback" not in r.stderr, r.stderr
@@ -191,7 +192,8 @@ def test_a_policy_walks_like_any_set_and_a_study_tunes_what_its_spec_exposes(tmp
     user = load_controller(tmp_path / "policy.yaml")
     assert user.params == {"action_scale": 0.2, "vx_min": -0.1, "vx_max": 0.2, "vy_max": 0.1, "wz_max": 0.5}
     assert set(user.ranges) == {"action_scale", "vx_max"}
-    r = run_cli(gait_tuner_cmd, ['simulate', '--controller', str(tmp_path / 'policy.yaml'), '--surface', 'grass30', '--command', '0.1,0,0', '--duration', '3', '--json'], run_env, timeout=600)
+    r = run_cli(gait_tuner_cmd, ['simulate', '--controller', str(tmp_path / 'policy.yaml'), '--surface', 'grass30',
+                                 '--command', '0.1,0,0', '--duration', '3', '--json'], run_env, timeout=600)
     assert r.returncode == 0, r.stderr
     assert json.loads(r.stdout)["metrics"]["outcome"] == "completed"
     bad = tmp_path / "bad.yaml"

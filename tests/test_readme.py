@@ -101,5 +101,8 @@ def test_the_layout_names_every_module_and_nothing_that_is_not_there():
                if p.name not in ("__init__.py", "__main__.py")] + list((ROOT / "tuner").rglob("*.c"))
     counts = collections.Counter(p.name for p in modules)
     assert {n: c for n, c in counts.items() if named[n] < c} == {}
-    there = {p.name for p in ROOT.rglob("*") if ".venv" not in p.parts and ".git" not in p.parts}
+    there = set()
+    for folder, subfolders, files in os.walk(ROOT):
+        subfolders[:] = [d for d in subfolders if d not in (".venv", ".git", "runs", "__pycache__")]
+        there.update(subfolders, files)
     assert sorted(n for n in named if n not in there) == []

@@ -76,7 +76,8 @@ def test_what_is_not_a_recording_is_one_line(tmp_path, gait_tuner_cmd, run_env, 
 
 
 def test_simulate_records_and_log_info_says_what_it_holds(tmp_path, gait_tuner_cmd, run_env):
-    r = run_cli(gait_tuner_cmd, ['simulate', '--params', 'kidsize-engine-carpet4', '--surface', 'carpet4', '--command', '0.2,0,0', '--duration', '2', '--record', str(tmp_path)], run_env)
+    r = run_cli(gait_tuner_cmd, ['simulate', '--params', 'kidsize-engine-carpet4', '--surface', 'carpet4',
+                                 '--command', '0.2,0,0', '--duration', '2', '--record', str(tmp_path)], run_env)
     assert r.returncode == 0, r.stderr
     [path] = tmp_path.glob("*.mcap")
     assert f"recorded {path}" in r.stderr
@@ -119,7 +120,9 @@ def test_the_robot_loop_records(tmp_path):
 def test_robustness_records_every_walk(tmp_path, gait_tuner_cmd, run_env):
     """`robustness --record DIR`: one file per randomised walk (its rollout and push in the notes),
     each the same walk the report counts (its last tick at the walk's end, its fall included)."""
-    r = run_cli(gait_tuner_cmd, ['robustness', '--params', 'kidsize-engine-carpet4', '--surface', 'carpet4', '--rollouts', '2', '--pushes', '1', '--push-rollouts', '1', '--command', '0.1,0,0', '--workers', '2', '--json', '--record', str(tmp_path / 'rec')], run_env)
+    r = run_cli(gait_tuner_cmd, ['robustness', '--params', 'kidsize-engine-carpet4', '--surface', 'carpet4',
+                                 '--rollouts', '2', '--pushes', '1', '--push-rollouts', '1', '--command', '0.1,0,0',
+                                 '--workers', '2', '--json', '--record', str(tmp_path / 'rec')], run_env)
     assert r.returncode == 0, r.stderr
     assert "recorded 3 walk(s) into" in r.stderr
     files = sorted((tmp_path / "rec").glob("*.mcap"))

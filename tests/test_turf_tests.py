@@ -93,7 +93,8 @@ def test_surfaces_test_through_the_cli(gait_tuner_cmd, run_env, tmp_path):
     assert text.returncode == 0 and all(n in text.stdout for n in doc["surfaces"]), text.stdout
     custom = tmp_path / "practice.yaml"
     custom.write_text("layer_height: 0.02\nlayer_timeconst: 0.02\ndrag: 100\n")
-    r = run_cli(gait_tuner_cmd, ['surfaces', '--test', '--json', '--surface', str(custom), '--surface', 'carpet4'], run_env, timeout=600)
+    r = run_cli(gait_tuner_cmd, ['surfaces', '--test', '--json', '--surface', str(custom), '--surface', 'carpet4'],
+                run_env, timeout=600)
     assert r.returncode == 0, r.stderr
     assert set(json.loads(r.stdout)["surfaces"]) == {"practice", "carpet4", "webots-grass"}
     bad = run_cli(gait_tuner_cmd, ['surfaces', '--test', '--surface', 'moon'], run_env, timeout=600)

@@ -37,7 +37,7 @@ from ..store.history import IndexedMedianPruner, TrialIndex, WindowedTPESampler
 from .objective import Evaluator, objective_for, record_constraint, suggest
 from ..store.journal import StorageFull
 from ..store.rdb import lean
-from ..store.storage import StudyStore, storage_full
+from ..store.storage import StudyStore, disk_full, storage_full
 from .study import CTRL_PREFIX, ENGINE_PREFIX, STAB_PREFIX, StudySpec
 from .trials import n_done, trial_result
 
@@ -273,8 +273,7 @@ def work(spec: StudySpec, store: StudyStore, budget: int, seed: int,
                 full = storage_full(exc)
                 if full is not None:
                     # left running: the next open finds its worker dead and retries it
-                    raise StorageFull(f"disk full writing the study's storage {store.where} ({full}); "
-                                      f"free space and run the same command to resume") from None
+                    raise disk_full(store.where, full) from None
                 with contextlib.suppress(Exception):
                     trial.set_user_attr("failed", f"{type(exc).__name__}: {exc}")
                     study.tell(trial, state=TrialState.FAIL)
@@ -307,8 +306,7 @@ def _worker(spec: StudySpec, store: StudyStore, budget: int, seed: int, parent: 
         full = storage_full(exc)
         if full is None:
             raise
-        errors.put(f"disk full writing the study's storage {store.where} ({full}); free space and run "
-                   f"the same command to resume")
+        errors.put(str(disk_full(store.where, full)))
         sys.exit(3)
 
 def cores() -> int:

@@ -44,7 +44,7 @@ from . import optuna_compat as compat
 from .journal import DISK_FULL, FlockLock, PackedJournalStorage, SafeJournalBackend, StorageFull, repair_journal
 from .liveness import HEARTBEAT_GRACE_S, HEARTBEAT_INTERVAL_S, alive_here, worker_file
 
-__all__ = ["StudyStore", "normalise_url", "CRASH_SIGNALS", "MAX_RETRIES", "storage_full", "full_disk_in_one_line"]
+__all__ = ["StudyStore", "normalise_url", "CRASH_SIGNALS", "MAX_RETRIES", "storage_full", "full_disk_in_one_line", "disk_full"]
 
 #: Signals by which a process crashes by itself (a fault in native code, an abort): the trial it
 #: walked is left failed, not retried. Any other death (SIGKILL, SIGTERM, a lost machine: killed
@@ -96,8 +96,14 @@ def full_disk_in_one_line(where: str) -> Iterator[None]:
         full = storage_full(exc)
         if full is None:
             raise
-        raise StorageFull(f"disk full writing the study's storage {where} ({full}); free space "
-                          f"and run the same command to resume") from None
+        raise disk_full(where, full) from None
+
+
+def disk_full(where: str, reason: str) -> StorageFull:
+    """The one line a full disk under the study's storage ``where`` is said in (``reason``: what
+    :func:`storage_full` found), with how to resume."""
+    return StorageFull(f"disk full writing the study's storage {where} ({reason}); free space and run the "
+                       f"same command to resume")
 
 
 def _retries(t: optuna.trial.FrozenTrial) -> int:
