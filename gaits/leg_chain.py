@@ -113,6 +113,7 @@ class LegChain:
         object.__setattr__(self, "_K2", K @ K)
         object.__setattr__(self, "_m_p", np.array(self.sole))
         object.__setattr__(self, "_m_R", np.array(self.sole_rotation))
+        object.__setattr__(self, "_sole_floats", (tuple(self.sole), tuple(float(x) for x in np.array(self.sole_rotation).reshape(9))))
 
     # --- the chain ---------------------------------------------------------------------------
     def fk(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -131,9 +132,15 @@ class LegChain:
         return ps.reshape(q.shape[:-1] + (3,)), Rs.reshape(q.shape[:-1] + (3, 3))
 
     def _chain(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """The sole's pose and each joint's axis and point in the pelvis frame at ``q`` (plain floats:
-        numpy's per-call cost dominates 3 x 3 products; this is the IK's inner loop). The joints
-        compose in ``order``; ``q`` and the axes and points returned are in our order."""
+        """The sole's pose and each joint's axis and point in the pelvis frame at ``q`` (the joints
+        compose in ``order``; ``q`` and the axes and points returned are in our order)."""
+        p, R, axes, pts = self._chain_floats(q)
+        return np.array(p), np.array(R).reshape(3, 3), np.array(axes), np.array(pts)
+
+    def _chain_floats(self, q) -> tuple[tuple, tuple, list, list]:
+        """:meth:`_chain` in plain floats: the sole point (3-tuple), its rotation (9-tuple, row by
+        row), the axes and points (lists of 3-tuples). numpy's per-call cost dominates 3 x 3 products;
+        this is the IK's inner loop."""
         r00, r01, r02, r10, r11, r12, r20, r21, r22 = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
         px = py = pz = 0.0
         axes, pts = [None] * 6, [None] * 6
@@ -142,7 +149,7 @@ class LegChain:
                        r20 * ux + r21 * uy + r22 * uz)
             pts[i] = (r00 * ax + r01 * ay + r02 * az + px, r10 * ax + r11 * ay + r12 * az + py,
                       r20 * ax + r21 * ay + r22 * az + pz)
-            qi = q[i]
+            qi = float(q[i])
             sn, cs = math.sin(qi), math.cos(qi)
             v = 1.0 - cs
             # Rodrigues: Ri = I + sin K + (1 - cos) K^2, K = [u]x
@@ -159,48 +166,92 @@ class LegChain:
                 r00 * a00 + r01 * a10 + r02 * a20, r00 * a01 + r01 * a11 + r02 * a21, r00 * a02 + r01 * a12 + r02 * a22,
                 r10 * a00 + r11 * a10 + r12 * a20, r10 * a01 + r11 * a11 + r12 * a21, r10 * a02 + r11 * a12 + r12 * a22,
                 r20 * a00 + r21 * a10 + r22 * a20, r20 * a01 + r21 * a11 + r22 * a21, r20 * a02 + r21 * a12 + r22 * a22)
-        R = np.array([[r00, r01, r02], [r10, r11, r12], [r20, r21, r22]])
-        return R @ self._m_p + np.array([px, py, pz]), R @ self._m_R, np.array(axes), np.array(pts)
+        (mx, my, mz), M = self._sole_floats
+        p = (r00 * mx + r01 * my + r02 * mz + px, r10 * mx + r11 * my + r12 * mz + py,
+             r20 * mx + r21 * my + r22 * mz + pz)
+        m0, m1, m2, m3, m4, m5, m6, m7, m8 = M
+        R = (r00 * m0 + r01 * m3 + r02 * m6, r00 * m1 + r01 * m4 + r02 * m7, r00 * m2 + r01 * m5 + r02 * m8,
+             r10 * m0 + r11 * m3 + r12 * m6, r10 * m1 + r11 * m4 + r12 * m7, r10 * m2 + r11 * m5 + r12 * m8,
+             r20 * m0 + r21 * m3 + r22 * m6, r20 * m1 + r21 * m4 + r22 * m7, r20 * m2 + r21 * m5 + r22 * m8)
+        return p, R, axes, pts
+
+    def _newton_terms(self, q, pt: tuple, Rt: tuple) -> tuple[np.ndarray, np.ndarray]:
+        """The error (6,) of the sole's pose at ``q`` from the target (``pt`` 3-tuple, ``Rt`` 9-tuple:
+        position, then the rotation vector of Rt R^T) and the sole's Jacobian (6 x 6), in floats."""
+        (px, py, pz), R, axes, pts = self._chain_floats(q)
+        # E = Rt R^T, row i of Rt against row j of R
+        t0, t1, t2, t3, t4, t5, t6, t7, t8 = Rt
+        s0, s1, s2, s3, s4, s5, s6, s7, s8 = R
+        E = (t0 * s0 + t1 * s1 + t2 * s2, t0 * s3 + t1 * s4 + t2 * s5, t0 * s6 + t1 * s7 + t2 * s8,
+             t3 * s0 + t4 * s1 + t5 * s2, t3 * s3 + t4 * s4 + t5 * s5, t3 * s6 + t4 * s7 + t5 * s8,
+             t6 * s0 + t7 * s1 + t8 * s2, t6 * s3 + t7 * s4 + t8 * s5, t6 * s6 + t7 * s7 + t8 * s8)
+        vx, vy, vz = E[7] - E[5], E[2] - E[6], E[3] - E[1]
+        c = (E[0] + E[4] + E[8] - 1.0) / 2.0
+        s = 0.5 * math.sqrt(vx * vx + vy * vy + vz * vz)
+        if s < 1e-9 and c > 0:                      # near identity: the first-order term
+            wx, wy, wz = 0.5 * vx, 0.5 * vy, 0.5 * vz
+        elif s < 1e-9:                              # near pi: the general form
+            wx, wy, wz = (float(x) for x in _log_rotation(np.array(E).reshape(3, 3)))
+        else:
+            k = math.atan2(s, max(min(c, 1.0), -1.0)) / (2.0 * s)
+            wx, wy, wz = vx * k, vy * k, vz * k
+        rows = ([], [], [], [], [], [])
+        for (ux, uy, uz), (ax, ay, az) in zip(axes, pts):
+            dx, dy, dz = px - ax, py - ay, pz - az      # the sole point from the axis
+            rows[0].append(uy * dz - uz * dy)
+            rows[1].append(uz * dx - ux * dz)
+            rows[2].append(ux * dy - uy * dx)
+            rows[3].append(ux)
+            rows[4].append(uy)
+            rows[5].append(uz)
+        return np.array((pt[0] - px, pt[1] - py, pt[2] - pz, wx, wy, wz)), np.array(rows)
 
     # --- the inverse ---------------------------------------------------------------------------
     def solve(self, p_target: np.ndarray, R_target: np.ndarray, q0: np.ndarray | None = None,
-              iterations: int = 40) -> np.ndarray:
+              iterations: int = 40, tol: float = _TOL, step_tol: float = 0.0) -> np.ndarray:
         """Joint angles (6,) that put the sole point at ``p_target`` (3,) with the rotation
         ``R_target`` (3, 3), in the pelvis frame, from ``q0`` (default: the zero pose; a walk passes its
         last tick's answer, so a result never depends on another walk's). Damped Newton steps (module
         docstring); raises
         :class:`IKNotConverged` with the closest pose found when it does not reach the target
-        within 1e-6 (m + rad)."""
+        within 1e-6 (m + rad). ``tol`` [m + rad]: the error at which the steps stop (a walk's tick
+        may stop sooner than the default, far below a servo's resolution); ``step_tol`` [rad]: an
+        undamped step shorter than this is taken as the answer without evaluating it (Newton's error
+        after a step is of the order of the step squared; 0: every answer is evaluated)."""
         p_t = np.asarray(p_target, dtype=float)
         R_t = np.asarray(R_target, dtype=float)
         q = np.zeros(6) if q0 is None else np.array(q0, dtype=float)
         best_q, best_err = q.copy(), math.inf
         lam = 1e-9
+        pt = tuple(float(x) for x in p_t)
+        Rt = tuple(float(x) for x in R_t.reshape(9))
         for _ in range(iterations):
-            p, R, axes, pts = self._chain(q)
-            e = np.concatenate([p_t - p, _log_rotation(R_t @ R.T)])
+            e, J = self._newton_terms(q, pt, Rt)
             err = float(math.sqrt(e @ e))
             if err < best_err:
                 best_q, best_err = q.copy(), err
                 lam = max(lam * 0.1, 1e-12)
-                if err < _TOL:
+                if err < tol:
                     break
             else:                                   # no better: at the rounding floor, or damp more
                 if best_err < _FLOOR:
                     break
                 q = best_q.copy()
                 lam = max(lam * 100.0, 1e-6)
-                p, R, axes, pts = self._chain(q)
-                e = np.concatenate([p_t - p, _log_rotation(R_t @ R.T)])
-            J = np.empty((6, 6))
-            d = p - pts                             # the sole point from each axis
-            J[0] = axes[:, 1] * d[:, 2] - axes[:, 2] * d[:, 1]
-            J[1] = axes[:, 2] * d[:, 0] - axes[:, 0] * d[:, 2]
-            J[2] = axes[:, 0] * d[:, 1] - axes[:, 1] * d[:, 0]
-            J[3:] = axes.T
-            JJ = J @ J.T
-            JJ[np.diag_indices(6)] += lam
-            q = q + J.T @ np.linalg.solve(JJ, e)
+                e, J = self._newton_terms(q, pt, Rt)
+            dq = None
+            if lam < 1e-8:                          # (almost) undamped: Newton's step itself, J dq = e
+                try:
+                    dq = np.linalg.solve(J, e)
+                except np.linalg.LinAlgError:       # a singular pose: the damped step below
+                    dq = None
+            if dq is None:
+                JJ = J @ J.T
+                JJ.flat[::7] += lam
+                dq = J.T @ np.linalg.solve(JJ, e)
+            q = q + dq
+            if step_tol and lam < 1e-6 and err == best_err and float(dq @ dq) < step_tol * step_tol:
+                return (q + math.pi) % (2 * math.pi) - math.pi
         q = best_q
         if best_err > _ACCEPT:
             raise IKNotConverged(f"sole target {np.round(p_t, 4).tolist()} m is out of the leg's reach (closest pose "

@@ -323,7 +323,7 @@ def refine_ik(q0: np.ndarray, p_pelvis_sole: np.ndarray, R_pelvis_sole: np.ndarr
 
 
 def leg_ik_pose(p_pelvis_sole: np.ndarray, R_pelvis_sole: np.ndarray, leg: LegGeometry, side: int | str,
-                q0: np.ndarray | None = None) -> np.ndarray:
+                q0: np.ndarray | None = None, tol: float | None = None, step_tol: float = 0.0) -> np.ndarray:
     """Closed-form IK for one sample and any sole orientation (ours): the point ``ankle_height``
     below the ankle (3,) and the sole's rotation (3, 3), in the pelvis frame -> the 6 joints.
 
@@ -333,6 +333,8 @@ def leg_ik_pose(p_pelvis_sole: np.ndarray, R_pelvis_sole: np.ndarray, leg: LegGe
     R_hip = R Rx(-q6) Ry(-(q4 + q5)). Agrees with :func:`leg_fk` to machine precision (tested) and
     with :func:`refine_ik`'s Gauss-Newton where that converges, at a fraction of its cost (the walk
     engine's targets every tick). Raises :class:`UnreachableTargetError` beyond the leg's reach.
+    ``tol``, ``step_tol``: the numerical IK's stopping error [m + rad] and step [rad] (``LegChain.solve``;
+    None and 0 its defaults).
     """
     s = _side(side)
     R = np.asarray(R_pelvis_sole, dtype=float)
@@ -344,7 +346,8 @@ def leg_ik_pose(p_pelvis_sole: np.ndarray, R_pelvis_sole: np.ndarray, leg: LegGe
             except UnreachableTargetError:
                 q0 = np.zeros(6)
         try:
-            return leg.chains.side(s).solve(p, R, q0=q0)
+            chain = leg.chains.side(s)
+            return chain.solve(p, R, q0=q0) if tol is None else chain.solve(p, R, q0=q0, tol=tol, step_tol=step_tol)
         except IKNotConverged as exc:
             name = "left" if s == 1 else "right"
             err = UnreachableTargetError(f"{name} {exc}")

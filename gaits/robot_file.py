@@ -11,6 +11,7 @@ numpy and PyYAML only (no MuJoCo, no built-in geometry on the robot side)::
                                    # closed-form IK does not fit: the numerical IK's chains (gaits.leg_chain)
     joints:                        # our joint name (gaits.JOINT_NAMES) -> the robot's joint
       l_knee: {name: Knee_L, sign: 1, lower: -2.6, upper: 0.0, speed: 6.5, torque: 6.0,
+               kp: 31.0, damping: 0.69,   # [N m/rad], [N m s/rad]: what the servo gives way by (optional)
                servo: {id: 14, units_per_rad: 651.9, centre: 2048, direction: -1, offset: 0.05}}
     held: {HeadPan_C: 0.0}         # joints of the robot not mapped, held at an angle [rad, its convention]
 
@@ -72,6 +73,8 @@ class JointSpec:
     speed: float = 6.5                # [rad/s]
     torque: float = 6.0               # [N m]
     servo: ServoUnit | None = None
+    kp: float = 0.0                   # [N m/rad] the servo's position gain as it holds a load (0: not stated)
+    damping: float = 0.0              # [N m s/rad] its velocity terms: gain, back-EMF, viscous friction
 
 
 @dataclass(frozen=True)
@@ -164,7 +167,8 @@ def load_robot_file(path: str | Path) -> RobotFile:
         if ours not in JOINT_NAMES:
             raise ParamError(f"{source}: joints: {ours!r} is not one of our joints ({', '.join(JOINT_NAMES)})")
         j = _mapping(j, f"joints.{ours}", source)
-        _known(j, ("name", "sign", "lower", "upper", "speed", "torque", "servo"), f"joints.{ours}", source)
+        _known(j, ("name", "sign", "lower", "upper", "speed", "torque", "kp", "damping", "servo"), f"joints.{ours}",
+               source)
         if not isinstance(j.get("name"), str) or not j["name"]:
             raise ParamError(f"{source}: joints.{ours}.name: the robot's joint name is missing")
         sign = j.get("sign", 1)
@@ -194,7 +198,9 @@ def load_robot_file(path: str | Path) -> RobotFile:
                                                    -math.pi, math.pi))
         joints[ours] = JointSpec(j["name"], int(sign), lower, upper,
                                  _num(j.get("speed", 6.5), f"joints.{ours}.speed", source, 0.01, 100.0),
-                                 _num(j.get("torque", 6.0), f"joints.{ours}.torque", source, 0.01, 1000.0), servo)
+                                 _num(j.get("torque", 6.0), f"joints.{ours}.torque", source, 0.01, 1000.0), servo,
+                                 _num(j.get("kp", 0.0), f"joints.{ours}.kp", source, 0.0, 1e5),
+                                 _num(j.get("damping", 0.0), f"joints.{ours}.damping", source, 0.0, 1e4))
     missing = [n for n in JOINT_NAMES if n[2:] in ("hip_yaw", "hip_roll", "hip_pitch", "knee", "ankle_pitch",
                                                    "ankle_roll") and n not in joints]
     if missing:
@@ -223,6 +229,8 @@ def save_robot_file(path: str | Path, robot: RobotFile, header: str = "") -> Pat
     for ours, j in robot.joints.items():
         entry = {"name": j.name, "sign": j.sign, "lower": r(j.lower), "upper": r(j.upper), "speed": r(j.speed),
                  "torque": r(j.torque)}
+        if j.kp > 0:
+            entry.update(kp=r(j.kp), damping=r(j.damping))
         if j.servo is not None:
             entry["servo"] = {"id": j.servo.id, "units_per_rad": r(j.servo.units_per_rad), "centre": r(j.servo.centre),
                               "direction": j.servo.direction, "offset": r(j.servo.offset)}

@@ -203,3 +203,59 @@ def test_init_says_when_the_robot_falls_standing(tmp_path):
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("warning: standing still in the start set's pose the robot "
                                                    "falls (fell at t = "), r.stderr
+
+
+def test_init_puts_soft_servos_give_back_into_the_engines_targets(tmp_path):
+    """The tests' own stand-in for a team robot on soft servos (kid3kg, the legs kp 11 N m/rad with
+    0.9 N m s/rad of damping: Bit-Bots' Wolfgang-OP training servos scaled to its weight): init says how
+    far the knee gives on one foot, turns the engine's load and lag shares on, sets the step to four
+    times the knee's lag, and searches both shares; its start walks 0.15 m/s to the end on rigid,
+    where the same start without them falls backward (docs/walk.md)."""
+    from tuner.search.initial import GIVE_LIMIT, LAG_STEPS, LOAD_SHARE, knee_lag
+    text = MAP.read_text().replace("  legs: {speed: 6.5}", "  legs: {law: pd, kp: 11, kv: 0, torque: 4, speed: 20, "
+                                   "damping: 0.9, armature: 0.012, frictionloss: 0.05}")
+    soft = tmp_path / "soft.yaml"
+    soft.write_text(text.replace("mjcf: kid3kg.xml", f"mjcf: {MAP.parent / 'kid3kg.xml'}"))
+    r = run_in_process(["init", "--robot", soft, "--surface", "rigid", "--out", tmp_path / "init"])
+    assert r.returncode == 0, r.stderr
+    give = [line for line in r.stdout.splitlines() if line.strip().startswith("load_share")]
+    assert len(give) == 1 and "(l_knee) on one foot in the start pose" in give[0], r.stdout
+    assert float(give[0].split("give way ")[1].split(" deg")[0]) > np.degrees(GIVE_LIMIT)
+    start = tmp_path / "init" / "kid3kg-rigid-match-start.yaml"
+    doc = yaml_load(start)
+    robot = load_robot(str(soft))
+    assert doc["engine"]["load_share"] == LOAD_SHARE
+    assert doc["params"]["period"] == pytest.approx(LAG_STEPS * knee_lag(robot), abs=1e-3)
+    study = load_study(tmp_path / "init" / "kid3kg-rigid-match.yaml")
+    assert {"engine.load_share", "engine.lag_share"} <= {r.name for r in study.space}
+    off = tmp_path / "off.yaml"
+    doc["engine"].update(load_share=0.0, lag_share=0.0)
+    off.write_text(yaml_dump(doc))
+    outcomes = {}
+    for name, path in (("on", start), ("off", off)):
+        r = run_in_process(["simulate", "--robot", soft, "--params", path, "--surface", "rigid", "--command", "0.15,0,0",
+                     "--json"])
+        assert r.returncode == 0, r.stderr
+        outcomes[name] = json.loads(r.stdout)["metrics"]["outcome"]
+    assert outcomes == {"on": "completed", "off": "fell"}
+
+
+def yaml_load(path):
+    import yaml
+    return yaml.safe_load(path.read_text())
+
+
+def yaml_dump(doc):
+    import yaml
+    return yaml.safe_dump(doc, sort_keys=False)
+
+
+def test_the_built_in_robot_keeps_the_plain_engine():
+    """The built-in robot's knee gives 6.8 deg on one foot on its MX-64 servos, under the limit: its
+    start keeps the engine without the servos' give (its shipped sets and studies walk so)."""
+    from tuner.search.initial import GIVE_LIMIT, servo_give
+    robot = load_robot("kidsize")
+    iw = initial_walk(robot, "kidsize", load_surface("carpet4"))
+    joint, give = servo_give(robot, iw.params)
+    assert joint == "l_knee" and np.radians(5) < give < GIVE_LIMIT
+    assert iw.engine.load_share == 0 and iw.engine.lag_share == 0 and "load_share" not in iw.sources

@@ -78,6 +78,12 @@ class EngineParams(GaitParams):
     stand_time: float = param(0.2, "s", 0.02, 5.0, "standing: time constant of the capture point's return "
                               "to between the feet")
 
+    load_share: float = param(0.0, "-", 0.0, 1.5, "share of the servos' predicted give under the stance "
+                              "load put back into their targets (ours: gaits/engine/servo_load.py; needs "
+                              "the robot's servo gains; 0: none)")
+    lag_share: float = param(0.0, "-", 0.0, 1.5, "share of the servos' velocity lag (damping / kp times the "
+                             "target's rate) the targets lead by (ours: gaits/engine/servo_load.py; 0: none)")
+
     def check_consistency(self) -> None:
         if self.shift_time > self.t_stand + 1e-12 and self.t_stand > 0:
             raise ParamError(f"engine: shift_time = {self.shift_time:g} s must fit in t_stand = "

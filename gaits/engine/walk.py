@@ -13,10 +13,12 @@ from ..control import READINGS, Measurement, PlanRecord, StartPose, finite_readi
 from ..footstep_planner import StepLimits, relative, swing_fraction
 from ..leg_kinematics import LegGeometry, UnreachableTargetError, leg_ik_pose
 from ..lipm import dcm_forward, propagate, zmp_at
+from ..params import ParamError
 from ..tlipfm import TlipfmParams
 from ..trajectory import GRAVITY, JOINT_NAMES
 from .estimator import CoMEstimator, _rx, _ry, _rz, sole_in_pelvis
 from .params import EngineParams
+from .servo_load import LoadCompensation, servo_terms
 from .shaping import CommandShaper
 from .step_adjust import Step, _Gait, adjust_step
 
@@ -26,6 +28,11 @@ __all__ = ["WalkEngine", "STAND", "SHIFT", "WALK"]
 _LEG = {1: slice(JOINT_NAMES.index("l_hip_yaw"), JOINT_NAMES.index("l_hip_yaw") + 6),
         -1: slice(JOINT_NAMES.index("r_hip_yaw"), JOINT_NAMES.index("r_hip_yaw") + 6)}
 STAND, SHIFT, WALK = "stand", "shift", "walk"
+#: where the numerical leg IK stops each tick (ours): an error of 1e-7 m + rad, or a Newton step under
+#: 1e-4 rad taken unevaluated (its error of the order of 1e-8); both four orders of magnitude below a
+#: 4096-count encoder's 1.5 mrad. A tick then evaluates the leg twice where the solver's own 1e-10 did
+#: three or four times (tests/test_leg_chain.py counts them).
+IK_TOL, IK_STEP = 1e-7, 1e-4
 
 
 class WalkEngine:
@@ -50,6 +57,15 @@ class WalkEngine:
         speeds = joint_speeds(robot)
         self._capping = params.servo_share > 0 and speeds is not None
         self._max_move = params.servo_share * speeds * self.dt if self._capping else None
+        self._terms = terms = servo_terms(robot)
+        if terms is None and (params.load_share > 0 or params.lag_share > 0):
+            raise ParamError(f"engine: load_share = {params.load_share:g}, lag_share = {params.lag_share:g} need "
+                             f"the servos' gains, which this robot does not state (a robot file exported before "
+                             f"they were written: export it again, gait-tuner robot export MAP --out FILE)")
+        g = gait
+        self._load = None if terms is None or not (params.load_share > 0 or params.lag_share > 0) else LoadCompensation(self.leg, terms, self.dt, params.load_share,
+                                                                 params.lag_share, (g.mass_thigh, g.mass_calf))
+        self._robot_weight = (g.mass_upper + 2 * (g.mass_thigh + g.mass_calf)) * GRAVITY
         self.reset_state()
 
     # --- what the engine offers ------------------------------------------------------------
@@ -94,6 +110,7 @@ class WalkEngine:
         self.clamped = 0
         self.capped = 0                            # ticks whose targets were capped at the servos' speed
         self._last_q: np.ndarray | None = None
+        self._last_out: np.ndarray | None = None       # the last targets sent, offsets included
         self.binding = {"replans": 0, "reach": 0, "sole": 0, "timing": 0, "speed": 0}   # re-plans on a limit
         self.step_starts: list[float] = []
         self.tilt = np.zeros(2)                    # filtered (roll, pitch beyond the planned lean) [rad]
@@ -104,12 +121,26 @@ class WalkEngine:
         self.dropped = {name: 0 for name in READINGS + ("command",)}   # ticks each was not finite
         self._dropping: tuple[str, ...] = ()
         self._log = []
+        if getattr(self, "_load", None) is not None:
+            self._load.reset()
 
     def start_pose(self) -> StartPose:
         self.reset_state()
         q = self._joints(self.com, self.feet[1], self.feet[-1])[0]
         self._last_q = np.array(q, dtype=float)
         return StartPose(q)
+
+    def predicted_give(self) -> np.ndarray | None:
+        """(20,) how far each servo gives way [rad] standing on the left foot in the start pose, the
+        whole weight on it (``servo_load.py``'s model, all of it); None when the robot states no gains."""
+        if self._terms is None:
+            return None
+        g = self.gait.p
+        q = self._joints(self.com, self.feet[1], self.feet[-1])[0]
+        comp = LoadCompensation(self.leg, self._terms, self.dt, 1.0, 0.0, (g.mass_thigh, g.mass_calf))
+        feet = {side: np.append(f, 0.0) for side, f in self.feet.items()}
+        return -comp.offsets(q, feet, self._soles(feet), feet[1][:2], 1, self._robot_weight,
+                             _ry(g.torso_pitch), self.foot_size)
 
     def reset(self, m: Measurement) -> None:
         self.reset_state()
@@ -145,6 +176,12 @@ class WalkEngine:
                 self.capped += 1
             q = self._last_q + move
         self._last_q = np.array(q, dtype=float)
+        if self._load is not None:
+            q = q + self._load_offsets(q, support, feet)
+            if self._capping:                          # the offsets' own moves within the servos' speed too
+                if self._last_out is not None:
+                    q = self._last_out + np.clip(q - self._last_out, -self._max_move, self._max_move)
+                self._last_out = np.array(q, dtype=float)
         est = self.estimator
         self._log.append((support, self.zmp[0], self.zmp[1], feet[1][0], feet[1][1], feet[-1][0], feet[-1][1],
                           est.position[0], est.position[1], est.velocity[0], est.velocity[1],
@@ -490,6 +527,19 @@ class WalkEngine:
             self.state_tau = tau
         self.zmp = zmp_at(kt, kp, tau)
 
+    def _load_offsets(self, q: np.ndarray, support: int, feet: dict) -> np.ndarray:
+        """What the servos will give way by under this tick's load and moves, to add to ``q``
+        (``servo_load.py``), the pelvis turned as planned."""
+        psi = (feet[1][2] + feet[-1][2]) / 2
+        R_wp = _rz(psi) @ _ry(self.gait.p.torso_pitch)
+        return self._load.offsets(q, feet, self._soles(feet), self.zmp, support, self._robot_weight, R_wp,
+                                  self.foot_size)
+
+    def _soles(self, feet: dict) -> dict:
+        """Each side's sole point (the chain's, below the ankle) in the world, from its sole centre."""
+        return {side: np.array([f[0], f[1], f[3]]) - _rz(f[2]) @ self.leg.sole_in_ankle(side)
+                for side, f in feet.items()}
+
     # --- the swing and the joints ----------------------------------------------------------
     def _theta(self, tau: float) -> float:
         st = self.cur
@@ -551,7 +601,8 @@ class WalkEngine:
             target = self._reachable(target, R_ps, side)
             try:                                        # the numerical IK starts from the last tick's
                 q[0, _LEG[side]] = leg_ik_pose(target, R_ps, leg, side,
-                                               None if self._last_q is None else self._last_q[_LEG[side]])
+                                               None if self._last_q is None else self._last_q[_LEG[side]],
+                                               IK_TOL, IK_STEP)
             except UnreachableTargetError as exc:
                 best = getattr(exc, "best", None)      # the numerical IK's closest pose (gaits.leg_chain)
                 if best is None:

@@ -170,7 +170,7 @@ def init(robot_name: str, surface_name: str, purpose: str, top_speed: float, out
     out_dir = out_dir or Path("runs") / "init" / name
     iw = initial_walk(robot, ref, surface, purpose, name=name, start_file=f"{name}-start.yaml", top_speed=top_speed)
     desc = (f"gait-tuner init for {robot.name} on {surface.name} ({purpose}): "
-            + "; ".join(f"{k} {getattr(iw.params, k):g} from {why}" for k, why in iw.sources.items()))
+            + "; ".join(f"{k} {iw.value(k):g} from {why}" for k, why in iw.sources.items()))
     start = out_dir / f"{name}-start.yaml"
     study = out_dir / f"{name}.yaml"
     files = {start: gaits.gait_file_text(iw.params, desc, None, iw.engine)}
@@ -199,7 +199,7 @@ def init(robot_name: str, surface_name: str, purpose: str, top_speed: float, out
     write_files_atomic(files)
     click.echo(f"{robot.name} on {surface.name}, for {purpose}:")
     for k, why in iw.sources.items():
-        click.echo(f"  {k:11s} {getattr(iw.params, k):8.4g}  from {why}")
+        click.echo(f"  {k:11s} {iw.value(k):8.4g}  from {why}")
     click.echo(f"  {'t1, t2':11s} {iw.params.t1:.3g}, {iw.params.t2:.3g}  TKU-X's shares of the step")
     for share, rung in iw.ladder:
         click.echo(f"  {'also tried':11s} {rung.period:8.4g}  the period whose swing asks the knee {share:.0%} of its speed")

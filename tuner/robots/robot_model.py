@@ -186,10 +186,13 @@ class RobotModel:
         joints = {}
         for (ours, (theirs, sign)), low, high in zip(self.joint_map.items(), lo, hi):
             servo = self.servos.get(theirs)
+            pieces = servo.pieces() if servo else None
             joints[ours] = JointSpec(theirs, int(sign), float(low) if np.isfinite(low) else -np.pi,
                                      float(high) if np.isfinite(high) else np.pi,
                                      float(servo.speed) if servo else 6.5, float(servo.torque) if servo else 6.0,
-                                     self.servo_units.get(theirs))
+                                     self.servo_units.get(theirs),
+                                     float(pieces.kp) if pieces else 0.0,
+                                     float(pieces.kv + pieces.back_emf + pieces.damping) if pieces else 0.0)
         held = {j: float(v) for j, v in self.pose.items() if j not in names}
         return RobotFile(self.name, self.leg, tuple(float(v) for v in self.foot_size), joints,
                          self.sim.control_period, float(np.sum(self.model().body_mass)), held,

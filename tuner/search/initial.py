@@ -29,6 +29,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
 
 from gaits import TlipfmParams
 from gaits.engine import EngineParams
@@ -54,6 +55,18 @@ LADDER_SHARES = (0.7, 0.9)
 SERVO_SHARE = 0.95
 #: the legs' kp as a multiple of the robot's toppling stiffness m g z_c (ours, see the module docstring)
 GAIN_MARGIN = 4.0
+#: a servo that gives way more than this on one foot in the start pose [rad] has the engine put its give
+#: and its lag back into the targets (``engine.load_share``, ``lag_share``: gaits/engine/servo_load.py; ours:
+#: the built-in robot's knee gives 6.8 deg on BAM's MX-64 and walks its sets without; Wolfgang-OP's 13.7
+#: deg on Bit-Bots' training servos falls in every direction without)
+GIVE_LIMIT = math.radians(8.0)
+#: the start's shares of the give and the lag (ours: the best of Wolfgang-OP's first study on Bit-Bots'
+#: training servos, docs/walk.md) and the ranges searched
+LOAD_SHARE, LAG_SHARE = 0.6, 0.1
+LOAD_RANGE, LAG_RANGE = (0.3, 1.2), (0.0, 0.6)
+#: such a robot's step lasts at least this many times its knee servo's lag, damping / kp (ours: Wolfgang-OP
+#: on Bit-Bots' training servos, 81 ms, walks at 0.30-0.34 s and falls at the knee rule's 0.25 s)
+LAG_STEPS = 4.0
 
 
 @dataclass
@@ -71,6 +84,10 @@ class InitialWalk:
     #: no trial that stands to learn from; these are other places to start (on Wolfgang they fell too:
     #: docs/robots.md).
     ladder: list[tuple[float, TlipfmParams]] = field(default_factory=list)
+
+    def value(self, name: str) -> float:
+        """A number ``sources`` explains: the start set's, or its engine's."""
+        return getattr(self.params, name) if hasattr(self.params, name) else getattr(self.engine, name)
 
 
 def initial_walk(robot: Any, robot_ref: str, surface: Any, purpose: str = "match", name: str | None = None,
@@ -133,6 +150,19 @@ def initial_walk(robot: Any, robot_ref: str, surface: Any, purpose: str = "match
     # the engine caps its targets' moves at 95 % of each servo's speed: its tables play on the servos
     engine = None if purpose == "speed" else EngineParams(idle="step" if purpose == "push" else "stand",
                                                           servo_share=SERVO_SHARE)
+    give = None if engine is None or servo else servo_give(robot, params)
+    if give is not None and give[1] > GIVE_LIMIT:
+        engine = engine.replace(load_share=LOAD_SHARE, lag_share=LAG_SHARE)
+        lag = knee_lag(robot)
+        if LAG_STEPS * lag > period:
+            period = round(LAG_STEPS * lag, 3)
+            params = params.replace(period=period, t1=round(T1_SHARE * period, 4), t2=round(T2_SHARE * period, 4))
+            sources["period"] = (f"{LAG_STEPS:g} x the knee servo's lag, damping / kp = {lag * 1000:.0f} ms (a servo "
+                                 f"that gives way this far needs a step several times its lag to follow it)")
+        sources["load_share"] = (f"the servos give way {math.degrees(give[1]):.1f} deg ({give[0]}) on one foot in "
+                                 f"the start pose, more than {math.degrees(GIVE_LIMIT):g}: the engine puts "
+                                 f"{LOAD_SHARE:g} of it back into its targets, and leads them by {LAG_SHARE:g} of "
+                                 f"their lag (damping / kp)")
     name = name or f"{robot.name}-{surface.name}-{purpose}"
     # a draw with t2 past its period is a rejected trial (infeasible: the sampler learns to avoid it)
     # the shortest period searched asks the knee KNEE_MAX of its speed for the start's lift: the knee
@@ -156,6 +186,9 @@ def initial_walk(robot: Any, robot_ref: str, surface: Any, purpose: str = "match
         "description": f"made by gait-tuner init for {robot.name} on {surface.name} ({purpose}): the starting "
                        f"set's numbers from the robot's own model (see the set's description)",
         "robot": robot_ref, "surfaces": [surface.name], "gait": "tlipfm", "base": start_file}
+    if engine is not None and engine.load_share > 0:
+        space.update({"engine.load_share": {"low": LOAD_RANGE[0], "high": LOAD_RANGE[1]},
+                      "engine.lag_share": {"low": LAG_RANGE[0], "high": LAG_RANGE[1]}})
     if purpose == "match":
         space.update({"engine.k_vel": {"low": 0.0, "high": 1.0}, "engine.replan_error": {"low": 0.03, "high": 0.15},
                       "engine.step_weight": {"low": 0.001, "high": 1.0, "log": True},
@@ -188,6 +221,28 @@ def initial_walk(robot: Any, robot_ref: str, surface: Any, purpose: str = "match
             ladder.append((share, params.replace(period=rung, t1=round(T1_SHARE * rung, 4),
                                                  t2=round(T2_SHARE * rung, 4))))
     return InitialWalk(params, engine, study, sources, servo, servo_source, ladder)
+
+
+def knee_lag(robot: Any) -> float:
+    """The left knee servo's lag [s]: its velocity terms over its position gain (0 without a servo)."""
+    knee = robot.servos.get(robot.joint_map["l_knee"][0])
+    if knee is None:
+        return 0.0
+    p = knee.pieces()
+    return (p.kv + p.back_emf + p.damping) / p.kp if p.kp > 0 else 0.0
+
+
+def servo_give(robot: Any, params: TlipfmParams) -> tuple[str, float] | None:
+    """The joint that gives way most (our name) and how far [rad], standing on one foot in the start
+    pose of ``params`` (``WalkEngine.predicted_give``); None for a robot that states no servo gains."""
+    import gaits
+    from gaits.engine import WalkEngine
+    limits = gaits.family("tlipfm").step_limits(params, robot)
+    give = WalkEngine(params, EngineParams(), robot, robot.sim.control_period, limits).predicted_give()
+    if give is None:
+        return None
+    i = int(np.argmax(np.abs(give)))
+    return gaits.JOINT_NAMES[i], float(abs(give[i]))
 
 
 def leg_gains(robot: Any, mass: float, z_c: float) -> tuple[dict[str, float], str]:
