@@ -228,6 +228,10 @@ def test_init_puts_soft_servos_give_back_into_the_engines_targets(tmp_path):
     assert doc["params"]["period"] == pytest.approx(LAG_STEPS * knee_lag(robot), abs=1e-3)
     study = load_study(tmp_path / "init" / "kid3kg-rigid-match.yaml")
     assert {"engine.load_share", "engine.lag_share"} <= {r.name for r in study.space}
+    space = yaml_load(tmp_path / "init" / "kid3kg-rigid-match.yaml")["space"]
+    # no step shorter than three lags, and no draw without a single support (a "walk" that never steps)
+    assert space["period"]["low"] >= 3 * knee_lag(robot) - 1e-4
+    assert space["t2"]["low"] - space["t1"]["high"] > 0.2 * space["period"]["low"], space
     off = tmp_path / "off.yaml"
     doc["engine"].update(load_share=0.0, lag_share=0.0)
     off.write_text(yaml_dump(doc))

@@ -166,3 +166,18 @@ def test_the_engine_refuses_compensation_without_the_servos_gains():
     WalkEngine(params, EngineParams(), robot, 0.01, limits)
     with pytest.raises(ParamError, match="load_share = 1.*export it again"):
         WalkEngine(params, EngineParams(load_share=1.0), robot, 0.01, limits)
+
+
+def test_the_wolfgang_example_states_its_training_servos():
+    """examples/robots/wolfgang: a map of Bit-Bots' Wolfgang-OP (its URDF cloned beside it, not
+    shipped) whose leg servos are the ones its learned walks were trained on (their MuJoCo model's
+    mx106 class: kp 21, 8 N m, damping 1.7, armature 0.025, friction loss 0.1), and soft enough that
+    init has the engine put their give back (13.7 deg at the knee, docs/walk.md)."""
+    import yaml
+    from conftest import ROOT
+    from tuner.robots.robot_map import MAP_KEYS
+    doc = yaml.safe_load((ROOT / "examples" / "robots" / "wolfgang" / "wolfgang.yaml").read_text())
+    assert set(doc) <= set(MAP_KEYS)
+    assert doc["servo"]["legs"] == {"law": "pd", "kp": 21, "kv": 0, "torque": 8, "speed": 20, "armature": 0.025,
+                                    "damping": 1.7, "frictionloss": 0.1}
+    assert doc["urdf"].startswith("wolfgang_robot/") and sorted(doc["joints"]) == sorted(JOINT_NAMES[8:20])

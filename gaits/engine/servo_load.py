@@ -73,11 +73,6 @@ def servo_terms(robot) -> ServoTerms | None:
     return ServoTerms(kp, b, tau)
 
 
-def _rz(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
 class LoadCompensation:
     """The targets' offsets for the load and the lag (module docstring)."""
 
@@ -94,6 +89,7 @@ class LoadCompensation:
         with np.errstate(divide="ignore"):
             self._compliance = np.where(terms.kp > 0, 1.0 / np.where(terms.kp > 0, terms.kp, 1.0), 0.0)
         self._bound = np.where(terms.kp > 0, terms.torque * self._compliance, 0.0)
+        self._lead = terms.damping * self._compliance          # [s] each servo's lag, damping / kp
         self._last: np.ndarray | None = None
 
     def reset(self) -> None:
@@ -132,24 +128,27 @@ class LoadCompensation:
 
     def offsets(self, q: np.ndarray, feet: dict, soles: dict, zmp: np.ndarray, support: int, weight: float,
                 R_wp: np.ndarray, foot_size: tuple[float, float]) -> np.ndarray:
-        """(20,) what to add to the targets ``q`` this tick; ``weight`` [N] the whole robot's. ``feet``: each side's sole centre in the
-        world (x, y, yaw[, z]); ``soles``: each side's sole point (3,) in the world (the chain's
-        point below the ankle); ``support``: the side in single support (0: both, or standing)."""
+        """(20,) what to add to the targets ``q`` this tick; ``weight`` [N] the whole robot's. ``feet``:
+        each side's sole centre in the world (x, y, yaw[, z]); ``soles``: each side's sole point (3,)
+        in the world (the chain's point below the ankle); ``support``: the side in single support (0:
+        both, or standing)."""
         out = np.zeros(len(JOINT_NAMES))
         if self.load_share > 0.0 and weight > 0.0:
             shares = self._shares(feet, zmp, support)
+            zx, zy = float(zmp[0]), float(zmp[1])
+            hx, hy = foot_size[0] / 2, foot_size[1] / 2
             for side, share in shares.items():
-                foot = feet[side]
-                R_f = _rz(float(foot[2]))
-                local = R_f.T @ np.array([zmp[0] - foot[0], zmp[1] - foot[1], 0.0])
-                half = np.array(foot_size) / 2
-                local[:2] = np.clip(local[:2], -half, half)
-                cop = np.array([foot[0], foot[1], foot[3] if len(foot) > 3 else 0.0]) + R_f @ local
+                fx, fy, yaw = float(feet[side][0]), float(feet[side][1]), float(feet[side][2])
+                fz = float(feet[side][3]) if len(feet[side]) > 3 else 0.0
+                c, s = math.cos(yaw), math.sin(yaw)
+                # the ZMP in the sole's axes, clipped to the sole: the centre of pressure of this foot
+                lx = min(max(c * (zx - fx) + s * (zy - fy), -hx), hx)
+                ly = min(max(-s * (zx - fx) + c * (zy - fy), -hy), hy)
+                cop = (fx + c * lx - s * ly, fy + s * lx + c * ly, fz)
                 tau = self.leg_torques(q[_LEGS[side]], side, share * weight, cop, soles[side], R_wp)
-                out[_LEGS[side]] -= self.load_share * tau * self._compliance[_LEGS[side]]
+                out[_LEGS[side]] = -self.load_share * tau * self._compliance[_LEGS[side]]
         if self.lag_share > 0.0 and self._last is not None:
-            rate = (q - self._last) / self.dt
-            out += self.lag_share * self.terms.damping * self._compliance * rate
+            out += (self.lag_share / self.dt) * self._lead * (q - self._last)
         self._last = np.array(q, dtype=float)
         return np.clip(out, -self._bound, self._bound)
 
@@ -159,8 +158,8 @@ class LoadCompensation:
         support by where the ZMP lies on the line between the soles' centres."""
         if support:
             return {support: 1.0, -support: 0.0}
-        a, b = np.asarray(feet[1][:2], float), np.asarray(feet[-1][:2], float)
-        d = a - b
-        n = float(d @ d)
-        left = 0.5 if n < 1e-12 else float(np.clip((np.asarray(zmp, float) - b) @ d / n, 0.0, 1.0))
+        ax, ay, bx, by = float(feet[1][0]), float(feet[1][1]), float(feet[-1][0]), float(feet[-1][1])
+        dx, dy = ax - bx, ay - by
+        n = dx * dx + dy * dy
+        left = 0.5 if n < 1e-12 else min(max(((float(zmp[0]) - bx) * dx + (float(zmp[1]) - by) * dy) / n, 0.0), 1.0)
         return {1: left, -1: 1.0 - left}

@@ -67,6 +67,12 @@ LOAD_RANGE, LAG_RANGE = (0.3, 1.2), (0.0, 0.6)
 #: such a robot's step lasts at least this many times its knee servo's lag, damping / kp (ours: Wolfgang-OP
 #: on Bit-Bots' training servos, 81 ms, walks at 0.30-0.34 s and falls at the knee rule's 0.25 s)
 LAG_STEPS = 4.0
+#: ... and the study searches no step shorter than this many lags (ours)
+LAG_STEPS_MIN = 3.0
+#: the single support a study draws at least, of its shortest period, as far as t2's range still reaches
+#: TKU-X's share of that period (ours: without it a study of Wolfgang-OP on Bit-Bots' servos kept a
+#: "walk" with 7 ms of single support, t2 drawn just past t1, that never stepped)
+SSP_MIN = 0.3
 
 
 @dataclass
@@ -173,9 +179,15 @@ def initial_walk(robot: Any, robot_ref: str, surface: Any, purpose: str = "match
     fastest = k / KNEE_MAX
     # t1 and t2 range over TKU-X's shares of every period searched
     span = _around(period, min(1.0, fastest / period), 1.1, 0.1, 3.0)
-    space = {"period": span,
-             "t1": _range(T1_SHARE * span["low"] * 0.5, T1_SHARE * span["high"] * 1.5, 0.01, 0.5),
-             "t2": _range(T2_SHARE * span["low"] * 0.85, T2_SHARE * span["high"] * 1.15, 0.02, 2.5),
+    if engine is not None and engine.load_share > 0:
+        # a servo that gives way this far cannot follow a step shorter than a few of its lags
+        span["low"] = round(min(max(span["low"], LAG_STEPS_MIN * knee_lag(robot)), period), 4)
+    t1 = _range(T1_SHARE * span["low"] * 0.5, T1_SHARE * span["high"] * 1.5, 0.01, 0.5)
+    # every draw keeps a single support (t2 - t1) of SSP_MIN of the shortest period searched, as far as
+    # t2 still reaches TKU-X's share of that period
+    t2 = _range(max(T2_SHARE * span["low"] * 0.85, min(t1["high"] + SSP_MIN * span["low"], T2_SHARE * span["low"])),
+                T2_SHARE * span["high"] * 1.15, 0.02, 2.5)
+    space = {"period": span, "t1": t1, "t2": t2,
              "h_z": _around(h_z, 0.6, 1.3, 0.005, 0.1),
              "z_c": _around(z_c, 0.85, 1.05, 0.08, 0.5), "half_width": _around(half, 0.9, 1.3, 0.02, 0.12),
              # the longest step [leg lengths] sets the envelope's forward speed (reach / period): searched,
