@@ -100,6 +100,13 @@ def test_a_rejected_trial_is_never_the_best_even_when_every_walk_fell():
                                               user_attrs={"result": rejected}))
     with pytest.raises(NothingWalked, match="rejected before it walked"):
         best_trial(study)
+    # a trial that walked and was stopped at its falls (pruned) is said, not hidden behind "rejected"
+    pruned = {"fell": True, "fall_constraint": 0.17, "invalid": None, "survival": 0.0, "hopeless": True}
+    study.add_trial(optuna.trial.create_trial(params={"period": 0.25}, distributions=dist,
+                                              state=optuna.trial.TrialState.PRUNED, user_attrs={"result": pruned}))
+    with pytest.raises(NothingWalked, match=r"1 trial\(s\) walked and fell below the minimum survival") as caught:
+        best_trial(study)
+    assert caught.value.fell == 1
     study.add_trial(optuna.trial.create_trial(params={"period": 0.3}, distributions=dist, value=250.0,
                                               user_attrs={"result": {"fell": True, "fall_constraint": 1.0}}))
     assert best_trial(study).params == {"period": 0.3}

@@ -84,8 +84,12 @@ def _run_and_report(spec, store, study_file: str, storage: str | None, total: in
         try:
             t = best_trial(study)
         except NothingWalked as exc:
-            click.echo(f"no trial walked yet: {exc}; no best trial to export: narrow the space "
-                       f"to draws that can walk")
+            if exc.fell:
+                click.echo(f"no trial kept a walk yet: {exc}; no best trial to export: start from a set that "
+                           f"stands its walks, or lower the scenario's min_survival")
+            else:
+                click.echo(f"no trial walked yet: {exc}; no best trial to export: narrow the space "
+                           f"to draws that can walk")
             return
         except KeyError:          # every trial was pruned (a randomised trial stopped at its falls) or failed
             states = [x.state.name.lower() for x in study.get_trials(deepcopy=False)]

@@ -27,7 +27,12 @@ def n_done(study: optuna.Study) -> int:
 
 
 class NothingWalked(KeyError):
-    """A study whose completed trials were all rejected before they walked: no best trial."""
+    """A study whose completed trials were all rejected before they walked: no best trial.
+    ``fell``: how many other trials walked and were stopped at their falls (pruned)."""
+
+    def __init__(self, message: str, fell: int = 0) -> None:
+        super().__init__(message)
+        self.fell = fell
 
     def __str__(self) -> str:
         return str(self.args[0])
@@ -48,8 +53,15 @@ def best_trial(study: optuna.Study, number: int | None = None) -> optuna.trial.F
     # the best, even in a study where every walk fell
     walked = [t for t in trials if not trial_result(t).get("invalid")]
     if not walked:
+        fell = sum(1 for t in study.get_trials(deepcopy=False, states=(TrialState.PRUNED,))
+                   if trial_result(t) and not trial_result(t).get("invalid"))
+        first = trial_result(trials[0]).get("invalid")
+        if fell:
+            raise NothingWalked(f"study {study.study_name!r}: {fell} trial(s) walked and fell below the minimum survival "
+                                f"(stopped at their falls); every one that completed was rejected before it walked "
+                                f"(the first: {first})", fell)
         raise NothingWalked(f"study {study.study_name!r}: every completed trial was rejected before it walked (the first: "
-                            f"{trial_result(trials[0]).get('invalid')})")
+                            f"{first})")
     feasible = [t for t in walked if trial_result(t).get("fall_constraint", 1.0) <= 0] or walked
     if study.directions[0] == optuna.study.StudyDirection.MAXIMIZE:
         return max(feasible, key=lambda t: t.values[0])
