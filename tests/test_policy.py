@@ -229,3 +229,26 @@ def test_the_berkeley_humanoid_lite_example_states_its_policys_layout():
     from gaits.gait_file import load_gait_file
     engine = load_gait_file(here / "engine-grass30.yaml")
     assert engine.engine is not None and 0.3 < engine.params.period < 0.4
+
+
+def test_the_wolfgang_example_states_its_policys_layout():
+    """examples/robots/wolfgang: the policy file says Bit-Bots' published walk's layout (52 numbers
+    in, 12 out: the exported model's), right leg first, each joint's sign the map's (the same in the
+    joint angles, rates and actions), the knees' home less their 0.15 rad ref, the feet's phase at
+    1.5 Hz, and the gains it was trained with are the map's servos' (the robot and the ONNX model are
+    not shipped: docs/walk.md says how to fetch them)."""
+    import yaml
+    from conftest import ROOT
+    from gaits.policy import policy_from_mapping
+    here = ROOT / "examples" / "robots" / "wolfgang"
+    spec = policy_from_mapping(yaml.safe_load((here / "policy-wolfgang.yaml").read_text())["policy"], "p")
+    assert spec.observation_size == 52 and spec.period == 0.02
+    assert [t.term for t in spec.observation] == ["command", "gyro", "gravity", "command", "joint_pos", "joint_vel",
+                                                   "last_action", "feet_phase"]
+    assert list(spec.joints[:6]) == ["r_hip_yaw", "r_hip_roll", "r_hip_pitch", "r_knee", "r_ankle_pitch", "r_ankle_roll"]
+    signs = list(spec.observation[4].scale)
+    assert signs == list(spec.observation[5].scale) == [2 * a for a in spec.action_scale]
+    assert spec.default_pose["l_knee"] > 1.4 and spec.default_pose["r_knee"] > 1.4
+    assert spec.observation[7].period == pytest.approx(1 / 1.5, abs=1e-3)
+    legs = yaml.safe_load((here / "wolfgang.yaml").read_text())["servo"]["legs"]
+    assert spec.gains["kp"] == legs["kp"]
