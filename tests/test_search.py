@@ -263,3 +263,19 @@ def test_a_trial_on_two_threads_is_the_one_at_a_time_trial(study, min_survival):
     assert one == two
     if min_survival is not None:
         assert one.hopeless == (min_survival > 0)
+
+
+def test_the_progress_bar_counts_feasible_trials_and_trials_with_a_fall():
+    """The bar said "falls N" for the trials in which any walk fell, read as falls counted and beside a
+    best trial that kept every walk; it says how many trials are feasible and how many had a fall."""
+    from optuna.distributions import FloatDistribution
+    from tuner.search.trials import progress_note
+    study = optuna.create_study(direction="minimize")
+    dist = {"period": FloatDistribution(0.1, 1.0)}
+    for value, result, state in ((3.0, {"fell": False, "fall_constraint": -0.5}, "COMPLETE"),
+                                 (9.0, {"fell": True, "fall_constraint": -0.1}, "COMPLETE"),
+                                 (None, {"fell": True, "fall_constraint": 0.4, "invalid": None}, "PRUNED")):
+        study.add_trial(optuna.trial.create_trial(params={"period": 0.3}, distributions=dist, value=value,
+                                                  state=getattr(optuna.trial.TrialState, state),
+                                                  user_attrs={"result": result}))
+    assert progress_note(study.get_trials()) == "2 feasible, 2 with a fall"

@@ -22,19 +22,18 @@ def _study_progress(spec, total: int):
     """A tqdm bar over the study's finished trials, and the callback that refreshes it."""
     from tqdm import tqdm
 
-    from ..search.trials import DONE_STATES, best_trial, trial_fell
+    from ..search.trials import DONE_STATES, best_trial, progress_note
     # a terminal gets a live bar; a log file (CI, nohup) a line every 15 s rather than every poll
     bar = tqdm(total=total, unit="trial", dynamic_ncols=True, **bar_options())
 
     def progress(study) -> None:
         done = study.get_trials(deepcopy=False, states=DONE_STATES)
         bar.n = min(len(done), total)
-        falls = sum(1 for t in done if trial_fell(t))
         try:
             best = f"{best_trial(study).values[0]:.2f}"
         except KeyError:
             best = "-"
-        bar.set_postfix_str(f"best {best}, falls {falls}", refresh=False)
+        bar.set_postfix_str(f"best {best}, {progress_note(done)}", refresh=False)
         bar.update(0)                                  # prints when mininterval has passed
     return bar, progress
 

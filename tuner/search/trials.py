@@ -18,7 +18,7 @@ import gaits
 
 from ..store.history import DONE_STATES
 
-__all__ = ["DONE_STATES", "NothingWalked", "best_trial", "PARETO_PICKS", "pareto_pick", "trial_params", "trial_stabiliser",
+__all__ = ["DONE_STATES", "NothingWalked", "best_trial", "progress_note", "PARETO_PICKS", "pareto_pick", "trial_params", "trial_stabiliser",
            "trial_result", "trial_fell", "trial_feasible", "n_done", "trial_engine"]
 
 
@@ -113,6 +113,14 @@ def trial_engine(trial: optuna.trial.FrozenTrial) -> Any:
     from gaits.engine import EngineParams
     data = (trial.user_attrs.get("params") or {}).get("engine")
     return None if data is None else EngineParams(**data)
+
+
+def progress_note(done: list) -> str:
+    """What a study's progress bar says of its finished trials: how many kept their walks (feasible)
+    and how many had a walk fall ("falls N" alone read as falls counted, not trials)."""
+    feasible = sum(1 for t in done if t.state == TrialState.COMPLETE and trial_feasible(t))
+    fell = sum(1 for t in done if trial_fell(t))
+    return f"{feasible} feasible, {fell} with a fall"
 
 
 def trial_result(trial: optuna.trial.FrozenTrial) -> dict[str, Any]:
