@@ -86,3 +86,25 @@ def test_a_broken_robot_file_is_one_line(exported, tmp_path, edit, words):
     with pytest.raises(ParamError, match=words.replace("(", "\\(").replace(")", "\\)")) as info:
         load_robot_file(bad)
     assert "\n" not in str(info.value) and str(bad) in str(info.value)
+
+
+def test_it_states_what_the_servos_give_way_by_as_the_simulator_does(exported):
+    """Each joint's kp and velocity terms (the servo law's pieces: kv, back-EMF, joint damping) are in
+    the robot file, so the engine on the robot puts the same give back into its targets as in the
+    simulator (gaits/engine/servo_load.py): its servo terms and the give it predicts agree."""
+    import gaits
+    from gaits.engine import EngineParams, WalkEngine
+    from gaits.engine.servo_load import servo_terms
+    from tuner.params_io import resolve_params
+    from tuner.robots import load_robot
+    robot_map, out = exported
+    model, rf = load_robot(str(robot_map)), load_robot_file(out)
+    on_robot, in_sim = servo_terms(rf), servo_terms(model)
+    for name in ("kp", "damping", "torque"):
+        np.testing.assert_allclose(getattr(on_robot, name), getattr(in_sim, name), rtol=1e-12)
+    assert np.all(on_robot.kp[[JOINT_NAMES.index(n) for n in rf.joints]] > 0)
+    params = resolve_params("kidsize-engine-carpet4", None).params
+    gives = [WalkEngine(params, EngineParams(load_share=0.8, lag_share=0.3), r, 0.01,
+                        gaits.family("tlipfm").step_limits(params, r)).predicted_give() for r in (rf, model)]
+    np.testing.assert_allclose(gives[0], gives[1], atol=1e-12)
+    assert np.max(np.abs(gives[0])) > 0.01
