@@ -22,6 +22,9 @@ layout; a *policy file* says that layout, so any of them walks here and on the r
                                       #   cycle apart, pL = 2 pi t / period, pR = pL + pi (the biped
                                       #   joysticks of mujoco_playground: Berkeley Humanoid, G1, T1)
         - {term: imu_rpy}             # (3) roll, pitch, yaw [rad]
+        - {term: base_velocity}       # (3) [m/s] the trunk's velocity in its own axes, from the encoders
+                                      #   and the gyro with the lower sole standing still (ours: what a
+                                      #   policy trained on the simulator's velocimeter reads on a robot)
       action: {scale: 0.25, clip: 5.0}  # target = default_pose + scale * clip(output, +-clip)
       gains: {kp: 21.0, kd: 0.6}      # optional: the servos it was trained with (checked, said)
       commands: {vx: [-0.2, 0.4], vy: [-0.2, 0.2], wz: [-1.0, 1.0]}   # the envelope it was trained on:
@@ -50,15 +53,16 @@ from .params import ParamError
 from .trajectory import JOINT_NAMES
 
 __all__ = ["PolicySpec", "Term", "PolicyController", "PolicyFactory", "policy_from_mapping", "gravity_in_body",
-           "TERMS", "TUNABLE", "onnx_runner", "check_robot", "check_sizes"]
+           "TERMS", "TUNABLE", "onnx_runner", "check_robot", "check_sizes", "base_velocity"]
 
 #: Each observation term and its length (None: one per policy joint).
 TERMS = {"gyro": 3, "gravity": 3, "command": 3, "joint_pos": None, "joint_vel": None, "last_action": None,
-         "phase": 2, "feet_phase": 4, "imu_rpy": 3}
+         "phase": 2, "feet_phase": 4, "imu_rpy": 3, "base_velocity": 3}
 #: The terms that advance with the gait's period (``period`` [s] required).
 PHASED = ("phase", "feet_phase")
 #: The readings each term needs (the controller's ``senses``).
-_NEEDS = {"gyro": ("gyro",), "gravity": ("imu_rpy",), "imu_rpy": ("imu_rpy",), "joint_pos": ("q",),
+_NEEDS = {"base_velocity": ("q", "dq", "gyro", "imu_rpy"),
+          "gyro": ("gyro",), "gravity": ("imu_rpy",), "imu_rpy": ("imu_rpy",), "joint_pos": ("q",),
           "joint_vel": ("dq",)}
 #: What a study may tune (``params:``), with what each means.
 TUNABLE = {"action_scale": "the action's scale", "vx_max": "the forward command's top [m/s]",
@@ -304,6 +308,9 @@ class PolicyController:
         self.duration = None
         self.senses = spec.senses
         self.leg = getattr(robot, "leg", None)
+        if self.leg is None and any(t.term == "base_velocity" for t in spec.observation):
+            raise ParamError(f"{source}: observation term base_velocity needs the robot's legs (a robot file or "
+                             f"map), and this robot states none")
         self.index = np.array([JOINT_NAMES.index(j) for j in spec.joints])
         self.default = np.array([spec.default_pose.get(j, 0.0) for j in JOINT_NAMES])
         self.walk_start = 0.0
@@ -352,6 +359,8 @@ class PolicyController:
                     v = v - self.default[self.index]
             elif name == "last_action":
                 v = self.last_action.copy()
+            elif name == "base_velocity":
+                v = base_velocity(m, self.leg)
             elif name == "phase":
                 a = 2.0 * math.pi * float(m.t) / t.period
                 v = np.array([math.sin(a), math.cos(a)])
@@ -389,6 +398,34 @@ class PolicyController:
         return PlanRecord("policy", np.zeros(n, dtype=int), np.zeros((n, 2)), left, right,
                           walk_start=self.walk_start, cycle_time=2 * self.spec.period,
                           meta={"policy_calls": self.calls})
+
+
+def base_velocity(m: Any, leg: Any) -> np.ndarray:
+    """(3,) [m/s] the trunk's velocity in its own axes from one tick's readings (ours): the sole lower
+    along gravity (the IMU's roll and pitch) stands still, so the trunk moves at -(J dq + w x p), p
+    that sole's point in the trunk's frame from the leg's forward kinematics, J dq its velocity from
+    the leg's joint rates (a difference along dq), w the gyro."""
+    from .engine.estimator import sole_in_pelvis
+    names = list(m.joint_names)
+    q = np.zeros(len(JOINT_NAMES))
+    dq = np.zeros(len(JOINT_NAMES))
+    for i, j in enumerate(JOINT_NAMES):
+        if j in names:
+            k = names.index(j)
+            q[i], dq[i] = float(m.q[k]), float(m.dq[k])
+    roll, pitch = float(m.imu_rpy[0]), float(m.imu_rpy[1])
+    R = rot_y(pitch) @ rot_x(roll)                  # the trunk's tilt (world from trunk, yaw left out)
+    best = None
+    for side, start in ((1, JOINT_NAMES.index("l_hip_yaw")), (-1, JOINT_NAMES.index("r_hip_yaw"))):
+        leg_q, leg_dq = q[start:start + 6], dq[start:start + 6]
+        p = sole_in_pelvis(leg_q, leg, side)[0]
+        height = float((R @ p)[2])
+        if best is None or height < best[0]:
+            best = (height, side, p, leg_q, leg_dq)
+    _, side, p, leg_q, leg_dq = best
+    h = 1e-4
+    moving = (sole_in_pelvis(leg_q + h * leg_dq, leg, side)[0] - p) / h
+    return -(moving + np.cross(np.asarray(m.gyro, dtype=float), p))
 
 
 _RUNNERS: dict[str, tuple] = {}

@@ -14,6 +14,7 @@ import pytest
 import gaits
 from gaits.control import Measurement
 from gaits.params import ParamError
+from gaits.trajectory import JOINT_NAMES
 from gaits.policy import PolicyController, gravity_in_body, policy_from_mapping
 
 from conftest import run_cli
@@ -243,8 +244,8 @@ def test_the_wolfgang_example_states_its_policys_layout():
     here = ROOT / "examples" / "robots" / "wolfgang"
     spec = policy_from_mapping(yaml.safe_load((here / "policy-wolfgang.yaml").read_text())["policy"], "p")
     assert spec.observation_size == 52 and spec.period == 0.02
-    assert [t.term for t in spec.observation] == ["command", "gyro", "gravity", "command", "joint_pos", "joint_vel",
-                                                   "last_action", "feet_phase"]
+    assert [t.term for t in spec.observation] == ["base_velocity", "gyro", "gravity", "command", "joint_pos",
+                                                   "joint_vel", "last_action", "feet_phase"]
     assert list(spec.joints[:6]) == ["r_hip_yaw", "r_hip_roll", "r_hip_pitch", "r_knee", "r_ankle_pitch", "r_ankle_roll"]
     signs = list(spec.observation[4].scale)
     assert signs == list(spec.observation[5].scale) == [2 * a for a in spec.action_scale]
@@ -252,3 +253,45 @@ def test_the_wolfgang_example_states_its_policys_layout():
     assert spec.observation[7].period == pytest.approx(1 / 1.5, abs=1e-3)
     legs = yaml.safe_load((here / "wolfgang.yaml").read_text())["servo"]["legs"]
     assert spec.gains["kp"] == legs["kp"]
+
+
+def test_the_trunks_velocity_is_read_from_the_encoders_and_the_gyro():
+    """base_velocity: with the lower sole standing still, the trunk's velocity in its own axes is what
+    finite differences of its place in the world give (the trunk turning at the gyro's rate, the legs
+    moving at the encoders' rates), from whichever foot is lower."""
+    from types import SimpleNamespace
+    from gaits.engine.estimator import sole_in_pelvis
+    from gaits.leg_kinematics import LegGeometry, rot_x, rot_y
+    from gaits.policy import base_velocity
+    leg = LegGeometry()
+    rng = np.random.default_rng(7)
+    L, R = slice(JOINT_NAMES.index("l_hip_yaw"), JOINT_NAMES.index("l_hip_yaw") + 6), \
+        slice(JOINT_NAMES.index("r_hip_yaw"), JOINT_NAMES.index("r_hip_yaw") + 6)
+    for stance, swing in ((L, R), (R, L)):
+        q = np.zeros(len(JOINT_NAMES))
+        q[stance] = [0.05, 0.03, -0.4, 0.8, -0.4, -0.03]
+        q[swing] = [0.0, 0.0, -0.8, 1.4, -0.6, 0.0]          # lifted: its sole higher
+        dq = rng.uniform(-1, 1, len(JOINT_NAMES))
+        gyro = rng.uniform(-0.5, 0.5, 3)
+        rpy = np.array([0.05, -0.08, 0.0])
+        m = SimpleNamespace(q=q, dq=dq, gyro=gyro, imu_rpy=rpy, joint_names=JOINT_NAMES)
+        side = 1 if stance == L else -1
+
+        def trunk_in_world(t):
+            w = gyro * t
+            angle = float(np.linalg.norm(w))
+            K = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]]) / (angle or 1.0)
+            turn = np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
+            Rw = rot_y(rpy[1]) @ rot_x(rpy[0]) @ turn
+            return -Rw @ sole_in_pelvis(q[stance] + t * dq[stance], leg, side)[0]
+        h = 1e-6
+        expected = (rot_y(rpy[1]) @ rot_x(rpy[0])).T @ (trunk_in_world(h) - trunk_in_world(-h)) / (2 * h)
+        np.testing.assert_allclose(base_velocity(m, leg), expected, atol=2e-4)
+
+
+def test_the_trunks_velocity_needs_the_robots_legs():
+    doc = spec_doc()
+    doc["observation"] = [{"term": "base_velocity"}] + doc["observation"]
+    spec = policy_from_mapping(doc, "p")
+    with pytest.raises(ParamError, match="base_velocity needs the robot's legs"):
+        PolicyController(spec, lambda o: np.zeros(len(spec.joints)), object(), 0.01)
