@@ -83,6 +83,16 @@ class Measurement:
         """One encoder angle by our joint name [rad]."""
         return float(self.q[self.joint_names.index(name)])
 
+    def in_our_order(self, values: np.ndarray) -> np.ndarray:
+        """An encoder reading (angles or rates, columns ``joint_names``) in ``JOINT_NAMES`` order, 0
+        for a joint not read."""
+        if self.joint_names == JOINT_NAMES:
+            return values
+        out = np.zeros(len(JOINT_NAMES))
+        for name, v in zip(self.joint_names, values):
+            out[JOINT_NAMES.index(name)] = v
+        return out
+
 
 #: The length of each reading of a :class:`Measurement` (None: one per ``joint_names``).
 _LENGTHS = {"q": None, "dq": None, "imu_rpy": 3, "gyro": 3, "accel": 3, "foot_force": len(FOOT_FORCE_LABELS)}

@@ -43,10 +43,6 @@ class IKNotConverged(ValueError):
         self.error = error
 
 
-def _skew(u: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -u[2], u[1]], [u[2], 0.0, -u[0]], [-u[1], u[0], 0.0]])
-
-
 def _log_rotation(R: np.ndarray) -> np.ndarray:
     """The rotation vector (axis times angle) of ``R`` (3,)."""
     c = (R[0, 0] + R[1, 1] + R[2, 2] - 1.0) / 2.0
@@ -104,16 +100,8 @@ class LegChain:
         object.__setattr__(self, "order", order)
         # the axes, points and joints' indices as the chain composes them, pelvis to foot
         object.__setattr__(self, "_seq", tuple((self.axes[i], self.points[i], i) for i in order))
-        u = np.array(self.axes)
-        a = np.array(self.points)
-        K = np.array([_skew(x) for x in u])
-        object.__setattr__(self, "_u", u)
-        object.__setattr__(self, "_a", a)
-        object.__setattr__(self, "_K", K)
-        object.__setattr__(self, "_K2", K @ K)
-        object.__setattr__(self, "_m_p", np.array(self.sole))
-        object.__setattr__(self, "_m_R", np.array(self.sole_rotation))
-        object.__setattr__(self, "_sole_floats", (tuple(self.sole), tuple(float(x) for x in np.array(self.sole_rotation).reshape(9))))
+        # the sole's point and rotation at the zero pose as plain floats (the rotation row by row)
+        object.__setattr__(self, "_sole_floats", (tuple(self.sole), tuple(x for row in self.sole_rotation for x in row)))
 
     # --- the chain ---------------------------------------------------------------------------
     def fk(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -405,14 +405,8 @@ def base_velocity(m: Any, leg: Any) -> np.ndarray:
     along gravity (the IMU's roll and pitch) stands still, so the trunk moves at -(J dq + w x p), p
     that sole's point in the trunk's frame from the leg's forward kinematics, J dq its velocity from
     the leg's joint rates (a difference along dq), w the gyro."""
-    from .engine.estimator import sole_in_pelvis
-    names = list(m.joint_names)
-    q = np.zeros(len(JOINT_NAMES))
-    dq = np.zeros(len(JOINT_NAMES))
-    for i, j in enumerate(JOINT_NAMES):
-        if j in names:
-            k = names.index(j)
-            q[i], dq[i] = float(m.q[k]), float(m.dq[k])
+    from .engine.estimator import sole_in_pelvis, sole_rate
+    q, dq = m.in_our_order(m.q), m.in_our_order(m.dq)
     roll, pitch = float(m.imu_rpy[0]), float(m.imu_rpy[1])
     R = rot_y(pitch) @ rot_x(roll)                  # the trunk's tilt (world from trunk, yaw left out)
     best = None
@@ -423,9 +417,7 @@ def base_velocity(m: Any, leg: Any) -> np.ndarray:
         if best is None or height < best[0]:
             best = (height, side, p, leg_q, leg_dq)
     _, side, p, leg_q, leg_dq = best
-    h = 1e-4
-    moving = (sole_in_pelvis(leg_q + h * leg_dq, leg, side)[0] - p) / h
-    return -(moving + np.cross(np.asarray(m.gyro, dtype=float), p))
+    return -(sole_rate(leg_q, leg_dq, leg, side, p, h=1e-4) + np.cross(np.asarray(m.gyro, dtype=float), p))
 
 
 _RUNNERS: dict[str, tuple] = {}

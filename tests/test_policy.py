@@ -259,7 +259,6 @@ def test_the_trunks_velocity_is_read_from_the_encoders_and_the_gyro():
     """base_velocity: with the lower sole standing still, the trunk's velocity in its own axes is what
     finite differences of its place in the world give (the trunk turning at the gyro's rate, the legs
     moving at the encoders' rates), from whichever foot is lower."""
-    from types import SimpleNamespace
     from gaits.engine.estimator import sole_in_pelvis
     from gaits.leg_kinematics import LegGeometry, rot_x, rot_y
     from gaits.policy import base_velocity
@@ -274,7 +273,7 @@ def test_the_trunks_velocity_is_read_from_the_encoders_and_the_gyro():
         dq = rng.uniform(-1, 1, len(JOINT_NAMES))
         gyro = rng.uniform(-0.5, 0.5, 3)
         rpy = np.array([0.05, -0.08, 0.0])
-        m = SimpleNamespace(q=q, dq=dq, gyro=gyro, imu_rpy=rpy, joint_names=JOINT_NAMES)
+        m = Measurement(0.0, q=q, dq=dq, gyro=gyro, imu_rpy=rpy)
         side = 1 if stance == L else -1
 
         def trunk_in_world(t):

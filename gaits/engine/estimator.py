@@ -43,6 +43,14 @@ def sole_in_pelvis(q: np.ndarray, leg: LegGeometry, side: int) -> tuple[np.ndarr
     return p, R
 
 
+def sole_rate(q: np.ndarray, dq: np.ndarray, leg: LegGeometry, side: int, p: np.ndarray,
+              h: float = 1e-3) -> np.ndarray:
+    """The sole point's velocity in the pelvis frame (3,) as the leg's joints turn at ``dq``, ``p``
+    its place at ``q`` (:func:`sole_in_pelvis`): the chain's Jacobian times ``dq`` by a difference of
+    ``h`` [s] along it."""
+    return (sole_in_pelvis(q + h * dq, leg, side)[0] - p) / h
+
+
 class CoMEstimator:
     """The CoM's horizontal position and velocity in the engine's world (module docstring).
 

@@ -86,9 +86,9 @@ class LoadCompensation:
         self.lag_share = float(lag_share)
         self.chains: dict[int, LegChain] = {s: (leg.chains.side(s) if leg.chains is not None else ideal_chain(leg, s))
                                             for s in (1, -1)}
-        with np.errstate(divide="ignore"):
-            self._compliance = np.where(terms.kp > 0, 1.0 / np.where(terms.kp > 0, terms.kp, 1.0), 0.0)
-        self._bound = np.where(terms.kp > 0, terms.torque * self._compliance, 0.0)
+        # [rad/N m] 1 / kp, 0 where no gain is stated (no offset there)
+        self._compliance = np.divide(1.0, terms.kp, out=np.zeros_like(terms.kp), where=terms.kp > 0)
+        self._bound = terms.torque * self._compliance
         self._lead = terms.damping * self._compliance          # [s] each servo's lag, damping / kp
         self._last: np.ndarray | None = None
 

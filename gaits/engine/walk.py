@@ -16,7 +16,7 @@ from ..lipm import dcm_forward, propagate, zmp_at
 from ..params import ParamError
 from ..tlipfm import TlipfmParams
 from ..trajectory import GRAVITY, JOINT_NAMES
-from .estimator import CoMEstimator, _rx, _ry, _rz, sole_in_pelvis
+from .estimator import CoMEstimator, _rx, _ry, _rz, sole_in_pelvis, sole_rate
 from .params import EngineParams
 from .servo_load import LoadCompensation, servo_terms
 from .shaping import CommandShaper
@@ -57,15 +57,16 @@ class WalkEngine:
         speeds = joint_speeds(robot)
         self._capping = params.servo_share > 0 and speeds is not None
         self._max_move = params.servo_share * speeds * self.dt if self._capping else None
-        self._terms = terms = servo_terms(robot)
-        if terms is None and (params.load_share > 0 or params.lag_share > 0):
-            raise ParamError(f"engine: load_share = {params.load_share:g}, lag_share = {params.lag_share:g} need "
-                             f"the servos' gains, which this robot does not state (a robot file exported before "
-                             f"they were written: export it again, gait-tuner robot export MAP --out FILE)")
-        g = gait
-        self._load = None if terms is None or not (params.load_share > 0 or params.lag_share > 0) else LoadCompensation(self.leg, terms, self.dt, params.load_share,
-                                                                 params.lag_share, (g.mass_thigh, g.mass_calf))
-        self._robot_weight = (g.mass_upper + 2 * (g.mass_thigh + g.mass_calf)) * GRAVITY
+        self._terms = servo_terms(robot)
+        self._load = None
+        if params.load_share > 0 or params.lag_share > 0:
+            if self._terms is None:
+                raise ParamError(f"engine: load_share = {params.load_share:g}, lag_share = {params.lag_share:g} "
+                                 f"need the servos' gains, which this robot does not state (a robot file exported "
+                                 f"before they were written: export it again, gait-tuner robot export MAP --out FILE)")
+            self._load = LoadCompensation(self.leg, self._terms, self.dt, params.load_share, params.lag_share,
+                                          (gait.mass_thigh, gait.mass_calf))
+        self._robot_weight = (gait.mass_upper + 2 * (gait.mass_thigh + gait.mass_calf)) * GRAVITY
         self.reset_state()
 
     # --- what the engine offers ------------------------------------------------------------
@@ -121,7 +122,8 @@ class WalkEngine:
         self.dropped = {name: 0 for name in READINGS + ("command",)}   # ticks each was not finite
         self._dropping: tuple[str, ...] = ()
         self._log = []
-        if getattr(self, "_load", None) is not None:
+        self._soles: dict = {}                      # this tick's sole points in the world (``_joints``)
+        if self._load is not None:
             self._load.reset()
 
     def start_pose(self) -> StartPose:
@@ -139,7 +141,7 @@ class WalkEngine:
         q = self._joints(self.com, self.feet[1], self.feet[-1])[0]
         comp = LoadCompensation(self.leg, self._terms, self.dt, 1.0, 0.0, (g.mass_thigh, g.mass_calf))
         feet = {side: np.append(f, 0.0) for side, f in self.feet.items()}
-        return -comp.offsets(q, feet, self._soles(feet), feet[1][:2], 1, self._robot_weight,
+        return -comp.offsets(q, feet, self._soles, feet[1][:2], 1, self._robot_weight,
                              _ry(g.torso_pitch), self.foot_size)
 
     def reset(self, m: Measurement) -> None:
@@ -234,7 +236,7 @@ class WalkEngine:
         ``kf_velocity`` > 0 and the rates read, its velocity (x, y): the trunk's turn (the gyro, in
         the trunk's axes) about the sole plus the leg's joint rates through the chain (its Jacobian
         by a difference along dq), not in a step's first ``lag``; ours."""
-        q = self._q_ours(m)
+        q = m.in_our_order(m.q)
         roll, pitch = float(m.imu_rpy[0]), float(m.imu_rpy[1])
         walking = self.cur is not None and self.mode == WALK
         sides = (self.cur.side,) if walking else (1, -1)
@@ -243,34 +245,19 @@ class WalkEngine:
         # CoM moved at +0.20 m/s, a quarter of the walk's speed lost on the mean; ours).
         rates = (self.params.kf_velocity > 0.0 and m.dq is not None and m.gyro is not None
                  and not (walking and self.t - self.step_t0 < self.params.lag))
-        dq = self._ours(m, m.dq) if rates else None
+        dq = m.in_our_order(m.dq) if rates else None
         estimates, velocities = [], []
         for side in sides:
             p_ps, R_ps = sole_in_pelvis(q[_LEG[side]], self.leg, side)
             foot = self.feet[side]
             yaw_pelvis = foot[2] - math.atan2(R_ps[1, 0], R_ps[0, 0])
             R_wp = _rz(yaw_pelvis) @ _ry(pitch) @ _rx(roll)
-            below_ankle = np.array([foot[0], foot[1], 0.0]) - _rz(foot[2]) @ self.leg.sole_in_ankle(side)
             arm = R_wp @ (self.leg.com_in_pelvis - p_ps)
-            estimates.append(below_ankle + arm)
+            estimates.append(self._sole_point(foot, side) + arm)
             if rates:
-                h = 1e-3
-                p_moved = sole_in_pelvis(q[_LEG[side]] + h * dq[_LEG[side]], self.leg, side)[0]
-                velocities.append(np.cross(R_wp @ m.gyro, arm) - R_wp @ ((p_moved - p_ps) / h))
+                moving = sole_rate(q[_LEG[side]], dq[_LEG[side]], self.leg, side, p_ps)
+                velocities.append(np.cross(R_wp @ m.gyro, arm) - R_wp @ moving)
         return np.mean(estimates, axis=0)[:2], (np.mean(velocities, axis=0)[:2] if rates else None)
-
-    def _q_ours(self, m: Measurement) -> np.ndarray:
-        return self._ours(m, m.q)
-
-    @staticmethod
-    def _ours(m: Measurement, values: np.ndarray) -> np.ndarray:
-        """An encoder reading (angles or rates) in our joint order."""
-        if m.joint_names == JOINT_NAMES:
-            return values
-        out = np.zeros(len(JOINT_NAMES))
-        for name, v in zip(m.joint_names, values):
-            out[JOINT_NAMES.index(name)] = v
-        return out
 
     def _cop(self, m: Measurement) -> np.ndarray | None:
         if m.foot_force is None:
@@ -532,13 +519,14 @@ class WalkEngine:
         (``servo_load.py``), the pelvis turned as planned."""
         psi = (feet[1][2] + feet[-1][2]) / 2
         R_wp = _rz(psi) @ _ry(self.gait.p.torso_pitch)
-        return self._load.offsets(q, feet, self._soles(feet), self.zmp, support, self._robot_weight, R_wp,
+        return self._load.offsets(q, feet, self._soles, self.zmp, support, self._robot_weight, R_wp,
                                   self.foot_size)
 
-    def _soles(self, feet: dict) -> dict:
-        """Each side's sole point (the chain's, below the ankle) in the world, from its sole centre."""
-        return {side: np.array([f[0], f[1], f[3]]) - _rz(f[2]) @ self.leg.sole_in_ankle(side)
-                for side, f in feet.items()}
+    def _sole_point(self, foot: np.ndarray, side: int) -> np.ndarray:
+        """The sole point (the chain's, ``ankle_height`` below the ankle) in the world, from the sole
+        centre's (x, y, yaw[, z])."""
+        z = foot[3] if len(foot) > 3 else 0.0
+        return np.array([foot[0], foot[1], z]) - _rz(foot[2]) @ self.leg.sole_in_ankle(side)
 
     # --- the swing and the joints ----------------------------------------------------------
     def _theta(self, tau: float) -> float:
@@ -594,9 +582,8 @@ class WalkEngine:
         q = np.zeros((1, len(JOINT_NAMES)))
         for side, foot in ((1, left), (-1, right)):
             R_wp = R_tilted if side == swing else R_plan
-            z = foot[3] if len(foot) > 3 else 0.0
             R_f = _rz(foot[2])
-            sole_point = np.array([foot[0], foot[1], z]) - R_f @ leg.sole_in_ankle(side)
+            self._soles[side] = sole_point = self._sole_point(foot, side)
             target, R_ps = R_wp.T @ (sole_point - pelvis), R_wp.T @ R_f
             target = self._reachable(target, R_ps, side)
             try:                                        # the numerical IK starts from the last tick's

@@ -157,9 +157,9 @@ def initial_walk(robot: Any, robot_ref: str, surface: Any, purpose: str = "match
     engine = None if purpose == "speed" else EngineParams(idle="step" if purpose == "push" else "stand",
                                                           servo_share=SERVO_SHARE)
     give = None if engine is None or servo else servo_give(robot, params)
+    lag = knee_lag(robot)
     if give is not None and give[1] > GIVE_LIMIT:
         engine = engine.replace(load_share=LOAD_SHARE, lag_share=LAG_SHARE)
-        lag = knee_lag(robot)
         if LAG_STEPS * lag > period:
             period = round(LAG_STEPS * lag, 3)
             params = params.replace(period=period, t1=round(T1_SHARE * period, 4), t2=round(T2_SHARE * period, 4))
@@ -181,7 +181,7 @@ def initial_walk(robot: Any, robot_ref: str, surface: Any, purpose: str = "match
     span = _around(period, min(1.0, fastest / period), 1.1, 0.1, 3.0)
     if engine is not None and engine.load_share > 0:
         # a servo that gives way this far cannot follow a step shorter than a few of its lags
-        span["low"] = round(min(max(span["low"], LAG_STEPS_MIN * knee_lag(robot)), period), 4)
+        span["low"] = round(min(max(span["low"], LAG_STEPS_MIN * lag), period), 4)
     t1 = _range(T1_SHARE * span["low"] * 0.5, T1_SHARE * span["high"] * 1.5, 0.01, 0.5)
     # every draw keeps a single support (t2 - t1) of SSP_MIN of the shortest period searched, as far as
     # t2 still reaches TKU-X's share of that period

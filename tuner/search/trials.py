@@ -118,7 +118,7 @@ def trial_engine(trial: optuna.trial.FrozenTrial) -> Any:
 def progress_note(done: list) -> str:
     """What a study's progress bar says of its finished trials: how many kept their walks (feasible)
     and how many had a walk fall ("falls N" alone read as falls counted, not trials)."""
-    feasible = sum(1 for t in done if t.state == TrialState.COMPLETE and trial_feasible(t))
+    feasible = sum(1 for t in done if trial_feasible(t))
     fell = sum(1 for t in done if trial_fell(t))
     return f"{feasible} feasible, {fell} with a fall"
 
