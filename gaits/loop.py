@@ -194,7 +194,8 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--record", help="record every tick (what the engine read and asked) as an MCAP file "
                                      "(gaits/recording.py; needs the mcap package)")
     ap.add_argument("--port", help="the Dynamixel bus (a serial device, or `gait-tuner bus serve`'s pseudo-terminal): "
-                                   "walk the robot on it (needs --robot and dynamixel-sdk)")
+                                   "walk the robot on it (needs --robot and dynamixel-sdk); a robot on several "
+                                   "buses: every one, comma-separated (each device is used where it answers)")
     ap.add_argument("--baud", type=_number(0, 10_000_000, "baud", integer=True), default=1_000_000,
                     help="the bus's baud rate")
     ap.add_argument("--watchdog", type=_number(0, 100_000, "ticks", integer=True), default=5,
@@ -359,7 +360,7 @@ def run_on_bus(args: Any, gait: gaits.GaitFile | None, robot_file: Any, sweep: S
     ended as planned or was stopped, 3 a watchdog or a fall)."""
     from gaits.dynamixel import BusError, DynamixelBus
     try:
-        bus = DynamixelBus(args.port, robot_file, args.baud)
+        bus = DynamixelBus([p.strip() for p in args.port.split(",")], robot_file, args.baud)
         bus.check()
     except BusError as exc:
         print(f"robot_loop: error: {exc}", file=sys.stderr)
@@ -389,8 +390,8 @@ def run_on_bus(args: Any, gait: gaits.GaitFile | None, robot_file: Any, sweep: S
         got = bus.read()
         if got is None:
             return None
-        q, dq, rpy, gyro, accel = got
-        return Measurement(t, q=q, dq=dq, imu_rpy=rpy, gyro=gyro, accel=accel)
+        q, dq, rpy, gyro, accel, soles = got
+        return Measurement(t, q=q, dq=dq, imu_rpy=rpy, gyro=gyro, accel=accel, foot_force=soles)
     first, waited = None, time.monotonic()
     while first is None and time.monotonic() - waited < 5.0:    # the robot may still be taking its start pose
         first = measure(0.0)

@@ -26,7 +26,8 @@ layout; a *policy file* says that layout, so any of them walks here and on the r
                                       #   and the gyro with the lower sole standing still (ours: what a
                                       #   policy trained on the simulator's velocimeter reads on a robot)
       action: {scale: 0.25, clip: 5.0}  # target = default_pose + scale * clip(output, +-clip)
-      gains: {kp: 21.0, kd: 0.6}      # optional: the servos it was trained with (checked, said)
+      gains: {kp: 21.0, kd: 0.6}      # optional: the servos it was trained with [N m/rad, N m s/rad], a
+                                      #   number or one a joint (checked joint by joint; none: said)
       commands: {vx: [-0.2, 0.4], vy: [-0.2, 0.2], wz: [-1.0, 1.0]}   # the envelope it was trained on:
                                       #   commands are clipped into it
     params: {action_scale: 0.25}      # optional: what a study may tune (action_scale, vx_max,
@@ -53,7 +54,7 @@ from .params import ParamError
 from .trajectory import JOINT_NAMES
 
 __all__ = ["PolicySpec", "Term", "PolicyController", "PolicyFactory", "policy_from_mapping", "gravity_in_body",
-           "TERMS", "TUNABLE", "onnx_runner", "check_robot", "check_sizes", "base_velocity"]
+           "TERMS", "TUNABLE", "onnx_runner", "check_robot", "check_sizes", "base_velocity", "gains_unstated"]
 
 #: Each observation term and its length (None: one per policy joint).
 TERMS = {"gyro": 3, "gravity": 3, "command": 3, "joint_pos": None, "joint_vel": None, "last_action": None,
@@ -219,9 +220,9 @@ def policy_from_mapping(doc: Any, source: str) -> PolicySpec:
     clip = _numbers(act.get("clip", math.inf), 1, "policy.action.clip", source, positive=True)
     gains = doc.get("gains") or {}
     if not isinstance(gains, Mapping) or set(gains) - {"kp", "kd"}:
-        raise ParamError(f"{source}: policy.gains: expected {{kp, kd}} [N m/rad, N m s/rad]")
-    for k, v in gains.items():
-        _numbers(v, 1, f"policy.gains.{k}", source)
+        raise ParamError(f"{source}: policy.gains: expected {{kp, kd}} [N m/rad, N m s/rad], each a number or one "
+                         f"a joint")
+    gains = {k: _numbers(v, n, f"policy.gains.{k}", source) for k, v in gains.items()}
     cmds = doc.get("commands") or {}
     if not isinstance(cmds, Mapping) or set(cmds) - {"vx", "vy", "wz"}:
         raise ParamError(f"{source}: policy.commands: expected vx, vy, wz, each [low, high]")
@@ -234,7 +235,7 @@ def policy_from_mapping(doc: Any, source: str) -> PolicySpec:
             raise ParamError(f"{source}: policy.commands.{k} = {v!r}: expected low <= 0 <= high")
         envelope[k] = (lo, hi)
     return PolicySpec(doc["model"], float(period), tuple(joints), {k: float(v) for k, v in pose.items()},
-                      tuple(terms), scale, float(clip), {k: float(v) for k, v in gains.items()}, envelope)
+                      tuple(terms), scale, float(clip), gains, envelope)
 
 
 def gravity_in_body(rpy: np.ndarray) -> np.ndarray:
@@ -445,9 +446,11 @@ class PolicyFactory:
 
 
 def check_robot(spec: PolicySpec, robot: Any, source: str) -> None:
-    """The policy's joints are the robot's, and its servos have the gains it was trained with (within
-    25 %): else one :class:`ParamError` saying what to change (a policy on other servos walks
-    otherwise, or not at all: never silently)."""
+    """The policy's joints are the robot's, and each joint's servo has the gains the policy was
+    trained with (``policy.gains``: kp within 25 %, kd, the servo's derivative gain, within 25 % or
+    0.05 N m s/rad), joint by joint: else one :class:`ParamError` naming the first that differs and
+    what to change (a policy on other servos walks otherwise, or not at all: never silently). A
+    policy that states no gains is not checked (:func:`gains_unstated` says so)."""
     jmap = getattr(robot, "joint_map", None)
     if jmap:
         missing = [j for j in spec.joints if j not in jmap]
@@ -455,12 +458,28 @@ def check_robot(spec: PolicySpec, robot: Any, source: str) -> None:
             raise ParamError(f"{source}: policy.joints: {missing[0]!r} is not a joint of robot "
                              f"{getattr(robot, 'name', '?')} (its map names {', '.join(j for j in JOINT_NAMES if j in jmap)})")
     servos = getattr(robot, "servos", None)
-    if spec.gains.get("kp") and jmap and servos:
-        kps = [float(servos[jmap[j][0]].kp) for j in spec.joints if j in jmap and jmap[j][0] in servos]
-        if kps:
-            kp = float(np.median(kps))
-            if abs(kp - spec.gains["kp"]) > 0.25 * spec.gains["kp"]:
-                raise ParamError(f"{source}: the policy was trained with servos at kp {spec.gains['kp']:g} N m/rad "
-                                 f"(policy.gains) and robot {getattr(robot, 'name', '?')}'s are at kp {kp:g}: give its "
-                                 f"map servo: {{legs: {{kp: {spec.gains['kp']:g}}}}}, or leave policy.gains out to run it "
-                                 f"on these servos")
+    if not (jmap and servos):
+        return
+    name = getattr(robot, "name", "?")
+    for key, slack in (("kp", 0.0), ("kd", 0.05)):
+        if key not in spec.gains:
+            continue
+        trained = np.broadcast_to(np.asarray(spec.gains[key], dtype=float), (len(spec.joints),))
+        for joint, want in zip(spec.joints, trained):
+            servo = servos.get(jmap[joint][0])
+            if servo is None:
+                continue
+            pieces = servo.pieces()
+            have = float(pieces.kp if key == "kp" else pieces.kv)
+            if abs(have - want) > 0.25 * want + slack:
+                unit = "N m/rad" if key == "kp" else "N m s/rad"
+                field_name = "kp" if key == "kp" else "kv"
+                raise ParamError(f"{source}: the policy was trained with {joint}'s servo at {key} {want:g} {unit} "
+                                 f"(policy.gains) and robot {name}'s is at {key} {have:.3g}: give its map "
+                                 f"servo: {{{joint}: {{{field_name}: {want:g}}}}} (or its group's), or leave "
+                                 f"policy.gains out to run it on these servos")
+
+
+def gains_unstated(spec: PolicySpec) -> bool:
+    """The policy file states no servo gains: it runs on whatever servos the robot has, unchecked."""
+    return not spec.gains

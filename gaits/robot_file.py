@@ -14,6 +14,17 @@ numpy and PyYAML only (no MuJoCo, no built-in geometry on the robot side)::
                kp: 31.0, damping: 0.69,   # [N m/rad], [N m s/rad]: what the servo gives way by (optional)
                servo: {id: 14, units_per_rad: 651.9, centre: 2048, direction: -1, offset: 0.05}}
     held: {HeadPan_C: 0.0}         # joints of the robot not mapped, held at an angle [rad, its convention]
+    foot_sensors: true             # the soles measure force: the loop reads the sole boards below
+    bus:                           # the boards besides the servos (optional; these are the defaults)
+      imu: {protocol: gait-tuner, id: 200, port: 0}     # or {protocol: bitbots, id: 241}; null: none
+      soles: {protocol: bitfoot, left: {id: 102, zero: [0, 0, 0, 0], newtons_per_unit: [1, 1, 1, 1]},
+              right: {id: 101}, port: 0}                # none by default: a robot whose soles sense
+                                                        # force must name its boards
+
+A robot on several buses (Bit-Bots' Wolfgang-OP runs four) gives the loop every port
+(``--port A,B,...``): each device is looked for on each port and used where it answers, as
+Bit-Bots' own driver does; a servo's or a board's ``port`` (0 first) places it on the simulated
+bus (``gait-tuner bus serve --link A,B,...``).
 
 An angle goes from our convention (gaits' joint signs, what the engine returns) to the robot's by
 its ``sign`` (q_robot = sign q_ours), then to the servo's units by ``servo``: ticks = centre +
@@ -37,7 +48,14 @@ from .leg_kinematics import LegGeometry
 from .params import ParamError
 from .trajectory import JOINT_NAMES
 
-__all__ = ["ServoUnit", "JointSpec", "RobotFile", "load_robot_file", "save_robot_file", "to_units", "from_units"]
+__all__ = ["ServoUnit", "JointSpec", "ImuBoard", "SoleBoard", "RobotFile", "load_robot_file", "save_robot_file",
+           "to_units", "from_units", "IMU_PROTOCOLS", "SOLE_PROTOCOLS"]
+
+#: IMU boards the loop reads (gaits.dynamixel has each one's registers): ours, and Bit-Bots' IMU
+#: board of their Wolfgang-OP (bitbots_main, bitbots_ros_control's IMU interface; its id there 241)
+IMU_PROTOCOLS = {"gait-tuner": 200, "bitbots": 241}
+#: sole boards: Bit-Bots' BitFoot (four load cells a foot; ids 101 right, 102 left on their robots)
+SOLE_PROTOCOLS = {"bitfoot": (102, 101)}
 
 
 @dataclass(frozen=True)
@@ -49,6 +67,7 @@ class ServoUnit:
     centre: float = 2048.0                        # [ticks] the position sent for the servo's zero
     direction: int = 1                            # +1 or -1: the servo counts the file's way or against it
     offset: float = 0.0                           # [rad] added to the file's angle before conversion
+    port: int = 0                                 # the bus it is on (0 first), for the simulated bus
 
 
 def to_units(q: np.ndarray, u: ServoUnit) -> np.ndarray:
@@ -78,6 +97,34 @@ class JointSpec:
 
 
 @dataclass(frozen=True)
+class ImuBoard:
+    """The IMU on the bus: its protocol (:data:`IMU_PROTOCOLS`), id and port."""
+
+    protocol: str = "gait-tuner"
+    id: int = 200
+    port: int = 0
+
+
+@dataclass(frozen=True)
+class SoleBoard:
+    """One sole's force board: its id and port, and its four cells' calibration (front left, front
+    right, back left, back right, as ``gaits.control.FOOT_FORCE_LABELS``): force [N] =
+    (reading - zero) x newtons_per_unit."""
+
+    id: int
+    port: int = 0
+    zero: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
+    newtons_per_unit: tuple[float, float, float, float] = (1.0, 1.0, 1.0, 1.0)
+
+    def newtons(self, raw: np.ndarray) -> np.ndarray:
+        return (np.asarray(raw, float) - np.asarray(self.zero)) * np.asarray(self.newtons_per_unit)
+
+    def raw(self, newtons: np.ndarray) -> np.ndarray:
+        """What the board reads for forces [N] (the simulated bus serves this)."""
+        return np.asarray(newtons, float) / np.asarray(self.newtons_per_unit) + np.asarray(self.zero)
+
+
+@dataclass(frozen=True)
 class RobotFile:
     """A robot as its loop sees it (the module docstring); it is a ``gaits.families.RobotGeometry``."""
 
@@ -89,6 +136,36 @@ class RobotFile:
     mass: float = 0.0
     held: Mapping[str, float] = field(default_factory=dict)
     foot_sensors: bool = True          # the soles measure force (eight readings); false: the engine walks without
+    imu: ImuBoard | None = ImuBoard()  # None: no IMU on the bus
+    soles: tuple[SoleBoard, SoleBoard] | None = None   # (left, right) boards; None: none on the bus
+    sole_protocol: str = "bitfoot"
+
+    def sensing_gap(self) -> str | None:
+        """Why the loop could not read what this robot's walks were made with (soles said to sense
+        force, no boards named), or None."""
+        if self.foot_sensors and self.soles is None:
+            return ("its soles sense force (foot_sensors: true, the default: the simulator's walks read them) but "
+                    "it names no sole boards (bus: soles:), so the loop could not read them: name the boards "
+                    "(bus: {soles: {protocol: bitfoot, left: {id: 102}, right: {id: 101}}}) or say "
+                    "foot_sensors: false")
+        return None
+
+    def devices(self) -> dict[int, str]:
+        """{id: what it is} of every device on the robot's buses (servos, the IMU, sole boards)."""
+        out = {j.servo.id: ours for ours, j in self.joints.items() if j.servo is not None}
+        if self.imu is not None:
+            out[self.imu.id] = "the IMU"
+        for side, b in zip(("left", "right"), self.soles or ()):
+            out[b.id] = f"the {side} sole board"
+        return out
+
+    @property
+    def ports(self) -> int:
+        """How many buses the file places its devices on (the highest port + 1)."""
+        ports = [j.servo.port for j in self.joints.values() if j.servo is not None]
+        ports += [self.imu.port] if self.imu is not None else []
+        ports += [b.port for b in self.soles or ()]
+        return max(ports, default=0) + 1
 
     def to_robot(self, q_ours: np.ndarray) -> dict[str, float]:
         """Our 20 targets [rad] -> {the robot's joint name: angle [rad, its convention]}, clipped into
@@ -141,8 +218,8 @@ def load_robot_file(path: str | Path) -> RobotFile:
     except (UnicodeDecodeError, yaml.YAMLError) as exc:
         raise ParamError(f"{source}: not a YAML robot file ({' '.join(str(exc).split())[:200]})") from None
     doc = _mapping(doc, "the file", source)
-    _known(doc, ("robot", "control_period", "mass", "foot_size", "leg", "leg_chains", "joints", "held", "foot_sensors"),
-           "the file", source)
+    _known(doc, ("robot", "control_period", "mass", "foot_size", "leg", "leg_chains", "joints", "held", "foot_sensors",
+                 "bus"), "the file", source)
     foot_sensors = doc.get("foot_sensors", True)
     if not isinstance(foot_sensors, bool):
         raise ParamError(f"{source}: foot_sensors = {foot_sensors!r}: expected true or false")
@@ -181,7 +258,7 @@ def load_robot_file(path: str | Path) -> RobotFile:
         servo = None
         if j.get("servo") is not None:
             s = _mapping(j["servo"], f"joints.{ours}.servo", source)
-            _known(s, ("id", "units_per_rad", "centre", "direction", "offset"), f"joints.{ours}.servo", source)
+            _known(s, ("id", "units_per_rad", "centre", "direction", "offset", "port"), f"joints.{ours}.servo", source)
             sid = s.get("id")
             if not isinstance(sid, int) or isinstance(sid, bool) or not 0 <= sid <= 253:
                 raise ParamError(f"{source}: joints.{ours}.servo.id = {sid!r}: expected an integer in [0, 253]")
@@ -195,7 +272,8 @@ def load_robot_file(path: str | Path) -> RobotFile:
                                         source, 1e-3, 1e7),
                               _num(s.get("centre", 2048.0), f"joints.{ours}.servo.centre", source),
                               int(direction), _num(s.get("offset", 0.0), f"joints.{ours}.servo.offset", source,
-                                                   -math.pi, math.pi))
+                                                   -math.pi, math.pi),
+                              _port(s.get("port", 0), f"joints.{ours}.servo.port", source))
         joints[ours] = JointSpec(j["name"], int(sign), lower, upper,
                                  _num(j.get("speed", 6.5), f"joints.{ours}.speed", source, 0.01, 100.0),
                                  _num(j.get("torque", 6.0), f"joints.{ours}.torque", source, 0.01, 1000.0), servo,
@@ -209,9 +287,99 @@ def load_robot_file(path: str | Path) -> RobotFile:
     name = doc["robot"]
     if not isinstance(name, str) or not name:
         raise ParamError(f"{source}: robot = {name!r}: expected the robot's name")
+    imu, soles, sole_protocol = read_bus(doc.get("bus"), source, ids)
     return RobotFile(name, leg, foot, joints, _num(doc.get("control_period", 0.01), "control_period", source,
                                                    1e-4, 1.0), _num(doc.get("mass", 0.0), "mass", source, 0.0, 1000.0),
-                     held, foot_sensors)
+                     held, foot_sensors, imu, soles, sole_protocol)
+
+
+#: how many buses a robot may have (ours: Bit-Bots' Wolfgang-OP runs four)
+MAX_PORTS = 8
+
+
+def _port(v: Any, what: str, source: str) -> int:
+    if not isinstance(v, int) or isinstance(v, bool) or not 0 <= v < MAX_PORTS:
+        raise ParamError(f"{source}: {what} = {v!r}: expected a bus number in [0, {MAX_PORTS - 1}] (0 the first)")
+    return v
+
+
+def _device_id(v: Any, what: str, source: str, taken: dict[int, str], name: str) -> int:
+    if not isinstance(v, int) or isinstance(v, bool) or not 0 <= v <= 253:
+        raise ParamError(f"{source}: {what} = {v!r}: expected an integer in [0, 253]")
+    if v in taken:
+        raise ParamError(f"{source}: {what} = {v}: id {v} is already {taken[v]}'s")
+    taken[v] = name
+    return v
+
+
+def _four(v: Any, what: str, source: str, default: float, lo: float) -> tuple[float, float, float, float]:
+    if v is None:
+        return (default,) * 4
+    if isinstance(v, (int, float)) and not isinstance(v, bool):
+        v = [v] * 4
+    if not isinstance(v, list) or len(v) != 4:
+        raise ParamError(f"{source}: {what} = {v!r}: expected a number or four (front left, front right, back left, "
+                         f"back right)")
+    return tuple(_num(x, f"{what}[{k}]", source, lo, 1e9) for k, x in enumerate(v))
+
+
+def read_bus(doc: Any, source: str, taken: dict[int, str]) -> tuple[ImuBoard | None, tuple[SoleBoard, SoleBoard] | None,
+                                                                     str]:
+    """A robot file's (or map's) ``bus:`` section -> (the IMU, the two sole boards, their protocol);
+    ``taken``: the servos' ids (a board's id may be no servo's)."""
+    if doc is None:
+        doc = {}
+    doc = _mapping(doc, "bus", source)
+    _known(doc, ("imu", "soles"), "bus", source)
+    taken = dict(taken)
+    imu: ImuBoard | None = ImuBoard()
+    if "imu" in doc and doc["imu"] is None:
+        imu = None
+    elif "imu" in doc:
+        i = _mapping(doc["imu"], "bus.imu", source)
+        _known(i, ("protocol", "id", "port"), "bus.imu", source)
+        protocol = i.get("protocol", "gait-tuner")
+        if protocol not in IMU_PROTOCOLS:
+            raise ParamError(f"{source}: bus.imu.protocol = {protocol!r}: expected one of {', '.join(IMU_PROTOCOLS)}")
+        imu = ImuBoard(protocol, _device_id(i.get("id", IMU_PROTOCOLS[protocol]), "bus.imu.id", source, taken,
+                                            "the IMU"), _port(i.get("port", 0), "bus.imu.port", source))
+    elif IMU_PROTOCOLS["gait-tuner"] in taken:
+        raise ParamError(f"{source}: servo id {IMU_PROTOCOLS['gait-tuner']} is the IMU's (ours, the default): give the "
+                         f"IMU its own id (bus: {{imu: {{id: N}}}})")
+    soles = None
+    protocol = "bitfoot"
+    if doc.get("soles") is not None:
+        s = _mapping(doc["soles"], "bus.soles", source)
+        _known(s, ("protocol", "left", "right", "port"), "bus.soles", source)
+        protocol = s.get("protocol", "bitfoot")
+        if protocol not in SOLE_PROTOCOLS:
+            raise ParamError(f"{source}: bus.soles.protocol = {protocol!r}: expected one of {', '.join(SOLE_PROTOCOLS)}")
+        port = _port(s.get("port", 0), "bus.soles.port", source)
+        boards = []
+        for side, default_id in zip(("left", "right"), SOLE_PROTOCOLS[protocol]):
+            b = s.get(side, {})
+            b = {"id": b} if isinstance(b, int) and not isinstance(b, bool) else _mapping(b, f"bus.soles.{side}", source)
+            _known(b, ("id", "port", "zero", "newtons_per_unit"), f"bus.soles.{side}", source)
+            boards.append(SoleBoard(_device_id(b.get("id", default_id), f"bus.soles.{side}.id", source, taken,
+                                               f"the {side} sole board"),
+                                    _port(b.get("port", port), f"bus.soles.{side}.port", source),
+                                    _four(b.get("zero"), f"bus.soles.{side}.zero", source, 0.0, -1e9),
+                                    _four(b.get("newtons_per_unit"), f"bus.soles.{side}.newtons_per_unit", source, 1.0,
+                                          1e-9)))
+        soles = (boards[0], boards[1])
+    return imu, soles, protocol
+
+
+def bus_mapping(robot: RobotFile) -> dict[str, Any]:
+    """The ``bus:`` section that :func:`read_bus` reads back as ``robot``'s boards."""
+    out: dict[str, Any] = {"imu": None if robot.imu is None else
+                           {"protocol": robot.imu.protocol, "id": robot.imu.id, "port": robot.imu.port}}
+    if robot.soles is not None:
+        out["soles"] = {"protocol": robot.sole_protocol}
+        for side, b in zip(("left", "right"), robot.soles):
+            out["soles"][side] = {"id": b.id, "port": b.port, "zero": [float(v) for v in b.zero],
+                                  "newtons_per_unit": [float(v) for v in b.newtons_per_unit]}
+    return out
 
 
 def save_robot_file(path: str | Path, robot: RobotFile, header: str = "") -> Path:
@@ -234,6 +402,9 @@ def save_robot_file(path: str | Path, robot: RobotFile, header: str = "") -> Pat
         if j.servo is not None:
             entry["servo"] = {"id": j.servo.id, "units_per_rad": r(j.servo.units_per_rad), "centre": r(j.servo.centre),
                               "direction": j.servo.direction, "offset": r(j.servo.offset)}
+            if j.servo.port:
+                entry["servo"]["port"] = j.servo.port
         doc["joints"][ours] = entry
+    doc["bus"] = bus_mapping(robot)
     text = (f"# {header}\n" if header else "") + yaml.safe_dump(doc, sort_keys=False, default_flow_style=None)
     return write_text_atomic(path, text)

@@ -5,7 +5,7 @@ walks in process (issue 50's comparison; figures in docs/robot-side.md).
 
 For each walk i of the evaluation seed: `gait-tuner bus serve --randomisation default --seed S --walk i`
 (the same perturbation as `robustness`'s rollout i) and `gait-tuner-loop SET --commands STREAM --port`
-(the robot side, its own process, real Protocol 2.0 packets, no foot sensors on the bus). Beside it,
+(the robot side, its own process, real Protocol 2.0 packets, the sole boards read on the bus). Beside it,
 `robustness` of the same set, stream and seed in process, with and without the foot sensors. A walk
 through the bus survives when the loop walked its time (exit 0) and the simulator saw no fall.
 Prints one JSON object (survival of each, per walk, the ticks without readings, the wire time).

@@ -11,9 +11,11 @@ import subprocess
 import sys
 import time
 
+import numpy as np
 import pytest
 
 from conftest import ROOT, run_in_process
+from gaits.robot_file import load_robot_file
 from gaits.dynamixel import PING, STATUS, SYNC_WRITE, crc16, instruction_packet, parse_packet, status_packet
 
 pytest.importorskip("dynamixel_sdk", reason="the Dynamixel driver's tests need dynamixel-sdk (the dev extra)")
@@ -52,16 +54,65 @@ def robot_file(tmp_path):
     return out
 
 
-def _serve(tmp_path, *extra):
-    link = tmp_path / "bus"
-    p = subprocess.Popen([sys.executable, "-m", "tuner.cli", "bus", "serve", "--robot", str(MAP), "--surface",
-                          "carpet4", "--link", str(link), *extra], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                         text=True, start_new_session=True)
+def _serve(tmp_path, *extra, robot=MAP, buses=1):
+    links = [tmp_path / ("bus" if k == 0 else f"bus{k}") for k in range(buses)]
+    p = subprocess.Popen([sys.executable, "-m", "tuner.cli", "bus", "serve", "--robot", str(robot), "--surface",
+                          "carpet4", "--link", ",".join(map(str, links)), *extra], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True, start_new_session=True)
     deadline = time.monotonic() + 120
-    while not link.exists() and p.poll() is None and time.monotonic() < deadline:
+    while not all(one.exists() for one in links) and p.poll() is None and time.monotonic() < deadline:
         time.sleep(0.05)
-    assert link.exists(), p.communicate(timeout=5)
-    return p, link
+    assert all(one.exists() for one in links), p.communicate(timeout=5)
+    return p, ",".join(map(str, links))
+
+
+def _two_buses(tmp_path):
+    """kid3kg wired as Bit-Bots wire Wolfgang-OP: the legs on a second bus, Bit-Bots' IMU board
+    (id 241) on it too, a BitFoot a sole on the first bus, raw cells calibrated by the map."""
+    text = MAP.read_text().replace("mjcf: kid3kg.xml", f"mjcf: {MAP.parent / 'kid3kg.xml'}")
+    for name in ("HipYaw", "HipRoll", "HipPitch", "Knee", "AnklePitch", "AnkleRoll"):
+        for side in "LR":
+            text = re.sub(rf"({name}_{side}: {{id: \d+)}}", r"\1, port: 1}", text)
+    text = text.replace("soles: {protocol: bitfoot, left: 102, right: 101}",
+                        "imu: {protocol: bitbots, port: 1}\n  soles: {protocol: bitfoot, left: {id: 102, zero: "
+                        "[100, 100, 100, 100], newtons_per_unit: 0.5}, right: 101}")
+    path = tmp_path / "two-buses.yaml"
+    path.write_text(text)
+    out = tmp_path / "robot2.yaml"
+    r = run_in_process(['robot', 'export', str(path), '--out', str(out)])
+    assert r.returncode == 0, r.stderr
+    return path, out
+
+
+def test_a_robot_on_two_buses_with_bitbots_boards_walks_through_them(tmp_path):
+    from gaits.recording import read_recording
+    robot_map, robot_file = _two_buses(tmp_path)
+    rf = load_robot_file(robot_file)
+    assert rf.ports == 2 and rf.imu.protocol == "bitbots" and rf.imu.id == 241 and rf.imu.port == 1
+    assert rf.joints["l_knee"].servo.port == 1 and rf.joints["head_yaw"].servo.port == 0
+    server, links = _serve(tmp_path, robot=robot_map, buses=2)
+    # the loop is given the buses in the other order: it finds each device where it answers
+    a, b = links.split(",")
+    loop = _loop(robot_file, f"{b},{a}", "--seconds", "1", "--record", str(tmp_path / "walk.mcap"))
+    (lo, le), (so, se) = _finish(loop, server)
+    assert loop.returncode == 0, le
+    ticks = int(re.search(r"(\d+) ticks on", lo).group(1))
+    assert 0 < ticks <= 100 and "walked its time" in lo
+    _served_as_read(lo, so, ticks)
+    assert "IMU id 241 (bitbots), sole boards 102 left, 101 right (bitfoot)" in so
+    rec = read_recording(tmp_path / "walk.mcap")
+    force = rec.values("/feet/force", "force")
+    assert np.mean(np.sum(force, axis=1)) == pytest.approx(rf.mass * 9.81, rel=0.1)     # calibrated back to N
+    rpy = np.array([[r["roll"], r["pitch"]] for r in rec.channels["/imu/orientation"][1]])
+    assert np.max(np.abs(rpy)) < 0.2 and np.max(np.abs(rpy)) > 0           # the quaternion read back as angles
+
+
+def test_links_a_bus_at_a_time(tmp_path):
+    robot_map, _ = _two_buses(tmp_path)
+    r = run_in_process(["bus", "serve", "--robot", str(robot_map), "--surface", "carpet4", "--link",
+                        str(tmp_path / "one"), "--wait", "1"])
+    assert r.returncode == 2 and "the robot's devices are on 2 bus(es)" in r.stderr and \
+        len(r.stderr.strip().splitlines()) == 1, r.stderr
 
 
 def _loop(robot_file, link, *extra, **kw):
@@ -99,7 +150,14 @@ def test_the_loop_walks_the_simulated_robot_through_the_bus(tmp_path, robot_file
     _served_as_read(lo, so, ticks)
     assert "the client turned the torque off" in so, so + se
     rec = read_recording(tmp_path / "walk.mcap")
-    assert len(rec.times("/joints/target")) == ticks and "/feet/force" not in rec.channels and not rec.meta.simulated
+    assert len(rec.times("/joints/target")) == ticks and not rec.meta.simulated
+    # the sole boards on the bus: what the loop read carries the robot's weight (on average over the
+    # walk: the torso starts and ends at rest), each sole in turn
+    force = rec.values("/feet/force", "force")
+    assert force.shape == (ticks, 8) and np.all(force >= 0)
+    weight = load_robot_file(robot_file).mass * 9.81
+    assert np.mean(np.sum(force, axis=1)) == pytest.approx(weight, rel=0.1)
+    assert np.min(np.sum(force[:, :4], axis=1)) < 0.2 * weight and np.min(np.sum(force[:, 4:], axis=1)) < 0.2 * weight
 
 
 def test_the_watchdog_stops_to_the_safe_pose_when_the_bus_goes_silent(tmp_path, robot_file):

@@ -174,9 +174,22 @@ def test_a_joint_the_robot_lacks_and_gains_it_was_not_trained_with_are_named(tmp
     with pytest.raises(ParamError, match=r"policy.yaml: policy.joints: 'l_elbow' is not a joint of robot"):
         check_robot(spec, legs_only, "policy.yaml")
     spec = policy_from_mapping(spec_doc(gains={"kp": 80.0}), "policy.yaml")
-    with pytest.raises(ParamError, match=r"trained with servos at kp 80 N m/rad .* are at kp 21.1: give its map servo"):
+    with pytest.raises(ParamError, match=r"trained with l_hip_yaw's servo at kp 80 N m/rad .* is at kp 21.1: give its "
+                                         r"map servo: \{l_hip_yaw: \{kp: 80\}\}"):
         check_robot(spec, legs_only, "policy.yaml")
     check_robot(policy_from_mapping(spec_doc(gains={"kp": 20.0}), "p"), legs_only, "p")     # within 25 %
+    # joint by joint: one knee trained on other servos is named, whatever the others' median
+    kps = [20.0] * len(LEGS)
+    kps[LEGS.index("r_knee")] = 60.0
+    with pytest.raises(ParamError, match=r"trained with r_knee's servo at kp 60 N m/rad"):
+        check_robot(policy_from_mapping(spec_doc(gains={"kp": kps}), "p"), legs_only, "p")
+    # kd: the servo's derivative gain
+    kv = legs_only.servo_of("l_knee").pieces().kv
+    check_robot(policy_from_mapping(spec_doc(gains={"kp": 20.0, "kd": kv}), "p"), legs_only, "p")
+    with pytest.raises(ParamError, match=r"trained with l_hip_yaw's servo at kd 3 N m s/rad"):
+        check_robot(policy_from_mapping(spec_doc(gains={"kp": 20.0, "kd": 3.0}), "p"), legs_only, "p")
+    with pytest.raises(ParamError, match=r"policy.gains.kp has 3 numbers: expected 1 or 12"):
+        policy_from_mapping(spec_doc(gains={"kp": [1.0, 2.0, 3.0]}), "p")
     assert isinstance(PolicyFactory(spec, "walk.onnx", "p"), PolicyFactory)
     assert yaml is not None
 
@@ -197,6 +210,9 @@ def test_a_policy_walks_like_any_set_and_a_study_tunes_what_its_spec_exposes(tmp
                                  '--command', '0.1,0,0', '--duration', '3', '--json'], run_env, timeout=600)
     assert r.returncode == 0, r.stderr
     assert json.loads(r.stdout)["metrics"]["outcome"] == "completed"
+    # its file states no gains: said, once, that it runs on these servos unchecked
+    assert r.stderr.count("the policy states no servo gains (policy.gains): it runs on this robot's servos as they "
+                          "are, unchecked") == 1, r.stderr
     bad = tmp_path / "bad.yaml"
     bad.write_text(yaml.safe_dump({"policy": spec_doc(), "params": {"kp": 3.0}}))
     with pytest.raises(Exception, match=r"params.kp: not tunable"):

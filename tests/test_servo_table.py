@@ -19,7 +19,8 @@ JOINTS = [T.joint_name("head_pan", "c"), T.joint_name("head_tilt", "c")] + \
 
 
 def servos_yaml(skip: str | None = None, extra: str = "") -> str:
-    rows = ["servos:", "  default: {ticks_per_turn: 4096, centre: 2048}"]
+    # the soles sense force (the default): a map wired for the robot side names its sole boards
+    rows = ["bus: {soles: {left: 102, right: 101}}", "servos:", "  default: {ticks_per_turn: 4096, centre: 2048}"]
     for i, j in enumerate(JOINTS):
         if j == skip:
             continue

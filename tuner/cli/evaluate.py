@@ -285,6 +285,11 @@ def versus(walk_specs: tuple[str, ...], robot_name: str, surface_names: str, spe
     if len(set(labels)) != len(labels):
         raise UserError(f"versus: two walks share the name {next(x for x in labels if labels.count(x) > 1)!r}: "
                         f"rename one file")
+    from ..sim.walk import envelope_note
+    for _, drive in drives:              # a policy on other servos is refused here, one without gains said
+        said = envelope_note(drive, drive.controller(robot, robot.sim.control_period)) if drive.online else None
+        if said:
+            click.echo(said, err=True)
     out_dir.mkdir(parents=True, exist_ok=True)
     per_cell = len(speed_of) + walks + (1 if challenge else 0)
     cells = []

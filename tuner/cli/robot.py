@@ -32,6 +32,9 @@ def robot_export(robot_spec: str, out: Path) -> None:
     from ..report.provenance import commit_of
     from ..robots import load_robot
     robot = load_robot(robot_spec)
+    gap = robot.sensing_gap()
+    if gap is not None:
+        raise UserError(gap)
     rf = robot.robot_file()
     joints, held = rf.joints, rf.held
     source = robot.map_path or robot_spec
@@ -164,6 +167,9 @@ def init(robot_name: str, surface_name: str, purpose: str, top_speed: float, out
     from ..search.initial import falls_standing, initial_walk
     from ..sim.surfaces import load_surface
     robot = load_robot(robot_name)
+    gap = robot.sensing_gap()
+    if gap is not None:                 # a walk made with sole forces the robot side cannot read
+        raise UserError(gap)
     surface = load_surface(surface_name)
     ref = robot_name if robot_name in BUILTIN_ROBOTS else str(Path(robot_name).resolve())
     name = f"{robot.name}-{surface.name}-{purpose}"
@@ -225,8 +231,9 @@ def bus() -> None:
 @bus.command(name="serve")
 @robot_option(help="Built-in robot name or a robot map YAML (with a servos: section).")
 @surface_option()
-@click.option("--link", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Also make this path a link to the bus's pseudo-terminal (a fixed name for the client).")
+@click.option("--link", metavar="PATH[,PATH...]", default=None,
+              help="Also make this path a link to the bus's pseudo-terminal (a fixed name for the client); a robot "
+                   "on several buses (its map's port:): one path a bus, comma-separated.")
 @click.option("--baud", default="1000000", show_default=True,
               type=click.Choice(["57600", "115200", "1000000", "2000000", "3000000", "4000000"]))
 @click.option("--duration", default=600.0, show_default=True, type=Span(0.1, 86400.0),
@@ -243,7 +250,7 @@ def bus() -> None:
               help="With --randomisation: the evaluation seed.")
 @click.option("--walk", "walk_index", default=0, show_default=True, type=click.IntRange(0, 999_999),
               help="With --randomisation: which of the seed's walks (robustness's rollout number).")
-def bus_serve(robot_name: str, surface_name: str, link: Path | None, baud: str, duration: float, idle: float,
+def bus_serve(robot_name: str, surface_name: str, link: str | None, baud: str, duration: float, idle: float,
               wait: float, hang: bool, randomisation_spec: str, seed: int, walk_index: int) -> None:
     """Serve ROBOT's servos and IMU on a pseudo-terminal, answered by MuJoCo in lockstep (a tick of
     physics per sync write of goal positions). Prints the bus's path, then what the walk did.
@@ -264,6 +271,9 @@ def bus_serve(robot_name: str, surface_name: str, link: Path | None, baud: str, 
     missing = [o for o, j in rf.joints.items() if j.servo is None]
     if missing:
         raise UserError(f"{robot_name}: no servo id for {', '.join(missing)}: give the map a servos: section")
+    gap = robot.sensing_gap()
+    if gap is not None:
+        raise UserError(gap)
     if hang:
         from ..identify.harness import Harness, HangingSim
         sim = HangingSim(Harness(robot))
@@ -279,14 +289,20 @@ def bus_serve(robot_name: str, surface_name: str, link: Path | None, baud: str, 
         perturb = draw(randomisation_from_mapping(doc, randomisation_spec), (seed, walk_index), *sim.n_random(),
                        namespace=EVALUATE)
 
-    def ready(path: str) -> None:
-        click.echo(f"bus of {robot.name} on {sim.surface.name} at {path} ({baud} baud, "
-                   f"{len(rf.joints)} servos, IMU id 200)", err=False)
+    boards = ([f"IMU id {rf.imu.id} ({rf.imu.protocol})"] if rf.imu is not None else ["no IMU"]) + \
+        ([f"sole boards {rf.soles[0].id} left, {rf.soles[1].id} right ({rf.sole_protocol})"]
+         if rf.foot_sensors and rf.soles is not None else [])
+
+    def ready(paths: list[str]) -> None:
+        click.echo(f"bus of {robot.name} on {sim.surface.name} at {','.join(paths)} ({baud} baud, "
+                   f"{len(rf.joints)} servos, {', '.join(boards)})", err=False)
         sys.stdout.flush()
-    out = serve(sim, rf, baudrate=int(baud), link=None if link is None else str(link), idle=idle, wait=wait,
+    links = None if link is None else [p.strip() for p in link.split(",")]
+    out = serve(sim, rf, baudrate=int(baud), link=links, idle=idle, wait=wait,
                 duration=duration, ready=ready, perturb=perturb)
     click.echo(f"served {out['ticks']} ticks ({out['ticks'] * sim.control_period:.2f} s); ended: {out['ended']}"
                + (f"; the walk: {out['outcome']}" if out["outcome"] else "")
+               + (f"; the torso went {out['travel'][0]:.2f} m ({out['travel'][1]:.3f} m/s)" if out["travel"] else "")
                + (f"; {out['ignored']} packet(s) not answered" if out["ignored"] else "")
                + (f"; {out['held']} tick(s) the client read again without writing (the goals held)"
                   if out["held"] else "")

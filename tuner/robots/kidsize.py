@@ -14,7 +14,8 @@ leg), 52 cm tall like EROS. Where each number comes from:
 * servos: MX-64 in the legs (BAM's identification, the dc-motor law, firmware P 32), MX-28 in
   arms and head (datasheet-derived), all at 15 V, a 4S LiPo's nominal (``tuner/servos/``); on a Dynamixel bus
   (``gait-tuner bus serve``, ``robot export``) ids 1 to 20 in ``gaits.JOINT_NAMES`` order, 4096
-  ticks a turn centred on 2048, no offsets (ours: a robot built that way).
+  ticks a turn centred on 2048, no offsets, our IMU board at id 200 and a BitFoot sole board a foot
+  (Bit-Bots' ids: 102 left, 101 right; its cells read newtons) (ours: a robot built that way).
 * joint limits: typical kid-size ranges (knee 0..150 deg, hip pitch -110..60 deg).
 """
 
@@ -27,7 +28,7 @@ from typing import Mapping
 import mujoco
 
 from gaits import JOINT_NAMES, LegGeometry
-from gaits.robot_file import ServoUnit
+from gaits.robot_file import SOLE_PROTOCOLS, ServoUnit, SoleBoard
 
 from .mjcf_geometry import CROUCH, com_offset, crouch_angles, sole_polygon
 from .robot_model import RobotModel, joint_group
@@ -200,6 +201,7 @@ def kidsize_model(spec: RobotSpec = RobotSpec()) -> RobotModel:
                       (spec.foot_length, spec.foot_width), leg, servos,
                       pose={n: 0.0 for n in JOINT_NAMES if joint_group(n) != "legs"},
                       servo_units={n: ServoUnit(id=i + 1) for i, n in enumerate(JOINT_NAMES)},
+                      sole_boards=tuple(SoleBoard(i) for i in SOLE_PROTOCOLS["bitfoot"]),
                       sole_hulls=(sole.hull, sole.hull),
                       sources={"robot": "built-in (tuner/robots/kidsize.py)",
                                "leg": "RobotSpec.leg", "servos": "presets MX-64 (legs), MX-28 (arms, head)",

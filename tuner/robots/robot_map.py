@@ -10,6 +10,10 @@ Format (paths relative to the map file)::
                                   #   (else such a body is one line naming it; urdf.compile_checked)
     foot_sensors: false           # optional: the soles measure no force (default true): a controller
                                   #   gets no foot_force reading, in the simulator as on the robot
+    bus: {imu: {protocol: bitbots, id: 241}, soles: {left: 102, right: 101}}
+                                  # optional: the boards on the robot's buses besides its servos
+                                  #   (gaits/robot_file.py); a map with servo ids whose soles sense
+                                  #   force names its sole boards, or the robot side could not read them
     name: my_robot                # optional; default: the map file's stem
     torso: base_link              # the body with the free joint; its frame is the IK's pelvis frame
     feet: {left: l_foot, right: r_foot}
@@ -44,6 +48,7 @@ import numpy as np
 
 from gaits import JOINT_NAMES, LegGeometry, ParamError, did_you_mean
 from gaits.leg_chain import LegChain, LegChains
+from gaits.robot_file import read_bus
 from gaits.leg_kinematics import LEG_JOINTS
 from gaits.files import MAX_BYTES, read_bytes_checked
 
@@ -61,8 +66,8 @@ __all__ = ["load_map", "map_with_servo", "LEG_AXES", "MAP_KEYS", "AXIS_TOLERANCE
 #: Expected joint axis of each leg joint in the torso frame at the zero pose.
 LEG_AXES = {"hip_yaw": (0, 0, 1), "hip_roll": (1, 0, 0), "hip_pitch": (0, 1, 0),
             "knee": (0, 1, 0), "ankle_pitch": (0, 1, 0), "ankle_roll": (1, 0, 0)}
-MAP_KEYS = ("mjcf", "urdf", "packages", "ranges", "balance_inertia", "foot_sensors", "name", "torso", "feet", "joints", "leg",
-            "servo", "servos", "pose", "sim")
+MAP_KEYS = ("mjcf", "urdf", "packages", "ranges", "balance_inertia", "foot_sensors", "bus", "name", "torso", "feet",
+            "joints", "leg", "servo", "servos", "pose", "sim")
 #: How far apart two axis lines that must meet may be, and how far the straight leg's
 #: centres may stray from a vertical line [m] (ours).
 AXIS_TOLERANCE = 0.005
@@ -345,6 +350,10 @@ def load_map(path: Path) -> RobotModel:
 
     servos, servo_sources, preset_gains = _servos(model, final, doc.get("servo"), source, urdf_limits)
     units = read_servo_units(doc.get("servos"), tuple(servos), source)
+    try:
+        imu, sole_boards, sole_protocol = read_bus(doc.get("bus"), source, {u.id: j for j, u in units.items()})
+    except ParamError as exc:
+        raise UserError(str(exc)) from None
     sources.update(servo_sources)
     pose, pose_source = _pose(model, final, servos, doc.get("pose"), source)
     sources["pose"] = pose_source
@@ -373,7 +382,7 @@ def load_map(path: Path) -> RobotModel:
                       tuple(bodies), urdf_path=str(mjcf) if is_urdf else None, servo_units=units,
                       foot_sizes=(tuple(sizes[0]), tuple(sizes[1])), balance_inertia=balance and not is_urdf,
                       exclude=tuple((a, b) for a, b, _ in overlaps), preset_gains=preset_gains,
-                      foot_sensors=foot_sensors)
+                      foot_sensors=foot_sensors, imu_board=imu, sole_boards=sole_boards, sole_protocol=sole_protocol)
 
 
 #: attributes that name things (a joint may be called "inf"), never checked as numbers

@@ -11,6 +11,7 @@ import numpy as np
 
 from gaits import LegGeometry
 from gaits.leg_kinematics import LEG_JOINTS
+from gaits.robot_file import ImuBoard
 
 from ..errors import UserError
 from ..servos import ServoLaw
@@ -122,6 +123,11 @@ class RobotModel:
     preset_gains: tuple[str, ...] = ()
     #: the soles measure force (the map's ``foot_sensors``; a controller of a robot without gets none)
     foot_sensors: bool = True
+    #: the boards on the robot's buses besides the servos (the map's ``bus:``; gaits.robot_file): the
+    #: IMU (``ImuBoard``; None: none on the bus) and the sole boards (left, right ``SoleBoard``)
+    imu_board: Any = ImuBoard()
+    sole_boards: Any = None
+    sole_protocol: str = "bitfoot"
 
     def foot_size_of(self, side: int) -> tuple[float, float]:
         """The sole bounding box (length, width) [m] of foot ``side`` (0 left, 1 right)."""
@@ -196,7 +202,19 @@ class RobotModel:
         held = {j: float(v) for j, v in self.pose.items() if j not in names}
         return RobotFile(self.name, self.leg, tuple(float(v) for v in self.foot_size), joints,
                          self.sim.control_period, float(np.sum(self.model().body_mass)), held,
-                         bool(getattr(self, "foot_sensors", True)))
+                         bool(self.foot_sensors), self.imu_board, self.sole_boards, self.sole_protocol)
+
+    def sensing_gap(self) -> str | None:
+        """Why the robot side could not read what a walk of this robot is made with, or None: a
+        robot wired for it (servo ids) whose soles sense force and whose map names no sole boards.
+        A robot with no servo ids is not wired yet (its robot file would drive nothing)."""
+        if not self.servo_units or not self.foot_sensors or self.sole_boards is not None:
+            return None
+        where = self.map_path or self.name
+        return (f"{where}: the soles sense force (foot_sensors: true, the default), so the simulator's walks of "
+                f"this robot read them, but the map names no sole boards (bus: soles:) and the loop on the robot "
+                f"could not: name them (bus: {{soles: {{protocol: bitfoot, left: ID, right: ID}}}}) or say "
+                f"foot_sensors: false")
 
     @property
     def held_joints(self) -> tuple[str, ...]:

@@ -7,6 +7,7 @@ Map format (every field optional but ``id``; ``default`` gives the others for ev
       default: {ticks_per_turn: 4096, centre: 2048, direction: 1, offset: 0.0}
       HipYaw_L: {id: 7}
       Knee_L: {id: 14, direction: -1, offset: 0.02}   # offset [rad]: the servo's zero, in the file's angle
+      Knee_R: {id: 13, port: 1}                      # port: its bus (0 the first; the map's bus: section)
 
 A joint angle q [rad, the robot file's convention] is sent as
 ``ticks = centre + direction * (q + offset) * ticks_per_turn / (2 pi)``, rounded to the nearest
@@ -20,14 +21,14 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from gaits.robot_file import ServoUnit, from_units, to_units   # the one definition (the robot side's)
+from gaits.robot_file import MAX_PORTS, ServoUnit, from_units, to_units   # the one definition (the robot side's)
 
 from ..errors import UserError
 
 __all__ = ["ServoUnit", "read_servo_units", "to_units", "from_units", "check_table", "check_positions", "servo_columns",
            "too_fast", "turn_units", "SERVO_UNIT_FIELDS", "MIN_TICKS_PER_TURN"]
 
-SERVO_UNIT_FIELDS = ("id", "ticks_per_turn", "units_per_rad", "centre", "direction", "offset")
+SERVO_UNIT_FIELDS = ("id", "ticks_per_turn", "units_per_rad", "centre", "direction", "offset", "port")
 #: [ticks] the coarsest servo a table is written for (ours: 1.4 deg a tick; hobby servos give
 #: 1024 over 300 deg, Dynamixel 4096 a turn)
 MIN_TICKS_PER_TURN = 256
@@ -61,6 +62,10 @@ def _unit(doc: Any, where: str, base: dict[str, Any]) -> dict[str, Any]:
                                            "units/rad")
         elif k == "centre":
             out["centre"] = _number(v, f"{where}.centre", -1e7, 1e7, "units")
+        elif k == "port":
+            if not isinstance(v, int) or isinstance(v, bool) or not 0 <= v < MAX_PORTS:
+                raise UserError(f"{where}.port = {v!r}: expected a bus number in [0, {MAX_PORTS - 1}] (0 the first)")
+            out["port"] = v
         elif k == "direction":
             if v not in (1, -1) or isinstance(v, bool):
                 raise UserError(f"{where}.direction = {v!r}: must be 1 or -1")

@@ -194,9 +194,11 @@ def _study_robot(robot: Any, path: Path, source: str) -> str:
         p = Path(robot)
         robot = str((p if p.is_absolute() else path.parent / p).resolve())
     try:
-        load_robot(robot)
+        gap = load_robot(robot).sensing_gap()
     except UserError as exc:
         fail(source, f"robot: {exc}")
+    if gap is not None:                 # a study tunes what the robot side can read, or nothing
+        fail(source, f"robot: {gap}")
     return robot
 
 

@@ -43,10 +43,21 @@ def envelope_excess(drive: Any, controller: Any) -> list[str]:
 
 
 def envelope_note(drive: Any, controller: Any) -> str | None:
-    """The line that tells a user their commands are walked clipped (:func:`envelope_excess`), or None."""
+    """The lines that tell a user what a controller does that they may not expect, or None: their
+    commands walked clipped to an engine's envelope (:func:`envelope_excess`); a policy that states no
+    servo gains run on the robot's servos unchecked (``gaits.policy.gains_unstated``)."""
+    from gaits.policy import PolicySpec, gains_unstated
+    lines = []
     over = envelope_excess(drive, controller)
-    return f"note: {drive.source}: the engine walks these commands clipped to its envelope: {', '.join(over)}" \
-        if over else None
+    if over:
+        lines.append(f"note: {drive.source}: the engine walks these commands clipped to its envelope: {', '.join(over)}")
+    policy = controller
+    while not isinstance(getattr(policy, "spec", None), PolicySpec) and getattr(policy, "inner", None) is not None:
+        policy = policy.inner              # a recording's, a stabiliser's wrapper (a user's code forwards)
+    if isinstance(getattr(policy, "spec", None), PolicySpec) and gains_unstated(policy.spec):
+        lines.append(f"note: {policy.source}: the policy states no servo gains (policy.gains): it runs on this robot's "
+                     f"servos as they are, unchecked against the servos it was trained with")
+    return "\n".join(lines) or None
 
 
 def walk(drive: Any, robot: Any, sim: Any, duration: float | None, record_qpos: bool = False,
