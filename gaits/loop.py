@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import signal
 from typing import Any
 import sys
@@ -374,9 +375,14 @@ def run_on_bus(args: Any, gait: gaits.GaitFile | None, robot_file: Any, sweep: S
     recorder = None
     if args.record:
         from gaits.recording import Recorder, RecordingController, RecordingMeta
-        recorder = Recorder(args.record, RecordingMeta(robot=robot_file.robot, task=task, simulated=False,
+        # a bus on pseudo-terminals is gait-tuner bus serve's (a real robot's is a serial device): such a
+        # recording is of the simulator, and says so
+        simulated = all(os.path.realpath(p).startswith("/dev/pts/") for p in bus.names)
+        recorder = Recorder(args.record, RecordingMeta(robot=robot_file.robot, task=task, simulated=simulated,
                                                        joints=list(gaits.JOINT_NAMES), controller=what,
-                                                       notes=f"bus {args.port}"))
+                                                       notes=f"bus {args.port}" + (
+                                                           " (pseudo-terminals: the simulated bus, gait-tuner bus "
+                                                           "serve)" if simulated else "")))
         walk = RecordingController(walk, recorder)
     dt = robot_file.control_period
     stand = walk.start_pose().q

@@ -28,6 +28,7 @@ chunks are written as they fill.
 from __future__ import annotations
 
 import json
+import os
 import math
 import time
 import dataclasses
@@ -102,15 +103,25 @@ def _list(v: Any) -> list[float]:
     return [float(x) for x in np.asarray(v, dtype=float).ravel()]
 
 
+def partial_path(path: str | Path) -> Path:
+    """Where a recording is written until it is whole: ``NAME.partial.mcap`` beside ``NAME.mcap``."""
+    path = Path(path)
+    return path.with_name(f"{path.stem}.partial{path.suffix}")
+
+
 class Recorder:
     """Writes one recording (an MCAP file). ``start_ns``: the wall clock of t = 0 [ns since the
-    UNIX epoch] (default: now)."""
+    UNIX epoch] (default: now). Whole or not at all: it is written to :func:`partial_path` and put
+    in place when it closes; a run killed, or a disk that fills, leaves any older recording of the
+    name as it was and what was recorded readable in the partial file (``read_recording`` reads one
+    cut short)."""
 
     def __init__(self, path: str | Path, meta: RecordingMeta, start_ns: int | None = None) -> None:
         Writer, Compression = _mcap()
         self.path = Path(path)
+        self.partial = partial_path(self.path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._fh = open(self.path, "wb")
+        self._fh = open(self.partial, "wb")
         # small chunks (~0.3 s of a 100 Hz walk): a run killed mid-way loses at most the last one
         self._w = Writer(self._fh, compression=Compression.ZSTD, chunk_size=32 * 1024)
         self._w.start(profile="", library="gait-tuner")
@@ -152,16 +163,27 @@ class Recorder:
         if command is not None:
             self._put("/walk/command", t, dict(zip(("vx", "vy", "wz"), _list(command))))
 
-    def close(self) -> Path:
-        self._w.finish()
-        self._fh.close()
+    def close(self, whole: bool = True) -> Path:
+        """Finish the file and put it in place (``whole``), or leave it as the partial file (a run
+        that failed or was stopped); returns where it is."""
+        if self._fh.closed:
+            return self.path if not self.partial.exists() else self.partial
+        try:
+            self._w.finish()
+            self._fh.flush()
+            os.fsync(self._fh.fileno())
+        finally:
+            self._fh.close()
+        if not whole:
+            return self.partial
+        os.replace(self.partial, self.path)
         return self.path
 
     def __enter__(self) -> "Recorder":
         return self
 
-    def __exit__(self, *exc: Any) -> None:
-        self.close()
+    def __exit__(self, kind: Any, *exc: Any) -> None:
+        self.close(whole=kind is None)
 
 
 class RecordingController(Wrapped):
@@ -248,10 +270,11 @@ def read_recording(path: str | Path) -> Recording:
     return Recording(info, {k: (np.array(ts), rows) for k, (ts, rows) in found.items()}, truncated)
 
 
-def recording_info(rec: Recording, gap_factor: float = 3.0) -> dict[str, Any]:
+def recording_info(rec: Recording, gap_factor: float = 1.8) -> dict[str, Any]:
     """What a recording holds: its metadata, duration [s], and per channel the messages, the rate
     [Hz] (median interval) and its gaps (intervals over ``gap_factor`` times the median:
-    (start [s], length [s])); and the time going backwards, where it does."""
+    (start [s], length [s]); one tick the loop got no reading in is a gap of two ticks); and the
+    time going backwards, where it does."""
     out: dict[str, Any] = {"meta": asdict(rec.meta), "truncated": rec.truncated, "channels": {}}
     t_all = [ts for ts, _ in rec.channels.values() if len(ts)]
     out["duration_s"] = float(max(ts.max() for ts in t_all) - min(ts.min() for ts in t_all)) if t_all else 0.0

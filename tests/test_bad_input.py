@@ -536,3 +536,15 @@ def test_versus_with_nothing_to_measure_is_one_line(tmp_path, capsys):
                  "--out", str(tmp_path / "vs")]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "nothing to measure" in err and not (tmp_path / "vs").exists()
+
+
+@pytest.mark.parametrize("verb", [["robustness", "--params", "kidsize-engine-carpet4"],
+                                  ["transfer", "kidsize-engine-carpet4"], ["versus", "kidsize-engine-carpet4"]])
+def test_walks_and_rollouts_are_one_option_in_every_verb(verb):
+    """robustness said --rollouts where transfer and versus say --walks for the same thing: each takes
+    both names."""
+    from conftest import run_in_process
+    for name in ("--walks", "--rollouts"):
+        r = run_in_process(verb + [name, "-1"])
+        assert r.returncode == 2 and "-1 is not in the range" in r.stderr and "--walks" in r.stderr \
+            and "--rollouts" in r.stderr, r.stderr

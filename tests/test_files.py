@@ -41,6 +41,30 @@ def test_an_error_half_way_leaves_the_old_file_and_no_temporary(tmp_path, monkey
     assert [x.name for x in tmp_path.iterdir()] == ["a.yaml"]
 
 
+def test_a_figure_is_the_old_one_or_the_whole_new_one(tmp_path, monkeypatch):
+    """Pictures (versus.png, compare.png, the plots) are rendered in memory and put in place: a
+    full disk leaves the old picture (before: a partial PNG replaced it)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from tuner.report.plots import save_figure
+    p = tmp_path / "versus.png"
+    p.write_bytes(b"old picture")
+    fig, ax = plt.subplots()
+    ax.plot([0, 1], [1, 0])
+
+    def full(fd):
+        raise OSError(errno.ENOSPC, "No space left on device")
+    monkeypatch.setattr(os, "fsync", full)
+    with pytest.raises(OSError):
+        save_figure(fig, p, 50)
+    assert p.read_bytes() == b"old picture" and [x.name for x in tmp_path.iterdir()] == ["versus.png"]
+    monkeypatch.undo()
+    save_figure(fig, p, 50)
+    plt.close(fig)
+    assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
 def test_a_new_file_gets_the_usual_permissions(tmp_path):
     p = write_text_atomic(tmp_path / "n.txt", "x")
     umask = os.umask(0)

@@ -273,3 +273,15 @@ def test_excite_names_swings_the_encoders_cannot_resolve(tmp_path, monkeypatch):
             first = Harness(load_robot("kidsize")).joint_names[0]
             assert json.loads(r.stdout)["below_encoder"] == [first]
             assert f"({first} " in r.stderr and "tells the fit nothing" in r.stderr
+
+
+def test_excite_refuses_a_recording_onto_its_own_sweep(tmp_path):
+    """--simulate naming --out's file would write the sweep, then overwrite it with the recording."""
+    from conftest import run_in_process
+    sweep = tmp_path / "s.csv"
+    sweep.write_text("the old sweep\n")
+    r = run_in_process(["excite", "--robot", "kidsize", "--out", sweep, "--duration", "5", "--no-steps",
+                        "--simulate", tmp_path / "." / "s.csv"])
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert "--simulate" in r.stderr and "would overwrite the sweep" in r.stderr
+    assert sweep.read_text() == "the old sweep\n"

@@ -101,3 +101,16 @@ def test_transfer_walks_a_set_in_both_worlds(tmp_path, gait_tuner_cmd, run_env):
     r = run_cli(gait_tuner_cmd, ["transfer", "kidsize-engine-carpet4", "--robot", "kidsize", "--surface",
                                          str(tmp_path / "t.yaml"), "--walks", "2"], run_env)
     assert r.returncode == 2 and "give --default-surface" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+
+
+def test_transfer_lines_give_units_in_a_header_not_a_letter_after_a_number():
+    """The pitch column read '9.66d'; units now sit under the header, a missing figure is '-' in
+    its column."""
+    from tuner.report.transfer import transfer_lines
+    s = {"walks": 2, "survival": 0.5, "falls": 1, "pitch_rms_deg": 9.664, "vx_rmse_mps": 0.05, "vy_rmse_mps": None,
+         "wz_rmse_radps": 0.1}
+    lines = transfer_lines("set", {"default": ("kid on grass30", s)})
+    assert "[deg]" in lines[2] and "[m/s]" in lines[2] and "9.66d" not in lines[3]
+    row = lines[3].split()
+    assert row[3:7] == ["9.66", "0.050", "-", "0.100"]
+    assert len(lines[3].split("kid on")[0]) == len(lines[1].split("what")[0])      # the columns line up

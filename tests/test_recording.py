@@ -66,6 +66,39 @@ def test_a_recording_cut_short_gives_what_it_held(tmp_path):
     assert np.array_equal(back.values("/joints/target", "position"), np.array([q for _, _, q in _ticks(1000)])[:n])
 
 
+def test_a_recording_is_whole_or_not_at_all(tmp_path, monkeypatch):
+    """Until it closes, a recording is written beside its name (NAME.partial.mcap): a run that fails
+    half-way, or a disk that fills as it closes, leaves the old recording of the name as it was and
+    what was recorded readable in the partial file; a recording that closes replaces it."""
+    import errno
+    import os
+    from gaits.recording import partial_path
+    path = tmp_path / "walk.mcap"
+    path.write_bytes(b"the old recording")
+    with pytest.raises(KeyboardInterrupt):
+        with Recorder(path, RecordingMeta(robot="kid")) as rec:
+            for m, c, q in _ticks(300):
+                rec.record(m, c, q)
+            raise KeyboardInterrupt
+    assert path.read_bytes() == b"the old recording"
+    assert len(read_recording(partial_path(path)).times("/joints/target")) == 300
+    rec = Recorder(path, RecordingMeta(robot="kid"))
+    for m, c, q in _ticks(50):
+        rec.record(m, c, q)
+
+    def full(fd):
+        raise OSError(errno.ENOSPC, "No space left on device")
+    monkeypatch.setattr(os, "fsync", full)
+    with pytest.raises(OSError):
+        rec.close()
+    monkeypatch.undo()
+    assert path.read_bytes() == b"the old recording"
+    with Recorder(path, RecordingMeta(robot="kid")) as rec:
+        for m, c, q in _ticks(20):
+            rec.record(m, c, q)
+    assert len(read_recording(path).times("/joints/target")) == 20 and not partial_path(path).exists()
+
+
 @pytest.mark.parametrize("content, words", [(b"", "not a readable recording"), (b"hello world" * 100, "not a readable"),
                                             ((ROOT / "README.md").read_bytes(), "not a readable recording")])
 def test_what_is_not_a_recording_is_one_line(tmp_path, gait_tuner_cmd, run_env, content, words):
@@ -156,3 +189,13 @@ def test_a_challenge_trial_records_its_walk(tmp_path):
     assert rec.meta.task == "push-recovery" and "D 0.1 m" in rec.meta.notes and "180 deg" in rec.meta.notes
     t = rec.times("/joints/target")
     assert len(t) > 500 and (out["success"] or t[-1] < 6.0)
+
+
+def test_a_tick_without_readings_is_a_gap(tmp_path):
+    """The loop records nothing in a tick whose reading did not come (the bus late): log info names
+    it (an interval of two ticks), where it said no gap before."""
+    with Recorder(tmp_path / "g.mcap", RecordingMeta(robot="kid")) as rec:
+        for k in [0, 1, 2, 3, 5, 6, 7, 8, 9]:
+            rec.record(Measurement(k * 0.01, gyro=np.zeros(3)))
+    c = recording_info(read_recording(tmp_path / "g.mcap"))["channels"]["/imu/gyro"]
+    assert c["gaps"] == [(0.03, pytest.approx(0.02))]

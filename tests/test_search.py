@@ -279,3 +279,25 @@ def test_the_progress_bar_counts_feasible_trials_and_trials_with_a_fall():
                                                   state=getattr(optuna.trial.TrialState, state),
                                                   user_attrs={"result": result}))
     assert progress_note(study.get_trials()) == "2 feasible, 2 with a fall"
+
+
+def test_an_optuna_plot_carries_our_title_alone():
+    """Optuna titles its importances plot on the left: ours replaces it (the two were drawn over
+    each other in study_importances.png)."""
+    import warnings
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import optuna
+    import optuna.visualization.matplotlib as ovm
+    from tuner.report.compare import retitle
+    optuna.logging.set_verbosity(optuna.logging.ERROR)
+    study = optuna.create_study(sampler=optuna.samplers.RandomSampler(seed=0))
+    study.optimize(lambda t: t.suggest_float("x", 0, 1) ** 2 + t.suggest_float("y", 0, 1), n_trials=12)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ax = ovm.plot_param_importances(study)
+    assert ax.get_title(loc="left")              # Optuna's own, which would sit beside ours
+    retitle(ax, "parameter importances, study s")
+    assert [ax.get_title(loc=loc) for loc in ("left", "center", "right")] == ["", "parameter importances, study s", ""]
+    plt.close(ax.figure)

@@ -82,8 +82,8 @@ def compare(params_specs: tuple[str, ...], robot_name: str | None, surface_names
               help="Parameter YAML file or shipped set (`gait-tuner sets`); or --controller.")
 @robot_option()
 @surface_option()
-@click.option("--rollouts", default=100, show_default=True, type=click.IntRange(1, 100_000),
-              help="Randomised rollouts without pushes.")
+@click.option("--rollouts", "--walks", "rollouts", default=100, show_default=True, type=click.IntRange(1, 100_000),
+              help="Randomised rollouts (walks) without pushes (--walks: the same, as transfer and versus say).")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(0, 2**31 - 1),
               help="Evaluation seed: rollout i uses seed (SEED, i) of the evaluation stream, never the tuning one.")
 @click.option("--randomisation", "randomisation_spec", metavar="PATH|none",
@@ -180,8 +180,8 @@ def robustness(params_spec: str | None, robot_name: str, surface_name: str, roll
 @click.option("--default-surface", "default_surface", metavar="NAME|PATH",
               help="The surface as the tool knew it before (default: the one the identification started "
                    "from, when its name says it: grass30-identified -> grass30).")
-@click.option("--walks", default=20, show_default=True, type=click.IntRange(1, 10_000),
-              help="Randomised match walks per world.")
+@click.option("--walks", "--rollouts", "walks", default=20, show_default=True, type=click.IntRange(1, 10_000),
+              help="Randomised match walks per world (--rollouts: the same, as robustness says).")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(0, 2**31 - 1))
 @workers_option()
 @JSON_OPTION
@@ -235,8 +235,8 @@ def transfer(params_spec: str, robot_name: str | None, surface_name: str, defaul
               help="Comma-separated surfaces (names or files).")
 @click.option("--speeds", default="0.2,0.1,0.1,0.5", show_default=True, metavar="FWD,BACK,SIDE,TURN",
               help="The command asked in each direction [m/s, m/s, m/s, rad/s]; 0 leaves a direction out.")
-@click.option("--walks", default=20, show_default=True, type=click.IntRange(0, 10_000),
-              help="Randomised match walks per walk and surface (0: none).")
+@click.option("--walks", "--rollouts", "walks", default=20, show_default=True, type=click.IntRange(0, 10_000),
+              help="Randomised match walks per walk and surface (0: none; --rollouts: the same, as robustness says).")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(0, 2**31 - 1),
               help="Seed of the match walks and of the challenge's pushes.")
 @click.option("--challenge/--no-challenge", default=True, show_default=True,

@@ -83,6 +83,9 @@ def excite(robot_name: str, out: Path, duration: float, f_max: float, amplitude:
 
     from ..robots import load_robot
     from ..identify.harness import ENCODER_TICKS_LEAST, Harness, plan_sweep, record_sweep
+    if simulate_to is not None and simulate_to.resolve() == out.resolve():
+        raise UserError(f"--simulate {simulate_to} is --out's path too: the recording would overwrite the sweep; "
+                        f"give it its own name (e.g. {out.with_suffix('.mcap').name})")
     robot = load_robot(robot_name)
     h = Harness(robot)
     try:

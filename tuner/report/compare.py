@@ -31,6 +31,7 @@ from gaits.files import write_text_atomic  # noqa: E402
 
 from ..errors import UserError  # noqa: E402
 from .experiments import EROS_STEPS_MM  # noqa: E402
+from .plots import save_figure  # noqa: E402
 from ..sim.metrics import summarize  # noqa: E402
 from ..params_io import resolve_params  # noqa: E402
 from ..process_pool import map_in_order  # noqa: E402
@@ -45,6 +46,14 @@ BASELINES_FOR = {f.name: f.baselines for f in gaits.all_families()}
 #: The staircases of the speed column: the shipped speed studies' (8 stairs of 4 steps up to these
 #: tops, a stair held when the robot is up and tracks >= 70% of it; tuner/sim/walk_speed.py).
 SPEED_STAIRS = {"forward": 0.48, "backward": 0.32, "left": 0.16, "turn_left": 1.6}
+
+
+def retitle(ax, title: str) -> None:
+    """Our title on one of Optuna's plots, in place of its own (Optuna sets it on the left: a title
+    of ours beside it drew the two over each other)."""
+    for loc in ("left", "right"):
+        ax.set_title("", loc=loc)
+    ax.set_title(title, fontsize=10)
 
 
 def speed_per_direction(sim, params: gaits.GaitParams, stabiliser=None) -> dict[str, float | None]:
@@ -228,7 +237,7 @@ def _plots(rows, sets, surfaces, out_dir: Path, title: str) -> None:
     fig.suptitle(title)
     fig.text(0.01, 0.01, FOOTNOTE, fontsize=7, wrap=True)
     fig.tight_layout(rect=(0, 0.06, 1, 0.88))
-    fig.savefig(out_dir / "compare.png", dpi=110)
+    save_figure(fig, out_dir / "compare.png", 110)
     plt.close(fig)
 
 
@@ -268,7 +277,7 @@ def history_plot(study, path: Path, title: str, feasible: Callable, target_name:
     ax.legend(fontsize=8, loc="best")
     ax.set_title(title, fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    save_figure(fig, path, 100)
     plt.close(fig)
     return path
 
@@ -304,11 +313,10 @@ def _study_plots(study_file: str, runs_dir: Path, out_dir: Path) -> None:
                 warnings.simplefilter("ignore")      # Optuna marks its matplotlib plots experimental
                 ax = make()
             fig = ax.figure if hasattr(ax, "figure") else ax[0].figure
-            first = ax if hasattr(ax, "set_title") else ax[0]
-            first.set_title(titles[name], fontsize=10)
+            retitle(ax if hasattr(ax, "set_title") else ax[0], titles[name])
             fig.set_size_inches(8, 5)
             fig.tight_layout()
-            fig.savefig(out_dir / f"study_{name}.png", dpi=100)
+            save_figure(fig, out_dir / f"study_{name}.png", 100)
             plt.close(fig)
         except (ValueError, RuntimeError) as exc:
             notes.append(f"{name}: not drawn ({exc})")

@@ -12,7 +12,18 @@ import numpy as np  # noqa: E402
 
 from gaits import GaitTrajectory  # noqa: E402
 
-__all__ = ["plot_references", "plot_pitch", "plot_zmp", "plot_robustness"]
+__all__ = ["plot_references", "plot_pitch", "plot_zmp", "plot_robustness", "save_figure"]
+
+
+def save_figure(fig, path: str | Path, dpi: int) -> Path:
+    """Write a figure to ``path`` (its format from the suffix) whole or not at all: rendered in
+    memory, then put in place, so a full disk or a kill leaves the old picture as it was."""
+    import io
+
+    from gaits.files import write_bytes_atomic
+    buf = io.BytesIO()
+    fig.savefig(buf, format=Path(path).suffix.lstrip(".") or "png", dpi=dpi)
+    return write_bytes_atomic(path, buf.getvalue())
 
 
 def plot_references(traj: GaitTrajectory, path: str | Path, title: str = "") -> Path:
@@ -47,7 +58,7 @@ def plot_references(traj: GaitTrajectory, path: str | Path, title: str = "") -> 
     ax.legend(loc="upper left", fontsize=8)
     fig.suptitle(title or f"{traj.family} references")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, 110)
     plt.close(fig)
     return path
 
@@ -72,7 +83,7 @@ def plot_pitch(traces: dict, path: str | Path, title: str = "") -> Path:
         a.legend(fontsize=8)
     fig.suptitle(title or "torso pitch (x: fall)")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, 110)
     plt.close(fig)
     return path
 
@@ -107,7 +118,7 @@ def plot_zmp(trace, path: str | Path, foot_size: tuple[float, float], title: str
     axes[1].set_xlabel("time [s]")
     fig.suptitle(title or "ZMP response, relative to the support foot")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, 110)
     plt.close(fig)
     return path
 
@@ -152,6 +163,6 @@ def plot_robustness(report, out_dir: str | Path) -> Path:
                  f"stabiliser {'on' if report.stabiliser else 'off'}")
     fig.tight_layout()
     path = out_dir / "robustness.png"
-    fig.savefig(path, dpi=100)
+    save_figure(fig, path, 100)
     plt.close(fig)
     return path

@@ -29,13 +29,14 @@ def world_summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
 def transfer_lines(source: str, worlds: dict[str, tuple[str, dict[str, Any]]]) -> list[str]:
     """One screen: per world (name -> (what it is, summary)) the survival, pitch and tracking."""
     def f(v, fmt):
-        return "-" if v is None else format(v, fmt)
+        return "-".rjust(int(fmt.split(".")[0])) if v is None else format(v, fmt)
     lines = [f"{source}: randomised match walks per world", f"  {'world':12s} {'survival':>9s} {'falls':>6s} "
-             f"{'pitch RMS':>10s} {'vx RMSE':>9s} {'vy RMSE':>9s} {'wz RMSE':>9s}   what"]
+             f"{'pitch RMS':>10s} {'vx RMSE':>9s} {'vy RMSE':>9s} {'wz RMSE':>9s}   what",
+             f"  {'':12s} {'':>9s} {'':>6s} {'[deg]':>10s} {'[m/s]':>9s} {'[m/s]':>9s} {'[rad/s]':>9s}"]
     for name, (what, s) in worlds.items():
         lines.append(f"  {name:12s} {s['survival'] * 100:8.0f}% {s['falls']:3d}/{s['walks']:<3d}"
-                     f"{f(s['pitch_rms_deg'], '9.2f')}d {f(s['vx_rmse_mps'], '8.3f')}  {f(s['vy_rmse_mps'], '8.3f')}  "
-                     f"{f(s['wz_rmse_radps'], '8.3f')}   {what}")
+                     f"{f(s['pitch_rms_deg'], '10.2f')} {f(s['vx_rmse_mps'], '9.3f')} {f(s['vy_rmse_mps'], '9.3f')} "
+                     f"{f(s['wz_rmse_radps'], '9.3f')}   {what}")
     names = list(worlds)
     if len(names) == 2:
         a, b = worlds[names[0]][1], worlds[names[1]][1]

@@ -168,6 +168,8 @@ def versus_plots(out: Path, cells: Sequence[tuple[str, str, dict[str, Any]]], sp
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    from .plots import save_figure
     labels = [f"{w}\n{s}" for w, s, _ in cells]
     x = np.arange(len(cells))
     panels = [(d, [(c["speeds"].get(d) or {}).get("reached") or 0.0 for _, _, c in cells],
@@ -186,6 +188,6 @@ def versus_plots(out: Path, cells: Sequence[tuple[str, str, dict[str, Any]]], sp
         ax.grid(axis="y", alpha=0.3)
     fig.tight_layout()
     path = Path(out) / "versus.png"
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, 110)
     plt.close(fig)
     return [path]

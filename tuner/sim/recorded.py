@@ -40,5 +40,7 @@ def recording(controller: Any, sim: Any, drive: Any, path: Path | None, task: st
     recorder = Recorder(path, meta)
     try:
         yield RecordingController(controller, recorder)
-    finally:
-        recorder.close()
+    except BaseException:
+        recorder.close(whole=False)       # an older recording of the name stays; the partial one beside it
+        raise
+    recorder.close()
