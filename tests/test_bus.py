@@ -198,13 +198,16 @@ def test_ctrl_c_stops_to_standing(tmp_path, robot_file):
     server, link = _serve(tmp_path)
     loop = _loop(robot_file, link, "--seconds", "30", "--record", str(tmp_path / "r.mcap"))
     deadline = time.monotonic() + 60
-    while not (tmp_path / "r.mcap").exists() and time.monotonic() < deadline:
+    # the loop walks once its recording is open (written beside its name until it closes)
+    while not (tmp_path / "r.partial.mcap").exists() and time.monotonic() < deadline:
         time.sleep(0.05)
     time.sleep(1.0)
     loop.send_signal(signal.SIGINT)
     (lo, le), _ = _finish(loop, server)
     assert loop.returncode == 0, lo + le
     assert "stopped by Ctrl-C at t = " in lo and "Traceback" not in le, lo + le
+    # stopped by Ctrl-C, the recording is whole and in place
+    assert (tmp_path / "r.mcap").exists() and not (tmp_path / "r.partial.mcap").exists()
 
 
 @pytest.mark.parametrize("edit, args, words", [

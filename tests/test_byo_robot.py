@@ -397,3 +397,29 @@ def test_a_torso_whose_origin_lies_at_its_feet_is_judged_by_its_centre_of_mass(t
     from gaits.control import TablePlayer
     fallen = summarize(sim.run(TablePlayer(traj), duration=4.0, pushes=[(1.0, (0.0, 6.0, 0.0))]))
     assert fallen.outcome == "fell"
+
+
+def test_a_map_extends_another_group_by_group(tmp_path):
+    """extends: the other map's keys under this one's, paths from where each map is, servo: merged
+    group by group and field by field (a preset name kept under new fields); a cycle or a missing
+    map is one line."""
+    import pytest as _pytest
+    import third_party_robot as T
+    from tuner.errors import UserError
+    from tuner.robots import load_robot
+    base = T.write(tmp_path / "team", T.mjcf(), T.map_yaml(extra="servo:\n  legs: {preset: MX-64, p_gain: 20}\n"
+                                                                 "  arms: MX-28\n"))
+    (tmp_path / "study").mkdir()
+    child = tmp_path / "study" / "robot.yaml"
+    child.write_text("extends: ../team/map.yaml\nservo:\n  legs: {p_gain: 40}\n  arms: {voltage: 12}\n")
+    robot, team = load_robot(str(child)), load_robot(str(base))
+    knee, team_knee = (r.servos[r.joint_map["l_knee"][0]] for r in (robot, team))
+    assert knee.p_gain == 40 and team_knee.p_gain == 20 and knee.voltage == team_knee.voltage
+    elbow = robot.servos[robot.joint_map["l_elbow"][0]]
+    assert elbow.voltage == 12 and robot.name == team.name and robot.leg == team.leg
+    (tmp_path / "study" / "loop.yaml").write_text("extends: loop.yaml\n")
+    with _pytest.raises(UserError, match="more than 8 maps deep"):
+        load_robot(str(tmp_path / "study" / "loop.yaml"))
+    (tmp_path / "study" / "gone.yaml").write_text("extends: nowhere.yaml\n")
+    with _pytest.raises(UserError, match="extends: .*nowhere.yaml is not a file"):
+        load_robot(str(tmp_path / "study" / "gone.yaml"))

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import json
+import os
 
 import numpy as np
 import pytest
+import yaml
 
 from conftest import ROOT
 from tuner.robots import load_robot
@@ -37,19 +39,29 @@ def test_init_writes_a_study_and_a_start_that_walk_the_robot(tmp_path, gait_tune
     assert r.returncode == 0, r.stderr
     assert "warning" not in r.stderr, r.stderr            # it stands in the start's pose
     assert "mass_upper" in r.stdout and "from the model's" in r.stdout and "servo's 6.5 rad/s" in r.stdout
-    # kid3kg's MJCF states its servos' gains: init keeps them and writes no robot file of its own
+    # kid3kg's MJCF states its servos' gains: init keeps them; the study walks a map beside it that
+    # extends the team's as it is (every later command walks the set on it)
     assert "the robot's own (its file or its map states them)" in r.stdout
-    assert not (out / "kid3kg-grass30-match-robot.yaml").exists()
+    copy = out / "kid3kg-grass30-match-robot.yaml"
+    assert yaml.safe_load(copy.read_text()) == {"extends": os.path.relpath(MAP.resolve(), out.resolve())}
     study = out / "kid3kg-grass30-match.yaml"
     spec = load_study(str(study))
     assert spec.kind == "match" and spec.base.mass_upper == pytest.approx(1.96, abs=0.01)
-    assert spec.robot == str(MAP.resolve()) and spec.engine is not None
+    assert spec.robot == str(copy.resolve()) and spec.engine is not None
+    assert load_robot(str(copy)).name == "kid3kg"
+    # a held-out stream of the walks it tunes for (its speeds, the evaluation draws), and the lines
+    # that follow tune: export, then robustness on the robot the study walks with that stream
+    from tuner.streams import load_stream
+    stream = load_stream(out / "kid3kg-grass30-match-stream.csv")
+    assert stream.t[-1] == pytest.approx(60.0) and np.max(stream.commands[:, 0]) <= 0.2 + 1e-9
+    assert np.max(np.abs(stream.commands[:, 1])) <= 0.05 + 1e-9 and np.max(np.abs(stream.commands[:, 2])) <= 0.5 + 1e-9
+    assert f"gait-tuner robustness --robot {copy} --params {out / 'best.yaml'} --surface grass30 --commands " \
+           f"{out / 'kid3kg-grass30-match-stream.csv'}" in r.stdout
     # the study's engine caps its targets at the servos' speed, as its start set does
     assert spec.engine.servo_share == 0.95 and spec.settings.servo_share == 1.0
     assert spec.settings.scenario.forward == 0.2
     # the start at shorter periods is tried first too: written beside it, listed as the study's baselines
     rungs = sorted(out.glob("kid3kg-grass30-match-start-*ms.yaml"), key=lambda p: -int(p.stem.split("-")[-1][:-2]))
-    import yaml
     assert yaml.safe_load(study.read_text())["baselines"] == [p.name for p in rungs] and len(rungs) >= 1
     ours = [b for b in spec.baselines if b.mass_upper == spec.base.mass_upper]
     assert len(ours) == len(rungs) and all(b.period < spec.base.period for b in ours)
@@ -127,6 +139,12 @@ def test_init_writes_the_sized_gains_into_a_copy_of_the_map(tmp_path, gait_tuner
     assert knee.kp > 5 and abs(knee.kp - 5 * round(knee.kp / 5)) < 0.05 and knee.p_gain != 32.0
     assert "legs" not in robot.preset_gains
     assert path.read_text() == before
+    # it extends the team's map: an edit there (the arms' servo) reaches the study's robot, the
+    # sized legs stay
+    assert "extends" in yaml.safe_load(copy.read_text())
+    path.write_text(before + "\nfoot_sensors: false\n")
+    edited = load_robot(str(copy))
+    assert not edited.foot_sensors and edited.servos[edited.joint_map["l_knee"][0]].kp == pytest.approx(knee.kp)
 
 
 def test_the_start_period_gives_the_top_speed_within_its_reach():

@@ -66,3 +66,43 @@ def test_the_table_says_what_its_columns_are_and_a_walk_with_no_d_shows_none():
     row = [line for line in text.splitlines() if line.startswith("| engine")][0]
     assert row.endswith("| none | - | - | - |") and "0.00" not in row.split("| 1.50 |")[1], row
     assert VERSUS_COLUMNS in text and "challenge D" in VERSUS_COLUMNS
+
+
+def test_a_walk_that_drifts_or_goes_the_other_way_says_so():
+    """A walk asked sideways at 0.1 that drifts 0.154 m/s forward read 'sideways 0.048' alone; one
+    asked backward that walks forward read '-0.103' alone."""
+    from tuner.report.versus import versus_markdown
+    cell = {"speeds": {"sideways": {"reached": 0.048, "fell": False, "outcome": "completed",
+                                    "drift": {"axis": "vx", "value": 0.154}},
+                       "backward": {"reached": -0.103, "fell": False, "outcome": "completed", "drift": None}},
+            "tick_ms": None}
+    text = versus_markdown("kidsize", [("w", "rigid", cell)], {"sideways": 0.1, "backward": 0.1})
+    row = [line for line in text.splitlines() if line.startswith("| w ")][0]
+    assert "| 0.048, drifts vx +0.154 | -0.103 (the other way) |" in row, row
+
+
+def test_the_tick_time_of_a_slower_policy_counts_the_ticks_it_computes_in(monkeypatch):
+    """A 50 Hz policy in the 100 Hz loop computes every second tick and holds between: its median was
+    of both kinds (0.5 and 0.05 ms); now of the computing ticks. A clock of the test's own: no
+    timing."""
+    import numpy as np
+    import tuner.report.versus as versus
+    clock = [0.0]
+    monkeypatch.setattr(versus.time, "perf_counter", lambda: clock[0])
+
+    class Slow:
+        every = 2
+
+        def __init__(self):
+            self.k = 0
+
+        def step(self, m, command=None):
+            clock[0] += 0.5e-3 if self.k % self.every == 0 else 0.05e-3
+            self.k += 1
+            return np.zeros(3)
+
+    timed = versus._Timed(Slow())
+    for _ in range(40):
+        timed.step(None)
+    assert np.allclose(timed.computing(), 0.5e-3) and len(timed.computing()) == 20
+    assert np.median(timed.times) < 0.3e-3           # what the table showed before

@@ -190,16 +190,28 @@ def init(robot_name: str, surface_name: str, purpose: str, top_speed: float, out
     if rungs:
         iw.study["baselines"] = rungs
     walked = ref                        # the robot the study walks
-    if iw.servo and robot.map_path:
-        # the weight-sized gains go into a copy of the team's map beside the study, which walks it
-        from ..robots.robot_map import map_with_servo
+    robot_file = None
+    if robot.map_path:
+        # the robot the study walks, beside it: a map that extends the team's (an edit to theirs
+        # reaches it) with the legs' gains init sized to the robot's weight, if it sized them; every
+        # later command (robustness, simulate, the bus) walks the set on it
+        from ..robots.robot_map import extending
         robot_file = out_dir / f"{name}-robot.yaml"
-        files[robot_file] = (f"# {Path(robot.map_path).name} with the legs' servo gains sized to the robot's weight by "
-                             f"gait-tuner init\n# ({iw.servo_source})\n"
-                             + yaml.safe_dump(map_with_servo(Path(robot.map_path), out_dir, {"legs": iw.servo}),
-                                              sort_keys=False))
+        said = (f"with the legs' servo gains sized to the robot's weight by gait-tuner init\n# ({iw.servo_source})"
+                if iw.servo else "as it is (its servos state their gains)")
+        files[robot_file] = (f"# the robot study {name} walks: {Path(robot.map_path).name} {said};\n# edit "
+                             f"your map for the robot, this file for what the study changes of it\n"
+                             + yaml.safe_dump(extending(Path(robot.map_path), out_dir,
+                                                        {"legs": iw.servo} if iw.servo else {}), sort_keys=False))
         iw.study["robot"] = robot_file.name
         walked = str(robot_file)
+    stream_file = None
+    if purpose == "match":
+        # a held-out match stream of the walks the study tunes for (its speeds, another seed): what
+        # to hold the tuned set to after (robustness --commands)
+        from ..search.initial import held_out_stream
+        stream_file = out_dir / f"{name}-stream.csv"
+        files[stream_file] = held_out_stream(iw.study["scenario"], f"{robot.name} on {surface.name}")
     files[study] = ("# written by gait-tuner init; edit the space and the budget as you like\n"
                     + yaml.safe_dump(iw.study, sort_keys=False))
     write_files_atomic(files)
@@ -215,6 +227,11 @@ def init(robot_name: str, surface_name: str, purpose: str, top_speed: float, out
     else:
         click.echo(f"  {'servo gains':11s} {'':8s}  {iw.servo_source}")
     click.echo("".join(f"wrote {p}\n" for p in files) + f"tune it: gait-tuner tune {study} --workers 2")
+    best = out_dir / "best.yaml"
+    click.echo(f"then:    gait-tuner export {study} --out {best}")
+    if stream_file is not None:
+        click.echo(f"and:     gait-tuner robustness --robot {walked} --params {best} --surface {surface.name} "
+                   f"--commands {stream_file}")
     fell = falls_standing(walked, surface, str(start))
     if fell is not None:
         click.echo(f"warning: standing still in the start set's pose the robot falls ({fell}): a study from it "

@@ -14,6 +14,8 @@ Format (paths relative to the map file)::
                                   # optional: the boards on the robot's buses besides its servos
                                   #   (gaits/robot_file.py); a map with servo ids whose soles sense
                                   #   force names its sole boards, or the robot side could not read them
+    extends: ../my_robot.yaml     # optional: another map this one builds on (its keys, these over them;
+                                  #   servo: merged group by group): init's copy of a team's map
     name: my_robot                # optional; default: the map file's stem
     torso: base_link              # the body with the free joint; its frame is the IK's pelvis frame
     feet: {left: l_foot, right: r_foot}
@@ -61,7 +63,7 @@ from ..servos import SERVO_FIELDS, PDServo, preset, servo_from_file, servo_from_
 from .servo_table import read_servo_units
 from .urdf import UrdfRobot, compile_checked, mujoco_message, urdf_to_mjcf
 
-__all__ = ["load_map", "map_with_servo", "LEG_AXES", "MAP_KEYS", "AXIS_TOLERANCE"]
+__all__ = ["load_map", "map_with_servo", "extending", "read_map_doc", "LEG_AXES", "MAP_KEYS", "AXIS_TOLERANCE"]
 
 #: Expected joint axis of each leg joint in the torso frame at the zero pose.
 LEG_AXES = {"hip_yaw": (0, 0, 1), "hip_roll": (1, 0, 0), "hip_pitch": (0, 1, 0),
@@ -97,23 +99,15 @@ _SIDES = (("left", "l_", 1), ("right", "r_", -1))
 
 
 def map_with_servo(robot_map: Path, out_dir: Path, overlay: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
-    """The map ``robot_map`` as a document to write into ``out_dir``: its paths (``mjcf``, ``urdf``,
-    ``packages``) made relative to ``out_dir``, its ``name`` kept (the file's stem when unnamed), and
-    ``overlay`` (servo group or joint -> fields) merged over its ``servo:`` entries."""
-    import os
-    doc = read_yaml_file(robot_map, "robot map")
+    """The map ``robot_map`` as a document to write into ``out_dir``: what it extends merged in, its
+    paths (``mjcf``, ``urdf``, ``packages``) made relative to ``out_dir``, its ``name`` kept (the
+    file's stem when unnamed), and ``overlay`` (servo group or joint -> fields) merged over its
+    ``servo:`` entries."""
+    doc = read_map_doc(robot_map)
     if not isinstance(doc, Mapping):
         raise UserError(f"{robot_map}: not a robot map (expected a mapping of {', '.join(MAP_KEYS)})")
-    doc = dict(doc)
-    here, there = robot_map.resolve().parent, out_dir.resolve()
-    for key in ("mjcf", "urdf"):
-        if isinstance(doc.get(key), str):
-            doc[key] = os.path.relpath(here / doc[key], there)
-    if isinstance(doc.get("packages"), Mapping):
-        doc["packages"] = {k: os.path.relpath(here / v, there) for k, v in doc["packages"].items()}
-    servo = dict(doc.get("servo") or {})
-    if servo and set(servo) <= set(SERVO_FIELDS) | {"preset"}:
-        servo = {"legs": servo}            # the first map format: flat fields meant the legs
+    doc = _paths_from(doc, robot_map.resolve().parent, out_dir.resolve())
+    servo = _servo_groups(doc.get("servo"))
     for k, v in overlay.items():
         entry = servo.get(k)
         merged = {"preset": entry} if isinstance(entry, str) else dict(entry or {})
@@ -121,6 +115,16 @@ def map_with_servo(robot_map: Path, out_dir: Path, overlay: Mapping[str, Mapping
         servo[k] = merged
     doc["servo"] = servo
     doc.setdefault("name", robot_map.stem)
+    return doc
+
+
+def extending(robot_map: Path, out_dir: Path, overlay: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
+    """A map to write into ``out_dir`` that extends ``robot_map`` (so an edit to it reaches this
+    one) with ``overlay`` (servo group -> fields) over its ``servo:``."""
+    import os
+    doc: dict[str, Any] = {"extends": os.path.relpath(robot_map.resolve(), out_dir.resolve())}
+    if overlay:
+        doc["servo"] = {k: dict(v) for k, v in overlay.items()}
     return doc
 
 
@@ -137,10 +141,74 @@ def _mm(x: float) -> str:
     return f"{x * 1000:.1f} mm"
 
 
+#: how many maps deep ``extends:`` may go (ours: init's copy extends a team's map, which may extend one)
+EXTENDS_DEPTH = 8
+
+
+def _paths_from(doc: Mapping[str, Any], here: Path, there: Path) -> dict[str, Any]:
+    """A map's document with its paths (``mjcf``, ``urdf``, ``packages``, ``extends``), written
+    relative to ``here``, made relative to ``there``."""
+    import os
+    doc = dict(doc)
+    for key in ("mjcf", "urdf", "extends"):
+        if isinstance(doc.get(key), str):
+            doc[key] = os.path.relpath(here / doc[key], there)
+    if isinstance(doc.get("packages"), Mapping):
+        doc["packages"] = {k: os.path.relpath(here / v, there) if isinstance(v, str) else v
+                           for k, v in doc["packages"].items()}
+    return doc
+
+
+def _servo_groups(servo: Any) -> dict[str, Any]:
+    servo = dict(servo or {}) if isinstance(servo, Mapping) else servo
+    if isinstance(servo, dict) and servo and set(servo) <= set(SERVO_FIELDS) | {"preset"}:
+        servo = {"legs": servo}            # the first map format: flat fields meant the legs
+    return servo
+
+
+def read_map_doc(path: Path, depth: int = 0) -> Any:
+    """A robot map's document, with what it ``extends:`` (another map, its path relative to this
+    one) under it: the other map's keys, this one's over them; ``servo:`` merged group by group,
+    field by field (a map that extends a team's map changes a group's gains and keeps the rest, and
+    an edit to the team's map reaches it)."""
+    source = str(path)
+    doc = read_yaml_file(path, "robot map")
+    if not isinstance(doc, Mapping) or "extends" not in doc:
+        return doc
+    base = doc["extends"]
+    _require(isinstance(base, str) and base != "", source, f"extends = {base!r}: expected the path of the map it "
+                                                          f"builds on")
+    _require(depth < EXTENDS_DEPTH, source, f"extends: more than {EXTENDS_DEPTH} maps deep (does a map extend "
+                                            f"itself?)")
+    base_path = path.parent / base
+    _require(base_path.is_file(), source, f"extends: {base_path} is not a file")
+    parent = read_map_doc(base_path, depth + 1)
+    _require(isinstance(parent, Mapping), source, f"extends: {base_path} is not a robot map")
+    out = _paths_from({k: v for k, v in parent.items() if k != "extends"}, base_path.parent, path.parent)
+    for k, v in doc.items():
+        if k == "extends":
+            continue
+        if k == "servo" and isinstance(out.get("servo"), Mapping) and isinstance(v, Mapping):
+            merged = _servo_groups(out["servo"])
+            for group, fields in _servo_groups(v).items():
+                old = merged.get(group)
+                if isinstance(old, Mapping) and isinstance(fields, Mapping):
+                    merged[group] = {**old, **fields}
+                elif isinstance(old, str) and isinstance(fields, Mapping) and "preset" not in fields:
+                    merged[group] = {"preset": old, **fields}
+                else:
+                    merged[group] = fields
+            out["servo"] = merged
+        else:
+            out[k] = v
+    out.setdefault("name", Path(base).stem)
+    return out
+
+
 def load_map(path: Path) -> RobotModel:
     """Read a robot map YAML and check it against its MJCF (see the module docstring)."""
     source = str(path)
-    doc = read_yaml_file(path, "robot map")
+    doc = read_map_doc(path)
     _require(isinstance(doc, Mapping), source, f"expected a mapping with keys {', '.join(MAP_KEYS)}")
     for key in doc:
         _require(key in MAP_KEYS, source, f"unknown key {key!r} (allowed: {', '.join(MAP_KEYS)})")

@@ -303,3 +303,26 @@ def falls_standing(robot_ref: str, surface: Any, start: str, seconds: float = 3.
     sim = simulator(robot_ref, surface)
     trace = sim.run(drive.controller(sim.robot, sim.control_period), **{**drive.run_options(), "duration": seconds})
     return None if trace.survived else str(trace.reason)
+
+
+#: [s] how long init's held-out match stream asks (ours: five of the study's 12 s walks)
+HELD_OUT_S = 60.0
+
+
+def held_out_stream(scenario: dict[str, Any], what: str, seed: int = 0) -> str:
+    """A match stream (``t,vx,vy,wz`` CSV) drawn from a study's ``scenario:`` speeds, as long as
+    :data:`HELD_OUT_S`, from the evaluation draws (never a walk the study tunes on): the stream to
+    hold its best set to (``robustness --commands``)."""
+    from ..sim.randomisation import EVALUATE
+    from ..sim.scenario import SCENARIO_FIELDS, MatchDistribution, draw_scenario
+    fields = {k: v for k, v in scenario.items() if k in SCENARIO_FIELDS}
+    fields.update(duration=HELD_OUT_S, push_rate=0.0)
+    d = MatchDistribution(**fields)
+    stream, _ = draw_scenario(d, seed, namespace=EVALUATE)
+    rows = [f"# a held-out match stream of {what} (gait-tuner init): segments of {d.segment_min:g}-{d.segment_max:g} s "
+            f"up to {d.forward:g} m/s forward, {d.backward:g} back,",
+            f"# {d.sideways:g} sideways, {d.turn:g} rad/s, and stops, drawn as the study's walks are but from the "
+            f"evaluation seeds (seed {seed}); t [s], vx [m/s], vy [m/s], wz [rad/s]", "t,vx,vy,wz"]
+    for t, c in zip(stream.t, stream.commands):
+        rows.append(",".join(f"{v:.4g}" for v in (t, *c)))
+    return "\n".join(rows) + "\n"
