@@ -27,6 +27,7 @@ core, see ``benchmarks/bench_engine.py``).
 from __future__ import annotations
 
 import argparse
+import errno
 import math
 import os
 import signal
@@ -97,8 +98,16 @@ class SweepPlayer:
 
     def __init__(self, path: str, dt: float) -> None:
         import csv
-        with open(path, newline="") as fh:
-            rows = [r for r in csv.reader(fh) if r]
+        import io
+
+        from gaits.files import MAX_BYTES, read_bytes_checked
+        raw = read_bytes_checked(path, "sweep", MAX_BYTES["csv"], gaits.ParamError)   # no FIFO, no giant file
+        try:
+            rows = [r for r in csv.reader(io.StringIO(raw.decode("utf-8-sig"), newline="")) if r]
+        except UnicodeDecodeError:
+            raise gaits.ParamError(f"{path}: not a sweep (not text: a CSV of t,target.<joint>,... rows)") from None
+        except csv.Error as exc:        # a cell over the csv module's limit, a NUL byte
+            raise gaits.ParamError(f"{path}: not a sweep ({exc})") from None
         if len(rows) < 3 or rows[0][0].strip() != "t":
             raise gaits.ParamError(f"{path}: not a sweep (a header t,target.<joint>,... then rows)")
         names = [h.strip().removeprefix("target.") for h in rows[0][1:]]
@@ -181,7 +190,36 @@ def _number(low: float, high: float, unit: str, *, integer: bool = False, low_op
     return parse
 
 
+#: errno values of a path that cannot be a file (the user's mistake) and of a full or read-only disk
+_PATH_ERRNOS = {errno.ENOTDIR: "a part of the path is a file, not a folder", errno.EISDIR: "it is a folder, not a file",
+                errno.EEXIST: "a file stands where a folder is needed", errno.ENOENT: "no such file or folder",
+                errno.EACCES: "permission denied", errno.ENAMETOOLONG: "a name in it is too long"}
+_DISK_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EFBIG, errno.EIO}
+
+
 def main(argv: list[str] | None = None) -> None:
+    """The loop's command line (module docstring): every mistake of its input, a path it cannot
+    write or a disk that fills is one line on stderr and an exit code (2: the input, 3: the
+    system), never a traceback; Ctrl-C before the walk is 130."""
+    try:
+        _main(argv)
+    except KeyboardInterrupt:
+        print("robot_loop: interrupted", file=sys.stderr)
+        raise SystemExit(130) from None
+    except OSError as exc:
+        where = f"{exc.filename}: " if exc.filename else ""
+        if exc.errno in _DISK_ERRNOS:
+            print(f"robot_loop: error: {where}{exc.strerror or exc} (a recording being written there is kept "
+                  f"as NAME.partial.mcap; an older one of the name was left as it was)", file=sys.stderr)
+            raise SystemExit(3) from None
+        print(f"robot_loop: error: {where}{_PATH_ERRNOS.get(exc.errno, exc.strerror or str(exc))}", file=sys.stderr)
+        raise SystemExit(2) from None
+    except (gaits.ParamError, ValueError) as exc:      # a file that is not what it says (binary, broken)
+        print(f"robot_loop: error: {' '.join(str(exc).split())[:400]}", file=sys.stderr)
+        raise SystemExit(2) from None
+
+
+def _main(argv: list[str] | None = None) -> None:
     ap = _OneLine(description=" ".join(__doc__.split("\n\n", 1)[0].split()))     # the first paragraph, whole
     ap.add_argument("gait", nargs="?", help="a gait file with an engine: section (e.g. "
                                             "studies/results/kidsize-engine-carpet4.yaml); not with --sweep")

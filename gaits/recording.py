@@ -88,6 +88,17 @@ class RecordingMeta:
         out = {k: (v if fields_[k].type == "str" else json.loads(v)) for k, v in d.items() if k in fields_}
         if "robot" not in out:
             raise ValueError("its metadata names no robot")
+        for k in ("joints", "foot_force"):
+            if k in out and (not isinstance(out[k], list) or not all(isinstance(x, str) for x in out[k])):
+                raise ValueError(f"{k} = {str(out[k])[:60]}: expected a list of names")
+        if "simulated" in out and not isinstance(out["simulated"], bool):
+            raise ValueError(f"simulated = {out['simulated']!r}: expected true or false")
+        params = out.get("parameters", {})
+        if not isinstance(params, dict):
+            raise ValueError(f"parameters = {str(params)[:60]}: expected a mapping of names to values")
+        bad = [k for k, v in params.items() if isinstance(v, float) and not math.isfinite(v)]
+        if bad:
+            raise ValueError(f"parameters.{bad[0]} = {params[bad[0]]}: expected a finite number")
         return cls(**out)
 
 
@@ -235,6 +246,48 @@ class Recording:
         return np.array([r[key] for r in rows], dtype=float)
 
 
+class _BadMessage(ValueError):
+    """A message that is not what its channel holds (read_recording's ValueError, one line)."""
+
+
+def _finite(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _number_or_nan(v: Any) -> bool:
+    """A reading: a number (a NaN is a reading the robot did not get: the loop records it as read)."""
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and not math.isinf(v)
+
+
+def _checked_message(path: Path, topic: str, body: Any, k: int, widths: dict[tuple[str, str], int]) -> float:
+    """A message's time [s] after its body is checked against its channel (:data:`CHANNELS`): a JSON
+    object, a finite ``t``, each field of the channel there and of its kind, a list the same length
+    in every message of the channel; a ValueError naming channel, message and field otherwise."""
+    where = f"{path}: channel {topic}, message {k}"
+    if not isinstance(body, dict):
+        raise _BadMessage(f"{where}: not a JSON object")
+    t = body.pop("t", None)
+    if not _finite(t):
+        raise _BadMessage(f"{where}: t = {t!r}: expected a finite time [s]")
+    for key, kind in CHANNELS.get(topic, ("", {}))[1].items():
+        if key not in body:
+            raise _BadMessage(f"{where}: no {key!r} field")
+        v = body[key]
+        if kind == "number":
+            if not _number_or_nan(v):
+                raise _BadMessage(f"{where}: {key} = {v!r}: expected a number")
+            continue
+        if not isinstance(v, list):
+            raise _BadMessage(f"{where}: {key} = {str(v)[:60]}: expected a list of numbers")
+        bad = next((i for i, x in enumerate(v) if not _number_or_nan(x)), None)
+        if bad is not None:
+            raise _BadMessage(f"{where}: {key}[{bad}] = {v[bad]!r}: expected a number")
+        width = widths.setdefault((topic, key), len(v))
+        if len(v) != width:
+            raise _BadMessage(f"{where}: {key} has {len(v)} values, the channel's first message {width}")
+    return float(t)
+
+
 def read_recording(path: str | Path) -> Recording:
     """Read a recording written by :class:`Recorder`, record by record: a file cut short (a run that
     was killed, a disk that filled) gives what it holds up to the cut, ``truncated``; one that is not
@@ -244,6 +297,7 @@ def read_recording(path: str | Path) -> Recording:
     from mcap.stream_reader import StreamReader
     path = Path(path)
     meta, topics, found, truncated = None, {}, {}, False
+    widths: dict[tuple[str, str], int] = {}
     with open(path, "rb") as fh:
         try:
             for record in StreamReader(fh, record_size_limit=1 << 28).records:
@@ -252,10 +306,16 @@ def read_recording(path: str | Path) -> Recording:
                 elif isinstance(record, Channel):
                     topics[record.id] = record.topic
                 elif isinstance(record, Message):
-                    body = json.loads(record.data)
-                    ts, rows = found.setdefault(topics[record.channel_id], ([], []))
-                    ts.append(float(body.pop("t")))
+                    topic = topics[record.channel_id]
+                    ts, rows = found.setdefault(topic, ([], []))
+                    try:
+                        body = json.loads(record.data)
+                    except (ValueError, UnicodeDecodeError):
+                        raise _BadMessage(f"{path}: channel {topic}, message {len(ts)}: not JSON") from None
+                    ts.append(_checked_message(path, topic, body, len(ts), widths))
                     rows.append(body)
+        except _BadMessage:
+            raise
         except Exception as exc:  # noqa: BLE001 - the reader's errors on a cut or damaged file are many kinds
             if meta is None or not found:
                 raise ValueError(f"{path}: not a readable recording ({type(exc).__name__}: "

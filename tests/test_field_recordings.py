@@ -5,6 +5,8 @@ recording one line, exit 2, naming channel and time."""
 from __future__ import annotations
 
 
+import re
+
 import numpy as np
 import pytest
 
@@ -170,6 +172,21 @@ def test_a_topics_file_that_is_wrong_is_one_line(tmp_path):
         read_field_recording(bag, topics=topics)
     topics.write_text("joint_states: /nowhere\n")
     with pytest.raises(RecordingError, match="no topic /nowhere"):
+        read_field_recording(bag, topics=topics)
+    # each was an internal error: a sign in words, a binary file, topics of another message type
+    for text, words in (("signs: {l_knee: minus}\n", "signs.l_knee = 'minus': expected 1 or -1"),
+                        ("joints: {LKnee: 3}\n", "joints: 'LKnee': 3: expected their joint name: ours"),
+                        ("imu: /forward_position_controller/commands\n",
+                         "(the imu) carries std_msgs/msg/Float64MultiArray; expected sensor_msgs/msg/Imu"),
+                        ("joint_states: /imu/data\nimu: null\n", "topic /imu/data (the joint states) carries "
+                                                                  "sensor_msgs/msg/Imu"),
+                        ("joint_states: /imu/data\n", "joint_states and imu both name /imu/data"),
+                        ("walk_command: /imu/data\nimu: null\n", "expected geometry_msgs/msg/Twist")):
+        topics.write_text(text)
+        with pytest.raises(RecordingError, match=re.escape(words)):
+            read_field_recording(bag, topics=topics)
+    topics.write_bytes(bytes(range(128, 256)) * 4)
+    with pytest.raises(RecordingError, match="the topics file does not read"):
         read_field_recording(bag, topics=topics)
 
 

@@ -5,6 +5,7 @@ refuse to be what they are not in one line."""
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 
@@ -199,3 +200,59 @@ def test_a_tick_without_readings_is_a_gap(tmp_path):
             rec.record(Measurement(k * 0.01, gyro=np.zeros(3)))
     c = recording_info(read_recording(tmp_path / "g.mcap"))["channels"]["/imu/gyro"]
     assert c["gaps"] == [(0.03, pytest.approx(0.02))]
+
+
+def _crafted(path, msgs, meta_over=None):
+    """A recording written by hand (an MCAP of this layout whose messages or metadata are wrong)."""
+    from mcap.writer import Writer
+    from gaits.recording import METADATA_NAME
+    with open(path, "wb") as fh:
+        w = Writer(fh)
+        w.start(profile="", library="test")
+        w.add_metadata(METADATA_NAME, {**RecordingMeta(robot="kid").to_strings(), **(meta_over or {})})
+        sid = w.register_schema("x", "jsonschema", b"{}")
+        ids = {}
+        for i, (topic, body) in enumerate(msgs):
+            ids.setdefault(topic, w.register_channel(topic, "json", sid))
+            w.add_message(ids[topic], log_time=i, publish_time=i, sequence=i, data=json.dumps(body).encode())
+        w.finish()
+    return path
+
+
+_GOOD = [("/joints/measured", {"t": k * 0.01, "position": [0.0] * 20, "velocity": []}) for k in range(10)]
+
+
+@pytest.mark.parametrize("msgs, meta, words", [
+    ([("/joints/measured", {"t": float("nan"), "position": [0.0] * 20, "velocity": []})] + _GOOD, None,
+     "channel /joints/measured, message 0: t = nan: expected a finite time"),
+    ([("/joints/measured", {"t": 0.0})] + _GOOD, None, "message 0: no 'position' field"),
+    ([("/joints/measured", {"t": 0.0, "position": ["a"] * 20, "velocity": []})], None,
+     "position[0] = 'a': expected a number"),
+    (_GOOD + [("/joints/measured", {"t": 0.2, "position": [0.0] * 3, "velocity": []})], None,
+     "message 10: position has 3 values, the channel's first message 20"),
+    (_GOOD + [("/joints/target", {"t": 0.0, "position": {"a": 1}})], None, "position = {'a': 1}: expected a list"),
+    (_GOOD + [("/imu/gyro", {"t": 0.0, "x": "1", "y": 0, "z": 0})], None, "x = '1': expected a number"),
+    (_GOOD + [("/walk/command", [1, 2])], None, "not a JSON object"),
+    (_GOOD, {"joints": "5"}, "joints = 5: expected a list of names"),
+    (_GOOD, {"parameters": '{"a": NaN}'}, "parameters.a = nan: expected a finite number"),
+    (_GOOD, {"simulated": '"yes"'}, "simulated = 'yes': expected true or false"),
+])
+def test_a_recording_whose_messages_are_not_its_channels_is_one_line(tmp_path, msgs, meta, words):
+    """Messages and metadata are checked as they are read (each was an internal error, or a NaN in
+    --json, in log info and identify): one ValueError naming the channel, the message and the field;
+    a NaN reading stays a reading (a sensor's value the robot did not get)."""
+    path = _crafted(tmp_path / "r.mcap", msgs, meta)
+    with pytest.raises(ValueError, match=re.escape(words)):
+        read_recording(path)
+    ok = _crafted(tmp_path / "ok.mcap", [("/joints/measured", {"t": 0.0, "position": [float("nan")] * 20,
+                                                               "velocity": []})] + _GOOD[1:])
+    assert np.isnan(read_recording(ok).values("/joints/measured", "position")[0]).all()
+
+
+def test_log_info_of_a_broken_recording_is_one_line(tmp_path):
+    from conftest import run_in_process
+    path = _crafted(tmp_path / "r.mcap", [("/joints/measured", {"t": float("nan"), "position": [0.0] * 20,
+                                                                "velocity": []})] + _GOOD)
+    for extra in ([], ["--json"]):
+        r = run_in_process(["log", "info", str(path), *extra])
+        assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "t = nan" in r.stderr, r.stderr

@@ -3,6 +3,7 @@ engine set with and without an IMU stabiliser, and imports neither the simulator
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -80,3 +81,44 @@ def test_a_number_the_loop_cannot_use_is_one_line(capsys, args, words):
     assert stop.value.code == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and words in err and err.startswith("robot_loop: error:"), err
+
+
+@pytest.mark.parametrize("make, args, words, code", [
+    (lambda p: p.write_bytes(bytes(range(256)) * 8), ["--sweep", "{f}"], "not a sweep (not text", 2),
+    (lambda p: os.mkfifo(p), ["--sweep", "{f}"], "is a FIFO", 2),
+    (lambda p: p.write_text("t,target.l_knee\n0," + "1" * 200_000 + "\n"), ["--sweep", "{f}"],
+     "field larger than field limit", 2),
+    (lambda p: p.write_text("a file"), ["--record", "{f}/walk.mcap"], "a file stands where a folder is needed", 2),
+])
+def test_what_the_loop_cannot_read_or_write_is_one_line(tmp_path, capsys, make, args, words, code):
+    """The code that runs on the robot printed tracebacks: a binary sweep (UnicodeDecodeError), a
+    --record path inside a file (FileExistsError); a FIFO as the sweep hung, a giant cell raised."""
+    from gaits.loop import main
+    f = tmp_path / "input.csv"
+    make(f)
+    argv = [a.format(f=f) for a in args]
+    if "--sweep" not in argv:
+        argv = [str(ROOT / "studies" / "results" / "kidsize-engine-carpet4.yaml"), *argv]
+    with pytest.raises(SystemExit) as stop:
+        main([*argv, "--dry-run", "--seconds", "0.5"])
+    assert stop.value.code == code
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and words in err and err.startswith("robot_loop: error:"), err
+
+
+def test_a_full_disk_under_the_loop_s_recording_is_one_line_and_exit_3(tmp_path, capsys, monkeypatch):
+    """A recording on a full disk: one line, exit 3, the older recording of the name kept."""
+    import errno as _errno
+    from gaits.loop import main
+    old = tmp_path / "walk.mcap"
+    old.write_bytes(b"an older walk")
+
+    def full(fd):
+        raise OSError(_errno.ENOSPC, "No space left on device")
+    monkeypatch.setattr(os, "fsync", full)
+    with pytest.raises(SystemExit) as stop:
+        main([str(ROOT / "studies" / "results" / "kidsize-engine-carpet4.yaml"), "--dry-run", "--seconds", "0.2",
+              "--record", str(old)])
+    assert stop.value.code == 3 and old.read_bytes() == b"an older walk"
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "No space left on device" in err, err

@@ -259,9 +259,12 @@ def load_topics(path: str | Path | None) -> dict[str, Any]:
     if path is None:
         return out
     import yaml
+
+    from gaits.files import MAX_BYTES, read_bytes_checked
+    raw = read_bytes_checked(path, "topics file", MAX_BYTES["yaml"], RecordingError)
     try:
-        doc = yaml.safe_load(Path(path).read_text()) or {}
-    except (OSError, yaml.YAMLError) as exc:
+        doc = yaml.safe_load(raw.decode("utf-8")) or {}
+    except (UnicodeDecodeError, yaml.YAMLError) as exc:
         raise RecordingError(f"{path}: the topics file does not read ({' '.join(str(exc).split())[:160]})") from None
     if not isinstance(doc, dict):
         raise RecordingError(f"{path}: the topics file must be a mapping (joint_states, joint_command, imu, ...)")
@@ -271,12 +274,25 @@ def load_topics(path: str | Path | None) -> dict[str, Any]:
             raise RecordingError(f"{path}: unknown field {k!r} (allowed: {', '.join(sorted(allowed))})")
         if k in ("joints", "signs") and not isinstance(v, dict):
             raise RecordingError(f"{path}: {k} must be a mapping")
+        if k == "joints":
+            bad = next((x for x in v.items() if not all(isinstance(n, str) and n for n in x)), None)
+            if bad is not None:
+                raise RecordingError(f"{path}: joints: {bad[0]!r}: {bad[1]!r}: expected their joint name: ours")
+        if k == "signs":
+            bad = next((x for x in v.items() if isinstance(x[1], bool) or x[1] not in (1, -1)), None)
+            if bad is not None:
+                raise RecordingError(f"{path}: signs.{bad[0]} = {bad[1]!r}: expected 1 or -1")
         if k == "command_joints" and not (isinstance(v, list) and all(isinstance(x, str) for x in v)):
             raise RecordingError(f"{path}: command_joints must be a list of joint names")
         if k in DEFAULT_TOPICS and v is not None and not isinstance(v, str):
             raise RecordingError(f"{path}: {k} must be a topic name (or null)")
     out.update(doc)
     return out
+
+
+#: the message types each topic of a bag must carry (the joint command's three are checked where it is read)
+_MESSAGE_TYPES = {"joint_states": ("sensor_msgs/msg/JointState",), "imu": ("sensor_msgs/msg/Imu",),
+                  "walk_command": ("geometry_msgs/msg/Twist",)}
 
 
 def _stamp(msg: Any, t_bag: int) -> int:
@@ -306,6 +322,11 @@ def _bag(path: Path, topics: dict[str, Any], robot_joints) -> FieldRecording:
                 if topic and topic not in by_topic and key in ("joint_states",):
                     raise RecordingError(f"{name}: no topic {topic} (its {key}); the bag has "
                                          f"{', '.join(sorted(by_topic)) or 'none'} (name yours in --topics)")
+            named = [k for k in rows if topics.get(k)]
+            twice = next(((a, b) for i, a in enumerate(named) for b in named[i + 1:] if topics[a] == topics[b]), None)
+            if twice is not None:
+                raise RecordingError(f"{name}: {twice[0]} and {twice[1]} both name {topics[twice[0]]} (one topic a "
+                                     f"reading: set the other in --topics, or null)")
             wanted = {topics[k]: k for k in rows if topics.get(k) in by_topic}
             conns = [by_topic[t] for t in wanted]
             for conn, t_bag, raw in reader.messages(connections=conns):
@@ -320,6 +341,11 @@ def _bag(path: Path, topics: dict[str, Any], robot_joints) -> FieldRecording:
     def ours(n: str) -> str:
         return their_to_ours.get(n, n)
 
+    for key, kinds in _MESSAGE_TYPES.items():       # a topic of another message type: one line, not its fields
+        other = next((msgtype for msgtype, _, _ in rows[key] if msgtype not in kinds), None)
+        if other is not None:
+            raise RecordingError(f"{name}: topic {topics[key]} (the {key.replace('_', ' ')}) carries {other}; expected "
+                                 f"{' or '.join(kinds)} (name another topic in --topics)")
     states = rows["joint_states"]
     if not states:
         raise RecordingError(f"{name}: no messages on {topics['joint_states']} (the measured joint angles)")
