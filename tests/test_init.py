@@ -49,6 +49,11 @@ def test_init_writes_a_study_and_a_start_that_walk_the_robot(tmp_path, gait_tune
     assert spec.kind == "match" and spec.base.mass_upper == pytest.approx(1.96, abs=0.01)
     assert spec.robot == str(copy.resolve()) and spec.engine is not None
     assert load_robot(str(copy)).name == "kid3kg"
+    # its journal beside it (runs: runs): tune, trials, export find it from any folder
+    assert spec.runs == out / "runs"
+    from conftest import run_in_process
+    r2 = run_in_process(["trials", str(study)], cwd=tmp_path / "init")
+    assert r2.returncode == 2 and f"in {out / 'runs' / 'kid3kg-grass30-match.journal'}" in r2.stderr, r2.stderr
     # a held-out stream of the walks it tunes for (its speeds, the evaluation draws), and the lines
     # that follow tune: export, then robustness on the robot the study walks with that stream
     from tuner.streams import load_stream

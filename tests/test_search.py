@@ -301,3 +301,25 @@ def test_an_optuna_plot_carries_our_title_alone():
     retitle(ax, "parameter importances, study s")
     assert [ax.get_title(loc=loc) for loc in ("left", "center", "right")] == ["", "parameter importances, study s", ""]
     plt.close(ax.figure)
+
+
+def test_a_study_resumed_with_other_scoring_is_refused_a_wider_space_is_not(gait_tuner_cmd, run_env, tmp_path):
+    """init re-run into the same folder, or a study file edited, resumed the stored trials scored by
+    another robot, surface or scenario beside the new ones, without a word. The scoring parts are
+    stored with the study: another surface is one line naming it; a wider space resumes."""
+    study = write_study(tmp_path, "scored", STUDY.replace("trials: 6", "trials: 2"))
+    runs = str(tmp_path / "runs")
+    r = run(gait_tuner_cmd, ["tune", str(study), "--runs", runs], run_env)
+    assert r.returncode == 0, r.stderr
+    stored = load(tmp_path, "scored").user_attrs["scoring"]
+    assert {"robot", "surfaces", "scenario", "objectives", "fixed", "engine"} <= set(stored)
+    text = study.read_text()
+    study.write_text(text.replace("surfaces: [rigid]", "surfaces: [carpet4]"))
+    r = run(gait_tuner_cmd, ["tune", str(study), "--runs", runs, "--trials", "3"], run_env)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert "scored with another surfaces than" in r.stderr and "give the study a new name" in r.stderr
+    assert len(load(tmp_path, "scored").trials) == 2
+    study.write_text(text.replace("c_dc: {low: 0.0, high: 3.0}", "c_dc: {low: 0.0, high: 3.5}"))
+    r = run(gait_tuner_cmd, ["tune", str(study), "--runs", runs, "--trials", "3"], run_env)
+    assert r.returncode == 0, r.stderr
+    assert len([t for t in load(tmp_path, "scored").trials if t.state == optuna.trial.TrialState.COMPLETE]) == 3

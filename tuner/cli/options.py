@@ -93,8 +93,9 @@ RECORD_OPTION = click.option(
          "MCAP file per walk (gaits/recording.py); `gait-tuner log info FILE` says what one holds.")
 
 
-RUNS_OPTION = click.option("--runs", "runs_dir", default="runs", show_default=True,
-                           type=OutPath(file_okay=False), help="Folder of the journal files.")
+RUNS_OPTION = click.option("--runs", "runs_dir", default=None, type=OutPath(file_okay=False),
+                           help="Folder of the journal files [default: the study file's runs: (init writes one "
+                                "beside its study), else ./runs].")
 
 
 STABILISER_OPTION = click.option(

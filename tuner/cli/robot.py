@@ -212,7 +212,9 @@ def init(robot_name: str, surface_name: str, purpose: str, top_speed: float, out
         from ..search.initial import held_out_stream
         stream_file = out_dir / f"{name}-stream.csv"
         files[stream_file] = held_out_stream(iw.study["scenario"], f"{robot.name} on {surface.name}")
-    files[study] = ("# written by gait-tuner init; edit the space and the budget as you like\n"
+    iw.study["runs"] = "runs"           # its journal beside it: tune, export, trials find it from any folder
+    files[study] = ("# written by gait-tuner init; edit the space and the budget as you like (the scoring -\n"
+                    "# robot, surfaces, scenario, objectives - is kept with the trials: a change of it is a new name)\n"
                     + yaml.safe_dump(iw.study, sort_keys=False))
     write_files_atomic(files)
     click.echo(f"{robot.name} on {surface.name}, for {purpose}:")

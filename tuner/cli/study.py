@@ -12,7 +12,7 @@ from gaits.files import write_files_atomic
 
 from ..errors import EXIT_INTERNAL, UserError
 from ..robots.joint_table import joint_table_file
-from ..search.workers import tuned_study
+from ..search.workers import runs_of, tuned_study
 from ..report.provenance import commit_of
 from .walks import _tail
 from .options import OutPath, workers_option, JSON_OPTION, RUNS_OPTION, COMMANDS_OPTION, TAIL_OPTION, COMMAND_OPTION, parse_command, JOINT_NAMES_OPTION, FORMAT_OPTION, CLIP_OPTION, bar_options, storage_option
@@ -131,7 +131,7 @@ def tune(study_file: str, trials: int | None, workers: int, storage: str | None,
     from ..search.study import load_study
 
     spec = load_study(study_file)
-    store = StudyStore.open(spec.name, storage, runs_dir)
+    store = StudyStore.open(spec.name, storage, runs_of(spec, runs_dir))
     _run_and_report(spec, store, study_file, storage, trials,
                     workers, spec.sampler_seed if seed is None else seed, "tune")
 
@@ -157,7 +157,7 @@ def worker(study_file: str, storage: str | None, workers: int, seed: int | None,
     from ..search.study import load_study
 
     spec = load_study(study_file)
-    store = StudyStore.open(spec.name, storage, runs_dir)
+    store = StudyStore.open(spec.name, storage, runs_of(spec, runs_dir))
     if seed is None:
         import socket
         seed = spec.sampler_seed + zlib.crc32(f"{socket.gethostname()}-{os.getpid()}".encode()) % 100_000
@@ -264,7 +264,7 @@ def export(study_file: str, storage: str | None, runs_dir: Path, number: int | N
         raise UserError("--clip writes the robot's own joints: leave out --joint-names ours")
     spec, study = tuned_study(study_file, storage, runs_dir)
     if out is None:
-        out = runs_dir / spec.name / "best.yaml"
+        out = runs_of(spec, runs_dir) / spec.name / "best.yaml"
     out.parent.mkdir(parents=True, exist_ok=True)
     try:
         t = pick(study, pareto_pick) if pareto_pick else best_trial(study, number)

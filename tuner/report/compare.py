@@ -286,12 +286,12 @@ def _study_plots(study_file: str, runs_dir: Path, out_dir: Path) -> None:
     import optuna
     from optuna.visualization import matplotlib as ovm
 
-    from ..search.workers import load_tuned_study
+    from ..search.workers import load_tuned_study, runs_of
     from ..search.study import load_study
 
     spec = load_study(study_file)
     try:
-        study = load_tuned_study(spec, None, runs_dir)
+        study = load_tuned_study(spec, None, runs_of(spec, runs_dir))
     except UserError as exc:
         raise UserError(f"--study {study_file}: {exc}") from None
     from ..search.trials import trial_feasible

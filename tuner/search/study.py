@@ -29,6 +29,12 @@ A study tunes one gait family on one robot against one or several surfaces::
                                    #   controller.NAME (default: every range its file declares);
                                    #   the study runs its code
     robust: | scenario: | challenge: | speed:   # optional, at most one: the scenario trials walk in
+    runs: runs                     # optional: the folder of its journal, relative to this file
+                                   #   (init writes it: the journal beside the study); default ./runs
+
+What a trial's score stands on (the robot, the surfaces, the scenario, the objectives, what is held
+fixed: ``workers.scoring_parts``) is stored with the study's first trials; a resume with other
+parts is one line (a widened space resumes).
 
 Without one of those sections a trial walks each surface once. Each section is a scenario of
 ``tuner/scenarios`` (``robust.py`` randomised walks, ``match.py`` match walks under the key
@@ -69,7 +75,7 @@ STUDY_DIR = SHIPPED_DIR
 #: the keys every study file may have; each registered scenario adds its section
 _COMMON_KEYS = ("name", "description", "robot", "surfaces", "aggregate", "gait", "base", "fixed", "space",
                 "objectives", "trials", "duration", "enqueue", "baselines", "sampler_seed", "stabiliser",
-                "controller", "engine")
+                "controller", "engine", "runs")
 STAB_PREFIX = "stabiliser."
 CTRL_PREFIX = "controller."
 ENGINE_PREFIX = "engine."
@@ -125,6 +131,7 @@ class StudySpec:
     engine: Any = None                # gaits.engine.EngineParams: trials walk the online engine
     kind: str = "walk"                # the scenario a trial walks in (tuner/scenarios: walk, robust, match, ...)
     settings: Any = None              # that scenario's section, read (its dataclass; None for plain walks)
+    runs: Path | None = None          # the folder of its journal (its file's runs:), or None: --runs / ./runs
 
     @property
     def directions(self) -> list[str]:
@@ -203,7 +210,20 @@ def _study_robot(robot: Any, path: Path, source: str) -> str:
 
 
 def load_study(path_or_name: str) -> StudySpec:
-    """Read and validate a study YAML (a path, or the name of a shipped study)."""
+    """Read and validate a study YAML (a path, or the name of a shipped study); its ``runs:`` (the
+    folder of its journal, relative to the file: init writes ``runs: runs``, beside the study) is
+    resolved here."""
+    spec = _load_study(path_or_name)
+    runs = read_yaml_file(Path(spec.source), "study").get("runs")
+    if runs is None:
+        return spec
+    if not isinstance(runs, str) or not runs.strip():
+        fail(spec.source, f"runs = {runs!r}: expected the folder of the study's journal (relative to this file)")
+    folder = Path(runs) if Path(runs).is_absolute() else Path(spec.source).parent / runs
+    return dataclasses.replace(spec, runs=folder)
+
+
+def _load_study(path_or_name: str) -> StudySpec:
     path = Path(path_or_name)
     if not os.path.lexists(path) and (STUDY_DIR / f"{path_or_name}.yaml").exists():
         path = STUDY_DIR / f"{path_or_name}.yaml"

@@ -322,6 +322,56 @@ def _sampler_seed(seed: int, index: int, run: int) -> int:
     seed, so they do not walk the same sets; a fresh study's first run is reproducible."""
     return (seed + 1000 * index + 7919 * run) % (2 ** 31)
 
+def scoring_parts(spec: StudySpec) -> dict[str, str]:
+    """What a trial's score stands on, part by part, each as a short digest: the robot (its model
+    file, servos, sensors, joints), the surfaces, the scenario and its settings, the objectives and
+    how surfaces are aggregated, the walk's length, what is held fixed of the set, the engine, the
+    stabiliser and a controller. Not the space (a study may be widened and resumed), not the
+    budget, not the start."""
+    import hashlib
+    from ..robots import load_robot
+    from ..sim.surfaces import load_surface
+
+    def digest(*parts: Any) -> str:
+        h = hashlib.sha256()
+        for part in parts:
+            h.update(part if isinstance(part, bytes) else repr(part).encode())
+        return h.hexdigest()[:16]
+    robot = load_robot(spec.robot)
+    model_file = robot.urdf_path or robot.mjcf_path
+    searched = {r.name for r in spec.space}
+    held = {} if spec.base is None else {k: v for k, v in spec.base.to_mapping().items() if k not in searched}
+    return {"robot": digest(robot.xml, Path(model_file).read_bytes() if model_file else b"",
+                            sorted((k, repr(v)) for k, v in robot.servos.items()), robot.foot_sensors,
+                            sorted(robot.joint_map.items()), sorted(robot.pose.items())),
+            "surfaces": digest([repr(load_surface(n)) for n in spec.surfaces]),
+            "scenario": digest(spec.kind, spec.settings),
+            "objectives": digest(spec.objectives, spec.aggregate),
+            "duration": digest(spec.duration),
+            "fixed": digest(spec.gait, sorted(held.items())),
+            "engine": digest(spec.engine), "stabiliser": digest(spec.stabiliser),
+            "controller": digest(None if spec.controller is None else spec.controller.source)}
+
+
+def _same_scoring(spec: StudySpec, study: optuna.Study, log: Callable[[str], None]) -> None:
+    """A study stored with other scoring parts than its file gives now is refused in one line: its
+    trials were scored by another robot, scenario or objective, and a resume would mix them (an
+    init re-run into the same folder did so silently). A study stored before its parts were kept
+    takes them now."""
+    parts = scoring_parts(spec)
+    stored = study.user_attrs.get("scoring")
+    if stored is None:
+        study.set_user_attr("scoring", parts)
+        return
+    changed = [k for k in parts if stored.get(k) != parts[k]]
+    if changed:
+        done = len(study.get_trials(deepcopy=False))
+        raise UserError(f"study {spec.name}: its storage holds {done} trial(s) scored with another "
+                        f"{', '.join(changed)} than {spec.source or 'its file'} gives now; resuming would mix "
+                        f"them: give the study a new name:, or move its journal away (the space may be "
+                        f"widened and resumed, not the scoring)")
+
+
 def prepare_study(spec: StudySpec, store: StudyStore, budget: int | None, seed: int,
                   log: Callable[[str], None] | None = None) -> tuple[optuna.Study, int, int]:
     """Create or join the study; once per study (whoever comes first), enqueue the CasADi seed
@@ -333,6 +383,7 @@ def prepare_study(spec: StudySpec, store: StudyStore, budget: int | None, seed: 
     study = None
     with store.budget_lock(spec.name):
         study = open_study(spec, store.optuna_storage(), seed)
+        _same_scoring(spec, study, log)
         enqueue_starts(study, spec)
         attrs = study.user_attrs
         stored = attrs.get("budget")
@@ -429,8 +480,14 @@ def run_workers(spec: StudySpec, store: StudyStore, study: optuna.Study, budget:
     return study
 
 
-def tuned_study(study_file: str, storage: str | None, runs_dir: Path):
+def runs_of(spec: StudySpec, runs_dir: Path | None) -> Path:
+    """The folder of a study's journal: ``--runs`` when given, else the study file's ``runs:``, else
+    ./runs."""
+    return Path(runs_dir) if runs_dir is not None else spec.runs if spec.runs is not None else Path("runs")
+
+
+def tuned_study(study_file: str, storage: str | None, runs_dir: Path | None):
     """(spec, optuna study) of a study that has been tuned; a one-line error if it has not."""
     from .study import load_study
     spec = load_study(study_file)
-    return spec, load_tuned_study(spec, storage, runs_dir)
+    return spec, load_tuned_study(spec, storage, runs_of(spec, runs_dir))
