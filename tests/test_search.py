@@ -323,3 +323,34 @@ def test_a_study_resumed_with_other_scoring_is_refused_a_wider_space_is_not(gait
     r = run(gait_tuner_cmd, ["tune", str(study), "--runs", runs, "--trials", "3"], run_env)
     assert r.returncode == 0, r.stderr
     assert len([t for t in load(tmp_path, "scored").trials if t.state == optuna.trial.TrialState.COMPLETE]) == 3
+
+
+def test_a_share_of_another_parameter_is_searched_so_every_draw_is_valid():
+    """t2: {low, high, of: period}: the sampled share times the sampled period; an enqueued start
+    becomes its share; none of 300 draws breaks t1 < t2 < period (as times, a short period drew a t2
+    past it and the trial was rejected)."""
+    import optuna
+    from tuner.search.objective import suggest
+    from tuner.search.study import load_study
+    from tuner.search.workers import _clip_to_space
+    import tempfile
+    from pathlib import Path
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "shares.yaml"
+        path.write_text("name: shares\nrobot: kidsize\nsurfaces: [rigid]\ngait: tlipfm\nbase: tkux-table2\n"
+                        "space:\n  period: {low: 0.25, high: 0.8}\n  t1: {low: 0.1, high: 0.35, of: period}\n"
+                        "  t2: {low: 0.65, high: 0.9, of: period}\nobjectives: [pitch_rms]\ntrials: 2\n")
+        spec = load_study(str(path))
+        assert [r.label for r in spec.space] == ["period [s]", "t1 [x period]", "t2 [x period]"]
+        study = optuna.create_study(sampler=optuna.samplers.RandomSampler(seed=1))
+        for _ in range(300):
+            trial = study.ask()
+            p = spec.params_for(suggest(trial, spec))
+            assert 0 < p.t1 < p.t2 < p.period and (p.t2 - p.t1) >= 0.3 * p.period - 1e-9
+            study.tell(trial, 0.0)
+        start = _clip_to_space(spec, spec.base)
+        assert start["t2 [x period]"] == pytest.approx(spec.base.t2 / spec.base.period)
+        bad = path.read_text().replace("of: period}\n  t2", "of: step_length}\n  t2").replace("high: 0.35", "high: 1.5")
+        path.write_text(bad)
+        with pytest.raises(Exception, match="t1 as a share of step_length: low and high in"):
+            load_study(str(path))

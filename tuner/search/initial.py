@@ -170,7 +170,6 @@ def initial_walk(robot: Any, robot_ref: str, surface: Any, purpose: str = "match
                                  f"{LOAD_SHARE:g} of it back into its targets, and leads them by {LAG_SHARE:g} of "
                                  f"their lag (damping / kp)")
     name = name or f"{robot.name}-{surface.name}-{purpose}"
-    # a draw with t2 past its period is a rejected trial (infeasible: the sampler learns to avoid it)
     # the shortest period searched asks the knee KNEE_MAX of its speed for the start's lift: the knee
     # rule's period is a ceiling for the swing, not a good step for every robot (Bit-Bots' Wolfgang-OP,
     # 6.1 kg, falls sideways at its 0.72 s, its hip roll servos at their torque, and walks at 0.45 s)
@@ -182,11 +181,12 @@ def initial_walk(robot: Any, robot_ref: str, surface: Any, purpose: str = "match
     if engine is not None and engine.load_share > 0:
         # a servo that gives way this far cannot follow a step shorter than a few of its lags
         span["low"] = round(min(max(span["low"], LAG_STEPS_MIN * lag), period), 4)
-    t1 = _range(T1_SHARE * span["low"] * 0.5, T1_SHARE * span["high"] * 1.5, 0.01, 0.5)
-    # every draw keeps a single support (t2 - t1) of SSP_MIN of the shortest period searched, as far as
-    # t2 still reaches TKU-X's share of that period
-    t2 = _range(max(T2_SHARE * span["low"] * 0.85, min(t1["high"] + SSP_MIN * span["low"], T2_SHARE * span["low"])),
-                T2_SHARE * span["high"] * 1.15, 0.02, 2.5)
+    # t1 and t2 searched as shares of the period drawn (of: period): every draw has t1 < t2 < period (as
+    # absolute times, 6-20 % of a study's draws put t2 past a short period and were rejected) and a
+    # single support (t2 - t1) of at least SSP_MIN of its period
+    t1 = {"low": round(T1_SHARE * 0.5, 4), "high": round(T1_SHARE * 1.5, 4), "of": "period"}
+    t2 = {"low": round(max(T2_SHARE * 0.85, t1["high"] + SSP_MIN), 4), "high": round(min(T2_SHARE * 1.15, 0.95), 4),
+          "of": "period"}
     space = {"period": span, "t1": t1, "t2": t2,
              "h_z": _around(h_z, 0.6, 1.3, 0.005, 0.1),
              "z_c": _around(z_c, 0.85, 1.05, 0.08, 0.5), "half_width": _around(half, 0.9, 1.3, 0.02, 0.12),

@@ -13,6 +13,7 @@ A study tunes one gait family on one robot against one or several surfaces::
     space:                         # searched parameters: low, high, optional log: true
       heel_gain: {low: 0.0, high: 6.0}
       t_mn: {low: 0.01, high: 0.05, log: true}
+      t2: {low: 0.6, high: 0.9, of: period}    # a share of another parameter (every draw t2 < period)
     objectives: [pitch_rms]        # pitch_rms (minimised); add speed (maximised) for a Pareto front
     trials: 60
     duration: null                 # rollout length [s]; null: the whole gait
@@ -100,11 +101,15 @@ class ParamRange:
     log: bool = False
     integer: bool = False
     unit: str = "-"
+    of: str | None = None             # searched as a share of this parameter (``t2: {low, high, of: period}``)
 
     @property
     def label(self) -> str:
         """The parameter's name in Optuna's storage, with its SI unit (``t_mn [rad]``), so the
-        dashboard and Optuna's plots show it; dimensionless parameters keep their bare name."""
+        dashboard and Optuna's plots show it; dimensionless parameters keep their bare name; a share
+        says of what (``t2 [x period]``)."""
+        if self.of is not None:
+            return f"{self.name} [x {self.of}]"
         return self.name if self.unit in ("", "-") else f"{self.name} [{self.unit}]"
 
 
@@ -169,6 +174,9 @@ class StudySpec:
         """The base with the sampled values and the fields that follow from them (the family's
         ``derived`` rule, e.g. TLIPFM's d2 = step_length - d1)."""
         values = {k: v for k, v in sampled.items() if not k.startswith((STAB_PREFIX, CTRL_PREFIX, ENGINE_PREFIX))}
+        for r in self.space:              # a share of another parameter: its value now
+            if r.of is not None and r.name in values:
+                values[r.name] = values[r.name] * values.get(r.of, getattr(self.base, r.of))
         values.update(family(self.gait).derived(values, self.base))
         return self.base.replace(**values)
 
@@ -287,17 +295,26 @@ def _load_study(path_or_name: str) -> StudySpec:
                           f"(numeric parameters: {', '.join(numeric)})")
         if name in fixed:
             fail(source, f"space: {name!r} is also fixed")
+        of = rng.get("of") if isinstance(rng, Mapping) else None
+        if of is not None:
+            if of not in numeric or of == name or isinstance(numeric[name].default, int):
+                fail(source, f"space: {name}.of = {of!r}: expected another numeric parameter of gait {gait!r} "
+                             f"(the share's whole), for a parameter that is not an integer")
+            rng = {k: v for k, v in rng.items() if k != "of"}
         low, high, log = _range_bounds(name, rng, source)
         meta = numeric[name].metadata
         if meta["choices"] is not None or meta["lo"] is None:
             fail(source, f"space: {name} takes " + (f"one of {', '.join(map(repr, meta['choices']))}"
                                                      if meta["choices"] else "no range") +
                  ": it is not searched as a range; give it under fixed")
-        if low < meta["lo"] or high > meta["hi"]:
+        if of is not None:
+            if not 0 < low < high <= 1:
+                fail(source, f"space: {name} as a share of {of}: low and high in (0, 1], got [{low}, {high}]")
+        elif low < meta["lo"] or high > meta["hi"]:
             fail(source, f"space: {name} range [{low}, {high}] leaves the parameter's allowed range "
                           f"[{meta['lo']}, {meta['hi']}] {meta['unit']}")
         space.append(ParamRange(name, float(low), float(high), log,
-                                isinstance(numeric[name].default, int), meta["unit"]))
+                                isinstance(numeric[name].default, int), meta["unit"], of))
     c = _common(doc, path, source, gait)
     surfaces, aggregate, trials, duration, enqueue, seed, name, description = c
     kind, settings, objectives = _scenario(doc, source, gait=str(gait), engine=engine, controller=None)

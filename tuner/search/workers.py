@@ -106,6 +106,8 @@ def _clip_to_space(spec: StudySpec, params: gaits.GaitParams) -> dict[str, Any]:
             v = getattr(spec.engine, r.name[len(ENGINE_PREFIX):])
         else:
             v = getattr(params, r.name)
+            if r.of is not None:                # searched as a share of another parameter
+                v = v / getattr(params, r.of)
         v = min(max(v, r.low), r.high)
         out[r.label] = int(round(v)) if r.integer else float(v)
     return out
