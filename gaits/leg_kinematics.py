@@ -39,6 +39,7 @@ import dataclasses
 from dataclasses import dataclass
 
 import math
+from typing import Mapping
 
 import numpy as np
 
@@ -382,3 +383,22 @@ def leg_ik_pose(p_pelvis_sole: np.ndarray, R_pelvis_sole: np.ndarray, leg: LegGe
     q1 = math.atan2(-M[0, 1], M[1, 1])
     q3 = math.atan2(-M[2, 0], M[2, 2])
     return np.array([q1, q2, q3, q4, q5, q6])
+
+
+#: the walking crouch: the hips at this share of the straight leg's hip height over the soles (ours)
+CROUCH = 0.85
+
+
+def crouch_angles(leg, joint_map: Mapping[str, tuple[str, int]], crouch: float = CROUCH) -> dict[str, float]:
+    """The robot's joint name -> angle [rad] of both legs bent by the IK so the hips stand ``crouch``
+    x the straight hip height over the soles (a walking posture), through the map's signs (its
+    ``joint_map``: our name -> (their name, sign)). The robot's load, init's sizes and placo's first
+    solve start from it."""
+    out = {}
+    for side, prefix in ((1, "l_"), (-1, "r_")):
+        target = leg.hip_in_pelvis(side) + np.array([0.0, 0.0, -crouch * leg.max_hip_height])
+        q = leg_ik(target, 0.0, leg, side)
+        for name, value in zip(LEG_JOINTS, q):
+            theirs, sign = joint_map[prefix + name]
+            out[theirs] = sign * float(value)
+    return out

@@ -49,6 +49,32 @@ def test_the_frames_placo_needs_are_added_where_a_urdf_has_none(tmp_path):
     ET.fromstring(text)                                  # still a well-formed URDF
 
 
+def test_a_team_urdf_s_packages_and_turned_feet_are_given_to_placo_as_they_are(tmp_path):
+    """placo reads the URDF itself: its package:// meshes become the folders our loader found (a
+    team's file failed in placo: 'Mesh package://... could not be found'), and the sole frames
+    it needs take the soles' own axes where a foot body is turned (Wolfgang-OP's by 90 deg)."""
+    import numpy as np
+    import xml.etree.ElementTree as ET
+    from types import SimpleNamespace
+    from tuner.placo_walk import _rpy
+    R = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])     # a foot body turned 90 deg about z
+    tilt = np.array([[np.cos(0.26), 0.0, np.sin(0.26)], [0.0, 1.0, 0.0], [-np.sin(0.26), 0.0, np.cos(0.26)]])
+    robot = SimpleNamespace(torso="torso", feet=("l_foot", "r_foot"), soles=((0.0, 0.0, -0.03), (0.01, 0.0, -0.03)),
+                            sole_axes=(R, R @ tilt), package_dirs={"team_description": "/opt/team/desc"})
+    text = ('<robot name="t"><link name="torso"><visual><geometry><mesh filename="package://team_description/'
+            'meshes/a.stl"/></geometry></visual></link><link name="l_foot"/><link name="r_foot"/></robot>')
+    out = _with_frames(text, robot)
+    assert 'filename="/opt/team/desc/meshes/a.stl"' in out and "package://" not in out
+    joints = {j.find("child").get("link"): j.find("origin") for j in ET.fromstring(out).iter("joint")}
+    for side, name in ((0, "left_foot"), (1, "right_foot")):
+        r, p, y = (float(v) for v in joints[name].get("rpy").split())
+        Rz = np.array([[np.cos(y), -np.sin(y), 0], [np.sin(y), np.cos(y), 0], [0, 0, 1]])
+        Ry = np.array([[np.cos(p), 0, np.sin(p)], [0, 1, 0], [-np.sin(p), 0, np.cos(p)]])
+        Rx = np.array([[1, 0, 0], [0, np.cos(r), -np.sin(r)], [0, np.sin(r), np.cos(r)]])
+        np.testing.assert_allclose(Rz @ Ry @ Rx, robot.sole_axes[side].T, atol=1e-10)    # 12 digits written
+    assert _rpy(np.eye(3)) == (0.0, 0.0, 0.0)
+
+
 @pytest.mark.slow
 def test_placo_walks_a_urdf_robot_through_the_adapter(tmp_path, gait_tuner_cmd, run_env):
     pytest.importorskip("placo", reason="placo's walk needs the placo extra (pip install 'gait-tuner[placo]')")

@@ -54,23 +54,40 @@ PLACO_DEFAULTS = {"single_support_duration": 0.38, "single_support_timesteps": 1
 _INTEGERS = ("single_support_timesteps", "planned_timesteps")
 
 
+def _rpy(R: np.ndarray) -> tuple[float, float, float]:
+    """URDF's roll, pitch, yaw (fixed axes x, y, z: R = Rz(yaw) Ry(pitch) Rx(roll)) of a rotation."""
+    pitch = math.asin(max(-1.0, min(1.0, -float(R[2, 0]))))
+    return math.atan2(float(R[2, 1]), float(R[2, 2])), pitch, math.atan2(float(R[1, 0]), float(R[0, 0]))
+
+
 def _with_frames(text: str, robot: Any) -> str:
     """The URDF with fixed ``trunk``, ``left_foot`` and ``right_foot`` links added where it has none:
-    at the torso's origin and at each foot body's sole centre (the robot map's)."""
+    at the torso's origin and at each foot body's sole centre, turned to the sole's own axes (x
+    forward, z up: the robot map's sole frame; a foot body's axes may be turned, as Wolfgang-OP's
+    are by 90 and tilted 15 deg), and its ROS packages' paths (``package://NAME/``) made the folders
+    the robot's loader found them in (placo reads the file itself, and a team's URDF names its
+    meshes so)."""
+    for name, folder in (getattr(robot, "package_dirs", None) or {}).items():
+        text = text.replace(f"package://{name}/", f"{folder}/")
     links = set(re.findall(r'<link\s+name="([^"]+)"', text))
     extra = []
     if "trunk" not in links:
-        extra.append(("trunk", robot.torso, (0.0, 0.0, 0.0)))
+        extra.append(("trunk", robot.torso, (0.0, 0.0, 0.0), np.eye(3)))
+    axes = getattr(robot, "sole_axes", None) or (np.eye(3), np.eye(3))
     for side, name in ((0, "left_foot"), (1, "right_foot")):
         if name not in links:
-            extra.append((name, robot.feet[side], tuple(float(v) for v in robot.soles[side])))
+            # a sole-frame point s sits at soles + s @ R in the foot frame: the sole's rotation is R^T
+            extra.append((name, robot.feet[side], tuple(float(v) for v in robot.soles[side]),
+                          np.asarray(axes[side], dtype=float).T))
     if not extra:
         return text
     rows = []
-    for name, parent, xyz in extra:
+    for name, parent, xyz, R in extra:
+        r, p, y = _rpy(R)
         rows.append(f'  <link name="{name}"/>\n  <joint name="{name}_placo_frame" type="fixed">\n'
                     f'    <parent link="{parent}"/>\n    <child link="{name}"/>\n'
-                    f'    <origin xyz="{xyz[0]:.9g} {xyz[1]:.9g} {xyz[2]:.9g}" rpy="0 0 0"/>\n  </joint>\n')
+                    f'    <origin xyz="{xyz[0]:.9g} {xyz[1]:.9g} {xyz[2]:.9g}" rpy="{r:.12g} {p:.12g} {y:.12g}"/>\n'
+                    f'  </joint>\n')
     return text.replace("</robot>", "".join(rows) + "</robot>")
 
 
@@ -96,13 +113,18 @@ class PlacoWalk:
         self.jmap = dict(robot.joint_map)
         self.held = dict(getattr(robot, "pose", {}) or {})
         self.foot_size = tuple(float(v) for v in robot.foot_size)
+        # placo's first solve starts from the robot's walking crouch (its legs bent as ours bends them),
+        # not the file's zero pose: from there a leg bent at zero (Wolfgang-OP's) found the solution
+        # with its knee bent backwards, into its limit
+        from gaits.leg_kinematics import crouch_angles
+        self.crouch = crouch_angles(robot.leg, self.jmap)
         text = _with_frames(Path(urdf).read_text(encoding="utf-8"), robot)
         self._urdf = (str(Path(urdf).parent), text)
         self._build()
 
     def _build(self) -> None:
         placo = self.placo
-        self.robot = placo.HumanoidRobot(self._urdf[0], 0, self._urdf[1])
+        self.robot = placo.HumanoidRobot(self._urdf[0], int(placo.Flags.ignore_collisions), self._urdf[1])
         hp = placo.HumanoidParameters()
         for k, v in self.p.items():
             if k == "replan_period":
@@ -143,6 +165,9 @@ class PlacoWalk:
 
     def start_pose(self) -> StartPose:
         self._build()
+        for joint, angle in self.crouch.items():
+            self.robot.set_joint(joint, angle)
+        self.robot.update_kinematics()
         self.tasks.reach_initial_pose(np.eye(4), self.hp.feet_spacing, self.hp.walk_com_height,
                                       self.hp.walk_trunk_pitch)
         self._plan(np.zeros(3))

@@ -22,12 +22,11 @@ from typing import Mapping
 import mujoco
 import numpy as np
 
-__all__ = ["axis_line_distance", "SolePolygon", "sole_polygon", "com_offset", "body_chain", "leg_masses",
-           "foot_geoms", "welded_bodies", "CROUCH"]
+# the walking crouch at which the CoM offset is taken (its angles: the robot side's, gaits)
+from gaits.leg_kinematics import CROUCH, crouch_angles
 
-#: The walking crouch at which the CoM offset is taken: hip height as a fraction of the
-#: straight leg's (ours; a typical kid-size walking posture).
-CROUCH = 0.85
+__all__ = ["axis_line_distance", "SolePolygon", "sole_polygon", "com_offset", "body_chain", "leg_masses",
+           "foot_geoms", "welded_bodies", "CROUCH", "crouch_angles"]
 
 
 def axis_line_distance(p1: np.ndarray, a1: np.ndarray, p2: np.ndarray,
@@ -230,21 +229,6 @@ def com_offset(model: mujoco.MjModel, torso: str, leg_q: Mapping[str, float]) ->
     b = model.body(torso).id
     R = d.xmat[b].reshape(3, 3)
     return R.T @ (d.subtree_com[b] - d.xpos[b])
-
-
-def crouch_angles(leg, joint_map: Mapping[str, tuple[str, int]], crouch: float = CROUCH) -> dict[str, float]:
-    """MJCF joint name -> angle [rad] of both legs bent by the IK so the hips stand ``crouch`` x
-    the straight hip height over the soles (a walking posture), through the map's signs."""
-    from gaits import leg_ik
-    from gaits.leg_kinematics import LEG_JOINTS
-    out = {}
-    for side, prefix in ((1, "l_"), (-1, "r_")):
-        target = leg.hip_in_pelvis(side) + np.array([0.0, 0.0, -crouch * leg.max_hip_height])
-        q = leg_ik(target, 0.0, leg, side)
-        for name, value in zip(LEG_JOINTS, q):
-            theirs, sign = joint_map[prefix + name]
-            out[theirs] = sign * float(value)
-    return out
 
 
 def self_overlaps(model: mujoco.MjModel, poses: list[Mapping[str, float]],

@@ -236,12 +236,15 @@ def load_map(path: Path) -> RobotModel:
     _require(isinstance(foot_sensors, bool), source, f"foot_sensors = {foot_sensors!r}: expected true (the soles "
              f"measure force, as the built-in robot's) or false (none, as an OP3's or a Darwin-OP's)")
     urdf_limits = None
+    package_dirs: dict[str, str] = {}
     load_notes: list[str] = []
     try:
         xml = raw.decode("utf-8")
         if is_urdf:
+            packages = _packages(doc.get("packages"), path.parent, source)
+            package_dirs = _package_folders(xml, mjcf, packages)
             conv = urdf_to_mjcf(mjcf, raw, torso=doc["torso"] if isinstance(doc["torso"], str) else "",
-                                packages=_packages(doc.get("packages"), path.parent, source),
+                                packages=packages,
                                 ranges=_ranges(doc.get("ranges"), source), source=source,
                                 balance_inertia=balance)
             xml, urdf_limits = conv.xml, conv
@@ -448,6 +451,7 @@ def load_map(path: Path) -> RobotModel:
                       (soles[0], soles[1]), bounding, leg, servos, pose, tuple(hulls), sources,
                       tuple(notes), sim, None if is_urdf else str(mjcf), str(path.resolve()), tuple(axes),
                       tuple(bodies), urdf_path=str(mjcf) if is_urdf else None, servo_units=units,
+                      package_dirs=package_dirs,
                       foot_sizes=(tuple(sizes[0]), tuple(sizes[1])), balance_inertia=balance and not is_urdf,
                       exclude=tuple((a, b) for a, b, _ in overlaps), preset_gains=preset_gains,
                       foot_sensors=foot_sensors, imu_board=imu, sole_boards=sole_boards, sole_protocol=sole_protocol)
@@ -507,6 +511,19 @@ def _check_crouch(model: mujoco.MjModel, leg: LegGeometry, final: Mapping[str, t
         _require(lo - 1e-6 <= a <= hi + 1e-6, source,
                  f"joints.{ours}: {theirs!r} has the range [{lo:+.3f}, {hi:+.3f}] rad in the file, which excludes "
                  f"the walking crouch ({CROUCH:g} x the straight hip height): it needs {a:+.3f} rad")
+
+
+def _package_folders(text: str, urdf: Path, packages: Mapping[str, Path]) -> dict[str, str]:
+    """Each ROS package a URDF's ``package://NAME/`` paths name -> its folder, as the URDF reader
+    finds it (the map's ``packages:``, else beside or above the URDF, as a ROS workspace lies), for
+    tools that read the URDF themselves (placo)."""
+    from .urdf import _package_dirs
+    out = {}
+    for name in sorted(set(re.findall(r"package://([^/\"']+)/", text))):
+        dirs = [packages[name]] if name in packages else _package_dirs(name, urdf)
+        if dirs:
+            out[name] = str(Path(dirs[0]).resolve())
+    return out
 
 
 def _packages(doc: Any, base: Path, source: str) -> dict[str, Path]:

@@ -108,6 +108,8 @@ class RobotModel:
     #: empty: the foot body alone. Touch sensors are per body, so each gets its own sites.
     sole_bodies: tuple[tuple[tuple[str, np.ndarray, np.ndarray], ...], ...] = ()
     urdf_path: str | None = None                  # a URDF robot's file (``xml`` is its MJCF, meshes absolute)
+    #: a URDF robot's ROS packages (``package://NAME/``) -> their folders, as the URDF reader found them
+    package_dirs: Mapping[str, str] = field(default_factory=dict)
     servo_units: Mapping[str, Any] = field(default_factory=dict)   # file joint -> servo_table.ServoUnit
     #: each foot's own sole bounding box (length, width) [m], left then right; empty: both ``foot_size``
     #: (which, for unequal feet, is the larger of the two in each direction: what the planners keep apart)
