@@ -167,7 +167,7 @@ class DynamixelBus:
                 opened = handle.openPort() and handle.setBaudRate(self.baudrate)
             except Exception as exc:  # noqa: BLE001 - pyserial's errors are many kinds
                 self.close()
-                raise BusError(f"{name}: cannot open the bus ({' '.join(str(exc).split())})") from None
+                raise BusError(f"{name}: cannot open the bus ({' '.join(str(exc).split())})" + _why_gone(name)) from None
             self.ports.append(handle)
             if not opened:
                 self.close()
@@ -294,6 +294,18 @@ class DynamixelBus:
                 handle.closePort()
             except Exception:  # noqa: BLE001 - closing a port that is gone
                 pass
+
+
+def _why_gone(port: str) -> str:
+    """What a port that cannot be opened most likely is: a link left to a pseudo-terminal that has
+    gone (``gait-tuner bus serve`` ended: it waits ``--wait`` seconds for its client), or nothing."""
+    import os
+    if os.path.islink(port) and not os.path.exists(port):
+        return ("; it is a link to a pseudo-terminal that is gone: the simulated bus it pointed to has ended "
+                "(bus serve waits --wait seconds for its client, then stops): start it again")
+    if not os.path.lexists(port):
+        return "; no such device (a robot's bus is a serial device such as /dev/ttyUSB0)"
+    return ""
 
 
 def imu_reading(protocol: str, data: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:

@@ -212,7 +212,7 @@ def load_robot_file(path: str | Path) -> RobotFile:
     import yaml
     path = Path(path)
     source = str(path)
-    raw = read_bytes_checked(path, "robot file", MAX_BYTES["yaml"], ParamError)
+    raw = read_bytes_checked(path, "robot", MAX_BYTES["yaml"], ParamError)
     try:
         doc = yaml.safe_load(raw.decode("utf-8"))
     except (UnicodeDecodeError, yaml.YAMLError) as exc:

@@ -394,3 +394,16 @@ def test_the_bus_waits_for_its_first_client_then_counts_silence_from_it(robot_fi
     finally:
         os.close(master)
         os.close(slave)
+
+
+def test_a_bus_that_has_ended_or_is_not_there_says_so(tmp_path, robot_file):
+    """The loop's 'cannot open the bus' did not say the simulated bus had given up (it waits
+    --wait seconds for its client): a link to a pseudo-terminal that is gone says so; a path
+    that is nothing says what a bus is."""
+    gone = tmp_path / "bus"
+    gone.symlink_to("/dev/pts/does-not-exist")
+    for port, words in ((gone, "a link to a pseudo-terminal that is gone: the simulated bus it pointed to has ended"),
+                        (tmp_path / "ttyNOPE", "no such device")):
+        r = subprocess.run([sys.executable, str(ROOT / "examples" / "robot_loop.py"), str(SET), "--robot",
+                            str(robot_file), "--port", str(port)], capture_output=True, text=True, timeout=120)
+        assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and words in r.stderr, r.stderr

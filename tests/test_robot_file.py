@@ -197,3 +197,9 @@ def test_it_states_what_the_servos_give_way_by_as_the_simulator_does(exported):
                         gaits.family("tlipfm").step_limits(params, r)).predicted_give() for r in (rf, model)]
     np.testing.assert_allclose(gives[0], gives[1], atol=1e-12)
     assert np.max(np.abs(gives[0])) > 0.01
+
+
+def test_a_missing_robot_file_says_so_once(tmp_path):
+    with pytest.raises(ParamError) as info:
+        load_robot_file(tmp_path / "nowhere.yaml")
+    assert str(info.value).endswith("no such robot file") and "file file" not in str(info.value)

@@ -261,7 +261,7 @@ def load_topics(path: str | Path | None) -> dict[str, Any]:
     import yaml
 
     from gaits.files import MAX_BYTES, read_bytes_checked
-    raw = read_bytes_checked(path, "topics file", MAX_BYTES["yaml"], RecordingError)
+    raw = read_bytes_checked(path, "topics", MAX_BYTES["yaml"], RecordingError)
     try:
         doc = yaml.safe_load(raw.decode("utf-8")) or {}
     except (UnicodeDecodeError, yaml.YAMLError) as exc:
