@@ -49,13 +49,18 @@ from .params import ParamError
 from .trajectory import JOINT_NAMES
 
 __all__ = ["ServoUnit", "JointSpec", "ImuBoard", "SoleBoard", "RobotFile", "load_robot_file", "save_robot_file",
-           "to_units", "from_units", "IMU_PROTOCOLS", "SOLE_PROTOCOLS"]
+           "to_units", "from_units", "IMU_PROTOCOLS", "SOLE_PROTOCOLS", "SENSING_GAP"]
 
 #: IMU boards the loop reads (gaits.dynamixel has each one's registers): ours, and Bit-Bots' IMU
 #: board of their Wolfgang-OP (bitbots_main, bitbots_ros_control's IMU interface; its id there 241)
 IMU_PROTOCOLS = {"gait-tuner": 200, "bitbots": 241}
 #: sole boards: Bit-Bots' BitFoot (four load cells a foot; ids 101 right, 102 left on their robots)
 SOLE_PROTOCOLS = {"bitfoot": (102, 101)}
+#: the one line for a robot whose soles sense force and whose robot side reads none (the robot file,
+#: and the map it is written from, say it so)
+SENSING_GAP = ("the soles sense force (foot_sensors: true, the default), so the simulator's walks of this robot read "
+               "them, but it names no sole boards (bus: soles:) and the loop on the robot could not: name them "
+               "(bus: {soles: {protocol: bitfoot, left: ID, right: ID}}) or say foot_sensors: false")
 
 
 @dataclass(frozen=True)
@@ -143,12 +148,7 @@ class RobotFile:
     def sensing_gap(self) -> str | None:
         """Why the loop could not read what this robot's walks were made with (soles said to sense
         force, no boards named), or None."""
-        if self.foot_sensors and self.soles is None:
-            return ("its soles sense force (foot_sensors: true, the default: the simulator's walks read them) but "
-                    "it names no sole boards (bus: soles:), so the loop could not read them: name the boards "
-                    "(bus: {soles: {protocol: bitfoot, left: {id: 102}, right: {id: 101}}}) or say "
-                    "foot_sensors: false")
-        return None
+        return SENSING_GAP if self.foot_sensors and self.soles is None else None
 
     def devices(self) -> dict[int, str]:
         """{id: what it is} of every device on the robot's buses (servos, the IMU, sole boards)."""

@@ -11,7 +11,7 @@ import numpy as np
 
 from gaits import LegGeometry
 from gaits.leg_kinematics import LEG_JOINTS
-from gaits.robot_file import ImuBoard
+from gaits.robot_file import SENSING_GAP, ImuBoard
 
 from ..errors import UserError
 from ..servos import ServoLaw
@@ -212,11 +212,7 @@ class RobotModel:
         A robot with no servo ids is not wired yet (its robot file would drive nothing)."""
         if not self.servo_units or not self.foot_sensors or self.sole_boards is not None:
             return None
-        where = self.map_path or self.name
-        return (f"{where}: the soles sense force (foot_sensors: true, the default), so the simulator's walks of "
-                f"this robot read them, but the map names no sole boards (bus: soles:) and the loop on the robot "
-                f"could not: name them (bus: {{soles: {{protocol: bitfoot, left: ID, right: ID}}}}) or say "
-                f"foot_sensors: false")
+        return f"{self.map_path or self.name}: {SENSING_GAP}"
 
     @property
     def held_joints(self) -> tuple[str, ...]:

@@ -1,15 +1,17 @@
 """A simulated Dynamixel bus (ours): the robot-side code talks real Protocol 2.0 packets to the
 simulator, unchanged, through a pseudo-terminal.
 
-:func:`serve` opens a pty pair and answers, on its master side, what the robot's servos and IMU
-would: PING (every servo id of the robot file, and the IMU at ``gaits.dynamixel.IMU_ID``), READ of
-the IMU's nine floats, SYNC_READ of present velocity and position (8 bytes from address 128),
-SYNC_WRITE of goal positions (116), WRITE of torque enable (64). Each servo id is a simulated joint
-with the robot file's units, direction and offset; the IMU's readings are the simulator's (with
-its noise and latency when a randomisation is given). The simulation runs in lockstep with the
-bus: a tick of physics for every sync write of goal positions (the loop's write of a tick), so
-the walk is the same however fast the two processes run; the first sync write places the robot
-(the loop's start pose). Foot sensors are not on the bus (a robot like the OP3 has none).
+:func:`serve` opens a pty pair a bus (the robot file's ``port`` of each device) and answers, on
+each master side, what the devices on that bus would: PING (every servo id, the IMU, the sole
+boards), READ of the IMU's registers in its protocol (ours: nine floats; Bit-Bots' board: ten, its
+orientation a quaternion) and of each sole board's four cells (BitFoot, through the file's
+calibration), SYNC_READ of present velocity and position (8 bytes from address 128), SYNC_WRITE of
+goal positions (116), WRITE of torque enable (64). Each servo id is a simulated joint with the robot
+file's units, direction and offset; the IMU's and the soles' readings are the simulator's (with its
+noise and latency when a randomisation is given; the soles only where the robot file says they
+sense force). The simulation runs in lockstep with the bus: a tick of physics for every tick's sync
+writes of goal positions (one a bus with servos), so the walk is the same however fast the two
+processes run; the first places the robot (the loop's start pose).
 
 A client at another baud rate than the bus's gets no answer (as on a real bus); a packet whose CRC
 does not match is ignored. The bus ends when its client has been silent for ``idle`` seconds
