@@ -354,3 +354,24 @@ def test_a_share_of_another_parameter_is_searched_so_every_draw_is_valid():
         path.write_text(bad)
         with pytest.raises(Exception, match="t1 as a share of step_length: low and high in"):
             load_study(str(path))
+
+
+def test_a_study_moved_with_its_robot_scores_the_same(tmp_path):
+    """The scoring parts stand on the robot's own file and numbers, not on where it lies: a study
+    folder moved (or copied to another machine) resumes; the MJCF edited does not."""
+    import shutil
+    from tuner.search.study import load_study
+    from tuner.search.workers import scoring_parts
+    from conftest import ROOT
+    a = tmp_path / "a"
+    a.mkdir()
+    for f in ("kid3kg.xml", "kid3kg.yaml"):
+        shutil.copy(ROOT / "examples" / "robots" / "kid3kg" / f, a / f)
+    (a / "study.yaml").write_text(STUDY.format(name="moved").replace("robot: kidsize", "robot: kid3kg.yaml"))
+    before = scoring_parts(load_study(str(a / "study.yaml")))
+    shutil.copytree(a, tmp_path / "b")
+    assert scoring_parts(load_study(str(tmp_path / "b" / "study.yaml"))) == before
+    xml = tmp_path / "b" / "kid3kg.xml"
+    xml.write_text(xml.read_text().replace('mass="', 'mass="1', 1))
+    after = scoring_parts(load_study(str(tmp_path / "b" / "study.yaml")))
+    assert after["robot"] != before["robot"] and after["surfaces"] == before["surfaces"]

@@ -343,7 +343,9 @@ def scoring_parts(spec: StudySpec) -> dict[str, str]:
     model_file = robot.urdf_path or robot.mjcf_path
     searched = {r.name for r in spec.space}
     held = {} if spec.base is None else {k: v for k, v in spec.base.to_mapping().items() if k not in searched}
-    return {"robot": digest(robot.xml, Path(model_file).read_bytes() if model_file else b"",
+    # the robot's own file where it has one (its converted MJCF holds absolute paths: a study moved
+    # with its robot would read as another robot), the generated MJCF of a built-in one
+    return {"robot": digest(Path(model_file).read_bytes() if model_file else robot.xml,
                             sorted((k, repr(v)) for k, v in robot.servos.items()), robot.foot_sensors,
                             sorted(robot.joint_map.items()), sorted(robot.pose.items())),
             "surfaces": digest([repr(load_surface(n)) for n in spec.surfaces]),
@@ -352,7 +354,13 @@ def scoring_parts(spec: StudySpec) -> dict[str, str]:
             "duration": digest(spec.duration),
             "fixed": digest(spec.gait, sorted(held.items())),
             "engine": digest(spec.engine), "stabiliser": digest(spec.stabiliser),
-            "controller": digest(None if spec.controller is None else spec.controller.source)}
+            "controller": digest(None if spec.controller is None else _file_or_name(spec.controller.source))}
+
+
+def _file_or_name(source: str) -> Any:
+    """A controller's file's bytes (where the study moved, the same file), else its name."""
+    path = Path(source.split(":", 1)[0]) if not Path(source).is_file() else Path(source)
+    return path.read_bytes() if path.is_file() else source
 
 
 def _same_scoring(spec: StudySpec, study: optuna.Study, log: Callable[[str], None]) -> None:
