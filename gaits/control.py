@@ -2,7 +2,7 @@
 
 A controller runs on the robot's computer, so it is pure numpy and sees only what a kid-size
 robot senses. Every control tick the loop (``tuner/sim/rollout.py`` in simulation,
-``gaits/loop.py`` on a robot) hands it a :class:`Measurement` and the current walk
+``gaits/robot/loop.py`` on a robot) hands it a :class:`Measurement` and the current walk
 command, and sends the joint targets it returns to the servos; after the walk it asks for
 :class:`PlanRecord`, what the controller planned tick by tick (support foot, planned soles, ZMP
 reference), which the metrics compare with what the robot did. The controller never sees the

@@ -36,7 +36,7 @@ def bus_walk(i: int, args, robot_file: Path, tmp: Path) -> dict:
     deadline = time.monotonic() + 120
     while not link.exists() and server.poll() is None and time.monotonic() < deadline:
         time.sleep(0.05)
-    loop = subprocess.run([sys.executable, "-m", "gaits.loop", str(ROOT / "studies" / "results" / f"{args.set}.yaml"),
+    loop = subprocess.run([sys.executable, "-m", "gaits.robot.loop", str(ROOT / "studies" / "results" / f"{args.set}.yaml"),
                            "--robot", str(robot_file), "--port", str(link), "--commands", str(STREAM),
                            "--watchdog", "300"], capture_output=True, text=True, timeout=600)
     out, err = server.communicate(timeout=120)

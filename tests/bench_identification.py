@@ -75,7 +75,7 @@ def hidden_world(out: Path) -> tuple[Path, Path]:
 
 def record_walk(robot_map: Path, surface: Path, set_path: Path, command: str, seconds: float, path: Path, seed: int):
     from gaits import parse_command
-    from gaits.recording import Recorder, RecordingController, RecordingMeta
+    from gaits.robot.recording import Recorder, RecordingController, RecordingMeta
     from tuner.params_io import resolve_drive
     from tuner.robots import load_robot
     from tuner.sim.randomisation import NONE, draw

@@ -1,4 +1,4 @@
-"""The robot side on a Dynamixel bus (gaits/dynamixel.py, gaits/loop.py) against the simulated bus
+"""The robot side on a Dynamixel bus (gaits/robot/dynamixel.py, gaits/robot/loop.py) against the simulated bus
 (tuner/sim/bus.py, `gait-tuner bus serve`): real Protocol 2.0 packets through dynamixel-sdk on a
 pseudo-terminal, answered by MuJoCo in lockstep. Its packets, a walk, and every way the loop stops:
 the watchdog, a fall, Ctrl-C, a servo missing, the wrong baud rate."""
@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from conftest import ROOT, run_in_process
-from gaits.robot_file import load_robot_file
-from gaits.dynamixel import PING, STATUS, SYNC_WRITE, crc16, instruction_packet, parse_packet, status_packet
+from gaits.robot.robot_file import load_robot_file
+from gaits.robot.dynamixel import PING, STATUS, SYNC_WRITE, crc16, instruction_packet, parse_packet, status_packet
 
 pytest.importorskip("dynamixel_sdk", reason="the Dynamixel driver's tests need dynamixel-sdk (the dev extra)")
 MAP = ROOT / "examples" / "robots" / "kid3kg" / "kid3kg.yaml"
@@ -85,7 +85,7 @@ def _two_buses(tmp_path):
 
 
 def test_a_robot_on_two_buses_with_bitbots_boards_walks_through_them(tmp_path):
-    from gaits.recording import read_recording
+    from gaits.robot.recording import read_recording
     robot_map, robot_file = _two_buses(tmp_path)
     rf = load_robot_file(robot_file)
     assert rf.ports == 2 and rf.imu.protocol == "bitbots" and rf.imu.id == 241 and rf.imu.port == 1
@@ -137,7 +137,7 @@ def _finish(*procs):
 
 
 def test_the_loop_walks_the_simulated_robot_through_the_bus(tmp_path, robot_file):
-    from gaits.recording import read_recording
+    from gaits.robot.recording import read_recording
     server, link = _serve(tmp_path)
     loop = _loop(robot_file, link, "--seconds", "2", "--record", str(tmp_path / "walk.mcap"))
     (lo, le), (so, se) = _finish(loop, server)
@@ -294,7 +294,7 @@ def test_garbled_replies_end_in_the_safe_stop(tmp_path, robot_file):
     import struct
     import threading
 
-    from gaits.dynamixel import PING, READ, SYNC_READ, WRITE, parse_packet, status_packet
+    from gaits.robot.dynamixel import PING, READ, SYNC_READ, WRITE, parse_packet, status_packet
     from tuner.sim.bus import open_pty
     master, slave, path = open_pty(1_000_000)
     stop = threading.Event()
@@ -381,7 +381,7 @@ def test_the_bus_waits_for_its_first_client_then_counts_silence_from_it(robot_fi
     FIRST_CLIENT_S, not --idle; once heard, --idle counts (here with no client: it says so)."""
     import os
     import tuner.sim.bus as bus
-    from gaits.robot_file import load_robot_file
+    from gaits.robot.robot_file import load_robot_file
     monkeypatch.setattr(bus, "FIRST_CLIENT_S", 0.4)
     master, slave, _ = bus.open_pty(1_000_000)
     try:

@@ -1,4 +1,4 @@
-"""Where the robot's loop takes its walk command (gaits/command_source.py): a function, a stream
+"""Where the robot's loop takes its walk command (gaits/robot/command_source.py): a function, a stream
 file, a UDP/JSON socket on the loopback; and a controller on a robot without foot sensors
 (gaits.control.WithoutReadings, a map's foot_sensors: false)."""
 
@@ -14,7 +14,7 @@ import pytest
 
 from conftest import ROOT, run_in_process
 from gaits import ParamError
-from gaits.command_source import FromStream, Scripted, UdpCommands, parse_udp_address
+from gaits.robot.command_source import FromStream, Scripted, UdpCommands, parse_udp_address
 from gaits.control import Measurement, WithoutReadings
 
 STREAM = ROOT / "examples" / "streams" / "match-carpet4.csv"
@@ -59,11 +59,11 @@ def test_udp_address_mistakes_are_named(text, words):
 
 
 def test_the_loop_walks_a_stream_and_refuses_two_sources():
-    r = subprocess.run([sys.executable, "-m", "gaits.loop", str(SET), "--dry-run", "--commands", str(STREAM)],
+    r = subprocess.run([sys.executable, "-m", "gaits.robot.loop", str(SET), "--dry-run", "--commands", str(STREAM)],
                        capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr
     assert r.stdout.splitlines()[-1].startswith("2100 ticks: ") and "ended stand" in r.stdout
-    r = subprocess.run([sys.executable, "-m", "gaits.loop", str(SET), "--dry-run", "--commands", str(STREAM),
+    r = subprocess.run([sys.executable, "-m", "gaits.robot.loop", str(SET), "--dry-run", "--commands", str(STREAM),
                         "--udp", "5005"], capture_output=True, text=True, timeout=600)
     assert r.returncode == 2 and r.stderr.strip() == "robot_loop: error: give --commands or --udp, not both"
 
@@ -85,7 +85,7 @@ def test_without_readings_takes_them_out_of_what_the_controller_senses():
 def test_a_robot_without_foot_sensors_gives_its_controller_none(tmp_path):
     """A map's foot_sensors: false: the simulator's readings carry no foot_force; the robot file says so."""
     import test_urdf as U
-    from gaits.robot_file import load_robot_file
+    from gaits.robot.robot_file import load_robot_file
     from tuner.robots import load_robot
     from tuner.sim.rollout import Simulator
     from tuner.sim.sensors import SensorReader

@@ -12,7 +12,7 @@ import pytest
 
 from conftest import ROOT, run_cli
 from gaits.control import Measurement
-from gaits.recording import Recorder, RecordingMeta
+from gaits.robot.recording import Recorder, RecordingMeta
 from tuner.recordings import RecordingError, read_field_recording
 
 KID3KG = ROOT / "examples" / "robots" / "kid3kg" / "kid3kg.yaml"

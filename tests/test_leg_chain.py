@@ -233,7 +233,7 @@ def test_the_bent_robot_loads_unedited_and_robot_check_says_which_ik(bent_robot,
 
 
 def test_the_robot_file_of_a_bent_robot_carries_its_chains(bent_robot, tmp_path, gait_tuner_cmd, run_env):
-    from gaits.robot_file import load_robot_file
+    from gaits.robot.robot_file import load_robot_file
     from tuner.robots import load_robot
     out = tmp_path / "robot.yaml"
     r = run(gait_tuner_cmd, ["robot", "export", bent_robot, "--out", out], run_env)

@@ -1,4 +1,4 @@
-"""The robot side's one robot file (gaits/robot_file.py, `gait-tuner robot export`): written from a
+"""The robot side's one robot file (gaits/robot/robot_file.py, `gait-tuner robot export`): written from a
 robot map, read back equal with numpy and PyYAML only, its servo conversions the servo table's, the
 loop on the robot driven by it, and a broken file one line."""
 
@@ -15,7 +15,7 @@ import yaml
 import third_party_robot as T
 from conftest import ROOT, run_cli
 from gaits import JOINT_NAMES, ParamError
-from gaits.robot_file import load_robot_file, to_units
+from gaits.robot.robot_file import load_robot_file, to_units
 from test_servo_table import servos_yaml
 
 
@@ -102,7 +102,7 @@ def test_its_boards_and_buses_read_back_equal(exported, tmp_path):
     """The bus: section (the IMU, the sole boards and their calibration, each device's port) is
     written and read back as it was."""
     import dataclasses
-    from gaits.robot_file import ImuBoard, SoleBoard, save_robot_file
+    from gaits.robot.robot_file import ImuBoard, SoleBoard, save_robot_file
     _, out = exported
     rf = load_robot_file(out)
     assert rf.imu == ImuBoard() and [b.id for b in rf.soles] == [102, 101] and rf.ports == 1
@@ -127,7 +127,7 @@ def test_its_boards_and_buses_read_back_equal(exported, tmp_path):
 def test_an_imu_board_reads_back_what_it_holds(protocol):
     """An IMU board's registers as the simulated bus writes them read back as the readings
     (Bit-Bots' board holds a quaternion: the angles come back through it)."""
-    from gaits.dynamixel import IMU_REGISTERS, imu_reading, imu_registers
+    from gaits.robot.dynamixel import IMU_REGISTERS, imu_reading, imu_registers
     rng = np.random.default_rng(4)
     for _ in range(50):
         rpy = rng.uniform([-1.2, -1.2, -3.0], [1.2, 1.2, 3.0])

@@ -41,7 +41,7 @@ def test_the_stabiliser_of_a_set_is_in_the_robot_loop():
 
     import gaits
     from gaits.control import Measurement
-    loop = runpy.run_path(str(ROOT / "gaits" / "loop.py"))
+    loop = runpy.run_path(str(ROOT / "gaits" / "robot" / "loop.py"))
     geometry = loop["RobotGeometry"](gaits.LegGeometry(), (0.10, 0.055))
     for name, stabilised in (("kidsize-engine-grass50", True), ("kidsize-engine-carpet4", False)):
         gait = gaits.load_gait_file(ROOT / "studies" / "results" / f"{name}.yaml")
@@ -75,7 +75,7 @@ def test_the_stabiliser_of_a_set_is_in_the_robot_loop():
 def test_a_number_the_loop_cannot_use_is_one_line(capsys, args, words):
     """A NaN tilt limit would never read a fall, a negative one read one at t = 0, --seconds 0 ran
     no tick (an IndexError): each is refused in one line naming the option and its range."""
-    from gaits.loop import main
+    from gaits.robot.loop import main
     with pytest.raises(SystemExit) as stop:
         main([str(ROOT / "studies" / "results" / "kidsize-engine-carpet4.yaml"), "--dry-run", *args])
     assert stop.value.code == 2
@@ -93,7 +93,7 @@ def test_a_number_the_loop_cannot_use_is_one_line(capsys, args, words):
 def test_what_the_loop_cannot_read_or_write_is_one_line(tmp_path, capsys, make, args, words, code):
     """The code that runs on the robot printed tracebacks: a binary sweep (UnicodeDecodeError), a
     --record path inside a file (FileExistsError); a FIFO as the sweep hung, a giant cell raised."""
-    from gaits.loop import main
+    from gaits.robot.loop import main
     f = tmp_path / "input.csv"
     make(f)
     argv = [a.format(f=f) for a in args]
@@ -109,7 +109,7 @@ def test_what_the_loop_cannot_read_or_write_is_one_line(tmp_path, capsys, make, 
 def test_a_full_disk_under_the_loop_s_recording_is_one_line_and_exit_3(tmp_path, capsys, monkeypatch):
     """A recording on a full disk: one line, exit 3, the older recording of the name kept."""
     import errno as _errno
-    from gaits.loop import main
+    from gaits.robot.loop import main
     old = tmp_path / "walk.mcap"
     old.write_bytes(b"an older walk")
 

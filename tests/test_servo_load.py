@@ -139,7 +139,7 @@ def test_targets_lead_by_the_servos_lag():
 
 
 def test_servo_terms_come_from_a_robot_file_or_the_simulator():
-    from gaits.robot_file import JointSpec, RobotFile
+    from gaits.robot.robot_file import JointSpec, RobotFile
     from tuner.robots import load_robot
     joints = {n: JointSpec(n, kp=25.0, damping=1.5, torque=7.0) for n in JOINT_NAMES}
     t = servo_terms(RobotFile("r", LegGeometry(), (0.1, 0.06), joints))
@@ -158,7 +158,7 @@ def test_the_engine_refuses_compensation_without_the_servos_gains():
     import gaits
     from gaits.engine import EngineParams, WalkEngine
     from gaits.params import ParamError
-    from gaits.robot_file import JointSpec, RobotFile
+    from gaits.robot.robot_file import JointSpec, RobotFile
     from tuner.params_io import resolve_params
     params = resolve_params("kidsize-omni-carpet4", None).params
     robot = RobotFile("r", LegGeometry(), (0.1, 0.06), {n: JointSpec(n) for n in JOINT_NAMES})

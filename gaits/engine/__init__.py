@@ -2,7 +2,7 @@
 senses, for a walk command that may change at any tick.
 
 It is a :class:`gaits.control.Controller` in pure numpy, so it runs in the simulator's loop and on
-a robot (``gaits/loop.py``). Every control tick it takes the current command (vx, vy, wz),
+a robot (``gaits/robot/loop.py``). Every control tick it takes the current command (vx, vy, wz),
 rate-limits it (``accel_*``) and clips it to its envelope (:meth:`WalkEngine.envelope`), reads the
 encoders, IMU and sole forces, and returns the 20 joint targets of the next tick.
 

@@ -15,7 +15,7 @@ from .options import OutPath, Span, robot_option, surface_option, JSON_OPTION, R
 @click.group()
 def log() -> None:
     """Recordings of what a robot (or the simulator) did: MCAP files in the RoboCup HumanoidDataset
-    layout (gaits/recording.py)."""
+    layout (gaits/robot/recording.py)."""
 
 
 @log.command(name="info")
@@ -27,7 +27,7 @@ def log_info(recording: Path, as_json: bool) -> None:
     import json
 
     from gaits.files import MAX_BYTES, read_bytes_checked
-    from gaits.recording import read_recording, recording_info
+    from gaits.robot.recording import read_recording, recording_info
     read_bytes_checked(recording, "recording", 1000 * MAX_BYTES["csv"], UserError)     # a regular file of a sane size
     try:
         info = recording_info(read_recording(recording))

@@ -46,7 +46,7 @@ VERBS: dict[str, tuple[str, str, str]] = {
                               "height, stance and a step its knees' servos can carry, and the study that tunes it on the "
                               "surface (tune it with `gait-tuner tune`, then `export`)."),
     "log": ("identify", "log", "Recordings of what a robot (or the simulator) did: MCAP files in the RoboCup "
-                               "HumanoidDataset layout (gaits/recording.py)."),
+                               "HumanoidDataset layout (gaits/robot/recording.py)."),
     "params": ("walks", "params_cmd", "Print a family's parameters (name, default, unit, allowed range, paper symbol) and "
                                       "the walk commands it takes."),
     "render": ("walks", "render", "Film a walk: an MP4 from MuJoCo's offscreen renderer, headless."),

@@ -90,7 +90,7 @@ JSON_OPTION = click.option("--json", "as_json", is_flag=True, help="Print the re
 RECORD_OPTION = click.option(
     "--record", "record_dir", type=OutPath(file_okay=False),
     help="Record every tick of every walk (what the controller was given and what it asked) into this folder, an "
-         "MCAP file per walk (gaits/recording.py); `gait-tuner log info FILE` says what one holds.")
+         "MCAP file per walk (gaits/robot/recording.py); `gait-tuner log info FILE` says what one holds.")
 
 
 RUNS_OPTION = click.option("--runs", "runs_dir", default=None, type=OutPath(file_okay=False),

@@ -23,12 +23,12 @@ def robot() -> None:
 @robot.command(name="export")
 @click.argument("robot_spec", metavar="MAP|NAME")
 @click.option("--out", "out", required=True, type=OutPath(dir_okay=False),
-              help="The robot file to write (YAML, read by gaits.robot_file on the robot).")
+              help="The robot file to write (YAML, read by gaits.robot.robot_file on the robot).")
 def robot_export(robot_spec: str, out: Path) -> None:
     """Write the one robot file the robot side needs: leg geometry, soles, mass, joint order and
     signs, ranges, servo limits, and each joint's servo id, units, direction and offset (the map's
     servos: section), so the loop on the robot loads no robot model and copies no number by hand."""
-    from gaits.robot_file import save_robot_file
+    from gaits.robot.robot_file import save_robot_file
     from ..report.provenance import commit_of
     from ..robots import load_robot
     robot = load_robot(robot_spec)
@@ -39,7 +39,7 @@ def robot_export(robot_spec: str, out: Path) -> None:
     joints, held = rf.joints, rf.held
     source = robot.map_path or robot_spec
     save_robot_file(out, rf, f"gait-tuner robot file of {robot.name} (from {source}{commit_of(__file__)}); "
-                             f"read by gaits.robot_file.load_robot_file on the robot")
+                             f"read by gaits.robot.robot_file.load_robot_file on the robot")
     with_servo = sum(j.servo is not None for j in joints.values())
     click.echo(f"wrote {out}: {len(joints)} joints ({with_servo} with a servo id), {len(held)} held, "
                f"{rf.mass:.2f} kg")

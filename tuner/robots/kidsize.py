@@ -28,7 +28,7 @@ from typing import Mapping
 import mujoco
 
 from gaits import JOINT_NAMES, LegGeometry
-from gaits.robot_file import SOLE_PROTOCOLS, ServoUnit, SoleBoard
+from gaits.robot.robot_file import SOLE_PROTOCOLS, ServoUnit, SoleBoard
 
 from .mjcf_geometry import CROUCH, com_offset, crouch_angles, sole_polygon
 from .robot_model import RobotModel, joint_group

@@ -12,7 +12,7 @@ Format (paths relative to the map file)::
                                   #   gets no foot_force reading, in the simulator as on the robot
     bus: {imu: {protocol: bitbots, id: 241}, soles: {left: 102, right: 101}}
                                   # optional: the boards on the robot's buses besides its servos
-                                  #   (gaits/robot_file.py); a map with servo ids whose soles sense
+                                  #   (gaits/robot/robot_file.py); a map with servo ids whose soles sense
                                   #   force names its sole boards, or the robot side could not read them
     extends: ../my_robot.yaml     # optional: another map this one builds on (its keys, these over them;
                                   #   servo: merged group by group): init's copy of a team's map
@@ -50,7 +50,7 @@ import numpy as np
 
 from gaits import JOINT_NAMES, LegGeometry, ParamError, did_you_mean
 from gaits.leg_chain import LegChain, LegChains
-from gaits.robot_file import read_bus
+from gaits.robot.robot_file import read_bus
 from gaits.leg_kinematics import LEG_JOINTS
 from gaits.files import MAX_BYTES, read_bytes_checked
 

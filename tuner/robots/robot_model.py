@@ -11,13 +11,13 @@ import numpy as np
 
 from gaits import LegGeometry
 from gaits.leg_kinematics import LEG_JOINTS
-from gaits.robot_file import SENSING_GAP, ImuBoard
+from gaits.robot.robot_file import SENSING_GAP, ImuBoard
 
 from ..errors import UserError
 from ..servos import ServoLaw
 
 if TYPE_CHECKING:
-    from gaits.robot_file import RobotFile
+    from gaits.robot.robot_file import RobotFile
 
 __all__ = ["RobotModel", "SimOptions", "joint_group", "GROUPS"]
 
@@ -125,7 +125,7 @@ class RobotModel:
     preset_gains: tuple[str, ...] = ()
     #: the soles measure force (the map's ``foot_sensors``; a controller of a robot without gets none)
     foot_sensors: bool = True
-    #: the boards on the robot's buses besides the servos (the map's ``bus:``; gaits.robot_file): the
+    #: the boards on the robot's buses besides the servos (the map's ``bus:``; gaits.robot.robot_file): the
     #: IMU (``ImuBoard``; None: none on the bus) and the sole boards (left, right ``SoleBoard``)
     imu_board: Any = ImuBoard()
     sole_boards: Any = None
@@ -184,11 +184,11 @@ class RobotModel:
         return self.servos[self.joint_map[ours][0]]
 
     def robot_file(self) -> "RobotFile":
-        """The robot side's robot file (``gaits.robot_file.RobotFile``) of this robot: leg geometry,
+        """The robot side's robot file (``gaits.robot.robot_file.RobotFile``) of this robot: leg geometry,
         soles, mass, joint order, signs and ranges (an unbounded joint: +-pi), each servo's speed
         [rad/s] and torque [N m] (a joint without a servo: the MX-64's 6.5 and 6.0, ours), units and
         the joints held at ``pose``."""
-        from gaits.robot_file import JointSpec, RobotFile
+        from gaits.robot.robot_file import JointSpec, RobotFile
         names = [theirs for theirs, _ in self.joint_map.values()]
         lo, hi = self.joint_ranges(names)
         joints = {}

@@ -21,7 +21,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from gaits.robot_file import MAX_PORTS, ServoUnit, from_units, to_units   # the one definition (the robot side's)
+from gaits.robot.robot_file import MAX_PORTS, ServoUnit, from_units, to_units   # the one definition (the robot side's)
 
 from ..errors import UserError
 

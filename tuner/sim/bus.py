@@ -36,10 +36,10 @@ from typing import Any, Iterator
 import numpy as np
 
 from gaits.control import Measurement, PlanRecord, StartPose
-from gaits.dynamixel import (ADDR_GOAL_POSITION, ADDR_PRESENT_VELOCITY, ADDR_TORQUE_ENABLE, IMU_REGISTERS,
+from gaits.robot.dynamixel import (ADDR_GOAL_POSITION, ADDR_PRESENT_VELOCITY, ADDR_TORQUE_ENABLE, IMU_REGISTERS,
                              PING, READ, SOLE_REGISTERS, SYNC_READ, SYNC_WRITE, VELOCITY_UNIT, WRITE, imu_registers,
                              parse_packet, status_packet)
-from gaits.robot_file import RobotFile, from_units
+from gaits.robot.robot_file import RobotFile, from_units
 from gaits.trajectory import JOINT_NAMES
 
 from .rollout import Simulator

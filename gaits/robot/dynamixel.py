@@ -34,9 +34,9 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from .control import rpy_from_quat
-from .params import ParamError
-from .trajectory import JOINT_NAMES
+from ..control import rpy_from_quat
+from ..params import ParamError
+from ..trajectory import JOINT_NAMES
 
 __all__ = ["crc16", "stuff", "unstuff", "instruction_packet", "status_packet", "parse_packet", "Packet",
            "PING", "READ", "WRITE", "SYNC_READ", "SYNC_WRITE", "STATUS", "ADDR_GOAL_POSITION",
@@ -140,7 +140,7 @@ class BusError(ParamError):
 class DynamixelBus:
     """The robot's servos, IMU and sole boards through ``dynamixel-sdk`` (module docstring), on one
     port or several (``port``: a path or a list of them). ``robot``: a
-    :class:`gaits.robot_file.RobotFile` (every driven joint has a servo id; its ``imu`` and ``soles``
+    :class:`gaits.robot.robot_file.RobotFile` (every driven joint has a servo id; its ``imu`` and ``soles``
     say which boards to read)."""
 
     def __init__(self, port: str | Sequence[str], robot: Any, baudrate: int = 1_000_000) -> None:

@@ -24,8 +24,8 @@ from typing import Callable
 
 import numpy as np
 
-from .command_stream import CommandStream, read_command_stream
-from .params import ParamError
+from ..command_stream import CommandStream, read_command_stream
+from ..params import ParamError
 
 __all__ = ["Scripted", "FromStream", "UdpCommands", "parse_udp_address"]
 

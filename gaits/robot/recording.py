@@ -38,8 +38,8 @@ from typing import Any
 
 import numpy as np
 
-from .control import FOOT_FORCE_LABELS, READINGS, Measurement, Wrapped
-from .trajectory import JOINT_NAMES
+from ..control import FOOT_FORCE_LABELS, READINGS, Measurement, Wrapped
+from ..trajectory import JOINT_NAMES
 
 __all__ = ["RecordingMeta", "Recorder", "RecordingController", "Recording", "read_recording", "recording_info",
            "CHANNELS", "METADATA_NAME"]

@@ -42,16 +42,16 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .files import MAX_BYTES, read_bytes_checked, write_text_atomic
-from .leg_chain import chains_from_mapping, chains_to_mapping
-from .leg_kinematics import LegGeometry
-from .params import ParamError
-from .trajectory import JOINT_NAMES
+from ..files import MAX_BYTES, read_bytes_checked, write_text_atomic
+from ..leg_chain import chains_from_mapping, chains_to_mapping
+from ..leg_kinematics import LegGeometry
+from ..params import ParamError
+from ..trajectory import JOINT_NAMES
 
 __all__ = ["ServoUnit", "JointSpec", "ImuBoard", "SoleBoard", "RobotFile", "load_robot_file", "save_robot_file",
            "to_units", "from_units", "IMU_PROTOCOLS", "SOLE_PROTOCOLS", "SENSING_GAP"]
 
-#: IMU boards the loop reads (gaits.dynamixel has each one's registers): ours, and Bit-Bots' IMU
+#: IMU boards the loop reads (gaits.robot.dynamixel has each one's registers): ours, and Bit-Bots' IMU
 #: board of their Wolfgang-OP (bitbots_main, bitbots_ros_control's IMU interface; its id there 241)
 IMU_PROTOCOLS = {"gait-tuner": 200, "bitbots": 241}
 #: sole boards: Bit-Bots' BitFoot (four load cells a foot; ids 101 right, 102 left on their robots)

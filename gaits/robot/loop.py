@@ -9,7 +9,7 @@ robot file (``gait-tuner robot export MAP --out robot.yaml``, then ``--robot rob
 soles and each joint's servo id, units, direction and offset, nothing copied by hand), and take the
 walk command from your behaviour: a function of time (:func:`behaviour` here: forward for 3 s, turning for
 2 s, then stop), a command stream file (``--commands STREAM.csv``) or a UDP/JSON socket on the loopback
-(``--udp 5005``; ``gaits/command_source.py``). The engine
+(``--udp 5005``; ``gaits/robot/command_source.py``). The engine
 wants, each tick, the encoders in our joint convention (``gaits.JOINT_NAMES``, signs as
 ``gait-tuner robot check`` lists them), the IMU's roll, pitch, yaw [rad] and rates [rad/s], its
 accelerometer [m/s^2] and the eight sole force readings [N] (left toe-left, toe-right, heel-left,
@@ -231,7 +231,7 @@ def _main(argv: list[str] | None = None) -> None:
     ap.add_argument("--robot", help="the robot file (gait-tuner robot export MAP --out robot.yaml): its legs, soles "
                                     "and servos; default: the built-in robot's geometry")
     ap.add_argument("--record", help="record every tick (what the engine read and asked) as an MCAP file "
-                                     "(gaits/recording.py; needs the mcap package)")
+                                     "(gaits/robot/recording.py; needs the mcap package)")
     ap.add_argument("--port", help="the Dynamixel bus (a serial device, or `gait-tuner bus serve`'s pseudo-terminal): "
                                    "walk the robot on it (needs --robot and dynamixel-sdk); a robot on several "
                                    "buses: every one, comma-separated (each device is used where it answers)")
@@ -285,7 +285,7 @@ def _main(argv: list[str] | None = None) -> None:
     engine, walk = controller(gait, geometry, 0.01)
     recorder = None
     if args.record:
-        from gaits.recording import Recorder, RecordingController, RecordingMeta
+        from gaits.robot.recording import Recorder, RecordingController, RecordingMeta
         recorder = Recorder(args.record, RecordingMeta(robot="stand-in", task="walk", simulated=True,
                                                        controller=f"walk engine, {args.gait}",
                                                        notes=f"gait-tuner-loop --dry-run; commands from "
@@ -326,8 +326,8 @@ def _main(argv: list[str] | None = None) -> None:
 
 def command_source(args: Any) -> Any:
     """The walk command's source of ``--commands``, ``--udp`` or the built-in :func:`behaviour`
-    (``gaits/command_source.py``); a mistake is a ParamError (or OSError) naming it."""
-    from gaits.command_source import FromStream, Scripted, UdpCommands, parse_udp_address
+    (``gaits/robot/command_source.py``); a mistake is a ParamError (or OSError) naming it."""
+    from gaits.robot.command_source import FromStream, Scripted, UdpCommands, parse_udp_address
     if args.commands and args.udp:
         raise gaits.ParamError("give --commands or --udp, not both")
     if args.commands:
@@ -342,7 +342,7 @@ def _robot_file(args: Any) -> Any:
     """The robot file of ``--robot`` (None without one); a bad one is one line, exit 2."""
     if not args.robot:
         return None
-    from gaits.robot_file import load_robot_file
+    from gaits.robot.robot_file import load_robot_file
     try:
         return load_robot_file(args.robot)
     except gaits.ParamError as exc:
@@ -374,7 +374,7 @@ def run_sweep(args: Any) -> int:
     recorder = None
     walk: Any = player
     if args.record:
-        from gaits.recording import Recorder, RecordingController, RecordingMeta
+        from gaits.robot.recording import Recorder, RecordingController, RecordingMeta
         recorder = Recorder(args.record, RecordingMeta(robot="stand-in", task="sweep", simulated=True,
                                                        controller=f"joint sweep {args.sweep}"))
         walk = RecordingController(player, recorder)
@@ -397,7 +397,7 @@ def run_on_bus(args: Any, gait: gaits.GaitFile | None, robot_file: Any, sweep: S
     ``--max-tilt``: torque off at once); Ctrl-C: a zero command until the engine stands (at most
     3 s), then torque off. Each ending is one line saying why. Returns the exit code (0 a walk that
     ended as planned or was stopped, 3 a watchdog or a fall)."""
-    from gaits.dynamixel import BusError, DynamixelBus
+    from gaits.robot.dynamixel import BusError, DynamixelBus
     try:
         bus = DynamixelBus([p.strip() for p in args.port.split(",")], robot_file, args.baud)
         bus.check()
@@ -412,7 +412,7 @@ def run_on_bus(args: Any, gait: gaits.GaitFile | None, robot_file: Any, sweep: S
         task, what = "walk", f"walk engine, {args.gait}; commands from {source.describe()}"
     recorder = None
     if args.record:
-        from gaits.recording import Recorder, RecordingController, RecordingMeta
+        from gaits.robot.recording import Recorder, RecordingController, RecordingMeta
         # a bus on pseudo-terminals is gait-tuner bus serve's (a real robot's is a serial device): such a
         # recording is of the simulator, and says so
         simulated = all(os.path.realpath(p).startswith("/dev/pts/") for p in bus.names)
