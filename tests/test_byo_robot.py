@@ -420,6 +420,9 @@ def test_a_map_extends_another_group_by_group(tmp_path):
     (tmp_path / "study" / "loop.yaml").write_text("extends: loop.yaml\n")
     with _pytest.raises(UserError, match="more than 8 maps deep"):
         load_robot(str(tmp_path / "study" / "loop.yaml"))
+    (tmp_path / "study" / "xml.yaml").write_text("extends: ../team/robot.xml\n")
+    with _pytest.raises(UserError, match=r"xml.yaml: extends: .*robot.xml"):
+        load_robot(str(tmp_path / "study" / "xml.yaml"))
     (tmp_path / "study" / "gone.yaml").write_text("extends: nowhere.yaml\n")
     with _pytest.raises(UserError, match="extends: .*nowhere.yaml is not a file"):
         load_robot(str(tmp_path / "study" / "gone.yaml"))

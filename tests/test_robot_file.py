@@ -160,6 +160,9 @@ def test_a_robot_whose_soles_sense_what_the_loop_cannot_read_is_refused(tmp_path
         assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, (args, r.stderr)
         assert "names no sole boards (bus: soles:)" in r.stderr and "foot_sensors: false" in r.stderr, r.stderr
     assert not (tmp_path / "rf.yaml").exists() and not (tmp_path / "init").exists()
+    # robot check, which refuses nothing of a valid map, says it
+    r = run_in_process(["robot", "check", str(robot_map), "--no-stand"])
+    assert r.returncode == 0 and "note: the soles sense force" in r.stdout and "names no sole boards" in r.stdout
     # the loop on the robot, given a robot file written before the boards were named
     wired = T.write(tmp_path / "ok", T.mjcf(), T.map_yaml(extra=servos_yaml()))
     ok = tmp_path / "ok.yaml"

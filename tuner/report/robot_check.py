@@ -134,7 +134,9 @@ def robot_report(robot: RobotModel, *, stand: bool = True, duration: float = 2.0
                    for ours in JOINT_NAMES if ours in robot.joint_map},
         "held_joints": {j: round(robot.pose.get(j, 0.0), 4) for j in robot.servos
                         if joint_group({t: o for o, (t, _) in robot.joint_map.items()}.get(j)) != "legs"},
-        "soles": soles, "servos": _servo_groups(robot), "notes": list(robot.notes),
+        "soles": soles, "servos": _servo_groups(robot),
+        # what init, a study, robot export and bus serve refuse (the loop could not read the soles)
+        "notes": list(robot.notes) + ([gap.split(": ", 1)[1]] if (gap := robot.sensing_gap()) else []),
         "sim": {"control_period_s": robot.sim.control_period, "timestep_s": robot.sim.timestep,
                 "max_tilt_deg": robot.sim.max_tilt_deg, "min_height_ratio": robot.sim.min_height_ratio},
     }

@@ -182,7 +182,10 @@ def read_map_doc(path: Path, depth: int = 0) -> Any:
                                             f"itself?)")
     base_path = path.parent / base
     _require(base_path.is_file(), source, f"extends: {base_path} is not a file")
-    parent = read_map_doc(base_path, depth + 1)
+    try:
+        parent = read_map_doc(base_path, depth + 1)
+    except UserError as exc:
+        raise UserError(f"{source}: extends: {exc}") from None
     _require(isinstance(parent, Mapping), source, f"extends: {base_path} is not a robot map")
     out = _paths_from({k: v for k, v in parent.items() if k != "extends"}, base_path.parent, path.parent)
     for k, v in doc.items():
