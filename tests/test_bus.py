@@ -113,6 +113,9 @@ def test_links_a_bus_at_a_time(tmp_path):
                         str(tmp_path / "one"), "--wait", "1"])
     assert r.returncode == 2 and "the robot's devices are on 2 bus(es)" in r.stderr and \
         len(r.stderr.strip().splitlines()) == 1, r.stderr
+    r = run_in_process(["bus", "serve", "--robot", str(robot_map), "--surface", "carpet4", "--link",
+                        f"{tmp_path / 'one'},", "--wait", "1"])
+    assert r.returncode == 2 and "an empty path" in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
 
 
 def _loop(robot_file, link, *extra, **kw):

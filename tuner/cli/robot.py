@@ -32,9 +32,7 @@ def robot_export(robot_spec: str, out: Path) -> None:
     from ..report.provenance import commit_of
     from ..robots import load_robot
     robot = load_robot(robot_spec)
-    gap = robot.sensing_gap()
-    if gap is not None:
-        raise UserError(gap)
+    robot.require_robot_side_reads()
     rf = robot.robot_file()
     joints, held = rf.joints, rf.held
     source = robot.map_path or robot_spec
@@ -167,9 +165,7 @@ def init(robot_name: str, surface_name: str, purpose: str, top_speed: float, out
     from ..search.initial import falls_standing, initial_walk
     from ..sim.surfaces import load_surface
     robot = load_robot(robot_name)
-    gap = robot.sensing_gap()
-    if gap is not None:                 # a walk made with sole forces the robot side cannot read
-        raise UserError(gap)
+    robot.require_robot_side_reads()    # a walk made with sole forces the robot side cannot read
     surface = load_surface(surface_name)
     ref = robot_name if robot_name in BUILTIN_ROBOTS else str(Path(robot_name).resolve())
     name = f"{robot.name}-{surface.name}-{purpose}"
@@ -290,9 +286,7 @@ def bus_serve(robot_name: str, surface_name: str, link: str | None, baud: str, d
     missing = [o for o, j in rf.joints.items() if j.servo is None]
     if missing:
         raise UserError(f"{robot_name}: no servo id for {', '.join(missing)}: give the map a servos: section")
-    gap = robot.sensing_gap()
-    if gap is not None:
-        raise UserError(gap)
+    robot.require_robot_side_reads()
     if hang:
         from ..identify.harness import Harness, HangingSim
         sim = HangingSim(Harness(robot))

@@ -206,6 +206,13 @@ class RobotModel:
                          self.sim.control_period, float(np.sum(self.model().body_mass)), held,
                          bool(self.foot_sensors), self.imu_board, self.sole_boards, self.sole_protocol)
 
+    def require_robot_side_reads(self) -> None:
+        """One :class:`UserError` where a walk made for this robot would read what its robot side
+        cannot (:meth:`sensing_gap`): what ``init``, a study, ``robot export`` and ``bus serve`` ask."""
+        gap = self.sensing_gap()
+        if gap is not None:
+            raise UserError(gap)
+
     def sensing_gap(self) -> str | None:
         """Why the robot side could not read what a walk of this robot is made with, or None: a
         robot wired for it (servo ids) whose soles sense force and whose map names no sole boards.

@@ -337,6 +337,8 @@ def serve(sim: Any, robot: RobotFile, *, baudrate: int = 1_000_000, link: str | 
     the trace's outcome, how far the torso went."""
     from ..errors import UserError
     links = [] if link is None else [link] if isinstance(link, str) else list(link)
+    if any(not one for one in links):
+        raise UserError(f"--link {','.join(links)!r}: an empty path; give one path a bus, comma-separated")
     if links and len(links) != robot.ports:
         raise UserError(f"--link {','.join(links)}: the robot's devices are on {robot.ports} bus(es) (their port: in "
                         f"the map), so give {robot.ports} link(s), one a bus")
