@@ -474,9 +474,13 @@ def check_robot(spec: PolicySpec, robot: Any, source: str) -> None:
             if abs(have - want) > 0.25 * want + slack:
                 unit = "N m/rad" if key == "kp" else "N m s/rad"
                 field_name = "kp" if key == "kp" else "kv"
+                fields = getattr(servo, "fields", lambda: (field_name,))()
+                fix = (f"give its map servo: {{{joint}: {{{field_name}: {want:g}}}}} (or its group's)"
+                       if field_name in fields else
+                       f"its servo law ({getattr(servo, 'law', '?')}) has no {field_name}: give its map a servo "
+                       f"that has (law: pd, kp, kv)")
                 raise ParamError(f"{source}: the policy was trained with {joint}'s servo at {key} {want:g} {unit} "
-                                 f"(policy.gains) and robot {name}'s is at {key} {have:.3g}: give its map "
-                                 f"servo: {{{joint}: {{{field_name}: {want:g}}}}} (or its group's), or leave "
+                                 f"(policy.gains) and robot {name}'s is at {key} {have:.3g}: {fix}, or leave "
                                  f"policy.gains out to run it on these servos")
 
 

@@ -188,6 +188,11 @@ def test_a_joint_the_robot_lacks_and_gains_it_was_not_trained_with_are_named(tmp
     check_robot(policy_from_mapping(spec_doc(gains={"kp": 20.0, "kd": kv}), "p"), legs_only, "p")
     with pytest.raises(ParamError, match=r"trained with l_hip_yaw's servo at kd 3 N m s/rad"):
         check_robot(policy_from_mapping(spec_doc(gains={"kp": 20.0, "kd": 3.0}), "p"), legs_only, "p")
+    # a servo law without a derivative gain (the built-in robot's dc motors) is said so, not given a kv
+    kidsize = load_robot("kidsize")
+    with pytest.raises(ParamError, match=r"its servo law \(dc-motor\) has no kv: give its map a servo that has"):
+        check_robot(policy_from_mapping(spec_doc(gains={"kp": kidsize.servo_of("l_knee").pieces().kp, "kd": 2.0}),
+                                        "p"), kidsize, "p")
     with pytest.raises(ParamError, match=r"policy.gains.kp has 3 numbers: expected 1 or 12"):
         policy_from_mapping(spec_doc(gains={"kp": [1.0, 2.0, 3.0]}), "p")
     assert isinstance(PolicyFactory(spec, "walk.onnx", "p"), PolicyFactory)
