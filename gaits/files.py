@@ -28,6 +28,14 @@ from pathlib import Path
 from typing import Mapping
 
 
+#: an OSError of a path that cannot name the file asked for (the user's mistake, not the disk's), in
+#: words: the command line's and the robot loop's one-line errors
+PATH_PROBLEMS = {errno.ENOTDIR: "a part of the path is a file, not a folder",
+                 errno.ENAMETOOLONG: "a name in the path is longer than the file system allows",
+                 errno.EISDIR: "it is a folder, not a file", errno.ELOOP: "too many symbolic links",
+                 errno.EEXIST: "a file stands where a folder is needed"}
+
+
 def write_text_atomic(path: str | Path, text: str, encoding: str = "utf-8") -> Path:
     """Write ``text`` to ``path``: all of it or, on any error, nothing (the old file stays)."""
     return write_bytes_atomic(path, text.encode(encoding))

@@ -55,9 +55,9 @@ _INTEGERS = ("single_support_timesteps", "planned_timesteps")
 
 
 def _rpy(R: np.ndarray) -> tuple[float, float, float]:
-    """URDF's roll, pitch, yaw (fixed axes x, y, z: R = Rz(yaw) Ry(pitch) Rx(roll)) of a rotation."""
-    pitch = math.asin(max(-1.0, min(1.0, -float(R[2, 0]))))
-    return math.atan2(float(R[2, 1]), float(R[2, 2])), pitch, math.atan2(float(R[1, 0]), float(R[0, 0]))
+    """URDF's roll, pitch, yaw of a rotation (fixed axes x, y, z), as the URDF reader writes them."""
+    from scipy.spatial.transform import Rotation
+    return tuple(float(v) for v in Rotation.from_matrix(R).as_euler("xyz"))
 
 
 def _with_frames(text: str, robot: Any) -> str:

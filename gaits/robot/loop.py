@@ -38,6 +38,7 @@ import time
 import numpy as np
 
 import gaits
+from gaits.files import PATH_PROBLEMS
 from gaits.control import Measurement, Stabilised
 
 LEGS = {1: slice(gaits.JOINT_NAMES.index("l_hip_yaw"), gaits.JOINT_NAMES.index("l_hip_yaw") + 6),
@@ -191,9 +192,7 @@ def _number(low: float, high: float, unit: str, *, integer: bool = False, low_op
 
 
 #: errno values of a path that cannot be a file (the user's mistake) and of a full or read-only disk
-_PATH_ERRNOS = {errno.ENOTDIR: "a part of the path is a file, not a folder", errno.EISDIR: "it is a folder, not a file",
-                errno.EEXIST: "a file stands where a folder is needed", errno.ENOENT: "no such file or folder",
-                errno.EACCES: "permission denied", errno.ENAMETOOLONG: "a name in it is too long"}
+_PATH_ERRNOS = {**PATH_PROBLEMS, errno.ENOENT: "no such file or folder", errno.EACCES: "permission denied"}
 _DISK_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EFBIG, errno.EIO}
 
 

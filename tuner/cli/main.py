@@ -117,8 +117,6 @@ def cli() -> None:
 
 
 _SYSTEM_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.EFBIG}
-#: a path that cannot name a file (inside a file, too long, a folder, a link loop): a bad --out or file name
-_PATH_ERRNOS = {errno.ENOTDIR, errno.ENAMETOOLONG, errno.EISDIR, errno.ELOOP, errno.EEXIST}
 
 
 def _bad_input(exc: BaseException) -> bool:
@@ -174,13 +172,13 @@ def _said(exc: Exception) -> int:
         click.echo(f"gait-tuner: error: {msg}{hint}", err=True)
         return EXIT_USAGE
     except OSError as exc:
-        if exc.errno in _PATH_ERRNOS:       # a path the user gave that cannot be a file: their mistake
+        # a path that cannot name a file (inside a file, too long, a folder, a link loop): a bad --out
+        # or file name, the user's mistake (gaits.files says each in words; imported here, not before
+        # a verb needs it)
+        from gaits.files import PATH_PROBLEMS
+        if exc.errno in PATH_PROBLEMS:
             where = f"{exc.filename}: " if exc.filename else ""
-            why = {errno.ENOTDIR: "a part of the path is a file, not a folder",
-                   errno.ENAMETOOLONG: "a name in the path is longer than the file system allows",
-                   errno.EISDIR: "it is a folder, not a file", errno.ELOOP: "too many symbolic links",
-                   # a folder asked for where a file stands (mkdir of an --out's parent that is a file)
-                   errno.EEXIST: "a file stands where a folder is needed"}[exc.errno]
+            why = PATH_PROBLEMS[exc.errno]
             click.echo(f"gait-tuner: error: {where}{why}", err=True)
             return EXIT_USAGE
         if exc.errno in _SYSTEM_ERRNOS:

@@ -221,17 +221,6 @@ def load_study(path_or_name: str) -> StudySpec:
     """Read and validate a study YAML (a path, or the name of a shipped study); its ``runs:`` (the
     folder of its journal, relative to the file: init writes ``runs: runs``, beside the study) is
     resolved here."""
-    spec = _load_study(path_or_name)
-    runs = read_yaml_file(Path(spec.source), "study").get("runs")
-    if runs is None:
-        return spec
-    if not isinstance(runs, str) or not runs.strip():
-        fail(spec.source, f"runs = {runs!r}: expected the folder of the study's journal (relative to this file)")
-    folder = Path(runs) if Path(runs).is_absolute() else Path(spec.source).parent / runs
-    return dataclasses.replace(spec, runs=folder)
-
-
-def _load_study(path_or_name: str) -> StudySpec:
     path = Path(path_or_name)
     if not os.path.lexists(path) and (STUDY_DIR / f"{path_or_name}.yaml").exists():
         path = STUDY_DIR / f"{path_or_name}.yaml"
@@ -246,6 +235,17 @@ def _load_study(path_or_name: str) -> StudySpec:
     for key in doc:
         if key not in keys:
             fail(source, f"unknown key {key!r}{did_you_mean(key, keys)} (allowed: {', '.join(keys)})")
+    spec = _study_from(doc, path, source)
+    runs = doc.get("runs")
+    if runs is None:
+        return spec
+    if not isinstance(runs, str) or not runs.strip():
+        fail(source, f"runs = {runs!r}: expected the folder of the study's journal (relative to this file)")
+    return dataclasses.replace(spec, runs=Path(runs) if Path(runs).is_absolute() else path.parent / runs)
+
+
+def _study_from(doc: Mapping[str, Any], path: Path, source: str) -> StudySpec:
+    """The study a checked document gives (its keys known)."""
     if doc.get("controller") is not None:
         return _user_study(doc, path, source)
     for key in ("gait", "space"):

@@ -238,9 +238,11 @@ class BusBridge:
         elif p.instruction == SYNC_READ and len(p.params) >= 4:
             addr, length = struct.unpack_from("<HH", p.params)
             if addr == ADDR_PRESENT_VELOCITY and length == 8:
+                # the tick's angles in every servo's units once (not once a servo asked)
+                positions = self.robot.to_servos(np.zeros(len(JOINT_NAMES)) if m is None else m.q)
                 for sid in p.params[4:]:
                     if sid in self.ids and sid in here:
-                        self._send(k, status_packet(sid, self._present(sid)))
+                        self._send(k, status_packet(sid, self._present(sid, positions[sid])))
         elif p.instruction == SYNC_WRITE and len(p.params) >= 4:
             addr, length = struct.unpack_from("<HH", p.params)
             if addr == ADDR_GOAL_POSITION and length == 4:
@@ -259,14 +261,13 @@ class BusBridge:
             self.ignored += 1
         return None
 
-    def _present(self, sid: int) -> bytes:
-        """Present velocity and position of servo ``sid`` from the tick's readings (8 bytes)."""
+    def _present(self, sid: int, pos: int) -> bytes:
+        """Present velocity and position (``pos``, its units) of servo ``sid`` from the tick's
+        readings (8 bytes)."""
         m, ours = self.state.m, self.ids[sid]
         j = self.robot.joints[ours]
         k = JOINT_NAMES.index(ours)
-        q = np.zeros(len(JOINT_NAMES)) if m is None else m.q
         dq = 0.0 if m is None or m.dq is None else float(m.dq[k])
-        pos = self.robot.to_servos(q)[sid]
         vel = int(round(j.sign * j.servo.direction * dq / VELOCITY_UNIT))
         return struct.pack("<ii", vel, pos)
 
