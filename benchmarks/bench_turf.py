@@ -153,7 +153,7 @@ def landing_speeds(robot, surface, drives: dict[str, gaits.Drive]) -> dict[str, 
     """Per drive: (median, fastest) [m/s] of its sole points' downward speeds as they enter the
     blades of ``surface`` (``BladeLayer.entry_speed``: over the tick they entered in; the
     surface's jam is set beyond any of them, so none jams), after the first 1.2 s (standing)."""
-    from tuner.sim import blades
+    from tuner.sim.ground import blades
     sim = Simulator(robot, surface.replace(blade_jam_speed=10.0))
     seen: list[float] = []
     update = blades.BladeLayer.update

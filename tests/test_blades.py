@@ -1,4 +1,4 @@
-"""The blade layer (tuner/sim/blades.py, ours): support by pressure in two stages, blades that hold a
+"""The blade layer (tuner/sim/ground/blades.py, ours): support by pressure in two stages, blades that hold a
 sole point where it entered until friction lets go, force sensors that read it, and the toe-first
 landing it catches while the full-lift EROS walk takes its first steps
 (examples/surfaces/grass50-blades.yaml); the jam of a point that lands fast
@@ -192,7 +192,7 @@ def test_a_point_entering_faster_than_the_jam_speed_is_held_where_it_entered_unt
     base's damping; one from 1 to 4 mm (0.5 m/s) is not. Pulled up 0.9 x F / k_h above its jam
     height it stays jammed, 1.1 x F / k_h it is free, F = blade_jam_pressure x area; out of the
     blades it is free; a new walk forgets it."""
-    from tuner.sim.blades import BladeLayer
+    from tuner.sim.ground.blades import BladeLayer
     area, h = 0.0015, JAM.layer_height
     layer = BladeLayer(JAM, np.full(2, area), 0, 0.01)
     plant = _Plant(2)
@@ -225,7 +225,7 @@ def test_a_point_entering_the_blades_sliding_faster_than_the_slide_speed_is_jamm
     its entry depth, its support gains carrying the spring k_h to that height; one moving 1 mm
     (0.1 m/s) is not; the same two points on a layer that jams by the downward speed only (0.6
     m/s) are not. A walk's first tick has no speed and jams nothing."""
-    from tuner.sim.blades import BladeLayer
+    from tuner.sim.ground.blades import BladeLayer
     area, h = 0.0015, SLIDE.layer_height
     k_h, k_tip = 1e7 * area, 2e4 * area
 

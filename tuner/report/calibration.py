@@ -13,7 +13,7 @@ the stiffest layer (the smaller time constant, the larger dmin), the more
 conservative model. ``gait-tuner calibrate`` runs this and prints the table it
 chose from; the values in ``tuner.surfaces`` are its output.
 
-``layer="blades"`` (issue 25's recalibration on the blade layer, ``tuner/sim/blades.py``; ours)
+``layer="blades"`` (issue 25's recalibration on the blade layer, ``tuner/sim/ground/blades.py``; ours)
 grids the blade layer's unknowns instead on the three grass pedestals: how slowly the tips give
 way (``blade_tip_damping``: 0, a quarter of the base's damping, the base's) and the two jams
 (``blade_jam_speed``: none, 0.60, 0.65 m/s; ``blade_jam_slide``: none, 0.16 m/s), over

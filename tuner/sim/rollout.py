@@ -49,7 +49,7 @@ from .randomisation import Perturbation
 from .sensors import SensorReader
 from ..robots import RobotModel, SimOptions
 from ..servos import MotorServo
-from .blades import BladeLayer
+from .ground.blades import BladeLayer
 from .native_step import arm as arm_native_gate, disarm as disarm_native_gate, install as install_native_gate
 from .native_step import require as require_native_step
 from .scene import (BOTTLE_2019, CORNERS, IMU_SITE_POS, PREFIX, Bottle, add_pendulum, build_scene, drag_gate,

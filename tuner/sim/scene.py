@@ -32,7 +32,7 @@ from gaits import JOINT_NAMES
 from ..robots.robot_model import RobotModel
 from ..robots.solver import SOLVER_OPTIONS
 from ..servos import configure
-from .blades import REF_SITE, add_blades
+from .ground.blades import REF_SITE, add_blades
 from .native_step import BLOCK as GATE_BLOCK
 from .surfaces import Surface
 

@@ -66,7 +66,7 @@ import numpy as np
 
 from gaits.trajectory import GRAVITY
 
-from .blades import BladeLayer, add_blades
+from .ground.blades import BladeLayer, add_blades
 from .scene import PREFIX, add_drag, add_ground, drag_gate
 from .surfaces import Surface
 

@@ -48,7 +48,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from .surfaces import Surface
+from ..surfaces import Surface
 
 __all__ = ["add_blades", "BladeLayer", "BLADE_ACTUATORS", "REF_SITE"]
 
