@@ -113,7 +113,7 @@ def main() -> None:
         same = (np.array_equal(replay(sim, state0, controls), q_end)
                 and np.array_equal(qpos_of(sim, native(sim, state0, per_step, data)), q_end))
         full, rep, nat, pyg = [], [], [], []
-        slow = Simulator(robot, SURFACES[name], native_gate=False) if sim._native_gate else None
+        slow = Simulator(robot, SURFACES[name], native_gate=False) if getattr(sim.ground, "native", False) else None
         if slow is not None:
             a, b = sim.rollout(traj, record_qpos=True), slow.rollout(traj, record_qpos=True)
             same = same and np.array_equal(a.qpos, b.qpos) and np.array_equal(a.force, b.force)

@@ -5,7 +5,13 @@ from pathlib import Path
 
 import pytest
 
+import tuner
+
 ROOT = Path(__file__).resolve().parents[1]
+#: ``tuner`` chooses MuJoCo's GL backend (EGL on a headless Linux) when it is imported before
+#: mujoco: imported here, before any test module, so which module a worker collects first (one that
+#: imports mujoco first) cannot leave a render in the same worker without a GL context
+GL_BACKEND = tuner.__name__
 
 
 @pytest.fixture

@@ -19,7 +19,7 @@ from tuner.robots import load_robot
 from tuner.sim import native_step as native_gate
 from tuner.sim.randomisation import EVALUATE, Randomisation, draw
 from tuner.sim.rollout import Simulator
-from tuner.sim.scene import drag_gate
+from tuner.sim.ground.layer import drag_gate
 from tuner.sim.surfaces import SURFACES
 
 from test_native_rollout import same  # the field-by-field comparison of two walks
@@ -33,7 +33,7 @@ if not native_gate.install():
 def pair(surface):
     s = SURFACES[surface] if isinstance(surface, str) else surface
     a, b = Simulator(ROBOT, s), Simulator(ROBOT, s, native_gate=False)
-    assert a._native_gate and not b._native_gate
+    assert a.ground.native and not b.ground.native
     return a, b
 
 
@@ -76,11 +76,11 @@ def test_the_callback_gates_as_drag_gate_does(depth):
         d.qpos[3:7] = [np.cos(0.1), 0.0, np.sin(0.1), 0.0]     # pitched: the corners at four heights
         d.qpos[2] = 1.0
         mujoco.mj_forward(m, d)
-        d.qpos[2] += z0 - d.site_xpos[sim._drag_sites, 2].min()  # the lowest corner at z0
+        d.qpos[2] += z0 - d.site_xpos[sim.ground.site_ids, 2].min()  # the lowest corner at z0
         d.time = 0.0
         native_gate.arm(m, d, height=h, depth=depth, nstep=sim.nstep, first=first, n_points=8)
         mujoco.mj_forward(m, d)
-        z = d.site_xpos[sim._drag_sites, 2]
+        z = d.site_xpos[sim.ground.site_ids, 2]
         expect = np.repeat(drag_gate(z, h, depth), 2)
         assert np.array_equal(d.ctrl[first:], expect)
         values.extend(d.ctrl[first:])
@@ -102,7 +102,7 @@ def test_the_gate_holds_over_a_tick_and_takes_the_last_steps_heights():
     first, seen = sim._n_act, []
     native_gate.arm(m, d, height=sim.surface.layer_height, depth=0.0, nstep=sim.nstep, first=first, n_points=8)
     for tick in range(40):
-        heights_before = d.site_xpos[sim._drag_sites, 2].copy()
+        heights_before = d.site_xpos[sim.ground.site_ids, 2].copy()
         for _ in range(sim.nstep):
             mujoco.mj_step(m, d)
             seen.append(d.ctrl[first:].copy())
@@ -134,7 +134,7 @@ def test_without_the_callback_the_python_gate_walks(tmp_path):
     """GAIT_TUNER_NATIVE_STEP=0 (or no compiler, or another callback) keeps the gate in Python and
     says so."""
     code = ("from tuner.sim import native_step as native_gate; from tuner.sim.cache import simulator; import gaits\n"
-            "s = simulator('kidsize', 'grass50'); assert not s._native_gate\n"
+            "s = simulator('kidsize', 'grass50'); assert not s.ground.native\n"
             "t = gaits.generate(gaits.load_baseline('tkux-table2').params, s.robot.leg, s.control_period)\n"
             "print(native_gate.status()); print(s.rollout(t).completed)")
     env = {**os.environ, "GAIT_TUNER_NATIVE_STEP": "0"}
@@ -146,7 +146,7 @@ def test_without_the_callback_the_python_gate_walks(tmp_path):
 def test_a_broken_compiler_keeps_the_python_gate(tmp_path):
     """A compiler that fails (here CC=false, with an empty cache): one status line, the Python gate."""
     code = ("from tuner.sim import native_step as native_gate; from tuner.sim.cache import simulator\n"
-            "s = simulator('kidsize', 'grass10'); print(s._native_gate); print(native_gate.status())")
+            "s = simulator('kidsize', 'grass10'); print(s.ground.native); print(native_gate.status())")
     env = {**os.environ, "CC": "false", "XDG_CACHE_HOME": str(tmp_path)}
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
@@ -158,7 +158,7 @@ def test_a_broken_compiler_keeps_the_python_gate(tmp_path):
 def test_the_gate_compiles_into_an_empty_cache(tmp_path):
     """On a machine that has not built it yet: compiled once into the user cache, then used."""
     code = ("from tuner.sim import native_step as native_gate; from tuner.sim.cache import simulator\n"
-            "s = simulator('kidsize', 'grass30'); print(s._native_gate); print(native_gate.status())")
+            "s = simulator('kidsize', 'grass30'); print(s.ground.native); print(native_gate.status())")
     env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path)}
     env.pop("CC", None)
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
@@ -191,4 +191,5 @@ def test_which_surfaces_gate_their_drag():
         "rigid": False, "carpet4": False, "grass10": True, "grass30": True, "grass50": True}
     blades = load_surface(str(Path(__file__).resolve().parents[1] / "examples" / "surfaces" / "grass50-blades.yaml"))
     assert blades.drag > 0.0 and not blades.drag_gated
-    assert len(Simulator(ROBOT, blades)._drag_sites) == 0
+    ground = Simulator(ROBOT, blades).ground
+    assert ground.name == "blades" and ground.python_tick and not hasattr(ground, "native")

@@ -46,6 +46,7 @@ from gaits.control import PlanRecord, StartPose
 from ..errors import UserError
 from ..robots.robot_model import RobotModel
 from .servos import ENTANGLED, _sysid
+from ..sim.ground import kind_of
 from ..sim.rollout import Simulator
 from ..sim.surfaces import Surface
 
@@ -66,12 +67,9 @@ HORIZON = 3.0            # [s] of each recording the replays are fitted over (ou
 
 
 def ground_fields(s: Surface) -> tuple[str, ...]:
-    """The surface fields a walk can tell (see the module docstring), the two main ones first."""
-    if s.rigid:
-        return ("friction",)
-    if s.blades:
-        return ("blade_modulus", "blade_damping", "blade_shear", "friction")
-    return ("layer_timeconst",) + (("drag",) if s.drag > 0 else ()) + ("layer_dampratio", "friction")
+    """The surface fields a walk can tell (see the module docstring), the two main ones first: its
+    kind of ground's (``tuner/sim/ground/``)."""
+    return kind_of(s).fit_fields()
 
 
 @dataclass

@@ -12,7 +12,7 @@
  *    of the joint's friction-loss constraint row for this step (the row and its island copy) (friction_budget in motor.py is
  *    its numpy reference; the layout of the numbers is mirrored there).
  *
- * 2. The grass drag dampers' gate. It does what Simulator._ground_tick does in Python between
+ * 2. The grass drag dampers' gate. It does what ContactLayer.tick (ground/layer.py) does in Python between
  * control ticks, to the bit, so that a walk on a contact-layer grass can run in MuJoCo's
  * native rollout:
  *

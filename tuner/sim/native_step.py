@@ -7,7 +7,7 @@
   user numbers (``scene`` writes them) and written into the step's constraint row. Without the
   callback such a robot is refused (:func:`require`), not walked with the wrong friction;
 * **the grass drag dampers' gate**: on a contact-layer grass each sole corner's drag dampers are
-  switched on while the corner is in the blades (``scene.drag_gate``). The tick loop did it in
+  switched on while the corner is in the blades (``ground.layer.drag_gate``). The tick loop did it in
   Python between control ticks, which kept every grass walk out of MuJoCo's native rollout (1.15x
   its cost). MuJoCo has no native element that gates a damper along x by a height along z. The
   gate reads its numbers from the last :data:`BLOCK` entries of ``mjData.userdata`` (the
@@ -17,7 +17,7 @@ This module compiles the C file with the machine's C compiler into a user cache,
 ctypes and installs it as MuJoCo's control callback (``mjcb_control``), which MuJoCo calls inside
 every physics step, in ``mj_step`` and in ``mujoco.rollout`` alike. The gate computes the loop's
 gate to the bit (the same comparisons and one division, from the same corner heights at the same
-instants; tested against :meth:`Simulator._ground_tick` walk by walk); the friction budget is
+instants; tested against the contact layer's Python tick, ``ground/layer.py``, walk by walk); the friction budget is
 ``motor.friction_budget``'s arithmetic (tested equal). Without a compiler (or with
 ``GAIT_TUNER_NATIVE_STEP=0``, or when another callback is installed) :func:`install` returns False
 and the simulator keeps the Python gate: the same walks, slower.

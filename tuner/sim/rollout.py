@@ -49,10 +49,8 @@ from .randomisation import Perturbation
 from .sensors import SensorReader
 from ..robots import RobotModel, SimOptions
 from ..servos import MotorServo
-from .ground.blades import BladeLayer
-from .native_step import arm as arm_native_gate, disarm as disarm_native_gate, install as install_native_gate
 from .native_step import require as require_native_step
-from .scene import (BOTTLE_2019, CORNERS, IMU_SITE_POS, PREFIX, Bottle, add_pendulum, build_scene, drag_gate,
+from .scene import (BOTTLE_2019, CORNERS, IMU_SITE_POS, Bottle, add_pendulum, build_scene,
                     fall_height_at_com)
 from .surfaces import Surface
 
@@ -194,23 +192,17 @@ class Simulator:
         self.model = spec.compile()
         self.data = mujoco.MjData(self.model)
         self._index()
-        self._layer_h = surface.layer_height
         m = self.model
         self._nominal = {name: getattr(m, name).copy() for name in
                          ("body_mass", "body_subtreemass", "body_inertia", "body_ipos", "actuator_gainprm", "actuator_biasprm",
                           "actuator_forcerange", "actuator_damping", "actuator_user", "dof_damping", "dof_frictionloss",
                           "geom_friction", "geom_margin", "geom_solref", "geom_solimp")}
         self._nominal_gravity = m.opt.gravity.copy()
-        contact_layer = not surface.rigid and not surface.blades
-        self._ground = [m.geom(PREFIX + "soil").id] + ([m.geom(PREFIX + "layer").id] if contact_layer else [])
-        self._layer = m.geom(PREFIX + "layer").id if contact_layer else None
-        self._blade = None
-        if surface.blades:                     # each sole corner stands for a quarter of its sole
-            area = np.repeat([robot.foot_size_of(i)[0] * robot.foot_size_of(i)[1] / 4 for i in range(2)], 4)
-            self._blade = BladeLayer(surface, area, self._n_act, self.control_period)
-            self._mu_blade = surface.friction
-        # the contact layer's drag gate: in MuJoCo's step where it can be (native_step.py)
-        self._native_gate = surface.drag_gated and native_gate and install_native_gate()
+        #: the surface's kind of ground (``tuner/sim/ground/``), on the sole corners; each corner stands
+        #: for a quarter of its sole; a contact layer's drag gate in MuJoCo's step where it can be
+        self.ground = self.layout.ground
+        area = np.repeat([robot.foot_size_of(i)[0] * robot.foot_size_of(i)[1] / 4 for i in range(2)], 4)
+        self.ground.bind(m, area, self.control_period, self._sole_corners, native=native_gate)
         if self.layout.friction_terms:          # a servo's extended friction runs only there
             require_native_step(f"robot {robot.name!r}: a servo's extended friction (friction_model m2-m6)")
 
@@ -264,8 +256,6 @@ class Simulator:
         # which servo actuators are dc-motors (the randomisation draws their voltage, kt, R, friction)
         self._motor = np.array([isinstance(r.servos[t], MotorServo) for t in theirs + list(held)], dtype=bool)
         self._act_dof = np.array([m.jnt_dofadr[m.actuator_trnid[k, 0]] for k in range(self._n_act)], dtype=int)
-        # each corner's x damper's site (native_step.c finds them the same way)
-        self._drag_sites = m.actuator_trnid[self._n_act::2, 0].copy() if self.surface.drag_gated else np.zeros(0, int)
 
     def to_robot(self, q_gait: np.ndarray) -> np.ndarray:
         """Joint targets in gait-tuner order and signs (..., 20) -> the robot's servos (..., n)."""
@@ -308,7 +298,7 @@ class Simulator:
         d.ctrl[self._n_servo:self._n_act] = self._held_pose
         d.qpos[0:3] = [xy[0], xy[1], 1.0]
         d.qpos[3:7] = [1.0, 0.0, 0.0, 0.0]
-        d.qpos[2] = 1.0 - self._lowest_sole_z() + self._layer_h + 0.0005
+        d.qpos[2] = 1.0 - self._lowest_sole_z() + self.ground.layer_height + 0.0005
         mujoco.mj_forward(m, d)
         return float(d.sensordata[self._s_height])      # the fall check's height (scene: origin, or CoM)
 
@@ -330,20 +320,11 @@ class Simulator:
             mujoco.mj_forward(m, d)
         return self.run(HoldPose(q0, self.control_period), duration=duration, start=release, height_check=False)
 
-    def _ground_tick(self) -> None:
-        """The ground's per-tick part at the sole corners: the contact layer's drag dampers switched
-        on where a corner is inside the layer (module ``tuner.surfaces``; MuJoCo applies -drag * v
-        every physics step), or the blade layer's stages and holds (``blades.py``)."""
-        d = self.data
-        if self._blade is None:
-            # the corners' heights MuJoCo computed in the last step (what native_step.c reads)
-            inside = drag_gate(d.site_xpos[self._drag_sites, 2], self._layer_h, self.surface.drag_depth)
-            d.ctrl[self._n_act:] = np.repeat(inside, 2)                     # x and y per corner
-        else:
-            R = d.xmat[self._feet].reshape(2, 3, 3)
-            off = R @ self._corners_T                                       # (2, 3, 4) corners from the feet
-            p = (d.xpos[self._feet][:, :, None] + off).transpose(0, 2, 1).reshape(8, 3)
-            self._blade.update(self.model, d, p, self._layer_h, self._mu_blade)
+    def _sole_corners(self, d: mujoco.MjData) -> np.ndarray:
+        """The sole corners' world positions (8, 3) [m] in ``d`` (left foot's four, then right's)."""
+        R = d.xmat[self._feet].reshape(2, 3, 3)
+        off = R @ self._corners_T                                       # (2, 3, 4) corners from the feet
+        return (d.xpos[self._feet][:, :, None] + off).transpose(0, 2, 1).reshape(8, 3)
 
     def n_random(self) -> tuple[int, int, int]:
         """(bodies, servo actuators incl. held joints, mapped servos): the sizes a perturbation draws."""
@@ -382,20 +363,7 @@ class Simulator:
         m.actuator_gainprm[a, 0] = nom["actuator_gainprm"][a, 0] * gain_f
         m.actuator_biasprm[a, 1] = nom["actuator_biasprm"][a, 1] * gain_f
         m.actuator_forcerange[a] = nom["actuator_forcerange"][a] * torque_f[:, None]
-        for g in self._ground:
-            m.geom_friction[g, 0] = nom["geom_friction"][g, 0] * p.friction
-        if self._layer is not None:
-            g = self._layer
-            self._layer_h = self.surface.layer_height * p.layer_height
-            m.geom_margin[g] = nom["geom_margin"][g] * p.layer_height
-            m.geom_solimp[g, 2] = nom["geom_solimp"][g, 2] * p.layer_height
-            m.geom_solref[g, 0] = nom["geom_solref"][g, 0] * p.layer_timeconst
-        drag = slice(self._n_act, m.nu)
-        m.actuator_gainprm[drag, 2] = nom["actuator_gainprm"][drag, 2] * p.drag
-        if self.surface.blades:                 # the blades' height, friction and drag as the layer's
-            self._layer_h = self.surface.layer_height * p.layer_height
-            self._mu_blade = self.surface.friction * p.friction
-            self._blade.drag_scale = p.drag
+        self.ground.perturb(m, nom, p)          # its friction, height, stiffness and drag by their factors
         m.opt.gravity[:] = np.linalg.norm(self._nominal_gravity) * p.gravity_dir
 
     def _restore(self) -> None:
@@ -403,10 +371,7 @@ class Simulator:
         for name, value in self._nominal.items():
             getattr(m, name)[:] = value
         m.opt.gravity[:] = self._nominal_gravity
-        self._layer_h = self.surface.layer_height
-        if self.surface.blades:
-            self._mu_blade = self.surface.friction
-            self._blade.drag_scale = 1.0
+        self.ground.restore()
 
     def rollout(self, traj: GaitTrajectory, *, duration: float | None = None, perturb: Perturbation | None = None,
                 stabiliser: StabiliserParams | None = None, record_qpos: bool = False) -> Trace:
@@ -512,9 +477,8 @@ class Simulator:
         qvel = d.qvel
         z_min = self.fall.min_height_ratio * z0 if height_check else -math.inf
         # a per-tick part of the ground in Python: the blade layer, or the drag gate without its callback
-        ground = self.surface.blades or (self.surface.drag_gated and not self._native_gate)
-        if self._blade is not None:
-            self._blade.reset()
+        ground = self.ground.python_tick
+        self.ground.reset()
         W = mujoco.mjtWarning          # MuJoCo resets a state it finds huge or NaN, with one of these
         warn_q, warn_v, warn_a = d.warning[W.mjWARN_BADQPOS], d.warning[W.mjWARN_BADQVEL], d.warning[W.mjWARN_BADQACC]
         reason, k_end = "completed", n_ticks
@@ -528,9 +492,7 @@ class Simulator:
         sent = deque(cmd.copy() for _ in range(latency))   # commands on their way to the servos
         meas = reader.read(0.0)
         controller.reset(meas)
-        if self._native_gate:           # MuJoCo gates the drag inside its steps from here on (native_step.c)
-            arm_native_gate(m, d, height=self._layer_h, depth=self.surface.drag_depth, nstep=self.nstep,
-                            first=self._n_act, n_points=len(self._drag_sites))
+        self.ground.arm(m, d, self.nstep)      # a contact layer's native drag gate from here on
         try:
             # a controller that senses nothing and knows its targets ahead (a joint table, without a
             # command stream): its targets mapped to the servos at once, not read, stepped and
@@ -593,7 +555,7 @@ class Simulator:
                 ctrl[:n_servo] = out
                 sent_log[k] = out
                 if ground:
-                    self._ground_tick()
+                    self.ground.tick(m, d)
                 kick = kicks.get(k - 1)
                 if kick is not None:
                     d.xfrc_applied[torso, :3] = kick
@@ -624,8 +586,7 @@ class Simulator:
                     k_end, reason = k + 1, "stopped"
                     break
         finally:
-            if self._native_gate:
-                disarm_native_gate(m, d)
+            self.ground.disarm(m, d)
         trace = self._trace(controller.plan(k_end), sens[:k_end], cmds[:k_end], targets[:k_end, col],
                             reason, z0)
         trace.q_sent = self.from_robot(sent_log[:k_end])

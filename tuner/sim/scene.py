@@ -32,14 +32,11 @@ from gaits import JOINT_NAMES
 from ..robots.robot_model import RobotModel
 from ..robots.solver import SOLVER_OPTIONS
 from ..servos import configure
-from .ground.blades import REF_SITE, add_blades
-from .native_step import BLOCK as GATE_BLOCK
+from .ground import PREFIX, GroundKind, kind_of
 from .surfaces import Surface
 
-__all__ = ["PREFIX", "SceneLayout", "build_scene", "add_ground", "add_drag", "drag_gate", "CORNERS", "IMU_SITE_POS",
-           "fall_height_at_com"]
+__all__ = ["PREFIX", "SceneLayout", "build_scene", "CORNERS", "IMU_SITE_POS", "fall_height_at_com"]
 
-PREFIX = "gt/"
 #: Sole corners and touch quadrants, (sign x, sign y): toe-left, toe-right, heel-left, heel-right.
 CORNERS = ((1, 1), (1, -1), (-1, 1), (-1, -1))
 #: [m] the IMU site in the torso frame (axes the torso's)
@@ -52,10 +49,11 @@ class SceneLayout:
 
     servo_joints: tuple[str, ...]      # our names of the mapped joints, JOINT_NAMES order
     held_joints: tuple[str, ...]       # MJCF names of the other actuated joints
-    n_drag: int                        # drag dampers (2 per sole corner, 0 on rigid/carpet)
+    n_drag: int                        # the ground's actuators (on the sole corners; 0 on rigid/carpet)
     sensors: tuple[tuple[str, int], ...]   # (block name, width) in sensordata order
     touch_quadrant: tuple[int, ...]    # per touch sensor, its sole quadrant 0..7 (left 0-3, right 4-7)
     friction_terms: int = 0            # servos with a per-step friction term (native_step.c runs them)
+    ground: GroundKind | None = None   # the surface's kind, its points attached (``tuner/sim/ground/``)
 
 
 def fall_height_at_com(robot: RobotModel) -> bool:
@@ -96,83 +94,6 @@ def _nq(spec: mujoco.MjSpec) -> int:
     return sum(sizes[j.type] for j in spec.joints)
 
 
-def add_ground(spec: mujoco.MjSpec, s: Surface, gt: mujoco.MjsDefault) -> None:
-    """The surface ``s`` as MuJoCo geoms (``tuner/sim/surfaces.py`` says what each stands for): the
-    soil plane, and for a carpet or grass the layer plane whose margin is the blade height (a blade
-    layer has none: its springs are actuators on the soles, ``blades.py``), plus a drawn-only slab
-    as tall as the blades. The robot's scene and the turf test rigs (``turf_tests.py``) stand on
-    the same ground."""
-    soil = spec.worldbody.add_geom(default=gt, name=PREFIX + "soil", type=mujoco.mjtGeom.mjGEOM_PLANE,
-                                   size=[0, 0, 0.05])
-    soil.friction = [s.soil_friction, 0.005, 0.0001]
-    soil.priority = 2
-    soil.contype = 0
-    soil.conaffinity = 1
-    soil.rgba = [0.45, 0.35, 0.25, 1]
-    # drawn only: a 10 cm checker on the ground (motion and slip are visible in a video) and
-    # a light from above; neither touches the physics
-    tex = spec.add_texture(name=PREFIX + "grid", type=mujoco.mjtTexture.mjTEXTURE_2D,
-                           builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER, width=256, height=256,
-                           rgb1=[0.66, 0.56, 0.42], rgb2=[0.50, 0.40, 0.30])
-    mat = spec.add_material(name=PREFIX + "grid")
-    mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = tex.name
-    mat.texrepeat = [10, 10]
-    mat.texuniform = True
-    soil.material = mat.name
-    sun = spec.worldbody.add_light(name=PREFIX + "sun", pos=[0, 0, 3], dir=[0.2, 0.3, -1],
-                                   diffuse=[0.8, 0.8, 0.8], specular=[0.2, 0.2, 0.2])
-    sun.castshadow = False
-    if not s.rigid and not s.blades:
-        layer = spec.worldbody.add_geom(default=gt, name=PREFIX + "layer", type=mujoco.mjtGeom.mjGEOM_PLANE,
-                                        size=[0, 0, 0.05])
-        layer.margin = s.layer_height
-        layer.friction = [s.friction, 0.005, 0.0001]
-        layer.solref = [s.layer_timeconst, s.layer_dampratio]
-        layer.solimp = [s.layer_dmin, s.layer_dmax, s.layer_height, 0.5, 2.0]
-        layer.priority = 2
-        layer.contype = 0
-        layer.conaffinity = 1
-        layer.group = 1
-        layer.rgba = [0.2, 0.6, 0.2, 0.0]     # invisible: at the soil's height it would z-fight; the slab shows it
-    if not s.rigid:
-        # drawn only: a translucent slab as tall as the blades, so a video shows how deep the
-        # feet sink (no contact, no mass: the physics is the layer plane's margin above, or the
-        # blade layer's springs)
-        blades = spec.worldbody.add_geom(default=gt, name=PREFIX + "blades", type=mujoco.mjtGeom.mjGEOM_BOX,
-                                         size=[4.0, 4.0, s.layer_height / 2], pos=[0, 0, s.layer_height / 2])
-        blades.contype = 0
-        blades.conaffinity = 0
-        blades.group = 1
-        blades.rgba = [0.35, 0.85, 0.3, 0.22]
-
-
-def add_drag(spec: mujoco.MjSpec, s: Surface, gt: mujoco.MjsDefault, site: str, label: str) -> int:
-    """The layer's drag on one point (``site``): a damper along world x and one along y (site
-    transmission, a world reference site): force = -drag * v * ctrl, computed by MuJoCo every
-    physics step and integrated implicitly (implicitfast), so it is stable at any drag; ctrl
-    gates it per tick to the points inside the layer (:func:`drag_gate`). Returns the number of
-    actuators added (2)."""
-    if REF_SITE not in {x.name for x in spec.sites}:
-        spec.worldbody.add_site(default=gt, name=REF_SITE, pos=[0, 0, 0])
-    for axis, gear in (("x", [1, 0, 0, 0, 0, 0]), ("y", [0, 1, 0, 0, 0, 0])):
-        act = spec.add_actuator(default=gt, name=f"{PREFIX}drag/{label}_{axis}", target=site,
-                                refsite=REF_SITE, trntype=mujoco.mjtTrn.mjTRN_SITE)
-        act.set_to_damper(kv=s.drag)
-        act.gear = gear
-        act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
-        act.ctrlrange = [0.0, 1.0]
-    return 2
-
-
-def drag_gate(z: np.ndarray, layer_height: float, drag_depth: float = 0.0) -> np.ndarray:
-    """The drag dampers' ctrl of points at heights ``z`` [m] above the soil: inside the layer 1, or
-    with ``drag_depth`` > 0 the depth below the blade tips over ``drag_depth``, at most 1."""
-    inside = z < layer_height
-    if drag_depth <= 0.0:
-        return inside.astype(float)
-    return np.where(inside, np.minimum(1.0, (layer_height - z) / drag_depth), 0.0)
-
-
 def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, SceneLayout]:
     """The editable model of ``robot`` on ``surface`` with our servos, sensors and drag."""
     r, s = robot, surface
@@ -190,7 +111,8 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
         spec.delete(sn)
     gt = _our_default(spec)
 
-    add_ground(spec, s, gt)
+    ground = kind_of(s)
+    ground.add_geoms(spec, gt)
 
     spec.body(r.torso).add_site(default=gt, name=PREFIX + "imu", pos=list(IMU_SITE_POS))
     depth = s.layer_height + 0.03
@@ -222,9 +144,9 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
         act = spec.add_actuator(default=gt, name=PREFIX + label, target=theirs, trntype=mujoco.mjtTrn.mjTRN_JOINT)
         friction_terms += configure(spec, spec.joint(theirs), act, r.servos[theirs])
 
-    # in-layer drag on each sole corner (add_drag)
+    # the ground's part at each sole corner (its kind's actuators)
     n_drag = 0
-    if s.drag > 0.0 or s.blades:
+    if ground.on_points:
         for i, (side, fname) in enumerate(zip("lr", r.feet)):
             foot = spec.body(fname)
             fl, fw = r.foot_size_of(i)            # each foot's own sole (the simulator's gate uses it)
@@ -232,12 +154,8 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
                 site = f"{PREFIX}{side}_corner{k}"
                 foot.add_site(default=gt, name=site, pos=list(r.sole_points(i, [[sx * fl / 2, sy * fw / 2, 0.0]])[0]),
                               group=4)
-                if s.blades:                      # each corner stands for a quarter of its sole (blades.py)
-                    n_drag += add_blades(spec, s, gt, site, f"{side}{k}")
-                else:
-                    n_drag += add_drag(spec, s, gt, site, f"{side}{k}")
-        if s.drag_gated:                          # the native gate's numbers (native_step.py), after the file's own
-            spec.nuserdata += GATE_BLOCK
+                n_drag += ground.attach(spec, gt, site, f"{side}{k}")
+    spec.nuserdata += ground.user_slots           # after the file's own (the native gate's numbers)
 
     # sensors, in this order
     S, O = mujoco.mjtSensor, mujoco.mjtObj
@@ -263,10 +181,11 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
                 sensor("touch", 1, name=f"{PREFIX}{side}_touch{k}_{j}", type=S.mjSENS_TOUCH, objtype=O.mjOBJ_SITE,
                        objname=f"{PREFIX}{side}_touch{k}_{j}")
                 touch_quadrant.append(4 * i + k)
-            if s.blades:                          # the blades carry the sole without a contact: the
+            force = ground.point_force(f"{side}{k}")
+            if force is not None:                 # the ground carries the sole without a contact: the
                 # quadrant's force sensor reads its corner's support (a real sole's sensor would)
-                sensor("touch", 1, name=f"{PREFIX}{side}_blades{k}", type=S.mjSENS_ACTUATORFRC,
-                       objtype=O.mjOBJ_ACTUATOR, objname=f"{PREFIX}blades/{side}{k}_z")
+                sensor("touch", 1, name=f"{PREFIX}{side}_ground{k}", type=S.mjSENS_ACTUATORFRC,
+                       objtype=O.mjOBJ_ACTUATOR, objname=force)
                 touch_quadrant.append(4 * i + k)
     for side in "lr":
         for k in range(4):
@@ -307,7 +226,7 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
             ctrl = [float(qpos[adr[t]]) for t in targets]
         key.ctrl = ctrl + [0.0] * n_drag
         key.act = []
-    return spec, SceneLayout(servo_joints, held, n_drag, tuple(blocks), tuple(touch_quadrant), friction_terms)
+    return spec, SceneLayout(servo_joints, held, n_drag, tuple(blocks), tuple(touch_quadrant), friction_terms, ground)
 
 
 #: The push-recovery challenge's pendulum (RoboCup Humanoid League, technical challenges, Part A,

@@ -1,7 +1,7 @@
 """The sports-turf test methods, simulated on our surfaces: the (Advanced) Artificial Athlete drop
 test and the rotational resistance test, each on the same ground the robot walks on
-(``scene.add_ground``; the layer's drag, ``scene.add_drag``, or the blade layer, ``blades.py``, on
-the test foot's points as on a sole's corners), so a team can hold our layers against what turf
+(its kind of ground, ``tuner/sim/ground/``: the layer's drag or the blade layer on the test foot's
+points as on a sole's corners), so a team can hold our layers against what turf
 makers and test houses publish.
 
 **Drop test** (EN 14808 / FIFA Test Method 04a and 05a, the Advanced Artificial Athlete, as we
@@ -66,8 +66,7 @@ import numpy as np
 
 from gaits.trajectory import GRAVITY
 
-from .ground.blades import BladeLayer, add_blades
-from .scene import PREFIX, add_drag, add_ground, drag_gate
+from .ground import PREFIX, kind_of
 from .surfaces import Surface
 
 __all__ = ["DropTest", "RotationTest", "SpringGround", "DropResult", "RotationResult", "drop_test",
@@ -184,51 +183,34 @@ GROUND_TICK = 0.002
 
 
 class _Points:
-    """The ground's per-point part on a rig, as on the robot's soles: a contact layer's drag, or the
-    blade layer (``blades.py``), on the given sites, each standing for its ``area`` of sole. Call
-    :meth:`tick` every 2 ms (the rigs' choice; the robot's simulation does it every 10 ms tick)."""
+    """The ground on a rig, as under the robot: its kind's geoms (``tuner/sim/ground/``), and its
+    per-point part (a contact layer's drag, or the blade layer) on the given sites, each standing
+    for its ``area`` of sole. Call :meth:`bind` once the rig is compiled and :meth:`tick` every 2 ms
+    (the rigs' choice; the robot's simulation does it every 10 ms tick)."""
 
-    def __init__(self, spec: mujoco.MjSpec, ground: Surface | SpringGround, gt, sites: list[str],
-                 areas: list[float]) -> None:
-        self.ground, self.sites = ground, sites
-        self.kind = None
-        if isinstance(ground, Surface) and ground.blades:
-            self.kind = "blades"
-        elif isinstance(ground, Surface) and ground.drag_gated:
-            self.kind = "drag"
-        self.first = len(spec.actuators)
-        for i, site in enumerate(sites):
-            if self.kind == "blades":
-                add_blades(spec, ground, gt, site, f"p{i}")
-            elif self.kind == "drag":
-                add_drag(spec, ground, gt, site, f"p{i}")
-        self.blades = BladeLayer(ground, np.asarray(areas), self.first, GROUND_TICK) if self.kind == "blades" else None
-        self.ids = None
+    def __init__(self, spec: mujoco.MjSpec, ground: Surface, gt, sites: list[str], areas: list[float]) -> None:
+        self.ground = kind_of(ground)
+        self.ground.add_geoms(spec, gt)
+        self.areas = np.asarray(areas, dtype=float)
+        if self.ground.on_points:
+            for i, site in enumerate(sites):
+                self.ground.attach(spec, gt, site, f"p{i}")
+
+    @property
+    def first(self) -> int:
+        """The first of the ground's actuators (they come after the rig's own)."""
+        return self.ground.first
+
+    def bind(self, m: mujoco.MjModel) -> None:
+        self.ground.bind(m, self.areas, GROUND_TICK)
+        self.ground.reset()
 
     def tick(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
-        if self.kind is None:
-            return
-        if self.ids is None:
-            self.ids = np.array([m.site(s).id for s in self.sites], dtype=int)
-        g = self.ground
-        if self.kind == "blades":
-            self.blades.update(m, d, d.site_xpos[self.ids], g.layer_height, g.friction)
-        else:
-            gate = drag_gate(d.site_xpos[self.ids, 2], g.layer_height, g.drag_depth)
-            d.ctrl[self.first:self.first + 2 * len(self.ids)] = np.repeat(gate, 2)
+        if self.ground.python_tick:
+            self.ground.tick(m, d)
 
 
-def _foot_on(ground: Surface | SpringGround, spec: mujoco.MjSpec, gt, foot: mujoco.MjsBody) -> None:
-    """Put the ground under ``foot`` (a body with a vertical slide joint named ``gt/foot_z``)."""
-    if isinstance(ground, SpringGround):
-        j = spec.joint(PREFIX + "foot_z")
-        j.stiffness = [ground.stiffness, 0.0, 0.0]      # MuJoCo 4: [linear, ...] terms
-        j.damping = [ground.damping, 0.0, 0.0]
-        return
-    add_ground(spec, ground, gt)
-
-
-def _drop_rig(ground: Surface | SpringGround, t: DropTest, with_mass: bool) -> tuple[mujoco.MjModel, _Points]:
+def _drop_rig(ground: Surface | SpringGround, t: DropTest, with_mass: bool) -> tuple[mujoco.MjModel, _Points | None]:
     """The rig: the test foot on a vertical slide joint (``gt/foot_z``: on a spring ground its rest
     length is z = 0), and with ``with_mass`` the falling mass on a slide joint inside it
     (``gt/spring``, the spring's compression, stiffness the test's) carrying the accelerometer."""
@@ -254,9 +236,17 @@ def _drop_rig(ground: Surface | SpringGround, t: DropTest, with_mass: bool) -> t
         mass.add_site(name=PREFIX + "accel")
         spec.add_sensor(name=PREFIX + "accel", type=mujoco.mjtSensor.mjSENS_ACCELEROMETER,
                         objtype=mujoco.mjtObj.mjOBJ_SITE, objname=PREFIX + "accel")
-    _foot_on(ground, spec, gt, foot)
-    points = _Points(spec, ground, gt, [PREFIX + "foot_point"], [math.pi * r * r])
-    return spec.compile(), points
+    points = None
+    if spring_ground:                  # the ground under the foot: a spring on its slide joint
+        j = spec.joint(PREFIX + "foot_z")
+        j.stiffness = [ground.stiffness, 0.0, 0.0]      # MuJoCo 4: [linear, ...] terms
+        j.damping = [ground.damping, 0.0, 0.0]
+    else:
+        points = _Points(spec, ground, gt, [PREFIX + "foot_point"], [math.pi * r * r])
+    m = spec.compile()
+    if points is not None:
+        points.bind(m)
+    return m, points
 
 
 def drop_test(ground: Surface | SpringGround, t: DropTest = DropTest()) -> DropResult:
@@ -268,19 +258,17 @@ def drop_test(ground: Surface | SpringGround, t: DropTest = DropTest()) -> DropR
     tick = max(1, int(round(GROUND_TICK / t.timestep)))
     # the apparatus puts its foot on the surface: it settles without a jam (a blade layer's, which
     # a foot let fall onto it would meet)
-    placed = ground
-    if isinstance(ground, Surface) and ground.jams:
-        placed = ground.replace(blade_jam_speed=0.0, blade_jam_slide=0.0)
+    placed = kind_of(ground).at_rest() if isinstance(ground, Surface) else ground
     alone, pts0 = _drop_rig(placed, t, with_mass=False)
     d0 = mujoco.MjData(alone)
     for n in range(int(round(t.settle / t.timestep))):
-        if n % tick == 0:
+        if n % tick == 0 and pts0 is not None:
             mujoco.mj_kinematics(alone, d0)
             pts0.tick(alone, d0)
         mujoco.mj_step(alone, d0)
     m, pts = _drop_rig(ground, t, with_mass=True)
-    if pts.blades is not None:                 # the blades under the foot as the settling left them
-        pts.blades.inside[:], pts.blades.anchor[:] = pts0.blades.inside, pts0.blades.anchor
+    if pts is not None:                        # the ground under the foot as the settling left it
+        pts.ground.carry_over(pts0.ground)
     d = mujoco.MjData(m)
     jf, js = m.joint(PREFIX + "foot_z").qposadr[0], m.joint(PREFIX + "spring").qposadr[0]
     vf, vs = m.joint(PREFIX + "foot_z").dofadr[0], m.joint(PREFIX + "spring").dofadr[0]
@@ -291,7 +279,7 @@ def drop_test(ground: Surface | SpringGround, t: DropTest = DropTest()) -> DropR
     ts, fs, zs = [0.0], [0.0], [0.0]
     z0 = float(d.qpos[jf])
     for n in range(1, int(round(3.0 / t.timestep))):        # at most 3 s (the softest ground: ~1 s)
-        if (n - 1) % tick == 0:
+        if (n - 1) % tick == 0 and pts is not None:
             pts.tick(m, d)
         mujoco.mj_step(m, d)
         ts.append(n * t.timestep)
@@ -355,9 +343,9 @@ def rotation_test(ground: Surface | SpringGround, t: RotationTest = RotationTest
         disc.add_site(name=sites[-1], pos=[x, y, -t.stud_length])
     turn = spec.add_actuator(name=PREFIX + "turn", target=PREFIX + "turn", trntype=mujoco.mjtTrn.mjTRN_JOINT)
     turn.set_to_velocity(kv=2000.0)
-    add_ground(spec, ground, gt)
     pts = _Points(spec, ground, gt, sites, [math.pi * (t.disc_diameter / 2) ** 2 / t.studs] * t.studs)
     m = spec.compile()
+    pts.bind(m)
     d = mujoco.MjData(m)
     dof = m.joint(PREFIX + "turn").dofadr[0]
     stud_ids = np.array([m.site(s).id for s in sites], dtype=int)
@@ -413,9 +401,9 @@ def _sole_rig(ground: Surface, joints: tuple[str, ...], mass: float, sole: tuple
     for k, (sx, sy) in enumerate(((1, 1), (1, -1), (-1, 1), (-1, -1))):
         sites.append(f"{PREFIX}corner{k}")
         body.add_site(name=sites[-1], pos=[sx * sole[0] / 2, sy * sole[1] / 2, 0.0])
-    add_ground(spec, ground, gt)
     pts = _Points(spec, ground, gt, sites, [sole[0] * sole[1] / 4] * 4)
     m = spec.compile()
+    pts.bind(m)
     return m, mujoco.MjData(m), pts
 
 
@@ -428,7 +416,7 @@ def _run(m: mujoco.MjModel, d: mujoco.MjData, pts: _Points, n: int, ctrl=None, a
             mujoco.mj_kinematics(m, d)
             pts.tick(m, d)
         if ctrl is not None:
-            k = pts.first if pts.kind is not None else m.nu
+            k = pts.first if pts.ground.n_actuators else m.nu
             d.ctrl[:k] = ctrl(i)
         mujoco.mj_step(m, d)
         if after is not None:

@@ -36,7 +36,7 @@ tips (``layer_height`` above the soil) and v its velocity:
   on, or both. docs/simulation.md "A sole jammed by a fast landing" says what each reproduces of the paper's
   tables and what neither does.
 
-Each point has three site-transmission actuators with affine gains (``add_blades``): MuJoCo
+Each point has three site-transmission actuators with affine gains (``Blades.add_point``): MuJoCo
 computes the forces every physics step, the damping implicitly (``implicitfast``); once per
 control tick :class:`BladeLayer` switches on the points inside the layer, picks each point's
 spring stage and moves the anchors (a few vector operations: no per-step Python). The surface
@@ -45,41 +45,106 @@ fields, units and bounds are in ``surfaces.py``; ``blade_modulus`` = 0 keeps the
 
 from __future__ import annotations
 
+from typing import Any
+
 import mujoco
 import numpy as np
 
 from ..surfaces import Surface
+from .kind import PREFIX, GroundKind, register_kind
 
-__all__ = ["add_blades", "BladeLayer", "BLADE_ACTUATORS", "REF_SITE"]
+__all__ = ["Blades", "BladeLayer", "BLADE_ACTUATORS"]
 
 #: actuators per sole point: the support, then the hold along world x and along y
 BLADE_ACTUATORS = 3
-#: the world reference site of every site-transmission actuator of the ground (blades and drag)
-REF_SITE = "gt/drag_ref"
 
 
-def add_blades(spec: mujoco.MjSpec, s: Surface, gt: mujoco.MjsDefault, site: str, label: str) -> int:
-    """The blade layer's three actuators on one sole point (``site``), in the order
-    :class:`BladeLayer` drives them (gains set per tick); returns how many were added."""
-    if REF_SITE not in {x.name for x in spec.sites}:
-        spec.worldbody.add_site(default=gt, name=REF_SITE, pos=[0, 0, 0])
-    for axis, gear in (("z", [0, 0, 1, 0, 0, 0]), ("x", [1, 0, 0, 0, 0, 0]), ("y", [0, 1, 0, 0, 0, 0])):
-        act = spec.add_actuator(default=gt, name=f"gt/blades/{label}_{axis}", target=site, refsite=REF_SITE,
-                                trntype=mujoco.mjtTrn.mjTRN_SITE)
-        act.gear = gear
-        act.gaintype = mujoco.mjtGain.mjGAIN_AFFINE
-        act.gainprm[:3] = [0.0, 0.0, 0.0]
-        act.biastype = mujoco.mjtBias.mjBIAS_NONE
-        act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
-        act.ctrlrange = [0.0, 1.0]
-    return BLADE_ACTUATORS
+@register_kind
+class Blades(GroundKind):
+    """The blade layer as a kind of ground: no contact layer; three actuators on each sole point
+    driven by :class:`BladeLayer` every control tick (module docstring)."""
+
+    name = "blades"
+    fields = ("blade_modulus", "blade_damping", "blade_shear", "friction")
+
+    def __init__(self, surface: Surface) -> None:
+        super().__init__(surface)
+        self.layer: BladeLayer | None = None
+        self.friction = surface.friction          # the blades' friction in the walk now
+
+    @classmethod
+    def claims(cls, surface: Surface) -> bool:
+        return surface.blade_modulus > 0.0
+
+    @property
+    def on_points(self) -> bool:
+        return True
+
+    def add_geoms(self, spec: mujoco.MjSpec, gt: mujoco.MjsDefault) -> None:
+        super().add_geoms(spec, gt)
+        self.add_slab(spec, gt)
+
+    def add_point(self, spec: mujoco.MjSpec, gt: mujoco.MjsDefault, site: str, label: str) -> int:
+        """The three actuators on one sole point, in the order :class:`BladeLayer` drives them
+        (gains set per tick)."""
+        ref = self.ref_site(spec, gt)
+        for axis, gear in (("z", [0, 0, 1, 0, 0, 0]), ("x", [1, 0, 0, 0, 0, 0]), ("y", [0, 1, 0, 0, 0, 0])):
+            act = spec.add_actuator(default=gt, name=f"{PREFIX}blades/{label}_{axis}", target=site, refsite=ref,
+                                    trntype=mujoco.mjtTrn.mjTRN_SITE)
+            act.gear = gear
+            act.gaintype = mujoco.mjtGain.mjGAIN_AFFINE
+            act.gainprm[:3] = [0.0, 0.0, 0.0]
+            act.biastype = mujoco.mjtBias.mjBIAS_NONE
+            act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            act.ctrlrange = [0.0, 1.0]
+        return BLADE_ACTUATORS
+
+    def point_force(self, label: str) -> str | None:
+        """The blades carry the sole without a contact: the point's support actuator's force."""
+        return f"{PREFIX}blades/{label}_z"
+
+    def bind(self, model: mujoco.MjModel, areas: np.ndarray, period: float, points=None, *,
+             native: bool = False) -> None:
+        super().bind(model, areas, period, points)
+        self.layer = BladeLayer(self.surface, np.asarray(areas, dtype=float), self.first, period)
+
+    @property
+    def python_tick(self) -> bool:
+        return True
+
+    def reset(self) -> None:
+        self.layer.reset()
+
+    def tick(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        self.layer.update(model, data, self._points(data), self.layer_height, self.friction)
+
+    def perturb(self, model: mujoco.MjModel, nominal: dict[str, np.ndarray], p: Any) -> None:
+        """As the base, and the blades' height, friction and drag as a contact layer's."""
+        super().perturb(model, nominal, p)
+        self.layer_height = self.surface.layer_height * p.layer_height
+        self.friction = self.surface.friction * p.friction
+        self.layer.drag_scale = p.drag
+
+    def restore(self) -> None:
+        super().restore()
+        self.friction = self.surface.friction
+        self.layer.drag_scale = 1.0
+
+    def at_rest(self) -> Surface:
+        """A foot set down on the blades is not jammed (a foot let fall onto them would be)."""
+        s = self.surface
+        return s.replace(blade_jam_speed=0.0, blade_jam_slide=0.0) if s.jams else s
+
+    def carry_over(self, other: GroundKind) -> None:
+        assert isinstance(other, Blades) and other.layer is not None
+        self.layer.inside[:], self.layer.anchor[:] = other.layer.inside, other.layer.anchor
 
 
 class BladeLayer:
     """The per-tick state of the blade layer on N sole points (module docstring).
 
     ``areas`` (N,) [m^2]: the sole each point stands for; ``first`` the index of the first point's
-    first actuator (each point's three follow in :func:`add_blades`' order)."""
+    first actuator (each point's three follow in :meth:`Blades.add_point`'s order)."""
 
     def __init__(self, surface: Surface, areas: np.ndarray, first: int, dt: float) -> None:
         a = np.asarray(areas, dtype=float)
