@@ -57,6 +57,10 @@ def rpy_from_quat(quat: np.ndarray) -> np.ndarray:
 READINGS = ("q", "dq", "imu_rpy", "gyro", "accel", "foot_force")
 
 
+#: each of our 20 roles' column in ``JOINT_NAMES``
+_ROLE = {name: i for i, name in enumerate(JOINT_NAMES)}
+
+
 @dataclass(slots=True)
 class Measurement:
     """What a kid-size robot senses at one control tick (SI units, gait-tuner's joint signs).
@@ -85,12 +89,13 @@ class Measurement:
 
     def in_our_order(self, values: np.ndarray) -> np.ndarray:
         """An encoder reading (angles or rates, columns ``joint_names``) in ``JOINT_NAMES`` order, 0
-        for a joint not read."""
+        for a joint not read (a robot's joints beyond the 20 roles left out)."""
         if self.joint_names == JOINT_NAMES:
             return values
         out = np.zeros(len(JOINT_NAMES))
         for name, v in zip(self.joint_names, values):
-            out[JOINT_NAMES.index(name)] = v
+            if name in _ROLE:
+                out[_ROLE[name]] = v
         return out
 
 
@@ -134,7 +139,7 @@ def finite_readings(m: Measurement) -> tuple[Measurement, tuple[str, ...]]:
 class StartPose:
     """Where a controller wants the robot at t = 0: its joint pose and the pelvis's ground position."""
 
-    q: np.ndarray                          # (20,) [rad] JOINT_NAMES
+    q: np.ndarray                          # (20,) [rad] JOINT_NAMES (then the robot's extra joints, if it drives them)
     p_world_pelvis_xy: np.ndarray = field(default_factory=lambda: np.zeros(2))   # [m]
 
 

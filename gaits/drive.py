@@ -142,7 +142,7 @@ class UserController:
             if unknown:
                 raise ParamError(f"{bad} senses naming {unknown[0]!r}: not a reading (readings: "
                                  f"{', '.join(READINGS)})")
-        return UserCode(ctl, self.source, self.limits)
+        return UserCode(ctl, self.source, self.limits, tuple(getattr(robot, "extra_joints", ()) or ()))
 
 
 class UserCode:
@@ -152,10 +152,12 @@ class UserCode:
     the user's code it came from (the command line prints it as one line, exit 2: a mistake in the
     user's code is not one of ours to report)."""
 
-    def __init__(self, ctl: Any, source: str, limits: TimeLimits = TimeLimits()) -> None:
+    def __init__(self, ctl: Any, source: str, limits: TimeLimits = TimeLimits(),
+                 extra_joints: tuple[str, ...] = ()) -> None:
         self._ctl = ctl
         self.source = source
         self.limits = limits
+        self.extra_joints = extra_joints        # the robot's joints beyond the 20 roles (its map's)
         self.spent = 0.0                       # [s] in its calls this walk (reset() starts a walk)
 
     def __getattr__(self, name: str) -> Any:
@@ -205,11 +207,13 @@ class UserCode:
         self.spent = 0.0
         pose = self.call(self._ctl.start_pose, "start_pose()")
         q = getattr(pose, "q", None)
-        if q is None or np.shape(q) != (len(JOINT_NAMES),):
+        n, extra = len(JOINT_NAMES), self.extra_joints
+        if q is None or np.shape(q) not in ((n,), (n + len(extra),)):
             got = "None" if pose is None else (f"{np.shape(q)[0] if np.ndim(q) == 1 else np.shape(q)} angles"
                                                if q is not None else type(pose).__name__)
+            more = f" (or {n + len(extra)}: then the robot's extra joints {', '.join(extra)})" if extra else ""
             raise ParamError(f"controller {self.source}: start_pose() returned {got}: expected "
-                             f"gaits.control.StartPose(q) with {len(JOINT_NAMES)} joint angles (JOINT_NAMES)")
+                             f"gaits.control.StartPose(q) with {n} joint angles (JOINT_NAMES){more}")
         return pose
 
     def reset(self, m: Any) -> None:

@@ -7,7 +7,8 @@ layout; a *policy file* says that layout, so any of them walks here and on the r
     policy:
       model: walk.onnx                # relative to this file; one input (1, N) or (N,), one output
       period: 0.02                    # [s] the policy's control period, a whole number of loop ticks
-      joints: [l_hip_yaw, ..., r_ankle_roll]   # our joint names (gaits.JOINT_NAMES): the order of
+      joints: [l_hip_yaw, ..., r_ankle_roll]   # our joint names (gaits.JOINT_NAMES; a robot's joint beyond
+                                      #   them by its map's extra_joints name): the order of
                                       #   joint_pos, joint_vel, last_action and of the action
       default_pose: {l_knee: 0.6, ...}  # [rad] our signs; joints not named stand at 0
       observation:                    # the terms in order, each (value - offset) * scale, clipped
@@ -42,6 +43,7 @@ so the robot side installs it only if it runs a policy.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
@@ -52,6 +54,9 @@ from .control import PlanRecord, StartPose
 from .leg_kinematics import rot_x, rot_y
 from .params import ParamError
 from .trajectory import JOINT_NAMES
+
+#: a joint name a policy may give: one of our 20 roles, or a robot's extra joint by its map's name
+_JOINT_NAME = re.compile(r"[a-z][a-z0-9_]*")
 
 __all__ = ["PolicySpec", "Term", "PolicyController", "PolicyFactory", "policy_from_mapping", "gravity_in_body",
            "TERMS", "TUNABLE", "onnx_runner", "check_robot", "check_sizes", "base_velocity", "gains_unstated"]
@@ -174,8 +179,9 @@ def policy_from_mapping(doc: Any, source: str) -> PolicySpec:
     if not isinstance(joints, list) or not joints:
         raise ParamError(f"{source}: policy.joints: expected a list of our joint names ({', '.join(JOINT_NAMES[:3])}, ...)")
     for j in joints:
-        if j not in JOINT_NAMES:
-            raise ParamError(f"{source}: policy.joints: {j!r} is not one of our joints ({', '.join(JOINT_NAMES)})")
+        if not isinstance(j, str) or not _JOINT_NAME.fullmatch(j):
+            raise ParamError(f"{source}: policy.joints: {j!r} is not a joint name (our 20 roles, {', '.join(JOINT_NAMES[:3])}, "
+                             f"..., or a robot's extra joint by its map's name)")
     if len(set(joints)) != len(joints):
         raise ParamError(f"{source}: policy.joints names a joint twice")
     n = len(joints)
@@ -183,8 +189,8 @@ def policy_from_mapping(doc: Any, source: str) -> PolicySpec:
     if not isinstance(pose, Mapping):
         raise ParamError(f"{source}: policy.default_pose: expected joint: angle [rad]")
     for j, v in pose.items():
-        if j not in JOINT_NAMES:
-            raise ParamError(f"{source}: policy.default_pose: {j!r} is not one of our joints")
+        if j not in joints and j not in JOINT_NAMES:
+            raise ParamError(f"{source}: policy.default_pose: {j!r} is not one of our joints nor one the policy drives")
         _numbers(v, 1, f"policy.default_pose.{j}", source)
     obs_doc = doc["observation"]
     if not isinstance(obs_doc, list) or not obs_doc:
@@ -312,8 +318,16 @@ class PolicyController:
         if self.leg is None and any(t.term == "base_velocity" for t in spec.observation):
             raise ParamError(f"{source}: observation term base_velocity needs the robot's legs (a robot file or "
                              f"map), and this robot states none")
-        self.index = np.array([JOINT_NAMES.index(j) for j in spec.joints])
-        self.default = np.array([spec.default_pose.get(j, 0.0) for j in JOINT_NAMES])
+        # the targets' order: our 20 roles, then the robot's extra joints (its map's extra_joints)
+        self.names = tuple(JOINT_NAMES) + tuple(getattr(robot, "extra_joints", ()) or ())
+        unknown = [j for j in spec.joints if j not in self.names]
+        if unknown:
+            extras = self.names[len(JOINT_NAMES):]
+            raise ParamError(f"{source}: policy.joints: {unknown[0]!r} is neither one of our 20 roles nor an extra "
+                             f"joint of robot {getattr(robot, 'name', '?')} (its extra joints: "
+                             f"{', '.join(extras) or 'none'}; a map names them under extra_joints:)")
+        self.index = np.array([self.names.index(j) for j in spec.joints])
+        self.default = np.array([spec.default_pose.get(j, 0.0) for j in self.names])
         self.walk_start = 0.0
         self.reset_state()
 
@@ -456,7 +470,7 @@ def check_robot(spec: PolicySpec, robot: Any, source: str) -> None:
         missing = [j for j in spec.joints if j not in jmap]
         if missing:
             raise ParamError(f"{source}: policy.joints: {missing[0]!r} is not a joint of robot "
-                             f"{getattr(robot, 'name', '?')} (its map names {', '.join(j for j in JOINT_NAMES if j in jmap)})")
+                             f"{getattr(robot, 'name', '?')} (its map names {', '.join(jmap)})")
     servos = getattr(robot, "servos", None)
     if not (jmap and servos):
         return

@@ -145,7 +145,7 @@ def test_the_two_feet_phase_of_playgrounds_bipeds(tmp_path):
                                                            "joint_pos 12, joint_vel 12, last_action 12, phase 2, imu_rpy 3, "
                                                            "gyro 3) but the model takes 50"),
     (lambda d: d["observation"].append({"term": "foot_contact"}), "unknown term 'foot_contact'"),
-    (lambda d: d["joints"].__setitem__(0, "l_wrist"), "policy.joints: 'l_wrist' is not one of our joints"),
+    (lambda d: d["joints"].__setitem__(0, "l_wrist"), "policy.joints: 'l_wrist' is not a joint of robot kidsize"),
     (lambda d: d["observation"][0].__setitem__("scale", [1.0, 2.0]), "policy.observation[0] (gyro).scale has 2 numbers"),
     (lambda d: d.__setitem__("period", 0.015), "policy.period = 0.015 s is not a whole number of the loop's 0.01 s ticks"),
     (lambda d: d["joints"].pop(), "the observation has 47 numbers"),

@@ -24,12 +24,13 @@ def joint_name(kind: str, side: str) -> str:
 
 def mjcf(feet: str = "two_box", torso_com_x: float = -0.015, kp: float = 21.1, torque: float = 5.0,
          key_ctrl: int = 20, swap_lr: bool = False, yaw_offset: float = 0.0, knee_ahead: float = 0.0,
-         ankle_ahead: float = 0.0, ankle_tilt_deg: float = 0.0) -> str:
+         ankle_ahead: float = 0.0, ankle_tilt_deg: float = 0.0, shoulder_yaw: bool = False) -> str:
     """The MJCF text. ``feet``: "two_box" or "capsule". Legs that are not ideal, as many teams'
     are (the numerical leg IK's robots): ``yaw_offset`` [m] the hip yaw axis that far ahead of the
     hip centre; ``knee_ahead`` and ``ankle_ahead`` [m] the knee and ankle pitch axes that far ahead
     of the hip at the zero pose (bent legs; thigh and shank keep their lengths); ``ankle_tilt_deg``
-    the ankle roll axis tilted up at the front by that much."""
+    the ankle roll axis tilted up at the front by that much. ``shoulder_yaw``: a 22-joint robot, each
+    upper arm also turning about its own length (``ShoulderYaw_L``, ``ShoulderYaw_R``)."""
     import math
     thigh_z = -math.sqrt(0.11015 ** 2 - knee_ahead ** 2)
     shank_z = -math.sqrt(0.11 ** 2 - (ankle_ahead - knee_ahead) ** 2)
@@ -84,6 +85,10 @@ def mjcf(feet: str = "two_box", torso_com_x: float = -0.015, kp: float = 21.1, t
       </body>
     </body>"""
 
+    def yaw(side: str) -> str:
+        return f'\n        <joint name="{joint_name("shoulder_yaw", side)}" axis="0 1 0" range="-1.5 1.5"/>' \
+            if shoulder_yaw else ""
+
     def arm(side: str, s: int) -> str:
         n = {k: joint_name(k, side) for k in ARM}
         return f"""
@@ -92,7 +97,7 @@ def mjcf(feet: str = "two_box", torso_com_x: float = -0.015, kp: float = 21.1, t
       <joint name="{n['sho_pitch']}" axis="0 {s} 0" range="-3.1 3.1"/>
       <body name="upper_arm_{side}" pos="0.019 {s * 0.0285} -0.01">
         <inertial pos="-0.018 {s * 0.045} 0" mass="0.178" diaginertia="2.3e-4 2.2e-4 3e-5"/>
-        <joint name="{n['sho_roll']}" axis="-1 0 0" range="-2 2"/>
+        <joint name="{n['sho_roll']}" axis="-1 0 0" range="-2 2"/>{yaw(side)}
         <geom class="collision" type="capsule" fromto="-0.018 {s * 0.01} 0 -0.018 {s * 0.08} 0" size="0.015"/>
         <body name="forearm_{side}" pos="0 {s * 0.0904} 0">
           <inertial pos="-0.019 {s * 0.07} 0.004" mass="0.041" diaginertia="6.9e-5 6.2e-5 1.2e-5"/>

@@ -363,5 +363,6 @@ def walk_log(name: str, dt: float, t_targets_q, rpy, gyro, accel, joints) -> Wal
     _, targets, q = t_targets_q
     full = np.zeros((len(targets), len(JOINT_NAMES)))
     for i, j in enumerate(joints):
-        full[:, JOINT_NAMES.index(j)] = targets[:, i]
+        if j in JOINT_NAMES:                   # a robot's extra joint: held at its pose in the replay
+            full[:, JOINT_NAMES.index(j)] = targets[:, i]
     return WalkLog(name, dt, full, tuple(joints), q, rpy, gyro, accel)

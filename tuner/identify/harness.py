@@ -433,8 +433,16 @@ class HangingSim:
         self.s = h.servo_arrays() if s is None else s
         self.control_period = h.control_period
         self.surface = type("Harness", (), {"name": "a harness"})()
-        self._cols = np.array([JOINT_NAMES.index(j) for j in h.joint_names])
-        self._n = len(JOINT_NAMES)
+        # the robot side's controllers drive our 20 roles; the robot's extra joints hold their pose
+        names = tuple(JOINT_NAMES) + h.robot.extra_joints
+        self._cols = np.array([names.index(j) for j in h.joint_names])
+        self._n = len(names)
+        self._roles = len(JOINT_NAMES)
+
+    def _full(self, q) -> np.ndarray:
+        """Targets of our 20 roles -> with the extra joints at their pose (0) after them."""
+        q = np.asarray(q, dtype=float)
+        return np.concatenate([q, np.zeros(self._n - len(q))]) if len(q) < self._n else q
 
     def run(self, controller, duration: float, perturb=None):
         from collections import deque
@@ -443,7 +451,7 @@ class HangingSim:
         h, s = self.h, self.s
         model = h.compile(s)
         d = mujoco.MjData(model)
-        q0 = np.asarray(controller.start_pose().q, dtype=float)[self._cols]
+        q0 = self._full(controller.start_pose().q)[self._cols]
         mujoco.mj_resetData(model, d)
         d.qpos[h._qadr] = np.clip(h.to_robot(q0), h.q_lo, h.q_hi)
         d.qpos[h._held_qadr] = h._held_pose
@@ -461,10 +469,11 @@ class HangingSim:
             dq = np.zeros(self._n)
             q[self._cols] = h.from_robot(d.qpos[h._qadr])
             dq[self._cols] = d.qvel[h._dofadr] * h._sign
-            return Measurement(t, q=q, dq=dq, imu_rpy=level[0], gyro=level[1], accel=level[2])
+            return Measurement(t, q=q[:self._roles], dq=dq[:self._roles], imu_rpy=level[0], gyro=level[1],
+                               accel=level[2])
         controller.reset(read(0.0))
         for k in range(1, int(round(duration / h.control_period)) + 1):
-            target = np.asarray(controller.step(read((k - 1) * h.control_period)), dtype=float)
+            target = self._full(controller.step(read((k - 1) * h.control_period)))
             want = h.to_robot(target[self._cols])
             cmd = np.clip(cmd + np.clip(want - cmd, -step, step), h.q_lo, h.q_hi)
             queue.append(cmd.copy())

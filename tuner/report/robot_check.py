@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from gaits import GaitTrajectory, JOINT_NAMES
+from gaits import GaitTrajectory
 from gaits.trajectory import assemble
 
 from ..robots.mjcf_geometry import CROUCH
@@ -131,7 +131,7 @@ def robot_report(robot: RobotModel, *, stand: bool = True, duration: float = 2.0
 },
         "sources": dict(robot.sources),
         "joints": {ours: {"mjcf": robot.joint_map[ours][0], "sign": robot.joint_map[ours][1]}
-                   for ours in JOINT_NAMES if ours in robot.joint_map},
+                   for ours in robot.servo_joints},
         "held_joints": {j: round(robot.pose.get(j, 0.0), 4) for j in robot.servos
                         if joint_group({t: o for o, (t, _) in robot.joint_map.items()}.get(j)) != "legs"},
         "soles": soles, "servos": _servo_groups(robot),

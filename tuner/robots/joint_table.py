@@ -27,7 +27,8 @@ def robot_joint_table(traj: GaitTrajectory, robot: RobotModel) -> GaitTrajectory
         theirs, sign = robot.joint_map[n]
         cols.append(sign * traj.q_ref[:, traj.joint_names.index(n)] + robot.pose.get(theirs, 0.0))
         names.append(theirs)
-    for theirs in robot.held_joints:
+    # the extra joints (a gait drives the 20 roles) and the held ones stand at their pose
+    for theirs in [robot.joint_map[n][0] for n in robot.extra_joints] + list(robot.held_joints):
         cols.append(np.full(len(traj.t), robot.pose.get(theirs, 0.0)))
         names.append(theirs)
     return dataclasses.replace(traj, q_ref=np.column_stack(cols), joint_names=tuple(names),

@@ -23,6 +23,9 @@ Format (paths relative to the map file)::
       l_hip_yaw: LHipYaw
       l_knee: {name: LKnee, sign: -1}
       ...                         # all 12 leg joints; head and arm joints optional
+    extra_joints:                 # optional: joints beyond our 20 roles, by a name of yours (a-z, 0-9, _)
+      l_shoulder_yaw: LShoulderYaw  #   as in joints:; the engines hold them at pose, a policy drives
+                                  #   them by that name; the robot side holds them (robot file held:)
     leg: {thigh: 0.11}            # optional: LegGeometry fields, derived from the model otherwise
     servos: {default: {ticks_per_turn: 4096, centre: 2048}, Knee_L: {id: 14, direction: -1}}
                                   # optional: servo IDs and units for --format servo (servo_table.py)
@@ -69,7 +72,7 @@ __all__ = ["load_map", "map_with_servo", "extending", "read_map_doc", "LEG_AXES"
 LEG_AXES = {"hip_yaw": (0, 0, 1), "hip_roll": (1, 0, 0), "hip_pitch": (0, 1, 0),
             "knee": (0, 1, 0), "ankle_pitch": (0, 1, 0), "ankle_roll": (1, 0, 0)}
 MAP_KEYS = ("mjcf", "urdf", "packages", "ranges", "balance_inertia", "foot_sensors", "bus", "name", "torso", "feet",
-            "joints", "leg", "servo", "servos", "pose", "sim")
+            "joints", "extra_joints", "leg", "servo", "servos", "pose", "sim")
 #: How far apart two axis lines that must meet may be, and how far the straight leg's
 #: centres may stray from a vertical line [m] (ours).
 AXIS_TOLERANCE = 0.005
@@ -283,6 +286,7 @@ def load_map(path: Path) -> RobotModel:
                  f"feet.{side}: body {feet[side]!r} not in {mjcf.name}")
     _require(feet["left"] != feet["right"], source, f"feet: left and right are the same body {feet['left']!r}")
     jmap = _read_joints(doc["joints"], model, source, mjcf.name)
+    jmap.update(_read_extra_joints(doc.get("extra_joints"), jmap, model, source, mjcf.name))
 
     d = mujoco.MjData(model)
     mujoco.mj_kinematics(model, d)
@@ -559,27 +563,56 @@ def _ranges(doc: Any, source: str) -> dict[str, tuple[float, float]]:
     return out
 
 
+def _read_joint(section: str, ours: str, theirs: Any, model: mujoco.MjModel, source: str,
+                fname: str) -> tuple[str, int | None]:
+    """One entry ``ours: theirs`` or ``ours: {name: theirs, sign: 1 or -1}`` of a map's joint section."""
+    sign = None
+    if isinstance(theirs, Mapping):
+        _require(set(theirs) <= {"name", "sign"} and "name" in theirs, source,
+                 f"{section}.{ours}: expected {{name: ..., sign: 1 or -1}}")
+        sign = theirs.get("sign")
+        _require(sign is None or (sign in (1, -1) and not isinstance(sign, bool)), source,
+                 f"{section}.{ours}.sign = {sign!r}: must be 1 or -1")
+        theirs = theirs["name"]
+    if not isinstance(theirs, str) or not _has(model, mujoco.mjtObj.mjOBJ_JOINT, theirs):
+        names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(model.njnt)]
+        _require(False, source, f"{section}.{ours}: {theirs!r} is not a joint of {fname}"
+                                f"{did_you_mean(str(theirs), names)}")
+    _require(model.jnt_type[model.joint(theirs).id] == mujoco.mjtJoint.mjJNT_HINGE, source,
+             f"{section}.{ours}: {theirs!r} is not a hinge joint")
+    return theirs, sign
+
+
+def _read_extra_joints(doc: Any, jmap: Mapping[str, tuple[str, int | None]], model: mujoco.MjModel, source: str,
+                       fname: str) -> dict[str, tuple[str, int | None]]:
+    """The map's ``extra_joints:``: joints beyond our 20 roles (a shoulder yaw, a waist), by a name of
+    the map's own (lower case, digits, underscores) -> the MJCF joint, as in ``joints:``. The walk
+    engines hold them at ``pose``; a policy may drive them by that name (``gaits/policy.py``)."""
+    if doc is None:
+        return {}
+    _require(isinstance(doc, Mapping), source, "extra_joints must be a mapping of a name of yours: MJCF joint")
+    out: dict[str, tuple[str, int | None]] = {}
+    taken = {theirs for theirs, _ in jmap.values()}
+    for ours, theirs in doc.items():
+        _require(isinstance(ours, str) and re.fullmatch(r"[a-z][a-z0-9_]*", ours) is not None, source,
+                 f"extra_joints: {ours!r}: a name of lower-case letters, digits and underscores")
+        _require(ours not in JOINT_NAMES, source, f"extra_joints.{ours}: one of our 20 roles; map it under joints:")
+        name, sign = _read_joint("extra_joints", ours, theirs, model, source, fname)
+        _require(name not in taken, source, f"extra_joints.{ours}: {name!r} is mapped twice")
+        taken.add(name)
+        out[ours] = (name, sign)
+    return out
+
+
 def _read_joints(joints: Any, model: mujoco.MjModel, source: str, fname: str) -> dict[str, tuple[str, int | None]]:
     _require(isinstance(joints, Mapping), source, "joints must be a mapping of our name: MJCF joint")
     jmap: dict[str, tuple[str, int | None]] = {}
     for ours, theirs in joints.items():
         if ours not in JOINT_NAMES:
             _require(False, source, f"joints: unknown joint {ours!r}{did_you_mean(ours, JOINT_NAMES)} "
-                                    f"(ours are: {', '.join(JOINT_NAMES)})")
-        sign = None
-        if isinstance(theirs, Mapping):
-            _require(set(theirs) <= {"name", "sign"} and "name" in theirs, source,
-                     f"joints.{ours}: expected {{name: ..., sign: 1 or -1}}")
-            sign = theirs.get("sign")
-            _require(sign is None or (sign in (1, -1) and not isinstance(sign, bool)), source,
-                     f"joints.{ours}.sign = {sign!r}: must be 1 or -1")
-            theirs = theirs["name"]
-        if not _has(model, mujoco.mjtObj.mjOBJ_JOINT, theirs):
-            names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(model.njnt)]
-            _require(False, source, f"joints.{ours}: {theirs!r} is not a joint of {fname}{did_you_mean(theirs, names)}")
-        _require(model.jnt_type[model.joint(theirs).id] == mujoco.mjtJoint.mjJNT_HINGE, source,
-                 f"joints.{ours}: {theirs!r} is not a hinge joint")
-        jmap[ours] = (theirs, sign)
+                                    f"(ours are: {', '.join(JOINT_NAMES)}; a joint beyond them goes under "
+                                    f"extra_joints:)")
+        jmap[ours] = _read_joint("joints", ours, theirs, model, source, fname)
     missing = [j for j in JOINT_NAMES if j[2:] in LEG_JOINTS and j not in jmap]
     _require(not missing, source, f"joints: leg joints missing from the map: {', '.join(missing)}")
     used = [v[0] for v in jmap.values()]

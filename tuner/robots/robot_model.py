@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any, Mapping
 import mujoco
 import numpy as np
 
-from gaits import LegGeometry
+from gaits import JOINT_NAMES, LegGeometry
 from gaits.leg_kinematics import LEG_JOINTS
 from gaits.robot.robot_file import SENSING_GAP, ImuBoard
 
@@ -77,7 +77,8 @@ class RobotModel:
     """A robot ready for the simulator.
 
     ``joint_map`` maps each of our joint names (:data:`gaits.JOINT_NAMES`) the robot has to
-    (MJCF joint name, sign): legs required, head and arms optional. ``servos`` gives every
+    (MJCF joint name, sign): legs required, head and arms optional; a joint beyond the 20 roles
+    goes under a name of the map's own (``extra_joints``, :attr:`extra_joints`). ``servos`` gives every
     hinge joint we actuate (mapped or held) its servo, keyed by MJCF joint name; ``pose``
     holds the angle [rad, the file's convention] at which every non-leg joint is held.
     ``feet`` names the foot bodies, ``soles`` their sole centres in the foot frame,
@@ -189,10 +190,13 @@ class RobotModel:
         [rad/s] and torque [N m] (a joint without a servo: the MX-64's 6.5 and 6.0, ours), units and
         the joints held at ``pose``."""
         from gaits.robot.robot_file import JointSpec, RobotFile
-        names = [theirs for theirs, _ in self.joint_map.values()]
+        # the robot side drives the 20 roles; an extra joint is held at its pose there as an unmapped
+        # one is (no controller of the robot side drives one)
+        roles = {ours: v for ours, v in self.joint_map.items() if ours in JOINT_NAMES}
+        names = [theirs for theirs, _ in roles.values()]
         lo, hi = self.joint_ranges(names)
         joints = {}
-        for (ours, (theirs, sign)), low, high in zip(self.joint_map.items(), lo, hi):
+        for (ours, (theirs, sign)), low, high in zip(roles.items(), lo, hi):
             servo = self.servos.get(theirs)
             pieces = servo.pieces() if servo else None
             joints[ours] = JointSpec(theirs, int(sign), float(low) if np.isfinite(low) else -np.pi,
@@ -220,6 +224,18 @@ class RobotModel:
         if not self.servo_units or not self.foot_sensors or self.sole_boards is not None:
             return None
         return f"{self.map_path or self.name}: {SENSING_GAP}"
+
+    @property
+    def extra_joints(self) -> tuple[str, ...]:
+        """Our names of the joints the map names beyond the 20 roles (its ``extra_joints:``), in its
+        order: the engines hold them at ``pose``, a policy may drive them."""
+        return tuple(j for j in self.joint_map if j not in JOINT_NAMES)
+
+    @property
+    def servo_joints(self) -> tuple[str, ...]:
+        """Our names of every joint a controller drives: the mapped roles in ``JOINT_NAMES`` order,
+        then the extra joints (a controller's targets are in this order, the extras last)."""
+        return tuple(j for j in JOINT_NAMES if j in self.joint_map) + self.extra_joints
 
     @property
     def held_joints(self) -> tuple[str, ...]:

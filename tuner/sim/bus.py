@@ -238,11 +238,14 @@ class BusBridge:
         elif p.instruction == SYNC_READ and len(p.params) >= 4:
             addr, length = struct.unpack_from("<HH", p.params)
             if addr == ADDR_PRESENT_VELOCITY and length == 8:
-                # the tick's angles in every servo's units once (not once a servo asked)
-                positions = self.robot.to_servos(np.zeros(len(JOINT_NAMES)) if m is None else m.q)
+                # the tick's angles in every servo's units once (not once a servo asked); the
+                # encoders in our 20 roles' order (a robot maps fewer, or more: its extra joints)
+                q = np.zeros(len(JOINT_NAMES)) if m is None else m.in_our_order(m.q)
+                dq = None if m is None or m.dq is None else m.in_our_order(m.dq)
+                positions = self.robot.to_servos(q)
                 for sid in p.params[4:]:
                     if sid in self.ids and sid in here:
-                        self._send(k, status_packet(sid, self._present(sid, positions[sid])))
+                        self._send(k, status_packet(sid, self._present(sid, positions[sid], dq)))
         elif p.instruction == SYNC_WRITE and len(p.params) >= 4:
             addr, length = struct.unpack_from("<HH", p.params)
             if addr == ADDR_GOAL_POSITION and length == 4:
@@ -261,13 +264,12 @@ class BusBridge:
             self.ignored += 1
         return None
 
-    def _present(self, sid: int, pos: int) -> bytes:
+    def _present(self, sid: int, pos: int, dq_ours: np.ndarray | None) -> bytes:
         """Present velocity and position (``pos``, its units) of servo ``sid`` from the tick's
-        readings (8 bytes)."""
-        m, ours = self.state.m, self.ids[sid]
+        readings (8 bytes); ``dq_ours`` the encoders' rates in ``JOINT_NAMES`` order."""
+        ours = self.ids[sid]
         j = self.robot.joints[ours]
-        k = JOINT_NAMES.index(ours)
-        dq = 0.0 if m is None or m.dq is None else float(m.dq[k])
+        dq = 0.0 if dq_ours is None else float(dq_ours[JOINT_NAMES.index(ours)])
         vel = int(round(j.sign * j.servo.direction * dq / VELOCITY_UNIT))
         return struct.pack("<ii", vel, pos)
 

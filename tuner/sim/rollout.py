@@ -248,7 +248,11 @@ class Simulator:
         self._corners = np.stack([r.sole_points(i, [[sx * half[i][0], sy * half[i][1], 0.0] for sx, sy in CORNERS])
                                   for i in range(2)])  # (2, 4, 3) in foot frame
         self._corners_T = np.ascontiguousarray(self._corners.transpose(0, 2, 1))  # (2, 3, 4)
-        self._col_in_gait = np.array([JOINT_NAMES.index(j) for j in self.joint_names])
+        #: the order of a controller's targets: our 20 roles, then the robot's extra joints (a
+        #: controller that gives 20 holds the extras at their pose)
+        self.target_names = tuple(JOINT_NAMES) + r.extra_joints
+        self._n_extra = len(r.extra_joints)
+        self._col_in_gait = np.array([self.target_names.index(j) for j in self.joint_names])
         self._touch_sum = np.zeros((len(lay.touch_quadrant), 8))
         self._touch_sum[np.arange(len(lay.touch_quadrant)), list(lay.touch_quadrant)] = 1.0
         self._n_servo = len(self.joint_names)
@@ -257,9 +261,17 @@ class Simulator:
         self._motor = np.array([isinstance(r.servos[t], MotorServo) for t in theirs + list(held)], dtype=bool)
         self._act_dof = np.array([m.jnt_dofadr[m.actuator_trnid[k, 0]] for k in range(self._n_act)], dtype=int)
 
+    def _full(self, q_gait: np.ndarray) -> np.ndarray:
+        """Targets (..., 20) or (..., 20 + extras) -> (..., 20 + extras): the extra joints at their pose."""
+        q = np.asarray(q_gait, dtype=float)
+        if self._n_extra and q.shape[-1] == len(JOINT_NAMES):
+            q = np.concatenate([q, np.zeros(q.shape[:-1] + (self._n_extra,))], axis=-1)
+        return q
+
     def to_robot(self, q_gait: np.ndarray) -> np.ndarray:
-        """Joint targets in gait-tuner order and signs (..., 20) -> the robot's servos (..., n)."""
-        return np.asarray(q_gait, dtype=float)[..., self._col_in_gait] * self._sign + self._offset
+        """Joint targets in gait-tuner order and signs (..., 20; or with the robot's extra joints
+        after them, :attr:`target_names`) -> the robot's servos (..., n)."""
+        return self._full(q_gait)[..., self._col_in_gait] * self._sign + self._offset
 
     def range_error(self, q_gait: np.ndarray, t: np.ndarray, tolerance: float = 1e-3) -> str | None:
         """The first target of a joint table (N, 20) in gait-tuner order outside its joint's range in
@@ -462,12 +474,12 @@ class Simulator:
         sens = np.empty((n_ticks, m.nsensordata))
         cmds = np.empty((n_ticks, len(cmd)))
         sent_log = np.empty((n_ticks, len(cmd)))
-        n_gait = len(JOINT_NAMES)
+        n_gait, n_roles = len(self.target_names), len(JOINT_NAMES)
         targets = np.empty((n_ticks, n_gait))
         sens[0] = d.sensordata
         cmds[0] = cmd
         sent_log[0] = cmd
-        targets[0] = pose.q
+        targets[0] = self._full(pose.q)
         qpos_log = np.empty((n_ticks, m.nq)) if record_qpos else None
         if qpos_log is not None:
             qpos_log[0] = d.qpos
@@ -502,6 +514,7 @@ class Simulator:
             planned = None
             k_first = 1
             if rows is not None:
+                rows = self._full(rows)
                 targets[1:] = rows[1:]
                 # the rate limiter and the joint ranges read only the targets: every tick's servo
                 # command is known now, and what reaches the servos through the latency (before backlash)
@@ -522,13 +535,19 @@ class Simulator:
                         meas = reader.read((k - 1) * dt)
                     command = None if commands is None else commands.at((k - 1) * dt)
                     target = controller.step(meas, command)
-                    if np.shape(target) != (n_gait,):
+                    shape = np.shape(target)
+                    if shape != (n_gait,) and shape != (n_roles,):
+                        extra = f" (or ({n_gait},): then the extra joints {', '.join(self.robot.extra_joints)})" \
+                            if n_gait > n_roles else ""
                         raise UserError(f"the controller ({getattr(controller, 'source', type(controller).__name__)}) "
-                                        f"returned targets of shape "
-                                        f"{np.shape(target)} at t = {(k - 1) * dt:.2f} s; expected ({n_gait},), "
-                                        f"one per gaits.JOINT_NAMES")
+                                        f"returned targets of shape {shape} at t = {(k - 1) * dt:.2f} s; "
+                                        f"expected ({n_roles},), one per gaits.JOINT_NAMES{extra}")
                     try:
-                        targets[k] = target
+                        if shape == (n_gait,):
+                            targets[k] = target
+                        else:                                       # the extra joints held at their pose
+                            targets[k, :n_roles] = target
+                            targets[k, n_roles:] = 0.0
                     except (TypeError, ValueError):        # strings, None: not joint angles
                         raise UserError(f"the controller ({getattr(controller, 'source', type(controller).__name__)}) "
                                         f"returned targets that are not numbers at t = {(k - 1) * dt:.2f} s "
@@ -537,7 +556,7 @@ class Simulator:
                     target = targets[k]
                     if not math.isfinite(float(target.dot(target))):   # MuJoCo would zero every servo's target
                         j = int(np.argmax(~np.isfinite(target) | (np.abs(target) > 1e150)))    # the first
-                        reason = (f"diverged: the controller's target for {JOINT_NAMES[j]} is {targets[k, j]} "
+                        reason = (f"diverged: the controller's target for {self.target_names[j]} is {targets[k, j]} "
                                   f"at t = {(k - 1) * dt:.2f} s")
                         k_end = k
                         break

@@ -16,7 +16,7 @@ What the adapter changes in the file, and why (``robot check`` lists it per robo
 * its keyframes get a ``ctrl`` rebuilt for our actuators from their ``qpos`` (the servo
   targets that hold the keyframe's pose), or are dropped when their ``qpos`` no longer fits.
 
-Actuator order: the mapped joints in :data:`gaits.JOINT_NAMES` order, then the held joints,
+Actuator order: the mapped joints in :data:`gaits.JOINT_NAMES` order, then the map's extra joints, then the held joints,
 then the drag dampers. Sensor order: see :class:`SceneLayout`.
 """
 
@@ -27,7 +27,6 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from gaits import JOINT_NAMES
 
 from ..robots.robot_model import RobotModel
 from ..robots.solver import SOLVER_OPTIONS
@@ -47,7 +46,7 @@ IMU_SITE_POS = (0.0, 0.0, 0.05)
 class SceneLayout:
     """Where our pieces sit in the compiled model's control and sensor vectors."""
 
-    servo_joints: tuple[str, ...]      # our names of the mapped joints, JOINT_NAMES order
+    servo_joints: tuple[str, ...]      # our names of the mapped joints, JOINT_NAMES order, then the extra joints
     held_joints: tuple[str, ...]       # MJCF names of the other actuated joints
     n_drag: int                        # the ground's actuators (on the sole corners; 0 on rigid/carpet)
     sensors: tuple[tuple[str, int], ...]   # (block name, width) in sensordata order
@@ -136,7 +135,7 @@ def build_scene(robot: RobotModel, surface: Surface) -> tuple[mujoco.MjSpec, Sce
                                           quat=list(q), size=[fl / 4 + pad / 2, fw / 4 + pad / 2, depth / 2 + 0.004],
                                           group=4)
 
-    servo_joints = tuple(n for n in JOINT_NAMES if n in r.joint_map)
+    servo_joints = r.servo_joints                 # the roles in JOINT_NAMES order, then the extra joints
     held = r.held_joints
     targets = [r.joint_map[n][0] for n in servo_joints] + list(held)
     friction_terms = 0

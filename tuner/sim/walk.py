@@ -106,7 +106,8 @@ def engine_targets(drive: Any, robot: Any, surface_name: str,
         note(f"note: the engine's walk fell ({trace.reason}): the table ends there")
     q = np.zeros((len(trace.t), len(gaits.JOINT_NAMES)))
     for j, name in enumerate(sim.joint_names):
-        q[:, gaits.JOINT_NAMES.index(name)] = trace.q_ref[:, j]
+        if name in gaits.JOINT_NAMES:               # a robot's extra joints: held, not in a joint table
+            q[:, gaits.JOINT_NAMES.index(name)] = trace.q_ref[:, j]
     return gaits.GaitTrajectory("engine", trace.t - trace.t[0], q, trace.p_torso, trace.p_com,
                                 np.asarray(trace.zmp_ref)[:, :2], trace.p_sole_l, trace.p_sole_r,
                                 np.asarray(trace.support, dtype=int), meta={"engine": True})
