@@ -32,7 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from tuner.params_io import resolve_drive          # noqa: E402
 from tuner.sim.metrics import summarize             # noqa: E402
 from tuner.sim.robustness import scenario_walks     # noqa: E402
-from tuner.sim.scenario import MatchDistribution    # noqa: E402
+from tuner.sim.match_walks import MatchDistribution    # noqa: E402
 
 SETS = ("kidsize-engine-carpet4", "kidsize-engine-match", "kidsize-engine-grass50", "kidsize-engine-push")
 MATCH = MatchDistribution(duration=12.0, forward=0.2, backward=0.15, sideways=0.06, turn=0.6)

@@ -75,7 +75,7 @@ def hidden_world(out: Path) -> tuple[Path, Path]:
 
 def record_walk(robot_map: Path, surface: Path, set_path: Path, command: str, seconds: float, path: Path, seed: int):
     from gaits import parse_command
-    from gaits.robot.recording import Recorder, RecordingController, RecordingMeta
+    from gaits.robot.recorder import Recorder, RecordingController, RecordingMeta
     from tuner.params_io import resolve_drive
     from tuner.robots import load_robot
     from tuner.sim.randomisation import NONE, draw
@@ -155,7 +155,7 @@ def main() -> None:
     # 4. both sets in the hidden world
     from tuner.report.transfer import world_summary
     from tuner.sim.robustness import scenario_walks
-    from tuner.sim.scenario import scenario_from_mapping
+    from tuner.sim.match_walks import scenario_from_mapping
     from tuner.params_io import resolve_drive
     dist = scenario_from_mapping({k: v for k, v in scenario.items() if k not in ("walks", "min_survival",
                                                                                  "tracking_weight")}, "scenario")

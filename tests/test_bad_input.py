@@ -168,7 +168,7 @@ RANDOM_FIELDS = [
 ]
 
 
-# an engine study's scenario section (tuner/sim/scenario.py, tuner/search/study.py)
+# an engine study's scenario section (tuner/sim/match_walks.py, tuner/search/study.py)
 ENGINE_STUDY = {**STUDY, "engine": {}, "scenario": {"walks": 2, "duration": 4.0}}
 SCENARIO_FIELDS = [
     ("scenario.walks", 0, "scenario: walks = 0"), ("scenario.walks", 1.5, "whole number"),

@@ -85,7 +85,7 @@ def _two_buses(tmp_path):
 
 
 def test_a_robot_on_two_buses_with_bitbots_boards_walks_through_them(tmp_path):
-    from gaits.robot.recording import read_recording
+    from gaits.robot.recorder import read_recording
     robot_map, robot_file = _two_buses(tmp_path)
     rf = load_robot_file(robot_file)
     assert rf.ports == 2 and rf.imu.protocol == "bitbots" and rf.imu.id == 241 and rf.imu.port == 1
@@ -140,7 +140,7 @@ def _finish(*procs):
 
 
 def test_the_loop_walks_the_simulated_robot_through_the_bus(tmp_path, robot_file):
-    from gaits.robot.recording import read_recording
+    from gaits.robot.recorder import read_recording
     server, link = _serve(tmp_path)
     loop = _loop(robot_file, link, "--seconds", "2", "--record", str(tmp_path / "walk.mcap"))
     (lo, le), (so, se) = _finish(loop, server)

@@ -1,4 +1,4 @@
-"""Recordings in (tuner/recordings.py): ROS 2 bags written here with rosbags (sqlite3 and MCAP
+"""Recordings in (tuner/identify/field_recordings.py): ROS 2 bags written here with rosbags (sqlite3 and MCAP
 storage) and gait-tuner's own MCAP read back equal, a CSV with a column in degrees, and every bad
 recording one line, exit 2, naming channel and time."""
 
@@ -12,8 +12,8 @@ import pytest
 
 from conftest import ROOT, run_cli
 from gaits.control import Measurement
-from gaits.robot.recording import Recorder, RecordingMeta
-from tuner.recordings import RecordingError, read_field_recording
+from gaits.robot.recorder import Recorder, RecordingMeta
+from tuner.identify.field_recordings import RecordingError, read_field_recording
 
 KID3KG = ROOT / "examples" / "robots" / "kid3kg" / "kid3kg.yaml"
 JOINTS = ("l_hip_pitch", "l_knee", "r_hip_pitch", "r_knee")
@@ -196,7 +196,7 @@ def test_a_csv_teams_write_reads_or_is_one_line(tmp_path):
     errors and a hang)."""
     import os
 
-    from tuner.recordings import RecordingError, read_field_recording
+    from tuner.identify.field_recordings import RecordingError, read_field_recording
     rows = "".join(f"{k * 0.01:.2f},{0.1 * k:.3f},{0.1 * k:.3f}\n" for k in range(20))
     bom = tmp_path / "bom.csv"
     bom.write_bytes("\ufefft,measured.l_knee,target.l_knee\n".encode("utf-8") + rows.encode())

@@ -177,7 +177,7 @@ def test_a_recording_the_fit_cannot_follow_writes_nothing(tmp_path, gait_tuner_c
     i = h.joint_names.index("l_knee")
     q[:, i] = -q[:, i]                                       # the recording's sign of one joint is wrong
     from gaits.control import Measurement
-    from gaits.robot.recording import Recorder, RecordingMeta
+    from gaits.robot.recorder import Recorder, RecordingMeta
     with Recorder(tmp_path / "bad.mcap", RecordingMeta(robot="kid3kg", joints=list(h.joint_names))) as rec:
         for k in range(len(q)):
             rec.record(Measurement(k * h.control_period, q=q[k], joint_names=h.joint_names), None, targets[k])

@@ -11,7 +11,7 @@ import json
 import pytest
 
 from gaits import parse_command
-from gaits.robot.recording import Recorder, RecordingController, RecordingMeta
+from gaits.robot.recorder import Recorder, RecordingController, RecordingMeta
 from tuner.params_io import resolve_drive
 from tuner.robots import load_robot
 from tuner.sim.randomisation import NONE, draw

@@ -1,4 +1,4 @@
-"""Recordings (gaits/robot/recording.py, `simulate --record`, `gait-tuner log info`): MCAP files in the
+"""Recordings (gaits/robot/recorder.py, `simulate --record`, `gait-tuner log info`): MCAP files in the
 HumanoidDataset layout that read back equal, say what they hold, survive being cut short, and
 refuse to be what they are not in one line."""
 
@@ -14,7 +14,7 @@ import pytest
 
 from conftest import ROOT, run_cli
 from gaits.control import Measurement
-from gaits.robot.recording import CHANNELS, Recorder, RecordingMeta, read_recording, recording_info
+from gaits.robot.recorder import CHANNELS, Recorder, RecordingMeta, read_recording, recording_info
 
 
 def _ticks(n=250, seed=0):
@@ -73,7 +73,7 @@ def test_a_recording_is_whole_or_not_at_all(tmp_path, monkeypatch):
     what was recorded readable in the partial file; a recording that closes replaces it."""
     import errno
     import os
-    from gaits.robot.recording import partial_path
+    from gaits.robot.recorder import partial_path
     path = tmp_path / "walk.mcap"
     path.write_bytes(b"the old recording")
     with pytest.raises(KeyboardInterrupt):
@@ -205,7 +205,7 @@ def test_a_tick_without_readings_is_a_gap(tmp_path):
 def _crafted(path, msgs, meta_over=None):
     """A recording written by hand (an MCAP of this layout whose messages or metadata are wrong)."""
     from mcap.writer import Writer
-    from gaits.robot.recording import METADATA_NAME
+    from gaits.robot.recorder import METADATA_NAME
     with open(path, "wb") as fh:
         w = Writer(fh)
         w.start(profile="", library="test")

@@ -217,7 +217,7 @@ def test_a_match_trial_that_asks_the_servos_too_much_is_infeasible(share, asked,
 def test_top_hold_ends_each_walk_at_the_top_speed_and_leaves_the_draws_as_they_were():
     """scenario.top_hold: the drawn segments are the same (no random draw added), then the top forward
     speed held top_hold seconds, then the stop; the pushes are the same."""
-    from tuner.sim.scenario import MatchDistribution, draw_scenario
+    from tuner.sim.match_walks import MatchDistribution, draw_scenario
     plain = MatchDistribution(forward=0.2, push_rate=0.5)
     held = MatchDistribution(forward=0.2, push_rate=0.5, top_hold=6.0)
     for seed in (0, 1, 7):

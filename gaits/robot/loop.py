@@ -230,7 +230,7 @@ def _main(argv: list[str] | None = None) -> None:
     ap.add_argument("--robot", help="the robot file (gait-tuner robot export MAP --out robot.yaml): its legs, soles "
                                     "and servos; default: the built-in robot's geometry")
     ap.add_argument("--record", help="record every tick (what the engine read and asked) as an MCAP file "
-                                     "(gaits/robot/recording.py; needs the mcap package)")
+                                     "(gaits/robot/recorder.py; needs the mcap package)")
     ap.add_argument("--port", help="the Dynamixel bus (a serial device, or `gait-tuner bus serve`'s pseudo-terminal): "
                                    "walk the robot on it (needs --robot and dynamixel-sdk); a robot on several "
                                    "buses: every one, comma-separated (each device is used where it answers)")
@@ -284,7 +284,7 @@ def _main(argv: list[str] | None = None) -> None:
     engine, walk = controller(gait, geometry, 0.01)
     recorder = None
     if args.record:
-        from gaits.robot.recording import Recorder, RecordingController, RecordingMeta
+        from gaits.robot.recorder import Recorder, RecordingController, RecordingMeta
         recorder = Recorder(args.record, RecordingMeta(robot="stand-in", task="walk", simulated=True,
                                                        controller=f"walk engine, {args.gait}",
                                                        notes=f"gait-tuner-loop --dry-run; commands from "
@@ -373,7 +373,7 @@ def run_sweep(args: Any) -> int:
     recorder = None
     walk: Any = player
     if args.record:
-        from gaits.robot.recording import Recorder, RecordingController, RecordingMeta
+        from gaits.robot.recorder import Recorder, RecordingController, RecordingMeta
         recorder = Recorder(args.record, RecordingMeta(robot="stand-in", task="sweep", simulated=True,
                                                        controller=f"joint sweep {args.sweep}"))
         walk = RecordingController(player, recorder)
@@ -411,7 +411,7 @@ def run_on_bus(args: Any, gait: gaits.GaitFile | None, robot_file: Any, sweep: S
         task, what = "walk", f"walk engine, {args.gait}; commands from {source.describe()}"
     recorder = None
     if args.record:
-        from gaits.robot.recording import Recorder, RecordingController, RecordingMeta
+        from gaits.robot.recorder import Recorder, RecordingController, RecordingMeta
         # a bus on pseudo-terminals is gait-tuner bus serve's (a real robot's is a serial device): such a
         # recording is of the simulator, and says so
         simulated = all(os.path.realpath(p).startswith("/dev/pts/") for p in bus.names)

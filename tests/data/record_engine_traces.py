@@ -40,7 +40,7 @@ def record(case) -> dict[str, np.ndarray]:
     from tuner.sim import cache
     from tuner.sim.randomisation import EVALUATE, Randomisation, draw
     from tuner.sim.robustness import walk_scenario
-    from tuner.sim.scenario import MatchDistribution, draw_scenario
+    from tuner.sim.match_walks import MatchDistribution, draw_scenario
     name, set_name, surface, seed, seconds, rate = case
     sim = cache.simulator(cache.robot("kidsize-pd"), surface)
     dist = MatchDistribution(duration=seconds, push_rate=rate, push_min=0.5, push_max=1.5)

@@ -40,7 +40,7 @@ from scipy.special import ellipk
 import gaits
 from gaits import CommandStream
 
-from ..sim.recorded import recording, recording_stem
+from ..sim.record import recording, recording_stem
 from ..sim.rollout import Simulator
 from ..sim.scene import BOTTLE_2019, BOTTLE_LENGTH, BOTTLE_MASS, PREFIX
 
@@ -103,7 +103,7 @@ def push_trial(sim: Simulator, drive: gaits.Drive, distance: float, seed: int, k
                pushes: Sequence[tuple[float, float]] | None = None, record: Path | None = None) -> dict[str, Any]:
     """One trial of three pushes at ``distance`` [m]; returns success and each push's record
     (``keep_trace``: and the walk's trace, under ``trace``; ``record``: an MCAP file the walk is
-    recorded into, ``recorded.py``).
+    recorded into, ``record.py``).
 
     ``pushes`` (ours, for analysis; not the rules' trial): the pushes as (time [s], direction [deg]
     against the robot's heading, 0 the bottle moving the way the robot faces, 90 to its left)

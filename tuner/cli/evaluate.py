@@ -188,7 +188,7 @@ def robustness(params_spec: str | None, robot_name: str, surface_name: str, roll
 def transfer(params_spec: str, robot_name: str | None, surface_name: str, default_robot: str | None,
              default_surface: str | None, walks: int, seed: int, workers: int, as_json: bool) -> None:
     """The gap before the match: SET's randomised match walks (commands every 1-3 s, the default
-    randomisation, tuner/sim/scenario.py) in the identified world beside the default one: survival,
+    randomisation, tuner/sim/match_walks.py) in the identified world beside the default one: survival,
     torso pitch and tracking, so a team sees what its field will do to its walk before it tunes."""
     import json
 
@@ -197,7 +197,7 @@ def transfer(params_spec: str, robot_name: str | None, surface_name: str, defaul
     from ..report.transfer import transfer_lines, world_summary
     from ..robots import BUILTIN_ROBOTS, load_robot
     from ..sim.robustness import scenario_walks
-    from ..sim.scenario import MatchDistribution
+    from ..sim.match_walks import MatchDistribution
     from ..sim.surfaces import SURFACES, load_surface
     if robot_name is None:
         raise UserError("transfer: give --robot (the identified robot map)")

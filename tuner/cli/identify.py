@@ -15,7 +15,7 @@ from .options import OutPath, Span, robot_option, surface_option, JSON_OPTION, R
 @click.group()
 def log() -> None:
     """Recordings of what a robot (or the simulator) did: MCAP files in the RoboCup HumanoidDataset
-    layout (gaits/robot/recording.py)."""
+    layout (gaits/robot/recorder.py)."""
 
 
 @log.command(name="info")
@@ -27,7 +27,7 @@ def log_info(recording: Path, as_json: bool) -> None:
     import json
 
     from gaits.files import MAX_BYTES, read_bytes_checked
-    from gaits.robot.recording import read_recording, recording_info
+    from gaits.robot.recorder import read_recording, recording_info
     read_bytes_checked(recording, "recording", 1000 * MAX_BYTES["csv"], UserError)     # a regular file of a sane size
     try:
         info = recording_info(read_recording(recording))
@@ -144,7 +144,7 @@ def identify_servos_cmd(robot_name: str | None, recordings: tuple[Path, ...], to
     damping, armature, friction loss, torque and speed limits and backlash, and the latency."""
     import json
 
-    from ..recordings import RecordingError, read_field_recording
+    from ..identify.field_recordings import RecordingError, read_field_recording
     from ..identify.report import fit_json, summary_lines, write_servo_fit
     from ..robots import load_robot
     from ..identify.harness import Harness
@@ -217,7 +217,7 @@ def identify_ground_cmd(robot_name: str | None, surface_name: str, recordings: t
     is fitted until the replay's roll, pitch, gyro and encoders match the robot's."""
     import json
 
-    from ..recordings import RecordingError, read_field_recording
+    from ..identify.field_recordings import RecordingError, read_field_recording
     from ..identify.report import ground_lines, write_ground_fit
     from ..robots import load_robot
     from ..identify.ground import identify_ground, walk_log

@@ -46,7 +46,7 @@ VERBS: dict[str, tuple[str, str, str]] = {
                               "height, stance and a step its knees' servos can carry, and the study that tunes it on the "
                               "surface (tune it with `gait-tuner tune`, then `export`)."),
     "log": ("identify", "log", "Recordings of what a robot (or the simulator) did: MCAP files in the RoboCup "
-                               "HumanoidDataset layout (gaits/robot/recording.py)."),
+                               "HumanoidDataset layout (gaits/robot/recorder.py)."),
     "params": ("walks", "params_cmd", "Print a family's parameters (name, default, unit, allowed range, paper symbol) and "
                                       "the walk commands it takes."),
     "render": ("walks", "render", "Film a walk: an MP4 from MuJoCo's offscreen renderer, headless."),
@@ -62,7 +62,7 @@ VERBS: dict[str, tuple[str, str, str]] = {
     "trajectory": ("walks", "trajectory", "Generate a gait's joint table q_ref(t) and its Cartesian references for a "
                                           "robot."),
     "transfer": ("evaluate", "transfer", "The gap before the match: SET's randomised match walks (commands every 1-3 s, "
-                                         "the default randomisation, tuner/sim/scenario.py) in the identified world "
+                                         "the default randomisation, tuner/sim/match_walks.py) in the identified world "
                                          "beside the default one: survival, torso pitch and tracking, so a team sees what "
                                          "its field will do to its walk before it tunes."),
     "trials": ("study", "trials", "List a study's trials: state, objectives, feasibility, survival, searched "

@@ -90,7 +90,7 @@ JSON_OPTION = click.option("--json", "as_json", is_flag=True, help="Print the re
 RECORD_OPTION = click.option(
     "--record", "record_dir", type=OutPath(file_okay=False),
     help="Record every tick of every walk (what the controller was given and what it asked) into this folder, an "
-         "MCAP file per walk (gaits/robot/recording.py); `gait-tuner log info FILE` says what one holds.")
+         "MCAP file per walk (gaits/robot/recorder.py); `gait-tuner log info FILE` says what one holds.")
 
 
 RUNS_OPTION = click.option("--runs", "runs_dir", default=None, type=OutPath(file_okay=False),
@@ -204,11 +204,11 @@ def storage_option(f):
 RECORDING_OPTION = click.option("--recording", "recordings", multiple=True, required=True,
                                 type=click.Path(path_type=Path), metavar="FILE",
                                 help="A recording: gait-tuner's .mcap, a ROS 2 bag (folder, .mcap or .db3) "
-                                     "or a .csv (tuner/recordings.py); repeat for several.")
+                                     "or a .csv (tuner/identify/field_recordings.py); repeat for several.")
 
 
 TOPICS_OPTION = click.option("--topics", "topics_file", type=click.Path(dir_okay=False, path_type=Path),
-                             help="A ROS 2 bag's topics and joint names (YAML; tuner/recordings.py).")
+                             help="A ROS 2 bag's topics and joint names (YAML; tuner/identify/field_recordings.py).")
 
 
 def running_total(desc: str, unit: str):

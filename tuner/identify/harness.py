@@ -406,10 +406,10 @@ def plan_sweep(h: Harness, *, duration: float, f_max: float, amplitude: float, s
 def record_sweep(h: Harness, targets: np.ndarray, s: ServoArrays, path, *, noise: float = 1e-3, seed: int = 0,
                  task: str = "sweep", notes: str = "") -> np.ndarray:
     """Play ``targets`` on the harness with servos ``s`` and write what a robot's loop would record
-    (``gaits.robot.recording``, simulated): per tick the encoders (with Gaussian ``noise`` [rad]) and the
+    (``gaits.robot.recorder``, simulated): per tick the encoders (with Gaussian ``noise`` [rad]) and the
     targets asked then, for the tick that follows (row k of ``targets``). Returns the measured angles (N, n) as recorded."""
     from gaits.control import Measurement
-    from gaits.robot.recording import Recorder, RecordingMeta
+    from gaits.robot.recorder import Recorder, RecordingMeta
     model = h.compile(s)
     q = h.run(model, targets, s)
     q = q + np.random.default_rng(seed).normal(0.0, noise, q.shape) if noise > 0 else q

@@ -6,7 +6,7 @@ measured the same way (ours):
   (``--speeds``), deterministic, its mean velocity in its own heading frame over a window of
   steady walking (online walks 4-9.5 s of their 10 s; a table its plan's steady cycles), or
   ``fell``;
-* **match walks**: ``--walks`` randomised match streams (``tuner/sim/scenario.py``, the default
+* **match walks**: ``--walks`` randomised match streams (``tuner/sim/match_walks.py``, the default
   randomisation, evaluation seeds), survival, torso pitch RMS and forward tracking RMSE;
 * **the challenge** by the 2025 rules (3 kg bottle, rope 1.5 m, ``--seed``): the largest D fully
   successful, its momentum and M;
@@ -123,7 +123,7 @@ def versus_cell(robot_name: str, surface_name: str, drive: gaits.Drive, *, speed
         if times else None
     if walks:
         from ..sim.robustness import scenario_walks
-        from ..sim.scenario import MatchDistribution
+        from ..sim.match_walks import MatchDistribution
         rows = scenario_walks(robot_name, surface_name, drive, MatchDistribution(), walks=walks, seed=seed,
                               workers=workers, progress=progress)
         out["match"] = world_summary(rows)

@@ -1,5 +1,5 @@
 """Match walks (a study's ``scenario:`` section): K command streams with pushes per surface per
-trial, drawn from a stated distribution (``tuner/sim/scenario.py``), under the randomisation.
+trial, drawn from a stated distribution (``tuner/sim/match_walks.py``), under the randomisation.
 
 Seeds 0..K-1 of the tuning stream, the same for every trial. Each walk is scored pitch RMS [deg]
 + ``tracking_weight`` x (vx + vy RMSE [m/s] + 0.1 wz RMSE [rad/s]), a fall the full penalty times
@@ -14,7 +14,7 @@ once (``hopeless``).
       randomisation: {}     # overrides of tuner/sim/randomisation.py's defaults, or none
       servo_share: 0.95     # optional: a walk whose targets ask any servo for more than this share of
                             #   its speed makes the trial infeasible (so its export's servo table plays)
-      forward: 0.3          # the distribution: any field of tuner/sim/scenario.py
+      forward: 0.3          # the distribution: any field of tuner/sim/match_walks.py
 """
 
 from __future__ import annotations
@@ -28,20 +28,20 @@ import numpy as np
 from ..errors import UserError
 from ..sim.randomisation import draw, randomisation_from_mapping
 from ..sim.robustness import walk_scenario
-from ..sim.scenario import SCENARIO_FIELDS, draw_scenario, scenario_from_mapping
+from ..sim.match_walks import SCENARIO_FIELDS, draw_scenario, scenario_from_mapping
 from .base import (FALL_PENALTY_DEG, Scenario, TrialResult, check_section, describe_randomised, fail, register,
                    survival_constraint)
 
 
 @dataclass(frozen=True)
 class ScenarioSpec:
-    """A scenario study's walks: K match walks per surface (``tuner/sim/scenario.py``)."""
+    """A scenario study's walks: K match walks per surface (``tuner/sim/match_walks.py``)."""
 
     walks: int = 6
     min_survival: float = 0.9
     tracking_weight: float = 10.0      # [deg per m/s]
     randomisation: Any = None          # tuner.sim.randomisation.Randomisation
-    scenario: Any = None               # tuner.sim.scenario.MatchDistribution
+    scenario: Any = None               # tuner.sim.match_walks.MatchDistribution
     servo_share: float | None = None   # the most of a servo's speed a walk may ask (None: not checked)
 
 

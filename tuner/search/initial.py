@@ -314,7 +314,7 @@ def held_out_stream(scenario: dict[str, Any], what: str, seed: int = 0) -> str:
     :data:`HELD_OUT_S`, from the evaluation draws (never a walk the study tunes on): the stream to
     hold its best set to (``robustness --commands``)."""
     from ..sim.randomisation import EVALUATE
-    from ..sim.scenario import SCENARIO_FIELDS, MatchDistribution, draw_scenario
+    from ..sim.match_walks import SCENARIO_FIELDS, MatchDistribution, draw_scenario
     fields = {k: v for k, v in scenario.items() if k in SCENARIO_FIELDS}
     fields.update(duration=HELD_OUT_S, push_rate=0.0)
     d = MatchDistribution(**fields)

@@ -32,7 +32,7 @@ from .cache import simulator
 from .metrics import MIN_PROGRESS, planned_forward_distance, steady_tracking, summarize
 from ..process_pool import map_in_order
 from .randomisation import DEFAULT_PUSHES, EVALUATE, Randomisation, draw
-from .recorded import recording, recording_stem
+from .record import recording, recording_stem
 from ..robots import load_robot
 from .rollout import Simulator
 from .surfaces import load_surface
@@ -204,7 +204,7 @@ def evaluate(robot: str, surface: str, drive: gaits.Drive, *, rollouts: int, see
              progress: Callable[[int], None] | None = None, record: Path | None = None,
              without: tuple[str, ...] = ()) -> RobustnessReport:
     """Walk what ``drive`` asks under randomisation; see the module docstring. With ``record`` (a
-    folder) every walk is recorded there (``recorded.py``), one MCAP file per walk; ``without``:
+    folder) every walk is recorded there (``record.py``), one MCAP file per walk; ``without``:
     readings the controller is not given (``gaits.control.WithoutReadings``: a robot without foot
     sensors is ``("foot_force",)``)."""
     load_robot(robot)                       # a bad robot fails here, once, in the parent
@@ -262,7 +262,7 @@ def walk_scenario(sim: Simulator, drive: gaits.Drive, stream, pushes, perturb) -
 
 def _scenario_walk(task: tuple) -> dict[str, Any]:
     """One scenario walk (a worker process): its own stream, pushes and perturbation."""
-    from .scenario import draw_scenario
+    from .match_walks import draw_scenario
     robot, surface, drive, scenario, randomisation, seed, namespace = task
     sim = simulator(robot, surface)
     stream, pushes = draw_scenario(scenario, seed, namespace)
@@ -273,7 +273,7 @@ def _scenario_walk(task: tuple) -> dict[str, Any]:
 def scenario_walks(robot: str, surface: str, drive: gaits.Drive, scenario, *, walks: int, seed: int,
                    randomisation: Randomisation = Randomisation(), namespace: int = EVALUATE, workers: int = 2,
                    progress: Callable[[int], None] | None = None) -> list[dict[str, Any]]:
-    """``walks`` scenario walks of a drive (``tuner/sim/scenario.py``) under randomisation, seeds
+    """``walks`` scenario walks of a drive (``tuner/sim/match_walks.py``) under randomisation, seeds
     (seed, i) of ``namespace``; one row per walk (fell, pitch, tracking, per segment)."""
     load_robot(robot)
     load_surface(surface)

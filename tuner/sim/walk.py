@@ -64,9 +64,9 @@ def walk(drive: Any, robot: Any, sim: Any, duration: float | None, record_qpos: 
          record: Path | None = None, note: Callable[[str], None] = _silent) -> Any:
     """The rollout of a drive on the simulator (the controller it names, for ``duration`` or its own
     length); with ``record`` (a folder) every tick the controller saw and asked is recorded there as
-    an MCAP file (``gaits/robot/recording.py``), whose path is noted. A held command's velocity window is
+    an MCAP file (``gaits/robot/recorder.py``), whose path is noted. A held command's velocity window is
     set in the trace's meta: from 2 s after the first step to the stop."""
-    from .recorded import recording, recording_stem
+    from .record import recording, recording_stem
     options = drive.run_options()
     if duration is not None:
         options["duration"] = duration

@@ -3,7 +3,7 @@ on the control period's grid. One adapter per format, one object out (:class:`Fi
 
 Formats:
 
-* **gait-tuner's MCAP** (``gaits/robot/recording.py``: the HumanoidDataset layout the loop, the simulated
+* **gait-tuner's MCAP** (``gaits/robot/recorder.py``: the HumanoidDataset layout the loop, the simulated
   bus and ``simulate --record`` write), found by its metadata record;
 * **ROS 2 bags** (a bag folder, its ``.mcap`` or ``.db3``), read with ``rosbags`` (pure Python,
   no ROS install) through a small topics file (``--topics``; :data:`DEFAULT_TOPICS` otherwise)::
@@ -215,7 +215,7 @@ def _finish(rec: FieldRecording, robot_joints) -> FieldRecording:
 
 # --- gait-tuner's MCAP ----------------------------------------------------------------------------
 def _ours(path: Path, robot_joints) -> FieldRecording:
-    from gaits.robot.recording import read_recording
+    from gaits.robot.recorder import read_recording
     try:
         rec = read_recording(path)
     except ValueError as exc:

@@ -1,6 +1,6 @@
 """Simulated walks recorded as a robot's are (``--record DIR`` of simulate, robustness, challenge).
 
-One adapter between the simulator's runs and ``gaits/robot/recording.py``: the controller a run drives is
+One adapter between the simulator's runs and ``gaits/robot/recorder.py``: the controller a run drives is
 wrapped so that every tick it was given and every target it returned are written to an MCAP file
 in the HumanoidDataset layout (what the controller saw, not the simulator's ground truth), with the
 metadata naming the robot, the surface, the controller and its parameters, and the run (task,
@@ -30,7 +30,7 @@ def recording(controller: Any, sim: Any, drive: Any, path: Path | None, task: st
     if path is None:
         yield controller
         return
-    from gaits.robot.recording import Recorder, RecordingController, RecordingMeta
+    from gaits.robot.recorder import Recorder, RecordingController, RecordingMeta
     params = getattr(drive, "params", None)
     # the measured joints are the simulator's servo joints (a robot without arms measures fewer than 20)
     meta = RecordingMeta(robot=sim.robot.name, task=task, simulated=True, joints=list(sim.joint_names),
