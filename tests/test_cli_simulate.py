@@ -64,21 +64,19 @@ def test_experiment_tlipfm_table3(gait_tuner_cmd, run_env, tmp_path):
     assert (tmp_path / "report.md").exists()
 
 
-def test_experiment_eros_matrix(gait_tuner_cmd, run_env):
-    r = run(gait_tuner_cmd, ["experiment", "eros"], run_env)
-    assert r.returncode == 0, r.stderr
-    assert "Table 7 (without optimisation)" in r.stdout and "Table 8 (with optimisation)" in r.stdout
-    assert r.stdout.count("stability %") == 2
-    assert "cells agreeing with the paper:" in r.stdout
-    assert "foot lift: the paper's Z x 1;" in r.stdout and "double support 40% of each step" in r.stdout
-    assert "paper's table      30             30             50             90" in r.stdout
-    assert "distance to fall on grass50" in r.stdout and "* = our cell differs" in r.stdout
-
-
-def test_experiment_eros_json(gait_tuner_cmd, run_env):
+def test_experiment_eros_matrix_as_json_and_as_its_report(gait_tuner_cmd, run_env, tmp_path):
+    """One run of the matrix: strict JSON on stdout, the text report in report.md (--out is kept
+    with --json: it was dropped)."""
     import json
-    r = run(gait_tuner_cmd, ["experiment", "eros", "--json", "--steps", "6"], run_env)
+    r = run(gait_tuner_cmd, ["experiment", "eros", "--json", "--steps", "6", "--out", str(tmp_path)], run_env)
     assert r.returncode == 0, r.stderr
+    text = (tmp_path / "report.md").read_text()
+    assert "Table 7 (without optimisation)" in text and "Table 8 (with optimisation)" in text
+    assert text.count("stability %") == 2
+    assert "cells agreeing with the paper:" in text
+    assert "foot lift: the paper's Z x 1;" in text and "double support 40% of each step" in text
+    assert "paper's table      30             30             50             90" in text
+    assert "distance to fall on grass50" in text and "* = our cell differs" in text
     doc = json.loads(r.stdout)
     assert doc["lift_scale"] == 1.0 and doc["double_support"] == 0.4
     names = {"grass50", "grass30", "grass10", "carpet4"}

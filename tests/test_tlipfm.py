@@ -15,9 +15,11 @@ TABLE2 = load_baseline("tkux-table2").params
 
 @pytest.mark.parametrize("model,accel", [("tlipfm", 0.0), pytest.param("tlipfm", 3.0, marks=pytest.mark.slow),
                                          pytest.param("dlipm", 0.0, marks=pytest.mark.slow),
-                                         pytest.param("lipm", 0.0, marks=pytest.mark.slow)])   # ~9 s each
+                                         pytest.param("lipm", 0.0, marks=pytest.mark.slow)])   # ~4 s each
 def test_closed_form_matches_integration_over_14_steps(model, accel):
-    """Eqs 23-26 against solve_ivp of eqs 12-13, each step from the same initial state."""
+    """Eqs 23-26 against solve_ivp of eqs 12-13, each step from the same initial state (DOP853 at
+    rtol 1e-12 agrees to ~1e-10 m; the step size left to it: a 5 ms cap cost 2.5x the evaluations for
+    the same verdict)."""
     p = TABLE2.replace(model=model, flywheel_accel=accel)
     assert p.n_steps == 14
     c = tlipfm.pendulum_constants(p)
@@ -34,8 +36,7 @@ def test_closed_form_matches_integration_over_14_steps(model, accel):
 
             sol = solve_ivp(rhs, (t_abs[0], t_abs[-1]),
                             [com.step_x0[n, axis], com.step_v0[n, axis]],
-                            t_eval=t_abs, rtol=1e-12, atol=1e-14, method="DOP853",
-                            first_step=1e-4, max_step=0.005)
+                            t_eval=t_abs, rtol=1e-12, atol=1e-14, method="DOP853", first_step=1e-4)
             assert sol.success
             worst = max(worst, float(np.max(np.abs(sol.y[0] - com.pos[:, axis]))))
     assert worst < 1e-6, worst

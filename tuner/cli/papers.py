@@ -82,14 +82,13 @@ def experiment(paper: str, robot_name: str, surface_name: str, lift_scale: float
         without, with_ = matrices[:2]
         tuned_cells = matrices[2] if tuned is not None else None
         distance = ex.distance_to_fall(robot, surfaces[1], long_steps, lift_scale, ds)
+        report = None
         if as_json:
             report = ex.eros_report(without, with_, distance, lift_scale, ds, tuned_cells)
             if tuned is not None:
                 report["tuned"]["params"] = {k: getattr(tuned, k) for k in ex.TUNED_KNOBS}
                 report["tuned"]["source"] = tuned_spec
             report["surfaces"] = {ex.PEDESTALS[p]: surfaces[p].name for p in sorted(surfaces)}
-            click.echo(json.dumps({"robot": robot.name, **report}, allow_nan=False))
-            return
         text = (f"robot {robot.name}; foot lift: the paper's Z x {lift_scale:g}; double support "
                 f"{ds:.0%} of each step (ours{'; 0 = the literal cycle' if ds == 0 else ''})\n"
                 + ex.format_eros(without, False) + "\n\n" + ex.format_eros(with_, True) + "\n\n")
@@ -99,12 +98,17 @@ def experiment(paper: str, robot_name: str, surface_name: str, lift_scale: float
                                                       f"({knobs})") + "\n\n"
         text += ex.format_distance(distance, surfaces[1].name)
     else:
+        report = None
         surface = load_surface(surface_name)
         text = f"robot {robot.name}\n" + ex.format_table3(ex.tlipfm_table3(robot, surface), surface.name)
-    click.echo(text)
-    if out_dir is not None:
+    if out_dir is not None:                   # the report as Markdown, with --json too
         out_dir.mkdir(parents=True, exist_ok=True)
         write_text_atomic(out_dir / "report.md", "```\n" + text + "\n```\n")
+    if report is not None:                    # strict JSON: nothing else on stdout
+        click.echo(json.dumps({"robot": robot.name, **report}, allow_nan=False))
+        return
+    click.echo(text)
+    if out_dir is not None:
         click.echo(f"wrote {out_dir / 'report.md'}")
 
 
