@@ -1,4 +1,4 @@
-"""Match scenarios: command streams and pushes drawn from a stated distribution (ours).
+"""Match walks: command streams and pushes drawn from a stated distribution (ours).
 
 A match asks a walk for a new command every second or two, stops it, turns it, and robots bump
 into it. A :class:`MatchDistribution` states the distribution; :func:`draw_scenario` turns it and a seed into
