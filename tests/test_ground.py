@@ -25,7 +25,8 @@ def table(sim: Simulator) -> gaits.GaitTrajectory:
 def test_each_built_in_surface_is_the_kind_its_fields_make_it():
     kinds = {name: kind_of(s).name for name, s in SURFACES.items()}
     assert kinds == {"rigid": "rigid", "carpet4": "layer", "grass10": "layer", "grass30": "layer", "grass50": "layer"}
-    assert kind_of(load_surface("examples/surfaces/grass50-blades.yaml")).name == "blades"
+    from conftest import ROOT
+    assert kind_of(load_surface(str(ROOT / "examples/surfaces/grass50-blades.yaml"))).name == "blades"
     # the fields identify ground fits are the kind's
     assert kind_of(SURFACES["carpet4"]).fit_fields() == ("layer_timeconst", "layer_dampratio", "friction")
     assert kind_of(SURFACES["grass30"]).fit_fields()[:2] == ("layer_timeconst", "drag")
@@ -120,3 +121,14 @@ def test_a_kind_needs_a_name_and_one_class_a_name():
         register_kind(type("Nameless", (GroundKind,), {}))
     with pytest.raises(ValueError, match="registered twice"):
         register_kind(type("Another", (GroundKind,), {"name": "rigid"}))
+
+
+def test_the_surfaces_verb_names_each_kind_and_refuses_an_unknown_one(tmp_path):
+    from conftest import ROOT, run_in_process
+    r = run_in_process(["surfaces", "--surface", "rigid", "--surface", str(ROOT / "examples/surfaces/grass50-blades.yaml")])
+    assert r.returncode == 0, r.stderr
+    assert [line.split()[:2] for line in r.stdout.splitlines()[:2]] == [["rigid", "rigid"], ["grass50-blades", "blades"]]
+    (tmp_path / "mud.yaml").write_text("kind: mud\nlayer_height: 0.01\n")
+    r = run_in_process(["surfaces", "--surface", str(tmp_path / "mud.yaml")])
+    assert r.returncode == 2 and r.stderr.strip().splitlines() == [
+        "gait-tuner: error: surface 'mud': kind = 'mud' is not a ground kind (known: rigid, layer, blades)"]

@@ -97,8 +97,9 @@ def surfaces(run_tests: bool, surface_names: tuple[str, ...], as_json: bool) -> 
         if as_json:
             click.echo(json.dumps({s.name: s.to_mapping() for s in chosen}, indent=2, allow_nan=False))
             return
+        from ..sim.ground import kind_of
         for s in chosen:
-            click.echo(f"{s.name:8s} layer {s.layer_height * 1000:4.0f} mm  drag {s.drag:5.1f} N s/m  "
+            click.echo(f"{s.name:8s} {kind_of(s).name:7s} layer {s.layer_height * 1000:4.0f} mm  drag {s.drag:5.1f} N s/m  "
                        f"friction {s.friction:.2f}  {s.description}")
         if any(s.drag_gated for s in chosen):
             from ..sim import native_step
