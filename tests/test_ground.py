@@ -132,3 +132,18 @@ def test_the_surfaces_verb_names_each_kind_and_refuses_an_unknown_one(tmp_path):
     r = run_in_process(["surfaces", "--surface", str(tmp_path / "mud.yaml")])
     assert r.returncode == 2 and r.stderr.strip().splitlines() == [
         "gait-tuner: error: surface 'mud': kind = 'mud' is not a ground kind (known: rigid, layer, blades)"]
+
+
+def test_a_rigid_floors_friction_is_its_friction_field(tmp_path):
+    """The field that says "sliding friction of the layer (or the rigid floor)" is the floor's: it was
+    the soil's soil_friction, so identify ground's friction fit on a rigid floor changed nothing it
+    replayed, and a rigid surface file's friction was silently not walked."""
+    from tuner.sim.ground import PREFIX as P
+    sim = Simulator(ROBOT, SURFACES["rigid"].replace(friction=0.35))
+    assert sim.model.geom_friction[sim.model.geom(P + "soil").id, 0] == 0.35
+    grass = Simulator(ROBOT, SURFACES["grass30"].replace(soil_friction=0.6))     # under a layer: the soil's
+    assert grass.model.geom_friction[grass.model.geom(P + "soil").id, 0] == 0.6
+    path = tmp_path / "floor.yaml"
+    path.write_text("soil_friction: 0.5\n")
+    with pytest.raises(UserError, match=r"soil_friction = 0.5 on a rigid floor: the floor's friction is friction = 0.9"):
+        load_surface(str(path))

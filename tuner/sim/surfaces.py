@@ -118,6 +118,12 @@ class Surface(GaitParams):
             if value > 0.0 and (self.blade_modulus == 0.0 or self.blade_shear == 0.0):
                 raise ParamError(f"surface {self.name!r}: {name} = {value:g} m/s needs the blade layer "
                                  f"(blade_modulus > 0) and its hold (blade_shear > 0): a jammed point is held by it")
+        default_soil = type(self).__dataclass_fields__["soil_friction"].default
+        if self.layer_height == 0.0 and self.kind in ("", "rigid") and self.soil_friction not in (default_soil,
+                                                                                                  self.friction):
+            raise ParamError(f"surface {self.name!r}: soil_friction = {self.soil_friction:g} on a rigid floor: the "
+                             f"floor's friction is friction = {self.friction:g} (soil_friction is the soil under "
+                             f"a layer); set friction")
         for name, value, unit in (("blade_modulus", self.blade_modulus, "N/m^3"), ("drag", self.drag, "N s/m")):
             if self.layer_height == 0.0 and value > 0.0:         # what acts in a layer needs one
                 raise ParamError(f"surface {self.name!r}: {name} = {value:g} {unit} needs a layer "
