@@ -43,7 +43,6 @@ so the robot side installs it only if it runs a policy.
 from __future__ import annotations
 
 import math
-import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
@@ -53,10 +52,7 @@ import numpy as np
 from .control import PlanRecord, StartPose
 from .leg_kinematics import rot_x, rot_y
 from .params import ParamError
-from .trajectory import JOINT_NAMES
-
-#: a joint name a policy may give: one of our 20 roles, or a robot's extra joint by its map's name
-_JOINT_NAME = re.compile(r"[a-z][a-z0-9_]*")
+from .trajectory import JOINT_NAME_PATTERN, JOINT_NAMES
 
 __all__ = ["PolicySpec", "Term", "PolicyController", "PolicyFactory", "policy_from_mapping", "gravity_in_body",
            "TERMS", "TUNABLE", "onnx_runner", "check_robot", "check_sizes", "base_velocity", "gains_unstated"]
@@ -179,7 +175,7 @@ def policy_from_mapping(doc: Any, source: str) -> PolicySpec:
     if not isinstance(joints, list) or not joints:
         raise ParamError(f"{source}: policy.joints: expected a list of our joint names ({', '.join(JOINT_NAMES[:3])}, ...)")
     for j in joints:
-        if not isinstance(j, str) or not _JOINT_NAME.fullmatch(j):
+        if not isinstance(j, str) or not JOINT_NAME_PATTERN.fullmatch(j):
             raise ParamError(f"{source}: policy.joints: {j!r} is not a joint name (our 20 roles, {', '.join(JOINT_NAMES[:3])}, "
                              f"..., or a robot's extra joint by its map's name)")
     if len(set(joints)) != len(joints):

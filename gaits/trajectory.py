@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import csv
 import io
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -43,6 +44,9 @@ JOINT_NAMES = (("head_yaw", "head_pitch",
                 "l_shoulder_pitch", "l_shoulder_roll", "l_elbow",
                 "r_shoulder_pitch", "r_shoulder_roll", "r_elbow")
                + LEFT_LEG + RIGHT_LEG)
+#: a joint name a map or a policy may give beyond :data:`JOINT_NAMES` (a robot's extra joint, by the
+#: name its map's ``extra_joints:`` gives it): lower-case letters, digits and underscores
+JOINT_NAME_PATTERN = re.compile(r"[a-z][a-z0-9_]*")
 
 
 @dataclass(frozen=True)

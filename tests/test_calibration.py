@@ -5,6 +5,7 @@ import pytest
 
 from conftest import ROOT
 from tuner.report import calibration as cal
+from tuner.sim.ground import kind_of
 from tuner.sim.surfaces import SURFACES, load_surface
 
 
@@ -45,7 +46,7 @@ def test_blade_tasks_grid_the_grass_pedestals_and_keep_the_carpet():
     carpet = [t for t in tasks if t[0] == 4][0]
     assert carpet[1] == {} and cal.pedestal_surface(4, {}, "blades") == SURFACES["carpet4"]
     g30 = cal.pedestal_surface(2, {"blade_jam_speed": 0.6, "blade_tip_damping": 1.1e5}, "blades")
-    assert g30.blades and g30.jams and g30.layer_height == SURFACES["grass30"].layer_height
+    assert kind_of(g30).name == "blades" and g30.jams and g30.layer_height == SURFACES["grass30"].layer_height
     assert (g30.blade_jam_speed, g30.blade_tip_damping, g30.blade_modulus) == (0.6, 1.1e5, cal.BLADE_BASE["blade_modulus"])
     # the tips keep the 50 mm file's share of the blades: 9 mm of 30, 3 mm of 10
     assert g30.blade_tip_depth == pytest.approx(0.009)

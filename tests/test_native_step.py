@@ -187,9 +187,10 @@ def test_which_surfaces_gate_their_drag():
     from pathlib import Path
 
     from tuner.sim.surfaces import load_surface
-    assert {n: s.drag_gated for n, s in SURFACES.items()} == {
+    from tuner.sim.ground import kind_of
+    assert {n: kind_of(s).runs_in_step for n, s in SURFACES.items()} == {
         "rigid": False, "carpet4": False, "grass10": True, "grass30": True, "grass50": True}
     blades = load_surface(str(Path(__file__).resolve().parents[1] / "examples" / "surfaces" / "grass50-blades.yaml"))
-    assert blades.drag > 0.0 and not blades.drag_gated
+    assert blades.drag > 0.0 and not kind_of(blades).runs_in_step
     ground = Simulator(ROBOT, blades).ground
     assert ground.name == "blades" and ground.python_tick and not hasattr(ground, "native")

@@ -98,10 +98,11 @@ def surfaces(run_tests: bool, surface_names: tuple[str, ...], as_json: bool) -> 
             click.echo(json.dumps({s.name: s.to_mapping() for s in chosen}, indent=2, allow_nan=False))
             return
         from ..sim.ground import kind_of
-        for s in chosen:
-            click.echo(f"{s.name:8s} {kind_of(s).name:7s} layer {s.layer_height * 1000:4.0f} mm  drag {s.drag:5.1f} N s/m  "
+        kinds = [kind_of(s) for s in chosen]
+        for s, kind in zip(chosen, kinds):
+            click.echo(f"{s.name:8s} {kind.name:7s} layer {s.layer_height * 1000:4.0f} mm  drag {s.drag:5.1f} N s/m  "
                        f"friction {s.friction:.2f}  {s.description}")
-        if any(s.drag_gated for s in chosen):
+        if any(kind.runs_in_step for kind in kinds):
             from ..sim import native_step
             native_step.install()
             click.echo(f"\ngrass drag gate on this machine: {native_step.status()}")

@@ -439,11 +439,6 @@ class HangingSim:
         self._n = len(names)
         self._roles = len(JOINT_NAMES)
 
-    def _full(self, q) -> np.ndarray:
-        """Targets of our 20 roles -> with the extra joints at their pose (0) after them."""
-        q = np.asarray(q, dtype=float)
-        return np.concatenate([q, np.zeros(self._n - len(q))]) if len(q) < self._n else q
-
     def run(self, controller, duration: float, perturb=None):
         from collections import deque
 
@@ -451,7 +446,7 @@ class HangingSim:
         h, s = self.h, self.s
         model = h.compile(s)
         d = mujoco.MjData(model)
-        q0 = self._full(controller.start_pose().q)[self._cols]
+        q0 = h.robot.with_extras(controller.start_pose().q)[self._cols]
         mujoco.mj_resetData(model, d)
         d.qpos[h._qadr] = np.clip(h.to_robot(q0), h.q_lo, h.q_hi)
         d.qpos[h._held_qadr] = h._held_pose
@@ -473,7 +468,7 @@ class HangingSim:
                                accel=level[2])
         controller.reset(read(0.0))
         for k in range(1, int(round(duration / h.control_period)) + 1):
-            target = self._full(controller.step(read((k - 1) * h.control_period)))
+            target = h.robot.with_extras(controller.step(read((k - 1) * h.control_period)))
             want = h.to_robot(target[self._cols])
             cmd = np.clip(cmd + np.clip(want - cmd, -step, step), h.q_lo, h.q_hi)
             queue.append(cmd.copy())

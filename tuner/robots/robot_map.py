@@ -55,6 +55,7 @@ from gaits import JOINT_NAMES, LegGeometry, ParamError, did_you_mean
 from gaits.leg_chain import LegChain, LegChains
 from gaits.robot.robot_file import read_bus
 from gaits.leg_kinematics import LEG_JOINTS
+from gaits.trajectory import JOINT_NAME_PATTERN
 from gaits.files import MAX_BYTES, read_bytes_checked
 
 from ..errors import UserError
@@ -594,7 +595,7 @@ def _read_extra_joints(doc: Any, jmap: Mapping[str, tuple[str, int | None]], mod
     out: dict[str, tuple[str, int | None]] = {}
     taken = {theirs for theirs, _ in jmap.values()}
     for ours, theirs in doc.items():
-        _require(isinstance(ours, str) and re.fullmatch(r"[a-z][a-z0-9_]*", ours) is not None, source,
+        _require(isinstance(ours, str) and JOINT_NAME_PATTERN.fullmatch(ours) is not None, source,
                  f"extra_joints: {ours!r}: a name of lower-case letters, digits and underscores")
         _require(ours not in JOINT_NAMES, source, f"extra_joints.{ours}: one of our 20 roles; map it under joints:")
         name, sign = _read_joint("extra_joints", ours, theirs, model, source, fname)

@@ -231,6 +231,15 @@ class RobotModel:
         order: the engines hold them at ``pose``, a policy may drive them."""
         return tuple(j for j in self.joint_map if j not in JOINT_NAMES)
 
+    def with_extras(self, q: np.ndarray) -> np.ndarray:
+        """Targets of our 20 roles (..., 20) -> (..., 20 + extras): the extra joints at their pose (0);
+        targets that have them already (a controller that drives them), as they are."""
+        q = np.asarray(q, dtype=float)
+        n = len(self.extra_joints)
+        if n and q.shape[-1] == len(JOINT_NAMES):
+            q = np.concatenate([q, np.zeros(q.shape[:-1] + (n,))], axis=-1)
+        return q
+
     @property
     def servo_joints(self) -> tuple[str, ...]:
         """Our names of every joint a controller drives: the mapped roles in ``JOINT_NAMES`` order,

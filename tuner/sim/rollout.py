@@ -251,7 +251,6 @@ class Simulator:
         #: the order of a controller's targets: our 20 roles, then the robot's extra joints (a
         #: controller that gives 20 holds the extras at their pose)
         self.target_names = tuple(JOINT_NAMES) + r.extra_joints
-        self._n_extra = len(r.extra_joints)
         self._col_in_gait = np.array([self.target_names.index(j) for j in self.joint_names])
         self._touch_sum = np.zeros((len(lay.touch_quadrant), 8))
         self._touch_sum[np.arange(len(lay.touch_quadrant)), list(lay.touch_quadrant)] = 1.0
@@ -261,17 +260,10 @@ class Simulator:
         self._motor = np.array([isinstance(r.servos[t], MotorServo) for t in theirs + list(held)], dtype=bool)
         self._act_dof = np.array([m.jnt_dofadr[m.actuator_trnid[k, 0]] for k in range(self._n_act)], dtype=int)
 
-    def _full(self, q_gait: np.ndarray) -> np.ndarray:
-        """Targets (..., 20) or (..., 20 + extras) -> (..., 20 + extras): the extra joints at their pose."""
-        q = np.asarray(q_gait, dtype=float)
-        if self._n_extra and q.shape[-1] == len(JOINT_NAMES):
-            q = np.concatenate([q, np.zeros(q.shape[:-1] + (self._n_extra,))], axis=-1)
-        return q
-
     def to_robot(self, q_gait: np.ndarray) -> np.ndarray:
         """Joint targets in gait-tuner order and signs (..., 20; or with the robot's extra joints
         after them, :attr:`target_names`) -> the robot's servos (..., n)."""
-        return self._full(q_gait)[..., self._col_in_gait] * self._sign + self._offset
+        return self.robot.with_extras(q_gait)[..., self._col_in_gait] * self._sign + self._offset
 
     def range_error(self, q_gait: np.ndarray, t: np.ndarray, tolerance: float = 1e-3) -> str | None:
         """The first target of a joint table (N, 20) in gait-tuner order outside its joint's range in
@@ -479,7 +471,7 @@ class Simulator:
         sens[0] = d.sensordata
         cmds[0] = cmd
         sent_log[0] = cmd
-        targets[0] = self._full(pose.q)
+        targets[0] = self.robot.with_extras(pose.q)
         qpos_log = np.empty((n_ticks, m.nq)) if record_qpos else None
         if qpos_log is not None:
             qpos_log[0] = d.qpos
@@ -514,7 +506,7 @@ class Simulator:
             planned = None
             k_first = 1
             if rows is not None:
-                rows = self._full(rows)
+                rows = self.robot.with_extras(rows)
                 targets[1:] = rows[1:]
                 # the rate limiter and the joint ranges read only the targets: every tick's servo
                 # command is known now, and what reaches the servos through the latency (before backlash)

@@ -130,23 +130,6 @@ class Surface(GaitParams):
                                  f"(layer_height > 0)")
 
     @property
-    def rigid(self) -> bool:
-        return self.layer_height == 0.0
-
-    @property
-    def blades(self) -> bool:
-        """The blade layer's fields (ours: springs per sole point, by pressure): the ``blades`` kind's
-        surface (``tuner/sim/ground/blades.py``) unless it names another kind."""
-        return self.blade_modulus > 0.0 if not self.kind else self.kind == "blades"
-
-    @property
-    def drag_gated(self) -> bool:
-        """The contact layer's drag dampers, switched per sole corner by its depth (``ground.layer.drag_gate``;
-        in MuJoCo's step by ``native_step.c`` where it could be built): the ``layer`` kind with drag."""
-        layer = self.kind == "layer" if self.kind else (not self.rigid and not self.blades)
-        return self.drag > 0.0 and layer
-
-    @property
     def jams(self) -> bool:
         """The blade layer jams a sole point that enters too fast: downward (``blade_jam_speed``),
         sliding (``blade_jam_slide``), or both."""

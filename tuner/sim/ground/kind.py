@@ -109,6 +109,12 @@ class GroundKind:
         return False
 
     @property
+    def runs_in_step(self) -> bool:
+        """Whether the kind's term can run inside MuJoCo's step (``native_step.c``) where that
+        callback is installed, rather than once a control tick here."""
+        return False
+
+    @property
     def user_slots(self) -> int:
         """``mjData.userdata`` entries the kind needs at the end of the block."""
         return 0

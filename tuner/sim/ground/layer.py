@@ -54,15 +54,19 @@ class ContactLayer(GroundKind):
         return surface.layer_height > 0.0 and surface.blade_modulus == 0.0
 
     def fit_fields(self) -> tuple[str, ...]:
-        return tuple(f for f in self.fields if f != "drag" or self.surface.drag > 0)
+        return tuple(f for f in self.fields if f != "drag" or self.on_points)
 
     @property
     def on_points(self) -> bool:
         return self.surface.drag > 0.0
 
     @property
+    def runs_in_step(self) -> bool:
+        return self.on_points                           # the drag gate (native_step.c)
+
+    @property
     def user_slots(self) -> int:
-        return GATE_BLOCK if self.on_points else 0       # the native gate's numbers
+        return GATE_BLOCK if self.runs_in_step else 0    # the native gate's numbers
 
     def contact_geoms(self) -> tuple[str, ...]:
         return (PREFIX + "soil", PREFIX + "layer")
@@ -101,7 +105,7 @@ class ContactLayer(GroundKind):
         installed (``native_step.py``)."""
         super().bind(model, areas, period, points)
         self._layer = model.geom(PREFIX + "layer").id
-        self.native = bool(self.on_points and native and install_native_gate())
+        self.native = bool(self.runs_in_step and native and install_native_gate())
 
     @property
     def python_tick(self) -> bool:
