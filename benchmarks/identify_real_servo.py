@@ -5,7 +5,11 @@ one joint at a time); ``identify servos``' fit (the M1 law in MuJoCo's pieces, o
 MX-64 M1) on the sweep alone, and on the sweep plus the steps; each fit predicting a *second*
 sweep and a *second* step train (other seeds) as a recording of them would show.
 
-    python benchmarks/identify_real_servo.py [--duration 20] [--workers 2]
+    python benchmarks/identify_real_servo.py [--duration 20] [--workers 2] [--fits sweep,steps,extended]
+
+``--fits``: which fits to run: ``sweep`` (the M1 law on the sweep alone), ``steps`` (on the sweep
+and the steps), ``extended`` (on the sweep and the steps, with the extended friction's fields:
+``stribeck``, ``stribeck_speed``, ``load_motor``).
 
 Prints, per fit, the RMS [mrad] of measured minus predicted joint angles over every servo joint
 on each held-out recording, and what the fit identified.
@@ -26,7 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from tuner.robots import load_robot                       # noqa: E402
 from tuner.servos import MotorServo, preset               # noqa: E402
 from tuner.identify.harness import Harness, excitation, step_train   # noqa: E402
-from tuner.identify.servos import JointLog, identify_servos  # noqa: E402
+from tuner.identify.servos import DEFAULT_FIT, EXTENDED, JointLog, identify_servos  # noqa: E402
 
 NOISE = 1e-3       # [rad] the encoders' noise in the recordings (and the fit's unit)
 
@@ -48,7 +52,13 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--duration", type=float, default=20.0, help="the sweep's length [s]")
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--fits", default="sweep,steps,extended", help="which fits (the module's docstring)")
     a = ap.parse_args()
+    fits = {"sweep": (("sweep",), DEFAULT_FIT), "steps": (("sweep", "steps"), DEFAULT_FIT),
+            "extended": (("sweep", "steps"), DEFAULT_FIT + tuple(EXTENDED))}
+    chosen = [f.strip() for f in a.fits.split(",") if f.strip()]
+    if not chosen or any(f not in fits for f in chosen):
+        ap.error(f"--fits: some of {', '.join(fits)}")
     truth = Harness(truth_robot())
     model_h = Harness(load_robot("kidsize"))
     logs = {}
@@ -58,9 +68,10 @@ def main() -> None:
         for kind, targets in (("sweep", sweep), ("steps", steps)):
             logs[(kind, seed)] = JointLog(f"{kind}-{seed}", model_h.control_period, tuple(model_h.joint_names),
                                           targets, record(truth, targets, 10 * seed + len(kind)))
-    for train in (("sweep",), ("sweep", "steps")):
+    for name in chosen:
+        train, fields = fits[name]
         t0 = time.monotonic()
-        fit = identify_servos(model_h, [logs[(k, 0)] for k in train], noise=NOISE, threads=a.workers)
+        fit = identify_servos(model_h, [logs[(k, 0)] for k in train], noise=NOISE, threads=a.workers, fit=fields)
         s = fit.servos
         model = model_h.compile(s)
         line = []
@@ -70,7 +81,8 @@ def main() -> None:
             rms = float(np.sqrt(np.mean((log.measured[1:] - q[1:]) ** 2)))
             line.append(f"second {kind} {1000 * rms:.2f} mrad RMS (max {1000 * np.max(np.abs(log.measured[1:] - q[1:])):.0f})")
         ok = [k for k in fit.fitted if fit.identifiable[k]]
-        print(f"fitted on {' + '.join(train)} ({time.monotonic() - t0:.0f} s, {fit.rollouts} rollouts): " + "; ".join(line))
+        print(f"{name}: fitted on {' + '.join(train)} ({time.monotonic() - t0:.0f} s, {fit.rollouts} rollouts): "
+              + "; ".join(line))
         print(f"  identified: {', '.join(ok)}")
         if fit.on_bound:
             print(f"  on its bound: {', '.join(fit.on_bound)}")

@@ -110,6 +110,28 @@ def test_the_native_friction_budget_is_the_numpy_reference():
                 assert float(friction_budget(u, 0.0, 2.0, -1.0)) > float(friction_budget(u, 0.0, 2.0, 1.0)) - 1.0
 
 
+def test_a_friction_term_gives_back_the_servo_it_came_from():
+    """An identification writes a fitted term back as the servo's fields (``with_friction_term``):
+    every BAM form of every preset comes back field for field; a term of no BAM form is refused."""
+    for name in ("MX-64", "MX-106", "XL-330"):
+        for form in FRICTION_MODELS:
+            servo = preset(name, form)
+            u = servo.friction_term()
+            if u is None:
+                continue
+            back = preset(name, "m1").with_friction_term(u)
+            assert back.friction_model == form
+            for f in ("frictionloss", "stribeck", "stribeck_speed", "stribeck_alpha", "load", "load_stribeck",
+                      "load_motor", "load_external", "load_motor_stribeck", "load_external_stribeck",
+                      "load_motor_quad", "load_external_quad"):
+                assert getattr(back, f) == getattr(servo, f), (name, form, f)
+            assert list(back.friction_term()[:-1]) == list(u[:-1])     # all but the back-EMF (the motor's own)
+    u = preset("MX-64", "m5").friction_term()
+    u[1] = 4                                   # directional without the load term: no BAM form
+    with pytest.raises(ValueError, match="BAM's forms"):
+        preset("MX-64").with_friction_term(u)
+
+
 def test_datasheet_presets_reproduce_their_datasheet_at_full_duty():
     sheet = {"MX-28": (12.0, 2.5, 55), "XM430-W350": (12.0, 4.1, 46), "XH540-W270": (12.0, 9.9, 39),
              "XM540-W270": (12.0, 10.6, 30)}

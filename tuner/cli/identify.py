@@ -131,52 +131,68 @@ def identify() -> None:
               help="Share the servo's numbers over hips, knees, ankles, arms and head, or fit each joint.")
 @click.option("--noise", default=0.001, show_default=True, type=Span(1e-6, 0.1),
               help="The encoders' noise [rad]: the residual's unit.")
-@click.option("--fit", "fit_fields", default="kp,damping,armature,frictionloss,torque,back_emf,speed,backlash,latency",
-              show_default=True, metavar="FIELD,...", help="What to fit; the others keep the map's values.")
+@click.option("--fit", "fit_fields", default=None, metavar="FIELD,...",
+              help="What to fit; the others keep the map's values. Default for a sweep: "
+                   "kp,damping,armature,frictionloss,torque,back_emf,speed,backlash,latency; a dc-motor servo's "
+                   "friction beyond Coulomb and viscous: add stribeck,stribeck_speed,load_motor (BAM's M5 terms; "
+                   "slower). From walks: the legs' kp and the latency (what a walk can tell).")
+@surface_option(default=None, help="For walking recordings: the ground they were walked on (rigid, carpet4, "
+                                   "grass10, grass30, grass50 or a surface YAML).")
 @click.option("--max-iters", default=40, show_default=True, type=click.IntRange(1, 500))
 @click.option("--trace", is_flag=True, help="Print the optimiser's iterations on stderr.")
 @JSON_OPTION
 def identify_servos_cmd(robot_name: str | None, recordings: tuple[Path, ...], topics_file: Path | None,
-                        out_dir: Path, by: str, noise: float, fit_fields: str, max_iters: int, trace: bool,
-                        as_json: bool) -> None:
-    """Identify the robot's servos from recordings of its joints (commanded and measured angles; best a
-    sweep from `gait-tuner excite` on the robot hanging in a harness): per group or joint the gain,
-    damping, armature, friction loss, torque and speed limits and backlash, and the latency."""
+                        out_dir: Path, by: str, noise: float, fit_fields: str | None, surface_name: str | None,
+                        max_iters: int, trace: bool, as_json: bool) -> None:
+    """Identify the robot's servos from recordings of its joints (commanded and measured angles). Best a
+    sweep from `gait-tuner excite` on the robot hanging in a harness: per group or joint the gain,
+    damping, armature, friction loss, torque and speed limits and backlash, and the latency. From
+    walks (with --surface): what a walk can tell, the legs' gains and the latency."""
     import json
 
     from ..identify.field_recordings import RecordingError, read_field_recording
     from ..identify.report import fit_json, summary_lines, write_servo_fit
     from ..robots import load_robot
     from ..identify.harness import Harness
-    from ..identify.servos import JointLog, identify_servos
+    from ..identify.servos import DEFAULT_FIT, JointLog, identify_servos
     if robot_name is None:
         raise UserError("identify servos: give --robot (your robot map)")
     robot = load_robot(robot_name)
     h = Harness(robot)
-    logs = []
+    read = []
     for path in recordings:
         try:
             rec = read_field_recording(path, topics=topics_file, robot_joints=robot.joint_map)
+        except RecordingError as exc:
+            raise UserError(str(exc)) from None
+        read.append((path, rec, rec.not_hanging()))
+    walks = [(p, why) for p, _, why in read if why is not None]
+    if walks:
+        if len(walks) < len(read):
+            p, why = walks[0]
+            raise UserError(f"identify servos: {p} is a walk ({why}) and the others are sweeps hanging in a harness: "
+                            f"fit them apart (a walk tells the legs' gains and the latency, a sweep the rest)")
+        _servos_from_walks(robot, [p for p, _, _ in read], topics_file, surface_name, fit_fields, out_dir,
+                           max_iters, trace, as_json, first=walks[0])
+        return
+    logs = []
+    for path, rec, _ in read:
+        try:
             t, targets, measured = rec.on_grid(h.control_period, h.joint_names)
         except RecordingError as exc:
             raise UserError(str(exc)) from None
-        walking = rec.not_hanging()
-        if walking is not None:
-            raise UserError(f"identify servos: {path} is not of the robot hanging in a harness ({walking}): the fit's "
-                            f"model holds the torso and lets no foot touch, which a walk's contacts break; record a "
-                            f"sweep hanging (gait-tuner excite), and fit the ground from walks (identify ground)")
         for gap in rec.gaps[:3]:
             click.echo(f"note: {path}: {gap}", err=True)
         logs.append(JointLog(str(path), h.control_period, tuple(h.joint_names), targets, measured,
                              valid=rec.grid_valid))
+    fields = DEFAULT_FIT if fit_fields is None else tuple(f.strip() for f in fit_fields.split(",") if f.strip())
     bar, progress = running_total("identify servos", "rollouts")
     try:
         def budget(most: int) -> None:
             bar.total = most
             bar.set_postfix_str("at most; it stops sooner when the fit converges", refresh=False)
         fit = identify_servos(h, logs, by=by, noise=noise, max_iters=max_iters, progress=progress,
-                              fit=tuple(f.strip() for f in fit_fields.split(",") if f.strip()),
-                              trace=sys.stderr if trace else None, budget=budget)
+                              fit=fields, trace=sys.stderr if trace else None, budget=budget)
     finally:
         bar.close()
     lost = fit.unfollowed(noise)
@@ -194,6 +210,49 @@ def identify_servos_cmd(robot_name: str | None, recordings: tuple[Path, ...], to
         click.echo(line)
     for p in written:
         click.echo(f"wrote {p}")
+
+
+def _servos_from_walks(robot, paths, topics_file, surface_name, fit_fields, out_dir, max_iters, trace, as_json,
+                       first) -> None:
+    """``identify servos`` on walking recordings: what a walk tells (tuner/identify/walk_servos.py)."""
+    import json
+
+    from ..identify.ground import read_walk_logs
+    from ..identify.report import walk_fit_json, walk_fit_lines, write_walk_servo_fit
+    from ..identify.walk_servos import NOT_FROM_A_WALK, WALK_FIELDS, identify_servos_from_walks
+    from ..sim.surfaces import load_surface
+    p, why = first
+    if surface_name is None:
+        raise UserError(f"identify servos: {p} is a walk ({why}): give --surface, the ground it was walked on "
+                        f"(a walk tells the legs' gains and the latency; a sweep hanging in a harness, "
+                        f"gait-tuner excite, tells the rest)")
+    asked = [] if fit_fields is None else [f.strip() for f in fit_fields.split(",") if f.strip()]
+    cannot = [f for f in asked if f not in WALK_FIELDS + ("latency",)]
+    if cannot:
+        raise UserError(f"identify servos --fit {','.join(cannot)}: a walk cannot tell {cannot[0]} (it tells the legs' "
+                        f"kp and the latency; not {', '.join(NOT_FROM_A_WALK)}): fit it on a sweep hanging in a "
+                        f"harness (gait-tuner excite)")
+    surface = load_surface(surface_name)
+    logs, notes = read_walk_logs(paths, robot, topics_file)
+    for note in notes:
+        click.echo(f"note: {note}", err=True)
+    bar, progress = running_total("identify servos (walks)", "replays")
+    try:
+        fit = identify_servos_from_walks(robot, surface, logs, max_iters=max_iters, progress=progress,
+                                         trace=sys.stderr if trace else None)
+    finally:
+        bar.close()
+    if not fit.converged:
+        raise UserError("identify servos: the walk fit did not converge (its replays match the recordings no better "
+                        "than the map's servos); nothing written")
+    written = write_walk_servo_fit(fit, robot, out_dir)
+    if as_json:
+        click.echo(json.dumps({**walk_fit_json(fit), "written": [str(x) for x in written]}, allow_nan=False))
+        return
+    for line in walk_fit_lines(fit, robot.sim.control_period):
+        click.echo(line)
+    for x in written:
+        click.echo(f"wrote {x}")
 
 
 @identify.command(name="ground")
@@ -217,28 +276,17 @@ def identify_ground_cmd(robot_name: str | None, surface_name: str, recordings: t
     is fitted until the replay's roll, pitch, gyro and encoders match the robot's."""
     import json
 
-    from ..identify.field_recordings import RecordingError, read_field_recording
     from ..identify.report import ground_lines, write_ground_fit
     from ..robots import load_robot
-    from ..identify.ground import identify_ground, walk_log
+    from ..identify.ground import identify_ground, read_walk_logs
     from ..sim.surfaces import load_surface
     if robot_name is None:
         raise UserError("identify ground: give --robot (your robot map, its servos identified)")
     robot = load_robot(robot_name)
     start = load_surface(surface_name)
-    dt = robot.sim.control_period
-    logs = []
-    for path in recordings:
-        try:
-            rec = read_field_recording(path, topics=topics_file, robot_joints=robot.joint_map)
-            joints = [j for j in rec.joints if j in robot.joint_map]
-            grid = rec.on_grid(dt, joints)
-            imu = rec.imu_on_grid(grid[0], rec.grid_start)
-        except RecordingError as exc:
-            raise UserError(str(exc)) from None
-        for gap in rec.gaps[:3]:
-            click.echo(f"note: {path}: {gap}", err=True)
-        logs.append(walk_log(str(path), dt, grid, imu["rpy"], imu["gyro"], imu["accel"], joints))
+    logs, notes = read_walk_logs(recordings, robot, topics_file)
+    for note in notes:
+        click.echo(f"note: {note}", err=True)
     bar, progress = running_total("identify ground", "replays")
     try:
         fit = identify_ground(robot, start, logs, max_iters=max_iters, progress=progress, horizon=horizon,

@@ -30,8 +30,6 @@ says it cannot tell it and keeps the starting value.
 from __future__ import annotations
 
 import dataclasses
-import io
-import logging
 import math
 import os
 import time
@@ -45,13 +43,13 @@ from gaits.control import PlanRecord, StartPose
 
 from ..errors import UserError
 from ..robots.robot_model import RobotModel
-from .servos import ENTANGLED, _sysid
+from .servos import ENTANGLED, _sysid, optimize
 from ..sim.ground import kind_of
 from ..sim.rollout import Simulator
 from ..sim.surfaces import Surface
 
 __all__ = ["WalkLog", "GroundFit", "identify_ground", "ground_fields", "Replay", "replay", "walk_statistics",
-           "NOISE"]
+           "NOISE", "read_walk_logs", "channel_rms"]
 
 #: the sensor noise of each fitted channel (the randomisation's defaults): roll and pitch [rad],
 #: gyro [rad/s], encoders [rad]
@@ -232,6 +230,19 @@ def _channels(r: np.ndarray, log: WalkLog) -> dict[str, float]:
             "encoders": float(np.sqrt(np.mean(r[b:] ** 2)))}
 
 
+def channel_rms(r: np.ndarray, logs: list[WalkLog]) -> dict[str, float]:
+    """The RMS per channel (roll and pitch, gyro, encoders) [noise units] of a residual over
+    ``logs`` (:func:`residual_of`'s, the logs one after the other)."""
+    out: dict[str, list[float]] = {}
+    o = 0
+    for log in logs:
+        n = len(log.targets) * (5 + len(log.joints))
+        for k, v in _channels(r[o:o + n], log).items():
+            out.setdefault(k, []).append(v ** 2)
+        o += n
+    return {k: float(np.sqrt(np.mean(v))) for k, v in out.items()}
+
+
 def identify_ground(robot: RobotModel, start: Surface, logs: list[WalkLog], *, max_iters: int = 25,
                     threads: int | None = None, progress=None, horizon: float = HORIZON,
                     trace=None) -> GroundFit:
@@ -296,15 +307,7 @@ def identify_ground(robot: RobotModel, start: Surface, logs: list[WalkLog], *, m
             if costs[j] < best_c:
                 best_c, best_x = float(costs[j]), cand[:, j].copy()
         params.update_from_vector(best_x)
-        absl = logging.getLogger("absl")
-        level = absl.level
-        absl.setLevel(logging.ERROR)
-        try:
-            opt, result = sysid.optimize(initial_params=params, residual_fn=residual_fn, optimizer="mujoco",
-                                         verbose=False, max_iters=max_iters, eps=FD_STEP,
-                                         output=trace or io.StringIO())
-        finally:
-            absl.setLevel(level)
+        opt, result = optimize(sysid, params, residual_fn, max_iters=max_iters, eps=FD_STEP, trace=trace)
         x = np.asarray(result.x, dtype=float)
         opt.update_from_vector(x)
         r1 = residual_fn(x, opt.copy())[0][0]
@@ -336,14 +339,6 @@ def identify_ground(robot: RobotModel, start: Surface, logs: list[WalkLog], *, m
     fitted = surface_of(kept)
     r_kept = one(fitted) if any(not ok for ok in identifiable.values()) else r1
 
-    def split(r: np.ndarray) -> dict[str, float]:
-        out, o = {}, 0
-        for log in logs:
-            n = len(log.targets) * (5 + len(log.joints))
-            for k, v in _channels(r[o:o + n], log).items():
-                out.setdefault(k, []).append(v ** 2)
-            o += n
-        return {k: float(np.sqrt(np.mean(v))) for k, v in out.items()}
     log0 = logs[0]
     stats = {"recorded": walk_statistics(log0.rpy, log0.accel, log0.dt)}
     for key, s in (("before", start), ("after", fitted)):
@@ -351,7 +346,7 @@ def identify_ground(robot: RobotModel, start: Surface, logs: list[WalkLog], *, m
         stats[key] = walk_statistics(sim["rpy"], sim["accel"], log0.dt)
     fitted = dataclasses.replace(fitted, name=f"{start.name}-identified")
     return GroundFit(surface=fitted, start=start, values=values, intervals=intervals, identifiable=identifiable,
-                     entangled=entangled, rms_before=split(r0), rms_after=split(r_kept), stats=stats,
+                     entangled=entangled, rms_before=channel_rms(r0, logs), rms_after=channel_rms(r_kept, logs), stats=stats,
                      rollouts=counter["rollouts"], seconds=time.monotonic() - t0,
                      recordings=[log.name for log in logs], slips=slips,
                      sysid={"initial": initial, "fitted": opt, "cov": cov, "half": half})
@@ -366,3 +361,22 @@ def walk_log(name: str, dt: float, t_targets_q, rpy, gyro, accel, joints) -> Wal
         if j in JOINT_NAMES:                   # a robot's extra joint: held at its pose in the replay
             full[:, JOINT_NAMES.index(j)] = targets[:, i]
     return WalkLog(name, dt, full, tuple(joints), q, rpy, gyro, accel)
+
+
+def read_walk_logs(paths, robot: RobotModel, topics=None) -> tuple[list[WalkLog], list[str]]:
+    """Walking recordings read onto the robot's control period (:func:`walk_log`), and the notes
+    of their gaps (three a file at most); a recording that cannot serve is one line (UserError)."""
+    from .field_recordings import RecordingError, read_field_recording
+    dt = robot.sim.control_period
+    logs, notes = [], []
+    for path in paths:
+        try:
+            rec = read_field_recording(path, topics=topics, robot_joints=robot.joint_map)
+            joints = [j for j in rec.joints if j in robot.joint_map]
+            grid = rec.on_grid(dt, joints)
+            imu = rec.imu_on_grid(grid[0], rec.grid_start)
+        except RecordingError as exc:
+            raise UserError(str(exc)) from None
+        notes += [f"{path}: {gap}" for gap in rec.gaps[:3]]
+        logs.append(walk_log(str(path), dt, grid, imu["rpy"], imu["gyro"], imu["accel"], joints))
+    return logs, notes

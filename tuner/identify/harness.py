@@ -30,6 +30,7 @@ import numpy as np
 
 from ..robots.robot_model import RobotModel
 from ..servos.law import FRICTION_ROW_MIN
+from ..servos.motor import FRICTION_BACK_EMF, FRICTION_BASE, FRICTION_MAGIC, FRICTION_WIDTH
 from ..sim.native_step import require as require_native_step
 from ..sim.rollout import dead_band, rate_limited
 from ..sim.scene import PREFIX, build_scene
@@ -47,7 +48,10 @@ class ServoArrays:
     kp [N m/rad], kv [N m s/rad], torque [N m] (the clamp), speed [rad/s] (the cap on the
     target's speed: inf where the law has none), armature [kg m^2], damping [N m s/rad] (the
     joint's), frictionloss [N m], backlash [rad] (the dead band's full width), back_emf [N m s/rad]
-    (the motor's damping outside the clamp, ``tuner/servos/motor.py``; 0 for the pd law); latency [s]."""
+    (the motor's damping outside the clamp, ``tuner/servos/motor.py``; 0 for the pd law); latency [s];
+    ``friction`` (n, ``FRICTION_WIDTH``): each servo's per-step friction term (``MotorServo.friction_term``:
+    BAM's extended forms; a row of zeros where the friction loss and damping are the whole friction). A
+    term's base and back-EMF columns are the ``frictionloss`` and ``back_emf`` above (written with them)."""
 
     kp: np.ndarray
     kv: np.ndarray
@@ -59,10 +63,23 @@ class ServoArrays:
     backlash: np.ndarray
     back_emf: np.ndarray
     latency: float = 0.0
+    friction: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.friction is None:
+            self.friction = np.zeros((len(self.kp), FRICTION_WIDTH))
 
     def copy(self) -> "ServoArrays":
         return ServoArrays(**{f.name: (np.array(getattr(self, f.name), dtype=float) if f.name != "latency"
                                        else float(self.latency)) for f in dataclasses.fields(self)})
+
+    def terms(self) -> np.ndarray:
+        """The friction terms as the model holds them: each row's base and back-EMF the servo's."""
+        u = np.array(self.friction, dtype=float)
+        on = u[:, 0] == FRICTION_MAGIC
+        u[on, FRICTION_BASE] = self.frictionloss[on]
+        u[on, FRICTION_BACK_EMF] = self.back_emf[on]
+        return u
 
 
 class Harness:
@@ -78,6 +95,8 @@ class Harness:
                 root = j.parent
                 spec.delete(j)
                 root.pos = [root.pos[0], root.pos[1], root.pos[2] + HANG_HEIGHT]
+        # room for a friction term on every servo (a fit may give one to a servo whose law has none)
+        spec.nuser_actuator = FRICTION_WIDTH
         for sn in list(spec.sensors):
             spec.delete(sn)
         for key in list(spec.keys):
@@ -127,10 +146,12 @@ class Harness:
         simulator takes it)."""
         s = [self.robot.servos[t] for t in self.theirs]
         p = [x.pieces() for x in s]
+        terms = [x.friction_term() for x in s]
         return ServoArrays(**{f: np.array([getattr(x, f) for x in p]) for f in
                               ("kp", "kv", "torque", "armature", "damping", "frictionloss", "back_emf")},
                            speed=np.array([x.target_speed for x in p]), backlash=np.array([x.backlash for x in s]),
-                           latency=max((x.latency for x in s), default=0.0))
+                           latency=max((x.latency for x in s), default=0.0),
+                           friction=np.array([np.zeros(FRICTION_WIDTH) if u is None else u for u in terms]))
 
     def nominal_speed(self) -> np.ndarray:
         """[rad/s] each servo's fastest unloaded turn (the law's ``speed``: a motor's, or the pd cap)."""
@@ -138,7 +159,11 @@ class Harness:
 
     def write_spec(self, spec: mujoco.MjSpec, s: ServoArrays) -> None:
         """The parts of the servos that live in the model (gain, feedback, torque, the joint's
-        armature, damping and friction loss) written into ``spec`` (this harness' or a copy)."""
+        armature, damping and friction loss, the per-step friction term) written into ``spec`` (this
+        harness' or a copy)."""
+        terms = s.terms()
+        if np.any(terms[:, 0] == FRICTION_MAGIC):
+            require_native_step(f"robot {self.robot.name!r} in its harness: a servo's extended friction")
         for i, (ours, theirs) in enumerate(zip(self.joint_names, self.theirs)):
             act = spec.actuator(PREFIX + f"servo/{ours}")
             act.gainprm[0] = s.kp[i]
@@ -146,11 +171,13 @@ class Harness:
             act.biasprm[2] = -s.kv[i]
             act.forcerange = [-s.torque[i], s.torque[i]]
             act.damping = [s.back_emf[i], 0.0, 0.0]
+            termed = terms[i, 0] == FRICTION_MAGIC
+            act.userdata = [float(x) for x in terms[i]]
             j = spec.joint(theirs)
             j.armature = s.armature[i]
             j.damping = [s.damping[i], 0.0, 0.0]
             # a servo with a per-step friction term keeps its friction row (servos.law.configure)
-            j.frictionloss = max(s.frictionloss[i], FRICTION_ROW_MIN) if len(act.userdata) else s.frictionloss[i]
+            j.frictionloss = max(s.frictionloss[i], FRICTION_ROW_MIN) if termed else s.frictionloss[i]
 
     def compile(self, s: ServoArrays) -> mujoco.MjModel:
         self.write_spec(self.spec, s)

@@ -21,12 +21,13 @@ import yaml
 
 from gaits.files import write_files_atomic
 
-from .servos import SCALED, ServoFit
+from ..servos.motor import FRICTION_MAGIC
+from .servos import EXTENDED, SCALED, ServoFit, unit_of
 from ..report.tables import json_finite
 from ..report.provenance import commit_of
 
 __all__ = ["servo_overlay", "write_servo_fit", "summary_lines", "fit_json", "write_ground_fit", "ground_lines",
-           "sysid_html"]
+           "sysid_html", "walk_fit_json", "walk_fit_lines", "write_walk_servo_fit"]
 
 
 def sysid_html(title: str, sysid: dict) -> str:
@@ -56,7 +57,10 @@ _FIELDS = ("kp", "damping", "armature", "frictionloss", "torque", "speed", "back
 #: which the P register then follows so the gain stays the fitted one)
 _MOTOR_FIELDS = {"kp": ("p_gain",), "torque": ("kt", "resistance", "p_gain"), "back_emf": ("kt", "resistance", "p_gain"),
                  "damping": ("damping",), "armature": ("armature",), "frictionloss": ("frictionloss",),
-                 "backlash": ("backlash",)}
+                 "backlash": ("backlash",),
+                 "stribeck": ("friction_model", "stribeck", "stribeck_speed", "stribeck_alpha"),
+                 "stribeck_speed": ("friction_model", "stribeck", "stribeck_speed", "stribeck_alpha"),
+                 "load_motor": ("friction_model", "load_motor")}
 
 
 def _kept(fit: ServoFit, key: str) -> bool:
@@ -76,12 +80,15 @@ def servo_overlay(fit: ServoFit, laws: Mapping[str, Any] | None = None) -> dict[
         units.setdefault(group_of(j) if fit.by == "groups" else j, []).append(i)
     out: dict[str, dict[str, float]] = {}
 
-    def put(u: str, idx: list[int], f: str, vals: np.ndarray) -> None:
-        if np.allclose(vals, vals[0], rtol=1e-9, atol=0):
-            out.setdefault(u, {})[f] = float(f"{vals[0]:.6g}")
+    def put(u: str, idx: list[int], f: str, vals: list) -> None:
+        def value(v):
+            return v if isinstance(v, str) else float(f"{v:.6g}")
+        if all(v == vals[0] if isinstance(v, str) else math.isclose(v, vals[0], rel_tol=1e-9, abs_tol=0.0)
+               for v in vals):
+            out.setdefault(u, {})[f] = value(vals[0])
         else:
             for i, v in zip(idx, vals):
-                out.setdefault(fit.joints[i], {})[f] = float(f"{v:.6g}")
+                out.setdefault(fit.joints[i], {})[f] = value(v)
 
     s = fit.servos
     for u, idx in units.items():
@@ -93,16 +100,19 @@ def servo_overlay(fit: ServoFit, laws: Mapping[str, Any] | None = None) -> dict[
                 new = []
                 for i in idx:
                     law = laws[fit.joints[i]]
-                    new.append(law.with_pieces(
+                    servo = law.with_pieces(
                         kp=float(s.kp[i]), torque=float(s.torque[i]), back_emf=float(s.back_emf[i]),
                         damping=float(s.damping[i]), frictionloss=float(s.frictionloss[i]),
-                        armature=float(s.armature[i])).replace(backlash=float(s.backlash[i])))
+                        armature=float(s.armature[i])).replace(backlash=float(s.backlash[i]))
+                    if s.friction[i, 0] == FRICTION_MAGIC:
+                        servo = servo.with_friction_term(s.terms()[i])
+                    new.append(servo)
                 for f in fields:
-                    put(u, idx, f, np.array([getattr(x, f) for x in new]))
+                    put(u, idx, f, [getattr(x, f) for x in new])
         else:
             for f in _FIELDS:
                 if _kept(fit, f"{u}.{f}"):
-                    put(u, idx, f, np.asarray(getattr(s, f))[idx])
+                    put(u, idx, f, list(np.asarray(getattr(s, f))[idx]))
         if fit.identifiable.get("latency", False):
             out.setdefault(u, {})["latency"] = float(f"{fit.servos.latency:.6g}")
     return out
@@ -113,8 +123,7 @@ def fit_json(fit: ServoFit) -> dict[str, Any]:
         return float(x) if math.isfinite(x) else None
     return {"by": fit.by, "joints": list(fit.joints), "recordings": fit.recordings,
             "parameters": {k: {"value": fit.values[k], "interval95": num(fit.intervals[k]),
-                               "unit": "mrad" if k.endswith(".backlash") else "ticks" if k == "latency"
-                               else "factor of the map's",
+                               "unit": "factor of the map's" if unit_of(k) == "x" else unit_of(k),
                                "fitted": k in fit.fitted, "identifiable": fit.identifiable[k],
                                "loose": k in fit.loose, "at_least": k in fit.at_least,
                                "on_bound": k in fit.on_bound} for k in fit.values},
@@ -129,11 +138,14 @@ def summary_lines(fit: ServoFit, noise: float) -> list[str]:
              f"{b * 1000:.2f} -> {a * 1000:.2f} mrad ({a / noise:.2f}x the {noise * 1000:g} mrad sensor noise); "
              f"{fit.rollouts} rollouts, {fit.seconds:.0f} s"]
     units = list(dict.fromkeys(k.rsplit(".", 1)[0] for k in fit.values if k != "latency"))
-    head = f"  {'':8s}" + "".join(f"{f:>16s}" for f in SCALED + ("backlash",))
-    lines.append(head + "   (factor of the map's +- 95 %; backlash mrad; ~ loose; - not identifiable; (map) not fitted)")
+    columns = SCALED + ("backlash",) + tuple(f for f in EXTENDED if any(k.endswith("." + f) for k in fit.fitted))
+    head = f"  {'':8s}" + "".join(f"{f:>16s}" for f in columns)
+    lines.append(head + "   (factor of the map's +- 95 %; backlash mrad; " +
+                 "".join(f"{f} {EXTENDED[f][0]}; " for f in columns if f in EXTENDED) +
+                 "~ loose; - not identifiable; (map) not fitted)")
     for u in units:
         cells = []
-        for f in SCALED + ("backlash",):
+        for f in columns:
             k = f"{u}.{f}"
             if k not in fit.fitted:
                 cells.append(f"{'(map)':>16s}")
@@ -160,7 +172,8 @@ def summary_lines(fit: ServoFit, noise: float) -> list[str]:
         lines.append(f"  at least (the fit raised it until it stopped binding; the map's lower value would bind "
                      f"and misfit, so the fitted one is kept): {', '.join(fit.at_least)}")
     if fit.on_bound:
-        lines.append(f"  ended on its bound (the recordings want it beyond the fit's range, 0.2-5x the map's): "
+        lines.append(f"  ended on its bound (the recordings want it beyond the fit's range: 0.2-5x the map's, an "
+                     f"extended friction's own range, fit.json): "
                      f"{', '.join(fit.on_bound)}")
     flat = [k for k in fit.not_identifiable if k not in fit.loose and k not in fit.at_least]
     if flat:
@@ -172,23 +185,77 @@ def write_servo_fit(fit: ServoFit, robot_map: Path | None, out_dir: Path, noise:
                     laws: Mapping[str, Any] | None = None) -> list[Path]:
     """Write ``robot.yaml`` (when the robot came from a map), ``servos.yaml``, ``fit.json`` and
     ``report.txt`` into ``out_dir``, all or none."""
-    import tuner
-    commit = commit_of(tuner.__file__).strip(" ()") or "unknown commit"
-    overlay = servo_overlay(fit, laws)
     a = np.sqrt(np.mean(np.square(list(fit.rms_after.values()))))
-    header = (f"# servos identified by gait-tuner identify servos ({commit})\n"
-              f"# from: {', '.join(fit.recordings)}\n"
-              f"# joint angle residual RMS after the fit: {a * 1000:.3f} mrad; per joint in fit.json\n")
-    files: dict[Path, str] = {}
-    files[out_dir / "servos.yaml"] = header + yaml.safe_dump({"servo": overlay}, sort_keys=False)
-    if robot_map is not None:
-        from ..robots.robot_map import map_with_servo
-        doc = map_with_servo(robot_map, out_dir, overlay)
-        files[out_dir / "robot.yaml"] = header + yaml.safe_dump(doc, sort_keys=False)
+    files, commit = _servo_files(servo_overlay(fit, laws), fit.recordings,
+                                 f"joint angle residual RMS after the fit: {a * 1000:.3f} mrad; per joint in fit.json",
+                                 robot_map, out_dir)
     files[out_dir / "fit.json"] = json.dumps(fit_json(fit), indent=1, allow_nan=False) + "\n"
     files[out_dir / "report.txt"] = "\n".join(summary_lines(fit, noise)) + "\n"
     if fit.sysid:
         files[out_dir / "report.html"] = sysid_html(f"gait-tuner identify servos ({commit})", fit.sysid)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    return write_files_atomic(files)
+
+
+def _servo_files(overlay: Mapping[str, Any], recordings: list[str], residual: str, robot_map: Path | None,
+                 out_dir: Path) -> tuple[dict[Path, str], str]:
+    """``servos.yaml`` and (from a map) ``robot.yaml`` of an identification's servo overlay, each
+    with a header naming the tool's commit, the recordings and the residual; and the commit."""
+    import tuner
+    commit = commit_of(tuner.__file__).strip(" ()") or "unknown commit"
+    header = (f"# servos identified by gait-tuner identify servos ({commit})\n"
+              f"# from: {', '.join(recordings)}\n# {residual}\n")
+    files: dict[Path, str] = {out_dir / "servos.yaml": header + yaml.safe_dump({"servo": dict(overlay)}, sort_keys=False)}
+    if robot_map is not None:
+        from ..robots.robot_map import map_with_servo
+        doc = map_with_servo(robot_map, out_dir, overlay)
+        files[out_dir / "robot.yaml"] = header + yaml.safe_dump(doc, sort_keys=False)
+    return files, commit
+
+
+def walk_fit_json(fit: Any) -> dict[str, Any]:
+    """A walk's servo fit (``identify servos`` on walking recordings) as ``--json`` gives it."""
+    from .walk_servos import NOT_FROM_A_WALK
+    return {"from": "walks", "recordings": fit.recordings,
+            "parameters": {k: {"value": v, "interval95": fit.intervals[k] if math.isfinite(fit.intervals[k]) else None,
+                               "unit": "factor of the map's", "identifiable": fit.identifiable[k]}
+                           for k, v in fit.values.items()},
+            "latency": {"ticks": fit.latency_ticks, "identifiable": fit.latency_identified,
+                        "misfit": {str(k): v for k, v in fit.latency_misfit.items()}},
+            "not_from_a_walk": list(NOT_FROM_A_WALK), "entangled": fit.entangled,
+            "rms_before": fit.rms_before, "rms_after": fit.rms_after, "replays": fit.rollouts,
+            "seconds": round(fit.seconds, 1)}
+
+
+def walk_fit_lines(fit: Any, dt: float) -> list[str]:
+    """The one-screen summary of a walk's servo fit."""
+    from .walk_servos import NOT_FROM_A_WALK
+    b, a = fit.rms_before, fit.rms_after
+    lines = [f"servos identified from {len(fit.recordings)} walk(s): residual RMS in sensor noises, before -> after: "
+             + ", ".join(f"{k} {b[k]:.2f} -> {a[k]:.2f}" for k in a) + f"; {fit.rollouts} replays, {fit.seconds:.0f} s"]
+    for k, v in fit.values.items():
+        state = "" if fit.identifiable[k] else "   not identifiable from these walks (the map's kept)"
+        lines.append(f"  {k:12s} x {v:.3f} +- {fit.intervals[k]:.2g}{state}")
+    lat = " ".join(f"{k}:{v:.3g}" for k, v in fit.latency_misfit.items())
+    lines.append(f"  latency      {fit.latency_ticks} tick(s) = {fit.latency_ticks * dt * 1000:g} ms "
+                 + ("" if fit.latency_identified else "(not identifiable: other counts fit within the 95 % band; "
+                    "the map's kept) ") + f"(misfit per count: {lat})")
+    for group in fit.entangled:
+        lines.append(f"  estimates that move together (correlation past 0.995): {', '.join(group)}")
+    lines.append(f"  a walk cannot tell (the map's kept; fit them on a sweep hanging, gait-tuner excite): "
+                 f"{', '.join(NOT_FROM_A_WALK)}")
+    return lines
+
+
+def write_walk_servo_fit(fit: Any, robot: Any, out_dir: Path) -> list[Path]:
+    """Write a walk's servo fit: ``servos.yaml``, ``robot.yaml`` (from a map), ``fit.json`` and
+    ``report.txt`` into ``out_dir``, all or none."""
+    from .walk_servos import walk_servo_overlay
+    robot_map = None if robot.map_path is None else Path(robot.map_path)
+    residual = "residual RMS after the fit, in sensor noises: " + ", ".join(f"{k} {v:.2f}" for k, v in fit.rms_after.items())
+    files, _ = _servo_files(walk_servo_overlay(fit, robot), fit.recordings, residual, robot_map, out_dir)
+    files[out_dir / "fit.json"] = json.dumps(walk_fit_json(fit), indent=1, allow_nan=False) + "\n"
+    files[out_dir / "report.txt"] = "\n".join(walk_fit_lines(fit, robot.sim.control_period)) + "\n"
     out_dir.mkdir(parents=True, exist_ok=True)
     return write_files_atomic(files)
 

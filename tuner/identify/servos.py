@@ -18,6 +18,14 @@ damping are one viscous torque on the same joint velocity, which no recording ca
 Gains, damping, armature, friction and limits are fitted as factors of the map's values
 (bounded 0.2-5x: a fit that wants more says so); the backlash in mrad and the latency in ticks.
 
+A dc-motor servo's friction beyond Coulomb and viscous (BAM's extended forms, ``tuner/servos/motor.py``)
+is fitted where asked (``--fit ...,stribeck,stribeck_speed,load_motor``: not by default, each
+adds a rollout per unit to every Jacobian): the extra dry friction near rest ``stribeck`` [N m] and
+its speed scale ``stribeck_speed`` [rad/s], and the dry friction per N m of the motor's own torque
+``load_motor`` [-] (BAM's directional load term, M5), in absolute units from the map's values (none
+for an M1 servo); the servo then runs them as a per-step term (BAM's M5 form, or the map's M6 with
+its other terms kept) and is written so.
+
 The residual: measured minus predicted joint angles at every tick after the first, over every
 recording, in units of ``noise`` [rad] (the encoders' resolution; so a residual RMS of 1 is a fit
 down to the sensor noise). A parameter is *identified* from the recordings when its 95 % interval
@@ -46,9 +54,12 @@ import numpy as np
 
 from ..errors import UserError
 from ..robots.robot_model import fine_group, joint_group
+from ..servos.law import FRICTION_ROW_MIN
+from ..servos.motor import (FRICTION_ALPHA, FRICTION_BACK_EMF, FRICTION_BASE, FRICTION_FLAGS, FRICTION_LOAD_MOTOR, FRICTION_MAGIC,
+                            FRICTION_STRIBECK, FRICTION_STRIBECK_SPEED)
 from .harness import Harness, ServoArrays
 
-__all__ = ["JointLog", "ServoFit", "identify_servos", "FIT_GROUPS", "group_of", "SCALED"]
+__all__ = ["JointLog", "ServoFit", "identify_servos", "FIT_GROUPS", "group_of", "SCALED", "EXTENDED", "FITTABLE", "unit_of"]
 
 #: joint groups a fit shares parameters over (ours: a robot's servos are usually one model per group)
 FIT_GROUPS = ("hips", "knees", "ankles", "arms", "head")
@@ -66,6 +77,18 @@ FD_STEP = 1e-4
 FOLLOW_NOISE = 5.0
 BACKLASH_MAX_MRAD = 60.0
 LATENCY_MAX_TICKS = 8.0
+#: a dc-motor servo's extended friction, fitted in absolute units (field -> unit, its term's column)
+EXTENDED = {"stribeck": ("N m", FRICTION_STRIBECK), "stribeck_speed": ("rad/s", FRICTION_STRIBECK_SPEED),
+            "load_motor": ("-", FRICTION_LOAD_MOTOR)}
+#: their ranges (ours): the Stribeck friction up to a fifth of the stall torque (BAM's MX-64 and MX-106
+#: have 2 %), its speed scale 0.05-10 rad/s (theirs 0.7-2.6), the load term up to 1 N m per N m (0.2-0.4)
+STRIBECK_SHARE_MAX = 0.2
+STRIBECK_SPEED_RANGE = (0.05, 10.0)
+LOAD_MOTOR_MAX = 1.0
+#: where the map's servo has none, the fit starts from a Stribeck friction of a quarter of its
+#: Coulomb friction at 1 rad/s and a load term of 0.05 (ours: a start off zero, where the speed scale
+#: would not move the residual at all)
+EXTENDED_START = {"stribeck": 0.25, "stribeck_speed": 1.0, "load_motor": 0.05}
 
 
 def _sysid():
@@ -77,6 +100,20 @@ def _sysid():
         raise UserError("identification needs MuJoCo's system identification toolbox: "
                         "pip install 'mujoco[sysid]'")
     return sysid
+
+
+def optimize(sysid, params, residual_fn, *, max_iters: int, eps: float, trace=None):
+    """``mujoco.sysid``'s box-bounded Levenberg-Marquardt from ``params``: (the fitted
+    ParameterDict, its result). Its own log goes to ``trace`` (a text stream) or a buffer (ours: a
+    progress bar says enough), absl's warnings held back while it runs."""
+    absl = logging.getLogger("absl")
+    level = absl.level
+    absl.setLevel(logging.ERROR)
+    try:
+        return sysid.optimize(initial_params=params, residual_fn=residual_fn, optimizer="mujoco", verbose=False,
+                              max_iters=max_iters, eps=eps, output=trace or io.StringIO())
+    finally:
+        absl.setLevel(level)
 
 
 def group_of(ours: str) -> str:
@@ -148,20 +185,27 @@ class ServoFit:
         return [k for k in self.fitted if not self.identifiable[k]]
 
 
-def _unit(name: str) -> str:
-    return "mrad" if name.endswith(".backlash") else "ticks" if name == "latency" else "x"
+def unit_of(name: str) -> str:
+    """A fit parameter's unit: x (a factor of the map's), mrad, ticks, or an extended friction's."""
+    field = name.rsplit(".", 1)[-1]
+    if field in EXTENDED:
+        return EXTENDED[field][0]
+    return "mrad" if field == "backlash" else "ticks" if name == "latency" else "x"
 
 
-#: what a fit can set: the scaled fields, the backlash and the latency
-FITTABLE = SCALED + ("backlash", "latency")
+#: what a fit can set: the scaled fields, the backlash, the latency and a motor's extended friction
+FITTABLE = SCALED + ("backlash", "latency") + tuple(EXTENDED)
+#: what it sets unless told: all but the extended friction
+DEFAULT_FIT = SCALED + ("backlash", "latency")
 
 
 def identify_servos(harness: Harness, logs: list[JointLog], *, by: str = "groups", noise: float = 1e-3,
                     max_iters: int = 40, threads: int | None = None, progress=None,
-                    fit: tuple[str, ...] = FITTABLE, trace=None, budget=None) -> ServoFit:
+                    fit: tuple[str, ...] = DEFAULT_FIT, trace=None, budget=None) -> ServoFit:
     """Fit the harness robot's servos to ``logs`` (see the module's docstring). ``by``: "groups"
     (:data:`FIT_GROUPS`) or "joints". ``noise`` [rad]: the encoders' noise, the residual's unit.
-    ``fit``: the fields fitted (:data:`FITTABLE`); the others keep the map's values.
+    ``fit``: the fields fitted (:data:`FITTABLE`; default :data:`DEFAULT_FIT`); the others keep the
+    map's values.
     ``progress(evaluations)`` is called after each batch of rollouts; ``budget(rollouts)``, once,
     with the most rollouts the fit can take (its iterations' Jacobians and a second stage: a
     progress bar's total, so it can say how long at most); ``trace`` (a text stream) gets the
@@ -196,6 +240,27 @@ def identify_servos(harness: Harness, logs: list[JointLog], *, by: str = "groups
     units = list(dict.fromkeys(keys))                           # the fitted units, in order
     member = {u: np.array([k == u for k in keys]) for u in units}
     params = sysid.ParameterDict()
+    # a motor unit whose extended friction is fitted runs a per-step term with a Stribeck and a
+    # directional load part (BAM's M5 flags, added to the map's own)
+    extended = [f for f in EXTENDED if f in fit]
+    termed = {u: bool(extended) and bool(np.all(base.back_emf[member[u]] > 0)) for u in units}
+    start_ext: dict[str, float] = {}
+    for u in units:
+        m = member[u]
+        rows = base.friction[m]
+        on = rows[:, 0] == FRICTION_MAGIC
+        for f, (_, col) in EXTENDED.items():         # the map's values (none where the map has no term)
+            start_ext[f"{u}.{f}"] = float(np.mean(np.where(on, rows[:, col], 0.0 if f != "stribeck_speed" else 1.0)))
+        if termed[u]:
+            idx = np.flatnonzero(m)
+            for i in idx:
+                row = base.friction[i]
+                if row[0] != FRICTION_MAGIC:
+                    row[:] = 0.0
+                    # the Stribeck curve's shape held at alpha 1 (ours: an exponential fall with speed)
+                    row[0], row[FRICTION_STRIBECK_SPEED], row[FRICTION_ALPHA] = FRICTION_MAGIC, 1.0, 1.0
+                row[FRICTION_FLAGS] = int(row[FRICTION_FLAGS]) | 1 | 2 | 4
+    h.write_spec(h.spec, base)             # every fit starts from the map's servos (an earlier fit edited the spec)
 
     def scale_modifier(unit: str, fname: str):
         cols = np.flatnonzero(member[unit])
@@ -216,9 +281,21 @@ def identify_servos(harness: Harness, logs: list[JointLog], *, by: str = "groups
                 elif fname == "armature":
                     spec.joint(theirs).armature = base.armature[i] * f
                 elif fname == "frictionloss":
-                    spec.joint(theirs).frictionloss = base.frictionloss[i] * f
+                    has_term = _term_column(spec, ours, FRICTION_BASE, base.frictionloss[i] * f)
+                    # a servo with a per-step friction term keeps its friction row (servos.law.configure)
+                    spec.joint(theirs).frictionloss = max(base.frictionloss[i] * f, FRICTION_ROW_MIN) if has_term \
+                        else base.frictionloss[i] * f
                 elif fname == "back_emf":
                     spec.actuator(f"gt/servo/{ours}").damping = [base.back_emf[i] * f, 0.0, 0.0]
+                    _term_column(spec, ours, FRICTION_BACK_EMF, base.back_emf[i] * f)
+        return modify
+
+    def term_modifier(unit: str, col: int):
+        cols = np.flatnonzero(member[unit])
+
+        def modify(spec: mujoco.MjSpec, p) -> None:
+            for i in cols:
+                _term_column(spec, h.joint_names[i], col, float(p.value[0]))
         return modify
 
     def absent(unit: str, fname: str) -> bool:
@@ -241,6 +318,19 @@ def identify_servos(harness: Harness, logs: list[JointLog], *, by: str = "groups
         mapped[f"{u}.backlash"] = b_map
         params.add(sysid.Parameter(f"{u}.backlash", nominal=(b_map or 2.0) if "backlash" in fit else b_map,
                                    min_value=0.0, max_value=max(BACKLASH_MAX_MRAD, b_map), frozen="backlash" not in fit))
+        for fname, (unit_name, col) in EXTENDED.items():
+            key = f"{u}.{fname}"
+            mapped[key] = start_ext[key]
+            stall = float(np.mean(base.torque[member[u]]))
+            lo_e, hi_e = {"stribeck": (0.0, STRIBECK_SHARE_MAX * stall), "stribeck_speed": STRIBECK_SPEED_RANGE,
+                          "load_motor": (0.0, LOAD_MOTOR_MAX)}[fname]
+            nominal = start_ext[key]
+            if termed[u] and fname in fit and nominal <= 0.0:     # a start off zero (EXTENDED_START)
+                nominal = EXTENDED_START[fname] * (float(np.mean(base.frictionloss[member[u]])) if fname == "stribeck"
+                                                   else 1.0)
+            params.add(sysid.Parameter(key, nominal=min(max(nominal, lo_e), hi_e), min_value=lo_e, max_value=hi_e,
+                                       frozen=not (termed[u] and fname in fit),
+                                       modifier=term_modifier(u, col) if termed[u] else None))
     mapped["latency"] = base.latency / dt
     params.add(sysid.Parameter("latency", nominal=(mapped["latency"] or 1.0) if "latency" in fit else mapped["latency"],
                                min_value=0.0, max_value=max(LATENCY_MAX_TICKS, mapped["latency"]),
@@ -254,6 +344,9 @@ def identify_servos(harness: Harness, logs: list[JointLog], *, by: str = "groups
             s.backlash[m] = float(p[f"{u}.backlash"].value[0]) / 1000.0
             for fname in ("kp", "damping", "armature", "frictionloss", "torque", "back_emf"):
                 getattr(s, fname)[m] = getattr(base, fname)[m] * float(p[f"{u}.{fname}"].value[0])
+            if termed[u]:
+                for fname, (_, col) in EXTENDED.items():
+                    s.friction[m, col] = float(p[f"{u}.{fname}"].value[0])
         s.latency = float(p["latency"].value[0]) * dt
         return s
 
@@ -287,14 +380,7 @@ def identify_servos(harness: Harness, logs: list[JointLog], *, by: str = "groups
         return [r if x.ndim > 1 else r[:, 0]], None, None
 
     def solve(p, iters: int):
-        absl = logging.getLogger("absl")
-        level = absl.level
-        absl.setLevel(logging.ERROR)
-        try:                     # the optimiser's own log goes to a buffer (ours: progress() says enough)
-            opt, result = sysid.optimize(initial_params=p, residual_fn=residual_fn, optimizer="mujoco",
-                                         verbose=False, max_iters=iters, eps=FD_STEP, output=trace or io.StringIO())
-        finally:
-            absl.setLevel(level)
+        opt, result = optimize(sysid, p, residual_fn, max_iters=iters, eps=FD_STEP, trace=trace)
         x = np.asarray(result.x, dtype=float)
         opt.update_from_vector(x)
         r = residual_fn(x, opt.copy())[0][0]
@@ -351,7 +437,8 @@ def identify_servos(harness: Harness, logs: list[JointLog], *, by: str = "groups
         kept = fitted.copy()
         for n, ok in identifiable.items():
             if not ok and (not math.isfinite(intervals[n]) or n.rsplit(".", 1)[-1] in LIMITS):
-                kept[n].value[:] = 1.0 if _unit(n) == "x" else mapped[n]
+                kept[n].value[:] = 1.0 if unit_of(n) == "x" else min(max(mapped[n], float(np.ravel(kept[n].min_value)[0])),
+                                                                    float(np.ravel(kept[n].max_value)[0]))
         # a limit a fit raised until it stopped binding says the servo gives at least that: where the
         # map's value would bind and misfit, the fitted one is kept (named: a lower bound)
         at_least = [n for n in values if n.rsplit(".", 1)[-1] in LIMITS and not identifiable[n]
@@ -399,14 +486,15 @@ def identify_servos(harness: Harness, logs: list[JointLog], *, by: str = "groups
 
 
 #: how narrow a 95 % interval must be for a parameter to count as identified (ours): a factor to
-#: within 10 % of its value, the backlash to within 1 mrad, the latency to within a quarter tick
-NARROW = {"x": 0.10, "mrad": 1.0, "ticks": 0.25}
+#: within 10 % of its value, the backlash to within 1 mrad, the latency to within a quarter tick; a
+#: Stribeck friction to 0.01 N m, its speed scale to 0.25 rad/s, the load term to 0.02 N m per N m
+NARROW = {"x": 0.10, "mrad": 1.0, "ticks": 0.25, "N m": 0.01, "rad/s": 0.25, "-": 0.02}
 #: estimates more correlated than this cannot be told apart (ours)
 ENTANGLED = 0.995
 
 
 def _narrow(name: str, value: float, half: float) -> bool:
-    unit = _unit(name)
+    unit = unit_of(name)
     if not math.isfinite(half):
         return False
     return half < (NARROW["x"] * abs(value) if unit == "x" else NARROW[unit])
@@ -429,3 +517,15 @@ def _entangled(names: list[str], cov: np.ndarray, identifiable: dict[str, bool])
             merged = set().union(*hit, {a, b}) if hit else {a, b}
             groups = [g for g in groups if g not in hit] + [merged]
     return [[names[i] for i in sorted(g)] for g in groups]
+
+
+def _term_column(spec: mujoco.MjSpec, ours: str, col: int, value: float) -> bool:
+    """Set one column of a servo's per-step friction term in ``spec``, where the servo has one
+    (returns whether it has)."""
+    act = spec.actuator(f"gt/servo/{ours}")
+    u = list(act.userdata)
+    if len(u) > col and u[0] == FRICTION_MAGIC:
+        u[col] = float(value)
+        act.userdata = u
+        return True
+    return False

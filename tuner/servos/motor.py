@@ -57,6 +57,9 @@ FRICTION_MAGIC = 31415.0
 FRICTION_WIDTH = 15
 (_MAGIC, _FLAGS, _BASE, _STRIBECK, _STRIBECK_SPEED, _ALPHA, _LOAD, _LOAD_S, _LOAD_M, _LOAD_E, _LOAD_MS, _LOAD_ES,
  _LOAD_MQ, _LOAD_EQ, _BACK_EMF) = range(FRICTION_WIDTH)
+#: the term's columns others write (an identification's fit)
+(FRICTION_FLAGS, FRICTION_BASE, FRICTION_STRIBECK, FRICTION_STRIBECK_SPEED, FRICTION_ALPHA, FRICTION_LOAD_MOTOR,
+ FRICTION_BACK_EMF) = (_FLAGS, _BASE, _STRIBECK, _STRIBECK_SPEED, _ALPHA, _LOAD_M, _BACK_EMF)
 
 
 @register
@@ -160,6 +163,22 @@ class MotorServo(ServoLaw):
         u[_LOAD_MQ], u[_LOAD_EQ] = self.load_motor_quad, self.load_external_quad
         u[_BACK_EMF] = self.back_emf_damping
         return u
+
+    def with_friction_term(self, u: np.ndarray) -> "MotorServo":
+        """The servo whose per-step friction term is ``u`` (:meth:`friction_term`'s numbers, an
+        identification's): the BAM form its flags name, and every friction field from it (the
+        back-EMF column is the motor's own and is not read)."""
+        flags = int(u[_FLAGS])
+        has = (bool(flags & 1), bool(flags & 2), bool(flags & 4), bool(flags & 8))
+        form = next((k for k, v in FRICTION_MODELS.items() if v == has), None)
+        if u[_MAGIC] != FRICTION_MAGIC or form is None:
+            raise ValueError(f"not a friction term of BAM's forms (flags {flags})")
+        return self.replace(friction_model=form, frictionloss=float(u[_BASE]), stribeck=float(u[_STRIBECK]),
+                            stribeck_speed=float(u[_STRIBECK_SPEED]), stribeck_alpha=float(u[_ALPHA]),
+                            load=float(u[_LOAD]), load_stribeck=float(u[_LOAD_S]), load_motor=float(u[_LOAD_M]),
+                            load_external=float(u[_LOAD_E]), load_motor_stribeck=float(u[_LOAD_MS]),
+                            load_external_stribeck=float(u[_LOAD_ES]), load_motor_quad=float(u[_LOAD_MQ]),
+                            load_external_quad=float(u[_LOAD_EQ]))
 
     def with_datasheet(self, torque: float | None = None, speed: float | None = None) -> "MotorServo":
         """The servo whose stall torque [N m] and unloaded speed [rad/s] at its voltage and full duty
