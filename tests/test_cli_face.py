@@ -33,6 +33,15 @@ def test_help_and_a_refusal_load_no_simulator_optimiser_or_gait():
     assert "HEAVY []" in r.stdout, r.stdout + r.stderr
 
 
+def test_a_study_verbs_start_loads_no_scipy():
+    """What ``tune`` loads before it walks (its verb module, the search, the robots, the scenarios)
+    leaves scipy out: scipy.spatial and scipy.special cost ~0.5 s of every process start, and only
+    a URDF's rotations and the challenge's pendulum use them (imported there, when they run)."""
+    code = "import sys\nimport tuner.cli.study\nprint('SCIPY', sorted(m for m in sys.modules if m.startswith('scipy'))[:3])"
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
+    assert "SCIPY []" in r.stdout, r.stdout + r.stderr
+
+
 def test_no_cli_module_is_over_400_lines():
     sizes = {p.name: len(p.read_text().splitlines()) for p in (ROOT / "tuner" / "cli").glob("*.py")}
     assert max(sizes.values()) <= 400, sizes

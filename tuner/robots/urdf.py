@@ -40,7 +40,6 @@ from typing import Mapping
 
 import mujoco
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from gaits import did_you_mean
 from gaits.files import MAX_BYTES, read_bytes_checked
@@ -200,6 +199,7 @@ def _origin(j: ET.Element, source: str = "") -> tuple[np.ndarray, np.ndarray]:
     where = f"joint {j.get('name')!r} <origin>"
     xyz = _triple(o.get("xyz", "0 0 0") if o is not None else "0 0 0", f"{where} xyz", source)
     rpy = _triple(o.get("rpy", "0 0 0") if o is not None else "0 0 0", f"{where} rpy", source)
+    from scipy.spatial.transform import Rotation       # here: scipy.spatial costs a second of every start
     return Rotation.from_euler("xyz", rpy).as_matrix(), np.array(xyz)
 
 
@@ -281,6 +281,7 @@ def _reroot(joints: list[ET.Element], root: str, torso: str, source: str, name: 
         if o is None:
             o = ET.SubElement(j, "origin")
         o.set("xyz", " ".join(repr(float(v)) for v in pi))
+        from scipy.spatial.transform import Rotation
         o.set("rpy", " ".join(repr(float(v)) for v in Rotation.from_matrix(Ri).as_euler("xyz")))
         par, chi = j.find("parent"), j.find("child")
         a, b = par.get("link"), chi.get("link")
