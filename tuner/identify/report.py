@@ -95,6 +95,11 @@ def servo_overlay(fit: ServoFit, laws: Mapping[str, Any] | None = None) -> dict[
         motors = laws is not None and all(isinstance(laws.get(fit.joints[i]), MotorServo) for i in idx)
         if motors:
             moved = [k for k in _MOTOR_FIELDS if _kept(fit, f"{u}.{k}")]
+            # an extended friction that came out as none (no Stribeck, no load term) is the plain form
+            extended = any(k in EXTENDED for k in moved) and any(
+                fit.values.get(f"{u}.{k}", 0.0) > 1e-9 and _kept(fit, f"{u}.{k}") for k in ("stribeck", "load_motor"))
+            if not extended:
+                moved = [k for k in moved if k not in EXTENDED]
             fields = list(dict.fromkeys(f for k in moved for f in _MOTOR_FIELDS[k]))
             if fields:
                 new = []
@@ -104,7 +109,7 @@ def servo_overlay(fit: ServoFit, laws: Mapping[str, Any] | None = None) -> dict[
                         kp=float(s.kp[i]), torque=float(s.torque[i]), back_emf=float(s.back_emf[i]),
                         damping=float(s.damping[i]), frictionloss=float(s.frictionloss[i]),
                         armature=float(s.armature[i])).replace(backlash=float(s.backlash[i]))
-                    if s.friction[i, 0] == FRICTION_MAGIC:
+                    if extended and s.friction[i, 0] == FRICTION_MAGIC:
                         servo = servo.with_friction_term(s.terms()[i])
                     new.append(servo)
                 for f in fields:
