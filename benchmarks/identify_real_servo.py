@@ -80,6 +80,15 @@ def main() -> None:
             q = model_h.run(model, log.targets, s, q0=log.measured[0])
             rms = float(np.sqrt(np.mean((log.measured[1:] - q[1:]) ** 2)))
             line.append(f"second {kind} {1000 * rms:.2f} mrad RMS (max {1000 * np.max(np.abs(log.measured[1:] - q[1:])):.0f})")
+        if name == "extended":
+            m6 = preset("MX-64", "m6")
+            print(f"  the truth (BAM's MX-64 M6): frictionloss {m6.frictionloss:.3g} N m, stribeck {m6.stribeck:.3g} N m "
+                  f"at {m6.stribeck_speed:.3g} rad/s, load_motor {m6.load_motor:.3g} (+ {m6.load_motor_stribeck:.3g} near "
+                  f"rest, quadratic terms)")
+            for g in ("hips", "knees", "ankles"):
+                i = model_h.joint_names.index({"hips": "l_hip_pitch", "knees": "l_knee", "ankles": "l_ankle_pitch"}[g])
+                print(f"  {g}: frictionloss {s.frictionloss[i]:.3g} N m, stribeck {fit.values[g + '.stribeck']:.3g} N m "
+                      f"at {fit.values[g + '.stribeck_speed']:.3g} rad/s, load_motor {fit.values[g + '.load_motor']:.3g}")
         ok = [k for k in fit.fitted if fit.identifiable[k]]
         print(f"{name}: fitted on {' + '.join(train)} ({time.monotonic() - t0:.0f} s, {fit.rollouts} rollouts): "
               + "; ".join(line))
