@@ -55,7 +55,8 @@ from .params import ParamError
 from .trajectory import JOINT_NAME_PATTERN, JOINT_NAMES
 
 __all__ = ["PolicySpec", "Term", "PolicyController", "PolicyFactory", "policy_from_mapping", "gravity_in_body",
-           "TERMS", "TUNABLE", "onnx_runner", "check_robot", "check_sizes", "base_velocity", "gains_unstated"]
+           "TERMS", "TUNABLE", "onnx_runner", "check_robot", "check_sizes", "base_velocity", "gains_unstated",
+           "POLICY_FILE_KEYS", "load_policy_file"]
 
 #: Each observation term and its length (None: one per policy joint).
 TERMS = {"gyro": 3, "gravity": 3, "command": 3, "joint_pos": None, "joint_vel": None, "last_action": None,
@@ -497,3 +498,41 @@ def check_robot(spec: PolicySpec, robot: Any, source: str) -> None:
 def gains_unstated(spec: PolicySpec) -> bool:
     """The policy file states no servo gains: it runs on whatever servos the robot has, unchecked."""
     return not spec.gains
+
+
+#: a policy file's top-level keys (the simulator's reader, ``tuner/controllers.py``, reads the same)
+POLICY_FILE_KEYS = ("policy", "description", "params", "ranges", "time_limit")
+
+
+def load_policy_file(path: str | Path) -> tuple[PolicySpec, Path]:
+    """A policy file as the robot runs it (``gait-tuner-loop POLICY.yaml``): its ``policy:`` section
+    checked, its ``params:`` (a study's tuned values, :data:`TUNABLE`) in place, and its model's
+    path (relative to the file), which must exist. A study's ``ranges:`` and ``time_limit:`` are
+    the simulator's and not read here. Every mistake is one :class:`ParamError` naming the file."""
+    from .gait_file import read_yaml
+    path = Path(path)
+    source = str(path)
+    doc = read_yaml(path, "policy")
+    if not isinstance(doc, Mapping) or "policy" not in doc:
+        raise ParamError(f"{source}: not a policy file (a mapping with a policy: section)")
+    unknown = [k for k in doc if k not in POLICY_FILE_KEYS]
+    if unknown:
+        raise ParamError(f"{source}: unknown key {unknown[0]!r} in a policy file (allowed: {', '.join(POLICY_FILE_KEYS)})")
+    spec = policy_from_mapping(doc["policy"], source)
+    params = doc.get("params") or {}
+    if not isinstance(params, Mapping):
+        raise ParamError(f"{source}: params must be a mapping of name: number")
+    values = {}
+    for k, v in params.items():
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(float(v)):
+            raise ParamError(f"{source}: params.{k} = {v!r}: expected a finite number")
+        values[str(k)] = float(v)
+    try:
+        spec = spec.with_params(values)
+    except ParamError as exc:
+        raise ParamError(f"{source}: {exc}") from None
+    model = Path(spec.model)
+    model = model if model.is_absolute() else path.parent / model
+    if not model.is_file():
+        raise ParamError(f"{source}: policy.model: no such file {model}")
+    return spec, model

@@ -315,3 +315,50 @@ def test_the_trunks_velocity_needs_the_robots_legs():
     spec = policy_from_mapping(doc, "p")
     with pytest.raises(ParamError, match="base_velocity needs the robot's legs"):
         PolicyController(spec, lambda o: np.zeros(len(spec.joints)), object(), 0.01)
+
+
+def test_a_policy_file_runs_on_the_robot_loop_as_in_the_simulator(tmp_path, capsys):
+    """``gait-tuner-loop POLICY.yaml``: the robot side runs a learned walk's policy file (its params
+    in place, its model beside it), its targets tick by tick the ones the simulator's controller
+    gives from the same readings; the loop imports neither the simulator nor the search; a policy
+    file it cannot run is one line, exit 2."""
+    import subprocess
+    import sys
+
+    import yaml
+
+    from gaits.robot.loop import RobotGeometry, controller, load_walk, main
+    from tuner.controllers import load_controller
+    write_onnx(tmp_path / "walk.onnx", N_OBS, 12, seed=3, gain=2.0)
+    path = tmp_path / "policy.yaml"
+    path.write_text(yaml.safe_dump({"policy": spec_doc(), "params": {"action_scale": 0.2}}))
+    assert main([str(path), "--dry-run", "--seconds", "1", "--record", str(tmp_path / "run.mcap")]) is None
+    out = capsys.readouterr().out
+    assert "100 ticks: 50 policy call(s)" in out and "recorded" in out
+    geometry = RobotGeometry(gaits.LegGeometry(), (0.10, 0.055))
+    on_robot, _ = controller(load_walk(str(path)), geometry, 0.01)
+    in_sim = load_controller(path).build(geometry, 0.01)
+    assert on_robot.spec.action_scale == 0.2
+    rng = np.random.default_rng(5)
+    n = len(JOINT_NAMES)
+    for k in range(8):
+        m = Measurement(0.01 * k, q=rng.normal(0, 0.1, n), dq=rng.normal(0, 0.5, n), imu_rpy=rng.normal(0, 0.05, 3),
+                        gyro=rng.normal(0, 0.2, 3), accel=np.array([0.0, 0.0, 9.81]), foot_force=np.full(8, 6.0))
+        got = on_robot.step(m, np.array([0.1, 0.0, 0.2]))
+        assert got.tolist() == np.asarray(in_sim.step(m, np.array([0.1, 0.0, 0.2]))).tolist()
+        moved = got - on_robot.default
+        assert k > 0 or np.any(moved != 0)          # the policy acts (its params: scale 0.2)
+    code = ("import runpy, sys\nsys.argv = ['robot_loop.py', %r, '--dry-run', '--seconds', '0.2']\n"
+            "runpy.run_path(%r, run_name='__main__')\n"
+            "print('imported:', sorted(m for m in ('mujoco', 'optuna', 'casadi', 'tuner') if m in sys.modules))"
+            % (str(path), str(Path(__file__).resolve().parents[1] / "examples" / "robot_loop.py")))
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0 and "imported: []" in r.stdout, r.stdout + r.stderr
+    for doc, words in (({"policy": spec_doc(), "params": {"gain": 2}}, "unknown parameter 'gain'"),
+                       ({"policy": spec_doc(model="gone.onnx")}, "policy.model: no such file"),
+                       ({"policy": spec_doc(), "extra": 1}, "unknown key 'extra' in a policy file")):
+        path.write_text(yaml.safe_dump(doc))
+        with pytest.raises(SystemExit) as stop:
+            main([str(path), "--dry-run", "--seconds", "0.5"])
+        err = capsys.readouterr().err.strip()
+        assert stop.value.code == 2 and len(err.splitlines()) == 1 and words in err, err

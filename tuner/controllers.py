@@ -33,6 +33,7 @@ from typing import Any, Mapping
 from gaits import UserController
 from gaits.drive import TimeLimits, time_limit
 from gaits.files import write_text_atomic
+from gaits.policy import POLICY_FILE_KEYS as _POLICY_KEYS
 
 from .errors import UserError
 from .yaml_input import read_yaml_file
@@ -148,7 +149,6 @@ def _params_and_ranges(doc: Mapping, source: str, known: Mapping[str, float] | N
     return params, ranges
 
 
-_POLICY_KEYS = ("policy", "description", "params", "ranges", "time_limit")
 
 
 def _section(doc: Mapping, keys: tuple[str, ...], what: str, read: Any, source: str) -> Any:

@@ -2,7 +2,12 @@
 write the servo targets. It imports numpy and the engine (``gaits``: numpy and PyYAML) only.
 
     gait-tuner-loop GAIT.yaml --dry-run [--robot robot.yaml] [--record run.mcap]   # a stand-in robot, no hardware
+    gait-tuner-loop POLICY.yaml --dry-run                 # a learned walk's policy file (gaits/policy.py)
     python examples/robot_loop.py GAIT.yaml --dry-run     # the same from a checkout
+
+A policy file (its ``policy:`` section, its ONNX model beside it, its ``params:``) runs as the
+simulator runs it (``gaits.policy.PolicyController``; onnxruntime, the ``onnx`` extra, runs the
+model): the same observation from the same readings, the same targets.
 
 Porting it: replace :class:`StandIn` by your robot's driver (the four methods it has), give it your
 robot file (``gait-tuner robot export MAP --out robot.yaml``, then ``--robot robot.yaml``: the legs,
@@ -158,9 +163,35 @@ class SweepPlayer:
         return q
 
 
-def controller(gait: gaits.GaitFile, geometry: RobotGeometry, dt: float):
+class PolicyWalk:
+    """A policy file read for the loop (:func:`gaits.policy.load_policy_file`): its spec, its
+    model's path and where it came from."""
+
+    def __init__(self, path: str) -> None:
+        from gaits.policy import load_policy_file
+        self.spec, self.model = load_policy_file(path)
+        self.source = str(path)
+
+
+def load_walk(path: str) -> "gaits.GaitFile | PolicyWalk":
+    """What the loop walks: a gait file with an engine section, or a policy file (a ``policy:``
+    section); every mistake one ParamError naming the file."""
+    from gaits.gait_file import read_yaml
+    doc = read_yaml(path, "gait or policy")
+    if isinstance(doc, dict) and "policy" in doc:
+        return PolicyWalk(path)
+    return gaits.load_gait_file(path)
+
+
+def controller(gait: "gaits.GaitFile | PolicyWalk", geometry: Any, dt: float):
     """(the engine, what the loop calls): the engine, with the set's IMU stabiliser around it when
-    the set has one (its corrections added to the engine's targets, as in the simulator)."""
+    the set has one (its corrections added to the engine's targets, as in the simulator); a policy
+    as itself, its model opened and checked against its spec."""
+    if isinstance(gait, PolicyWalk):
+        from gaits.policy import PolicyController, onnx_runner
+        run, n_in, n_out = onnx_runner(gait.model)
+        policy = PolicyController(gait.spec, run, geometry, dt, (n_in, n_out), gait.source)
+        return policy, policy
     limits = gaits.family("tlipfm").step_limits(gait.params, geometry)
     engine = gaits.WalkEngine(gait.params, gait.engine, geometry, dt, limits)
     if gait.stabiliser is not None and gait.stabiliser.enabled:
@@ -221,7 +252,8 @@ def main(argv: list[str] | None = None) -> None:
 def _main(argv: list[str] | None = None) -> None:
     ap = _OneLine(description=" ".join(__doc__.split("\n\n", 1)[0].split()))     # the first paragraph, whole
     ap.add_argument("gait", nargs="?", help="a gait file with an engine: section (e.g. "
-                                            "studies/results/kidsize-engine-carpet4.yaml); not with --sweep")
+                                            "studies/results/kidsize-engine-carpet4.yaml) or a policy file (its "
+                                            "policy: section and ONNX model); not with --sweep")
     ap.add_argument("--sweep", help="play this joint sweep (gait-tuner excite's CSV) on the robot hanging in a "
                                     "harness instead of walking: record it (--record) to identify the servos")
     ap.add_argument("--dry-run", action="store_true", help="walk the stand-in robot (no hardware)")
@@ -261,13 +293,13 @@ def _main(argv: list[str] | None = None) -> None:
     if args.seconds is None:
         args.seconds = getattr(source, "duration", None) or (600.0 if args.udp else 8.0)
     try:
-        gait = gaits.load_gait_file(args.gait)
+        gait = load_walk(args.gait)
     except gaits.ParamError as exc:      # one line, exit 2: a wrong name or a broken file is not a crash
         hint = (f" (a shipped set is a file here: studies/results/{args.gait}.yaml)"
                 if "/" not in args.gait and not args.gait.endswith((".yaml", ".yml")) else "")
         print(f"robot_loop: error: {exc}{hint}", file=sys.stderr)
         raise SystemExit(2) from None
-    if gait.engine is None:
+    if not isinstance(gait, PolicyWalk) and gait.engine is None:
         print(f"robot_loop: error: {args.gait}: no engine: section (a table set is played from its joint table)",
               file=sys.stderr)
         raise SystemExit(2)
@@ -286,7 +318,7 @@ def _main(argv: list[str] | None = None) -> None:
     if args.record:
         from gaits.robot.recorder import Recorder, RecordingController, RecordingMeta
         recorder = Recorder(args.record, RecordingMeta(robot="stand-in", task="walk", simulated=True,
-                                                       controller=f"walk engine, {args.gait}",
+                                                       controller=f"{_kind(gait)}, {args.gait}",
                                                        notes=f"gait-tuner-loop --dry-run; commands from "
                                                              f"{source.describe()}"))
         walk = RecordingController(walk, recorder)
@@ -316,11 +348,22 @@ def _main(argv: list[str] | None = None) -> None:
         print(f"robot {robot_file.robot}: {len(sent)} servo position(s) a tick from its robot file "
               f"({len(robot_file.joints) - len(sent)} joint(s) without a servo id)")
     c = np.array(costs) * 1000
-    print(f"{len(c)} ticks: {engine.steps_taken} steps, ended {engine.mode}; controller median {np.median(c):.2f} ms, "
+    print(f"{len(c)} ticks: {_what_it_did(engine)}; controller median {np.median(c):.2f} ms, "
           f"p99 {np.percentile(c, 99):.2f} ms, {overruns} tick(s) over {engine.dt * 1000:.0f} ms")
-    dropped = {name: n for name, n in engine.dropped.items() if n}
+    dropped = {name: n for name, n in getattr(engine, "dropped", {}).items() if n}
     if dropped:
         print("readings not finite, not taken (ticks): " + ", ".join(f"{k} {n}" for k, n in dropped.items()))
+
+
+def _kind(gait: Any) -> str:
+    return f"policy (its model {gait.model.name})" if isinstance(gait, PolicyWalk) else "walk engine"
+
+
+def _what_it_did(engine: Any) -> str:
+    """The end line's account of the walk: the engine's steps and its mode, a policy's calls."""
+    if hasattr(engine, "steps_taken"):
+        return f"{engine.steps_taken} steps, ended {engine.mode}"
+    return f"{engine.calls} policy call(s)"
 
 
 def command_source(args: Any) -> Any:
@@ -408,7 +451,7 @@ def run_on_bus(args: Any, gait: gaits.GaitFile | None, robot_file: Any, sweep: S
         task, what = "sweep", f"joint sweep {args.sweep}"
     else:
         engine, walk = controller(gait, robot_file, robot_file.control_period)
-        task, what = "walk", f"walk engine, {args.gait}; commands from {source.describe()}"
+        task, what = "walk", f"{_kind(gait)}, {args.gait}; commands from {source.describe()}"
     recorder = None
     if args.record:
         from gaits.robot.recorder import Recorder, RecordingController, RecordingMeta
@@ -481,8 +524,9 @@ def run_on_bus(args: Any, gait: gaits.GaitFile | None, robot_file: Any, sweep: S
                 q = walk.step(m, command)
                 costs.append(time.perf_counter() - t0)
                 bus.write(q)
-                if stop_at is not None and (engine.mode == "stand" or t >= stop_at):
-                    why = f"stopped by Ctrl-C at t = {t:.2f} s, standing" if engine.mode == "stand" else \
+                standing = getattr(engine, "mode", None) == "stand"     # a policy has no standing mode
+                if stop_at is not None and (standing or t >= stop_at):
+                    why = f"stopped by Ctrl-C at t = {t:.2f} s, standing" if standing else \
                         f"stopped by Ctrl-C at t = {t:.2f} s, not standing after 3 s"
                     break
             k += 1
@@ -502,7 +546,7 @@ def run_on_bus(args: Any, gait: gaits.GaitFile | None, robot_file: Any, sweep: S
             print(f"recorded {recorder.close()}")
     c = np.array(costs) * 1000 if costs else np.zeros(1)
     p = np.array(periods) * 1000 if periods else np.zeros(1)
-    print(f"{len(costs)} ticks on {args.port}: {engine.steps_taken} steps, ended {engine.mode}; controller median "
+    print(f"{len(costs)} ticks on {args.port}: {_what_it_did(engine)}; controller median "
           f"{np.median(c):.2f} ms, p99 {np.percentile(c, 99):.2f} ms; tick period median {np.median(p):.1f} ms, "
           f"p99 {np.percentile(p, 99):.1f} ms, {overruns} overrun(s), {unread} tick(s) without readings")
     print(why)
