@@ -2,13 +2,14 @@
 script:
 
     python tests/bench_walk_servos.py [--seconds 3] [--surface carpet4] [--workers 2]
+        [--robot MAP --walk SET|CONTROLLER.yaml]
 
-A hidden robot of its own: the built-in robot whose knees' gain is 20 % below its map's and its
-hips' 20 % above (through the MX-64's P register), its commands two ticks late; one walk of
-``--seconds`` (the carpet4 set at 0.15 m/s, the randomisation's sensor noise) recorded on
-``--surface``, and ``identify_servos_from_walks`` on it from the map's servos. Prints the fitted
-gains against the truth, the latency, the residuals and the cost. Not collected by pytest (its
-name); ``test_identify.py`` records its walk with :func:`hidden_walk`.
+A hidden robot of its own: the robot (default the built-in one) whose knees' gain is 20 % below its
+map's and its hips' 20 % above (a motor's through its P register), its commands two ticks late; one
+walk of ``--seconds`` (``--walk``, default the carpet4 engine set, at 0.15 m/s, the randomisation's
+sensor noise) recorded on ``--surface``, and ``identify_servos_from_walks`` on it from the map's
+servos. Prints the fitted gains against the truth, the latency, the residuals and the cost. Not
+collected by pytest (its name); ``test_identify.py`` records its walk with :func:`hidden_walk`.
 """
 
 from __future__ import annotations
@@ -26,18 +27,19 @@ TRUTH = {"hips": 1.2, "knees": 0.8, "ankles": 1.0}
 LATENCY_TICKS = 2
 
 
-def hidden_walk(path, seconds: float, surface: str = "carpet4", seed: int = 7):
+def hidden_walk(path, seconds: float, surface: str = "carpet4", seed: int = 7, robot_name: str = "kidsize",
+                walk: str = "kidsize-engine-carpet4"):
     """Record a walk of the hidden robot (the module's docstring) into ``path`` (MCAP)."""
     from gaits import parse_command
-    from gaits.robot.recorder import Recorder, RecordingController, RecordingMeta
     from tuner.identify.servos import group_of
     from tuner.identify.walk_servos import scaled_gain
     from tuner.params_io import resolve_drive
     from tuner.robots import load_robot
     from tuner.sim.randomisation import NONE, draw
+    from tuner.sim.record import recording
     from tuner.sim.rollout import Simulator
     from tuner.sim.surfaces import load_surface
-    robot = load_robot("kidsize")
+    robot = load_robot(robot_name)
     servos = dict(robot.servos)
     for ours, (theirs, _) in robot.joint_map.items():
         if group_of(ours) in TRUTH:
@@ -46,16 +48,13 @@ def hidden_walk(path, seconds: float, surface: str = "carpet4", seed: int = 7):
                                                for t, s in servos.items()})
     noise = dataclasses.replace(NONE, imu_noise_deg=0.5, gyro_noise=0.05, accel_noise=0.05, encoder_noise=0.001,
                                 encoder_rate_noise=0.05, force_noise=0.5)
-    drive = resolve_drive("kidsize-engine-carpet4", None, command=parse_command("0.15,0,0"))
+    controller = walk if walk.endswith((".yaml", ".yml")) and "policy" in Path(walk).read_text() else None
+    drive = resolve_drive(None if controller else walk, None, command=parse_command("0.15,0,0"), controller=controller)
     ground = load_surface(surface)
     sim = Simulator(truth, ground)
     options = {**drive.run_options(), "duration": seconds}
-    rec = Recorder(path, RecordingMeta(robot=robot.name, task="walk", simulated=True, surface=ground.name), start_ns=0)
-    try:
-        trace = sim.run(RecordingController(drive.controller(truth, sim.control_period), rec),
-                        perturb=draw(noise, seed, *sim.n_random()), **options)
-    finally:
-        rec.close()
+    with recording(drive.controller(truth, sim.control_period), sim, drive, Path(path), "walk") as walker:
+        trace = sim.run(walker, perturb=draw(noise, seed, *sim.n_random()), **options)
     if not trace.completed:
         raise RuntimeError("the hidden robot fell in its walk")
     return path
@@ -72,20 +71,24 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=3.0)
     ap.add_argument("--surface", default="carpet4")
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--robot", default="kidsize")
+    ap.add_argument("--walk", default="kidsize-engine-carpet4", help="a set, or a policy file")
     a = ap.parse_args()
-    robot = load_robot("kidsize")
+    robot = load_robot(a.robot)
     with tempfile.TemporaryDirectory() as tmp:
-        walk = hidden_walk(Path(tmp) / "walk.mcap", a.seconds, a.surface)
+        walk = hidden_walk(Path(tmp) / "walk.mcap", a.seconds, a.surface, robot_name=a.robot, walk=a.walk)
         logs, _ = read_walk_logs([walk], robot)
     t0 = time.monotonic()
     fit = identify_servos_from_walks(robot, load_surface(a.surface), logs, threads=a.workers)
-    print(f"{a.seconds:g} s walk on {a.surface}: {fit.rollouts} replays, {time.monotonic() - t0:.0f} s")
+    print(f"{robot.name}, {a.walk}: {a.seconds:g} s walk on {a.surface}: {fit.rollouts} replays, "
+          f"{time.monotonic() - t0:.0f} s")
     for k, v in fit.values.items():
         g = k.split(".")[0]
         print(f"  {k:10s} {v:.4f} (truth {TRUTH[g]:.2f}, off {100 * (v / TRUTH[g] - 1):+.2f} %) +- {fit.intervals[k]:.2g}"
               f"{'' if fit.identifiable[k] else ' not identifiable'}")
     print(f"  latency {fit.latency_ticks} ticks (truth {LATENCY_TICKS}), "
           f"{'identified' if fit.latency_identified else 'not identifiable'}")
+    print(f"  replayed over the first {fit.horizon:g} s (the longest horizon whose replays stay within 2 noises)")
     print("  residual RMS [noises] before -> after: " + ", ".join(f"{k} {fit.rms_before[k]:.2f} -> {v:.2f}"
                                                                   for k, v in fit.rms_after.items()))
 

@@ -215,3 +215,31 @@ def test_a_csv_teams_write_reads_or_is_one_line(tmp_path):
     os.mkfifo(fifo)
     with pytest.raises(RecordingError, match="not a regular file"):
         read_field_recording(fifo)
+
+
+@pytest.mark.parametrize("named", [True, False])
+def test_the_commanded_angles_of_a_robot_that_measures_fewer_joints_are_its_joints(tmp_path, named):
+    """A robot with legs only (Wolfgang-OP in our map) measures 12 joints while its controller asks
+    all our 20 roles: the commanded angles are read by name into the measured joints' columns (a
+    recording names them, ``target_joints``; one made before names none, and its 20 columns are our
+    20 roles). Before, the first 12 of the 20 (the arms and head, then half a leg) were read as the
+    legs' targets: a walk replayed from them, ``identify ground`` and ``identify servos`` on it,
+    fitted a robot doing something else."""
+    from gaits import JOINT_NAMES
+    legs = [j for j in JOINT_NAMES if j[2:].startswith(("hip", "knee", "ankle"))]
+    assert len(legs) == 12
+    meta = RecordingMeta(robot="legs", joints=legs, target_joints=list(JOINT_NAMES) if named else [])
+    asked = np.arange(len(JOINT_NAMES), dtype=float) / 100.0          # each role its own number
+    with Recorder(tmp_path / "r.mcap", meta, start_ns=0) as rec:
+        for k in range(20):
+            rec.record(Measurement(0.01 * k, q=np.zeros(12), joint_names=legs), None, asked + k * 1e-3)
+    back = read_field_recording(tmp_path / "r.mcap")
+    assert back.joints == tuple(legs)
+    t, got = back.target
+    want = np.array([[JOINT_NAMES.index(j) / 100.0 + k * 1e-3 for j in legs] for k in range(20)])
+    np.testing.assert_array_equal(got, want)
+    meta = RecordingMeta(robot="legs", joints=legs, target_joints=list(JOINT_NAMES[:19]))
+    with Recorder(tmp_path / "bad.mcap", meta, start_ns=0) as rec:
+        rec.record(Measurement(0.0, q=np.zeros(12), joint_names=legs), None, asked)
+    with pytest.raises(RecordingError, match="holds 20 angles per message; its metadata names 19"):
+        read_field_recording(tmp_path / "bad.mcap")

@@ -243,7 +243,7 @@ def test_a_walk_tells_the_legs_gains_and_the_latency(tmp_path, capsys):
     """From a walk (what a team has from games; no harness), on the ground it was walked on: the
     legs' gains per group and the latency in whole ticks, the rest named as what a walk cannot
     tell; written as the servo's own fields (a motor's P register). Measured: 3 s of walk recover
-    the gains within 0.5 % (docs/servos.md); 1.2 s here within 3 %."""
+    the gains within 0.7 % (docs/servos.md); 1.2 s here within 3 %."""
     from bench_walk_servos import hidden_walk
     from tuner.cli import main
     walk = hidden_walk(tmp_path / "walk.mcap", 1.2)

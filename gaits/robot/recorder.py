@@ -13,8 +13,10 @@ nanoseconds, and ``t`` [s] since the start; SI units, gait-tuner's joint names a
 ``/imu/gyro``          ``x, y, z`` [rad/s] body rates
 ``/imu/accel``         ``x, y, z`` [m/s^2] specific force (gravity included)
 ``/imu/orientation``   ``roll, pitch, yaw`` [rad]
-``/joints/measured``   ``position`` [rad] and ``velocity`` [rad/s] per joint (``names`` in the metadata)
-``/joints/target``     ``position`` [rad] per joint: what the controller asked for the next tick
+``/joints/measured``   ``position`` [rad] and ``velocity`` [rad/s] per joint (the metadata's ``joints``)
+``/joints/target``     ``position`` [rad] per joint: what the controller asked for the next tick (the
+                       metadata's ``target_joints``, or its ``joints`` when it names none: a
+                       controller asks all 20 roles of a robot whose encoders read fewer)
 ``/feet/force``        ``force`` [N], the eight sole readings (``gaits.control.FOOT_FORCE_LABELS``)
 ``/walk/command``      ``vx, vy`` [m/s], ``wz`` [rad/s]
 =====================  ====================================================================
@@ -69,6 +71,7 @@ class RecordingMeta:
     maker: str = ""
     model: str = ""
     joints: list[str] = field(default_factory=lambda: list(JOINT_NAMES))
+    target_joints: list[str] = field(default_factory=list)    # /joints/target's columns (empty: as joints)
     foot_force: list[str] = field(default_factory=lambda: list(FOOT_FORCE_LABELS))
     controller: str = ""                         # what drove the joints
     parameters: dict = field(default_factory=dict)    # its parameters

@@ -234,7 +234,8 @@ def _ours(path: Path, robot_joints) -> FieldRecording:
                              f"its metadata names {len(joints)} joints")
     target = None
     if "/joints/target" in rec.channels:
-        target = (rec.times("/joints/target"), rec.values("/joints/target", "position"))
+        target = _targets_as_measured(name, rec.meta, joints, rec.times("/joints/target"),
+                                      rec.values("/joints/target", "position"))
     imu = {}
     if "/imu/orientation" in rec.channels:
         t = rec.times("/imu/orientation")
@@ -250,6 +251,27 @@ def _ours(path: Path, robot_joints) -> FieldRecording:
     out = FieldRecording(name, joints, meas, target, imu, walk, feet, rec.meta.simulated, rec.meta.robot,
                          rec.meta.surface)
     return _finish(out, robot_joints)
+
+
+def _targets_as_measured(name: str, meta: Any, joints: tuple[str, ...], t: np.ndarray,
+                         values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The commanded angles in the measured joints' columns: a controller asks all our 20 roles (and
+    a robot's extra joints) of a robot whose encoders read fewer; the metadata's ``target_joints``
+    names them (a recording made before it did: our 20 roles when there are 20 columns and fewer
+    measured joints, else the measured joints)."""
+    from gaits import JOINT_NAMES
+    width = values.shape[1] if values.ndim == 2 else -1
+    names = list(getattr(meta, "target_joints", None) or [])
+    if not names:
+        names = list(JOINT_NAMES) if width == len(JOINT_NAMES) != len(joints) else list(joints)
+    if width != len(names):
+        raise RecordingError(f"{name}: channel /joints/target holds {width} angles per message; its metadata "
+                             f"names {len(names)} joints")
+    missing = [j for j in joints if j not in names]
+    if missing:
+        raise RecordingError(f"{name}: no commanded angle of {missing[0]!r} in /joints/target (it names "
+                             f"{', '.join(names[:6])} ...)")
+    return t, values[:, [names.index(j) for j in joints]]
 
 
 # --- ROS 2 bags ------------------------------------------------------------------------------------

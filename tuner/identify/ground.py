@@ -3,7 +3,8 @@
 The simulated walk replays the recording's walk: the joint targets its controller asked, tick by
 tick, through the robot's servo model (rate limit, latency, backlash from the robot map, which an
 identification of the servos has written) on a candidate surface, from the recording's first
-asked pose placed on the ground. What the replay's sensors read is compared with what the robot's
+asked pose placed on the ground (a joint measured further from it than the encoders' noise allows
+starts where it was measured: a learned walk's first action is no start pose). What the replay's sensors read is compared with what the robot's
 read, tick by tick: torso roll and pitch, the gyro and the encoders, each in units of its sensor
 noise (so a residual RMS of 1 is a fit down to the noise).
 
@@ -62,6 +63,7 @@ GRID_POINTS = 7
 SLIP_SPEED = 0.05        # [m/s] a loaded sole sliding faster than this slips (ours)
 MIN_SLIPS = 3            # ticks of slipping the recordings need for friction to be read (ours)
 HORIZON = 3.0            # [s] of each recording the replays are fitted over (ours: see the module docstring)
+START_NOISES = 5.0       # a joint starts at its measured angle where that is this many noises from the asked (ours)
 
 
 def ground_fields(s: Surface) -> tuple[str, ...]:
@@ -100,15 +102,16 @@ class Replay:
 
     senses = frozenset({"q", "imu_rpy", "gyro", "accel"})
 
-    def __init__(self, targets: np.ndarray, dt: float) -> None:
+    def __init__(self, targets: np.ndarray, dt: float, start: np.ndarray | None = None) -> None:
         self.targets = np.asarray(targets, dtype=float)
         self.dt = dt
+        self.start = self.targets[0].copy() if start is None else np.asarray(start, dtype=float)
         self.duration = len(self.targets) * dt          # a reading at each of the targets' ticks
         self.read: list = []
         self._k = 0
 
     def start_pose(self) -> StartPose:
-        return StartPose(self.targets[0].copy(), np.zeros(2))
+        return StartPose(self.start.copy(), np.zeros(2))
 
     def reset(self, m) -> None:
         self._k = 0
@@ -130,7 +133,17 @@ def replay(robot: RobotModel, surface: Surface, log: WalkLog) -> dict[str, np.nd
     """The recording's walk replayed on ``surface``: per tick the simulated rpy, gyro, accel and
     encoders (rows as the log's; a replay that falls holds its last reading), and ``fell``."""
     sim = Simulator(robot, surface)
-    rep = Replay(log.targets, log.dt)
+    # the walk starts where the robot stood: the first asked pose (an engine's is its start pose, to
+    # the bit), but a joint whose first measured angle is further from it than START_NOISES of the
+    # encoders' noise starts there (a learned walk's first action is no start pose: Wolfgang-OP's is
+    # up to 0.33 rad from it) (ours)
+    start = np.array(log.targets[0], dtype=float)
+    for col, j in enumerate(log.joints):
+        if j in JOINT_NAMES:
+            i = JOINT_NAMES.index(j)
+            if abs(log.q[0, col] - start[i]) > START_NOISES * NOISE["q"]:
+                start[i] = log.q[0, col]
+    rep = Replay(log.targets, log.dt, start)
     trace = sim.run(rep, duration=rep.duration, height_check=True)
     n = len(log.targets)
     got = rep.read[:n]

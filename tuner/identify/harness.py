@@ -441,6 +441,7 @@ def record_sweep(h: Harness, targets: np.ndarray, s: ServoArrays, path, *, noise
     q = h.run(model, targets, s)
     q = q + np.random.default_rng(seed).normal(0.0, noise, q.shape) if noise > 0 else q
     meta = RecordingMeta(robot=h.robot.name, task=task, simulated=True, joints=list(h.joint_names),
+                         target_joints=list(h.joint_names),
                          controller="joint sweep (gait-tuner excite), robot in a harness", notes=notes)
     with Recorder(path, meta, start_ns=0) as rec:
         for k in range(len(targets)):       # row k: read at tick k, and asked then for the tick after

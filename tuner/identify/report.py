@@ -228,15 +228,16 @@ def walk_fit_json(fit: Any) -> dict[str, Any]:
             "latency": {"ticks": fit.latency_ticks, "identifiable": fit.latency_identified,
                         "misfit": {str(k): v for k, v in fit.latency_misfit.items()}},
             "not_from_a_walk": list(NOT_FROM_A_WALK), "entangled": fit.entangled,
-            "rms_before": fit.rms_before, "rms_after": fit.rms_after, "replays": fit.rollouts,
-            "seconds": round(fit.seconds, 1)}
+            "rms_before": fit.rms_before, "rms_after": fit.rms_after, "horizon_s": fit.horizon,
+            "replays": fit.rollouts, "seconds": round(fit.seconds, 1)}
 
 
 def walk_fit_lines(fit: Any, dt: float) -> list[str]:
     """The one-screen summary of a walk's servo fit."""
     from .walk_servos import NOT_FROM_A_WALK
     b, a = fit.rms_before, fit.rms_after
-    lines = [f"servos identified from {len(fit.recordings)} walk(s): residual RMS in sensor noises, before -> after: "
+    lines = [f"servos identified from {len(fit.recordings)} walk(s), each replayed over its first {fit.horizon:g} s: "
+             f"residual RMS in sensor noises, before -> after: "
              + ", ".join(f"{k} {b[k]:.2f} -> {a[k]:.2f}" for k in a) + f"; {fit.rollouts} replays, {fit.seconds:.0f} s"]
     for k, v in fit.values.items():
         state = "" if fit.identifiable[k] else "   not identifiable from these walks (the map's kept)"

@@ -3,14 +3,19 @@
 A team has walks from its games, rarely a sweep of the robot hanging. A walk's contacts carry the
 legs, so the harness' model (the torso held, no foot touching: :mod:`tuner.identify.servos`) cannot
 be fitted to it. The walk's own replay can (:func:`tuner.identify.ground.replay`: the recording's
-joint targets, tick by tick, through the robot's servos, on the surface it walked on, open loop over
-the first :data:`~tuner.identify.ground.HORIZON` seconds), and what it compares (torso roll and
-pitch, gyro, encoders, each in its sensor noise) moves with a few of the servos' numbers:
+joint targets, tick by tick, through the robot's servos, on the surface it walked on, open loop from
+the first measured pose), and what it compares (torso roll and pitch, gyro, encoders, each in its
+sensor noise) moves with a few of the servos' numbers. An open-loop replay drifts from the walk as it
+goes (a learned walk's feedback is not in it: on Wolfgang-OP's, 3 s of replay drift to 100 noises),
+so the horizon grows: half a second first, then 1 and 2 s and the first ``horizon`` seconds
+(:data:`HORIZON_STAGES`), each from the last one's estimates, a longer one kept only while its
+replays stay within :data:`ACCEPT_NOISES` of the recordings (the report says which horizon).
 
 * the **latency** (command to servo, one for the robot): the whole walk's timing moves with it. The
   simulator queues commands in whole control ticks, so it is read by trying each of 0 to
-  :data:`LATENCY_MAX_TICKS` ticks; it is identified when no other count comes within the misfit's
-  95 % band (``chi2`` of one degree of freedom, 3.84, on the residual scaled to its own variance);
+  :data:`LATENCY_MAX_TICKS` ticks (a longer horizon, the counts next to a shorter one's); it is
+  identified when no other count tried comes within the misfit's 95 % band (``chi2`` of one degree
+  of freedom, 3.84, on the residual scaled to its own variance);
 * the legs' **position gain** ``kp`` per group (hips, knees, ankles): how far a loaded leg gives under
   the robot's weight shows in every stance.
 
@@ -60,6 +65,11 @@ FD_STEP = 0.02
 #: a latency count is within the 95 % band when its misfit exceeds the best one's by less than this
 #: many times the residual's variance (chi2, one degree of freedom)
 LATENCY_BAND = 3.84
+#: the horizons a fit grows through [s], and how close a replay must stay to the recordings to keep
+#: a longer one (every channel's RMS, in sensor noises) (ours: on Wolfgang-OP's learned walk a 3 s
+#: replay drifts to 100 noises even from the true servos' neighbourhood, 0.5 s keeps it at the noise)
+HORIZON_STAGES = (0.5, 1.0, 2.0)
+ACCEPT_NOISES = 2.0
 
 
 @dataclass
@@ -83,6 +93,7 @@ class WalkServoFit:
     recordings: list[str] = field(default_factory=list)
     entangled: list[list[str]] = field(default_factory=list)
     groups: dict[str, tuple[str, ...]] = field(default_factory=dict)   # fitted group -> its servos (theirs)
+    horizon: float = HORIZON                  # [s] of each recording the kept fit replays
 
     @property
     def converged(self) -> bool:
@@ -104,13 +115,13 @@ def identify_servos_from_walks(robot: RobotModel, surface: Surface, logs: list[W
                                threads: int | None = None, progress=None, horizon: float = HORIZON,
                                trace=None) -> WalkServoFit:
     """Fit what the walks in ``logs`` tell of ``robot``'s servos (the module's docstring) on
-    ``surface``, each recording over its first ``horizon`` seconds. ``progress(replays)`` after
-    each batch; ``trace`` (a text stream) gets the optimiser's iterations."""
+    ``surface``, each recording over its first seconds, up to ``horizon`` (the horizon grows while
+    the replays follow: the module's docstring). ``progress(replays)`` after each batch; ``trace`` (a
+    text stream) gets the optimiser's iterations."""
     sysid = _sysid()
     if not logs:
         raise UserError("no recordings to identify from")
     dt = robot.sim.control_period
-    logs = [log.first(horizon) for log in logs]
     for log in logs:
         if abs(log.dt - dt) > 1e-9:
             raise UserError(f"{log.name}: its ticks are {log.dt * 1000:g} ms apart; the robot's control period "
@@ -140,64 +151,86 @@ def identify_servos_from_walks(robot: RobotModel, surface: Surface, logs: list[W
     pool = ThreadPoolExecutor(n_threads) if n_threads > 1 else None
     counter = {"rollouts": 0}
 
-    def residuals(robots: list[RobotModel]) -> list[np.ndarray]:
+    def residuals(robots: list[RobotModel], cut: list[WalkLog]) -> list[np.ndarray]:
         def one(r: RobotModel) -> np.ndarray:
-            return np.concatenate([residual_of(replay(r, surface, log), log) for log in logs])
+            return np.concatenate([residual_of(replay(r, surface, log), log) for log in cut])
         rows = list(pool.map(one, robots)) if pool is not None and len(robots) > 1 else [one(r) for r in robots]
-        counter["rollouts"] += len(robots) * len(logs)
+        counter["rollouts"] += len(robots) * len(cut)
         if progress is not None:
             progress(counter["rollouts"])
         return rows
 
-    def scan(x: np.ndarray) -> dict[int, float]:
-        rows = residuals([candidate(x, k) for k in range(int(LATENCY_MAX_TICKS) + 1)])
-        return {k: float(np.dot(r, r)) for k, r in enumerate(rows)}
+    def stage(cut: list[WalkLog], x0: np.ndarray, around: int | None = None) -> dict:
+        """One horizon's fit from ``x0``: the latency scanned (every count, or the counts next to
+        ``around``, a shorter horizon's), the gains by Levenberg-Marquardt, the latency again at the
+        fitted gains."""
+        counts = range(int(LATENCY_MAX_TICKS) + 1) if around is None else \
+            range(max(0, around - 1), min(int(LATENCY_MAX_TICKS), around + 1) + 1)
 
-    t0 = time.monotonic()
-    try:
-        x = np.ones(len(names))
-        mapped = int(round(max((s.latency for s in robot.servos.values()), default=0.0) / dt))
-        r0 = residuals([candidate(x, mapped)])[0]
-        misfit = scan(x)
-        ticks = min(misfit, key=misfit.get)
+        def scan(x: np.ndarray) -> dict[int, float]:
+            rows = residuals([candidate(x, k) for k in counts], cut)
+            return {k: float(np.dot(r, r)) for k, r in zip(counts, rows)}
+        misfit = scan(x0)
+        state = {"ticks": min(misfit, key=misfit.get)}
         params = sysid.ParameterDict()
-        for n in names:
-            params.add(sysid.Parameter(n, nominal=1.0, min_value=lo, max_value=hi))
-        state = {"ticks": ticks}
+        for n, v in zip(names, x0):
+            params.add(sysid.Parameter(n, nominal=float(v), min_value=lo, max_value=hi))
 
         def residual_fn(xv: np.ndarray, p):
             cols = xv.reshape(len(xv), -1) if xv.ndim > 1 else xv.reshape(-1, 1)
-            r = np.stack(residuals([candidate(cols[:, c], state["ticks"]) for c in range(cols.shape[1])]), axis=1)
+            r = np.stack(residuals([candidate(cols[:, c], state["ticks"]) for c in range(cols.shape[1])], cut), axis=1)
             return [r if xv.ndim > 1 else r[:, 0]], None, None
 
         opt, result = optimize(sysid, params, residual_fn, max_iters=max_iters, eps=FD_STEP, trace=trace)
         x = np.clip(np.asarray(result.x, dtype=float), lo, hi)
-        # the latency again at the fitted gains (the first scan's gains were the map's)
         misfit = scan(x)
-        ticks = min(misfit, key=misfit.get)
-        state["ticks"] = ticks
+        state["ticks"] = ticks = min(misfit, key=misfit.get)
         r1 = residual_fn(x, opt.copy())[0][0]
         cov, half = sysid.calculate_intervals([r1], np.asarray(result.jac))
+        return {"x": x, "ticks": ticks, "misfit": misfit, "r1": r1, "cov": cov, "half": half, "logs": cut,
+                "rms": channel_rms(r1, cut)}
+
+    t0 = time.monotonic()
+    try:
+        # an open-loop replay drifts from the recorded walk as it goes (a learned walk's feedback is
+        # not replayed): the horizon grows from half a second, each stage from the last one's
+        # estimates, and a longer one is kept only while its replays stay within ACCEPT_NOISES of
+        # the recordings (ours)
+        longest = min(horizon, max((len(log.targets) - 1) * log.dt for log in logs))
+        steps = [h for h in HORIZON_STAGES if h < longest - 1e-9] + [longest]
+        x = np.ones(len(names))
+        best = None
+        for h in steps:
+            got = stage([log.first(h) for log in logs], x if best is None else best["x"],
+                        None if best is None else best["ticks"])
+            if best is not None and max(got["rms"].values()) > ACCEPT_NOISES:
+                break
+            best, used = got, h
+            if max(got["rms"].values()) > ACCEPT_NOISES:
+                break                      # the shortest horizon already drifts: reported as it is
+        cut = best["logs"]
+        mapped = int(round(max((s.latency for s in robot.servos.values()), default=0.0) / dt))
+        r0 = residuals([candidate(np.ones(len(names)), mapped)], cut)[0]
+        x, ticks, misfit, r1 = best["x"], best["ticks"], best["misfit"], best["r1"]
+        values = {n: float(v) for n, v in zip(names, x)}
+        intervals = {n: float(w) for n, w in zip(names, best["half"])}
+        identifiable = {n: bool(math.isfinite(intervals[n]) and intervals[n] < NARROW["x"] * abs(values[n]))
+                        for n in names}
+        entangled = _entangled(names, best["cov"], identifiable)
+        # the latency's band: the residual scaled to its own variance at the best count
+        variance = misfit[ticks] / max(1, len(r1) - len(names) - 1)
+        band = [k for k, c in misfit.items() if k == ticks or c - misfit[ticks] < LATENCY_BAND * variance]
+        kept = np.array([values[n] if identifiable[n] else 1.0 for n in names])
+        fitted = candidate(kept, ticks)
+        r_kept = r1 if all(identifiable.values()) else residuals([fitted], cut)[0]
     finally:
         if pool is not None:
             pool.shutdown()
-    values = {n: float(v) for n, v in zip(names, x)}
-    intervals = {n: float(w) for n, w in zip(names, half)}
-    identifiable = {n: bool(math.isfinite(intervals[n]) and intervals[n] < NARROW["x"] * abs(values[n]))
-                    for n in names}
-    entangled = _entangled(names, cov, identifiable)
-    # the latency's band: the residual scaled to its own variance at the best count
-    variance = misfit[ticks] / max(1, len(r1) - len(names) - 1)
-    band = [k for k, c in misfit.items() if c - misfit[ticks] < LATENCY_BAND * variance]
-    kept = np.array([values[n] if identifiable[n] else 1.0 for n in names])
-    fitted = candidate(kept, ticks)
-    r_kept = r1 if all(identifiable.values()) else residuals([fitted])[0]
-
     return WalkServoFit(robot=fitted, values=values, intervals=intervals, identifiable=identifiable,
                         latency_ticks=ticks, latency_misfit=misfit, latency_identified=band == [ticks],
-                        rms_before=channel_rms(r0, logs), rms_after=channel_rms(r_kept, logs), rollouts=counter["rollouts"],
-                        seconds=time.monotonic() - t0, recordings=[log.name for log in logs],
-                        entangled=entangled, groups=groups)
+                        rms_before=channel_rms(r0, cut), rms_after=channel_rms(r_kept, cut),
+                        rollouts=counter["rollouts"], seconds=time.monotonic() - t0,
+                        recordings=[log.name for log in logs], entangled=entangled, groups=groups, horizon=used)
 
 
 def walk_servo_overlay(fit: WalkServoFit, robot: RobotModel) -> dict[str, dict]:

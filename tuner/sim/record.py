@@ -32,8 +32,10 @@ def recording(controller: Any, sim: Any, drive: Any, path: Path | None, task: st
         return
     from gaits.robot.recorder import Recorder, RecordingController, RecordingMeta
     params = getattr(drive, "params", None)
-    # the measured joints are the simulator's servo joints (a robot without arms measures fewer than 20)
+    # the measured joints are the simulator's servo joints (a robot without arms measures fewer than 20);
+    # the targets, what the controller asks: our 20 roles and the robot's extra joints
     meta = RecordingMeta(robot=sim.robot.name, task=task, simulated=True, joints=list(sim.joint_names),
+                         target_joints=list(sim.target_names),
                          controller=drive.describe(),
                          parameters={} if params is None else params.to_mapping(), surface=sim.surface.name,
                          notes=notes)
