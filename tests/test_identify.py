@@ -281,6 +281,10 @@ def test_a_walk_recording_without_its_ground_or_asked_what_it_cannot_tell_is_one
                  "--fit", "kp,armature", "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "a walk cannot tell armature" in err and not (tmp_path / "o").exists()
+    assert main(["identify", "servos", "--robot", "kidsize", "--recording", str(rec), "--surface", "carpet4",
+                 "--by", "joints", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "a walk's fit is by leg group" in err and not (tmp_path / "o").exists()
     h = Harness(load_robot("kidsize"))
     _, sweep = excitation(h, duration=2.5)
     record_sweep(h, sweep, h.servo_arrays(), tmp_path / "sweep.mcap", seed=1)

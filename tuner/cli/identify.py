@@ -172,6 +172,9 @@ def identify_servos_cmd(robot_name: str | None, recordings: tuple[Path, ...], to
             p, why = walks[0]
             raise UserError(f"identify servos: {p} is a walk ({why}) and the others are sweeps hanging in a harness: "
                             f"fit them apart (a walk tells the legs' gains and the latency, a sweep the rest)")
+        if by != "groups" or noise != 0.001:
+            raise UserError(f"identify servos {'--by joints' if by != 'groups' else f'--noise {noise:g}'}: a walk's fit "
+                            f"is by leg group, in each sensor's own noise (docs/servos.md); leave it out for walks")
         _servos_from_walks(robot, [p for p, _, _ in read], topics_file, surface_name, fit_fields, out_dir,
                            max_iters, trace, as_json, first=walks[0])
         return

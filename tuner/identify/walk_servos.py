@@ -220,9 +220,11 @@ def identify_servos_from_walks(robot: RobotModel, surface: Surface, logs: list[W
         # the latency's band: the residual scaled to its own variance at the best count
         variance = misfit[ticks] / max(1, len(r1) - len(names) - 1)
         band = [k for k, c in misfit.items() if k == ticks or c - misfit[ticks] < LATENCY_BAND * variance]
+        # what is written: a gain or a latency the walks did not fix keeps the map's
         kept = np.array([values[n] if identifiable[n] else 1.0 for n in names])
-        fitted = candidate(kept, ticks)
-        r_kept = r1 if all(identifiable.values()) else residuals([fitted], cut)[0]
+        kept_ticks = ticks if band == [ticks] else mapped
+        fitted = candidate(kept, kept_ticks)
+        r_kept = r1 if all(identifiable.values()) and kept_ticks == ticks else residuals([fitted], cut)[0]
     finally:
         if pool is not None:
             pool.shutdown()
