@@ -240,26 +240,7 @@ def identify_servos(harness: Harness, logs: list[JointLog], *, by: str = "groups
     units = list(dict.fromkeys(keys))                           # the fitted units, in order
     member = {u: np.array([k == u for k in keys]) for u in units}
     params = sysid.ParameterDict()
-    # a motor unit whose extended friction is fitted runs a per-step term with a Stribeck and a
-    # directional load part (BAM's M5 flags, added to the map's own)
-    extended = [f for f in EXTENDED if f in fit]
-    termed = {u: bool(extended) and bool(np.all(base.back_emf[member[u]] > 0)) for u in units}
-    start_ext: dict[str, float] = {}
-    for u in units:
-        m = member[u]
-        rows = base.friction[m]
-        on = rows[:, 0] == FRICTION_MAGIC
-        for f, (_, col) in EXTENDED.items():         # the map's values (none where the map has no term)
-            start_ext[f"{u}.{f}"] = float(np.mean(np.where(on, rows[:, col], 0.0 if f != "stribeck_speed" else 1.0)))
-        if termed[u]:
-            idx = np.flatnonzero(m)
-            for i in idx:
-                row = base.friction[i]
-                if row[0] != FRICTION_MAGIC:
-                    row[:] = 0.0
-                    # the Stribeck curve's shape held at alpha 1 (ours: an exponential fall with speed)
-                    row[0], row[FRICTION_STRIBECK_SPEED], row[FRICTION_ALPHA] = FRICTION_MAGIC, 1.0, 1.0
-                row[FRICTION_FLAGS] = int(row[FRICTION_FLAGS]) | 1 | 2 | 4
+    termed, start_ext = _extended_terms(base, units, member, fit)
     h.write_spec(h.spec, base)             # every fit starts from the map's servos (an earlier fit edited the spec)
 
     def scale_modifier(unit: str, fname: str):
@@ -517,6 +498,32 @@ def _entangled(names: list[str], cov: np.ndarray, identifiable: dict[str, bool])
             merged = set().union(*hit, {a, b}) if hit else {a, b}
             groups = [g for g in groups if g not in hit] + [merged]
     return [[names[i] for i in sorted(g)] for g in groups]
+
+
+def _extended_terms(base: ServoArrays, units: list[str], member: dict, fit: tuple[str, ...]
+                    ) -> tuple[dict[str, bool], dict[str, float]]:
+    """Where the fit asks for a motor's extended friction: which units run a per-step term (every
+    servo of the unit a motor), each such servo's term set up in ``base`` (BAM's M5 flags added to
+    the map's own: a Stribeck and a directional load part), and the map's values of the extended
+    fields per unit (none where the map's servo has no term; a speed scale of 1 rad/s)."""
+    asked = any(f in fit for f in EXTENDED)
+    termed = {u: asked and bool(np.all(base.back_emf[member[u]] > 0)) for u in units}
+    start: dict[str, float] = {}
+    for u in units:
+        rows = base.friction[member[u]]
+        on = rows[:, 0] == FRICTION_MAGIC
+        for f, (_, col) in EXTENDED.items():
+            start[f"{u}.{f}"] = float(np.mean(np.where(on, rows[:, col], 0.0 if f != "stribeck_speed" else 1.0)))
+        if not termed[u]:
+            continue
+        for i in np.flatnonzero(member[u]):
+            row = base.friction[i]
+            if row[0] != FRICTION_MAGIC:
+                row[:] = 0.0
+                # the Stribeck curve's shape held at alpha 1 (ours: an exponential fall with speed)
+                row[0], row[FRICTION_STRIBECK_SPEED], row[FRICTION_ALPHA] = FRICTION_MAGIC, 1.0, 1.0
+            row[FRICTION_FLAGS] = int(row[FRICTION_FLAGS]) | 1 | 2 | 4
+    return termed, start
 
 
 def _term_column(spec: mujoco.MjSpec, ours: str, col: int, value: float) -> bool:
