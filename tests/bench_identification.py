@@ -78,11 +78,9 @@ def record_walk(robot_map: Path, surface: Path, set_path: Path, command: str, se
     from gaits.robot.recorder import Recorder, RecordingController, RecordingMeta
     from tuner.params_io import resolve_drive
     from tuner.robots import load_robot
-    from tuner.sim.randomisation import NONE, draw
+    from tuner.sim.randomisation import SENSORS_ONLY as noise, draw
     from tuner.sim.rollout import Simulator
     from tuner.sim.surfaces import load_surface
-    noise = dataclasses.replace(NONE, imu_noise_deg=0.5, gyro_noise=0.05, accel_noise=0.05, encoder_noise=0.001,
-                                encoder_rate_noise=0.05, force_noise=0.5)
     robot = load_robot(robot_map)
     drive = resolve_drive(str(set_path), None, command=parse_command(command))
     sim = Simulator(robot, load_surface(str(surface)))

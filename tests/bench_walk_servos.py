@@ -2,11 +2,12 @@
 script:
 
     python tests/bench_walk_servos.py [--seconds 3] [--surface carpet4] [--workers 2]
-        [--robot MAP --walk SET|CONTROLLER.yaml]
+        [--robot MAP] [--params SET | --controller CONTROLLER.yaml]
 
 A hidden robot of its own: the robot (default the built-in one) whose knees' gain is 20 % below its
 map's and its hips' 20 % above (a motor's through its P register), its commands two ticks late; one
-walk of ``--seconds`` (``--walk``, default the carpet4 engine set, at 0.15 m/s, the randomisation's
+walk of ``--seconds`` (``--params`` or ``--controller``, as ``simulate`` takes them; default the carpet4
+engine set; at 0.15 m/s, the randomisation's
 sensor noise) recorded on ``--surface``, and ``identify_servos_from_walks`` on it from the map's
 servos. Prints the fitted gains against the truth, the latency, the residuals and the cost. Not
 collected by pytest (its name); ``test_identify.py`` records its walk with :func:`hidden_walk`.
@@ -28,14 +29,14 @@ LATENCY_TICKS = 2
 
 
 def hidden_walk(path, seconds: float, surface: str = "carpet4", seed: int = 7, robot_name: str = "kidsize",
-                walk: str = "kidsize-engine-carpet4"):
+                params: str | None = "kidsize-engine-carpet4", controller: str | None = None):
     """Record a walk of the hidden robot (the module's docstring) into ``path`` (MCAP)."""
     from gaits import parse_command
     from tuner.identify.servos import group_of
     from tuner.identify.walk_servos import scaled_gain
     from tuner.params_io import resolve_drive
     from tuner.robots import load_robot
-    from tuner.sim.randomisation import NONE, draw
+    from tuner.sim.randomisation import SENSORS_ONLY, draw
     from tuner.sim.record import recording
     from tuner.sim.rollout import Simulator
     from tuner.sim.surfaces import load_surface
@@ -46,15 +47,12 @@ def hidden_walk(path, seconds: float, surface: str = "carpet4", seed: int = 7, r
             servos[theirs] = scaled_gain(servos[theirs], TRUTH[group_of(ours)])
     truth = dataclasses.replace(robot, servos={t: s.replace(latency=LATENCY_TICKS * robot.sim.control_period)
                                                for t, s in servos.items()})
-    noise = dataclasses.replace(NONE, imu_noise_deg=0.5, gyro_noise=0.05, accel_noise=0.05, encoder_noise=0.001,
-                                encoder_rate_noise=0.05, force_noise=0.5)
-    controller = walk if walk.endswith((".yaml", ".yml")) and "policy" in Path(walk).read_text() else None
-    drive = resolve_drive(None if controller else walk, None, command=parse_command("0.15,0,0"), controller=controller)
+    drive = resolve_drive(None if controller else params, None, command=parse_command("0.15,0,0"), controller=controller)
     ground = load_surface(surface)
     sim = Simulator(truth, ground)
     options = {**drive.run_options(), "duration": seconds}
     with recording(drive.controller(truth, sim.control_period), sim, drive, Path(path), "walk") as walker:
-        trace = sim.run(walker, perturb=draw(noise, seed, *sim.n_random()), **options)
+        trace = sim.run(walker, perturb=draw(SENSORS_ONLY, seed, *sim.n_random()), **options)
     if not trace.completed:
         raise RuntimeError("the hidden robot fell in its walk")
     return path
@@ -72,15 +70,17 @@ def main() -> None:
     ap.add_argument("--surface", default="carpet4")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--robot", default="kidsize")
-    ap.add_argument("--walk", default="kidsize-engine-carpet4", help="a set, or a policy file")
+    ap.add_argument("--params", default="kidsize-engine-carpet4", help="the set that walks (as simulate takes it)")
+    ap.add_argument("--controller", help="a controller or policy file that walks instead (as simulate takes it)")
     a = ap.parse_args()
     robot = load_robot(a.robot)
     with tempfile.TemporaryDirectory() as tmp:
-        walk = hidden_walk(Path(tmp) / "walk.mcap", a.seconds, a.surface, robot_name=a.robot, walk=a.walk)
+        walk = hidden_walk(Path(tmp) / "walk.mcap", a.seconds, a.surface, robot_name=a.robot, params=a.params,
+                           controller=a.controller)
         logs, _ = read_walk_logs([walk], robot)
     t0 = time.monotonic()
     fit = identify_servos_from_walks(robot, load_surface(a.surface), logs, threads=a.workers)
-    print(f"{robot.name}, {a.walk}: {a.seconds:g} s walk on {a.surface}: {fit.rollouts} replays, "
+    print(f"{robot.name}, {a.controller or a.params}: {a.seconds:g} s walk on {a.surface}: {fit.rollouts} replays, "
           f"{time.monotonic() - t0:.0f} s")
     for k, v in fit.values.items():
         g = k.split(".")[0]

@@ -14,13 +14,11 @@ from gaits import parse_command
 from gaits.robot.recorder import Recorder, RecordingController, RecordingMeta
 from tuner.params_io import resolve_drive
 from tuner.robots import load_robot
-from tuner.sim.randomisation import NONE, draw
+from tuner.sim.randomisation import SENSORS_ONLY as NOISE, draw
 from tuner.sim.rollout import Simulator
 from tuner.sim.surfaces import SURFACES, load_surface
 from conftest import run_cli
 
-NOISE = dataclasses.replace(NONE, imu_noise_deg=0.5, gyro_noise=0.05, accel_noise=0.05, encoder_noise=0.001,
-                            encoder_rate_noise=0.05, force_noise=0.5)
 BASE = SURFACES["grass30"]
 HIDDEN = dataclasses.replace(BASE, name="hidden", layer_timeconst=BASE.layer_timeconst * 1.3, drag=BASE.drag * 0.75)
 

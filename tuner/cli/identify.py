@@ -11,6 +11,10 @@ import click
 from ..errors import UserError
 from .options import OutPath, Span, robot_option, surface_option, JSON_OPTION, RECORDING_OPTION, TOPICS_OPTION, running_total
 
+#: [rad] the encoders' noise a servo fit takes unless told: a walk's fit takes it from each sensor's
+#: own (tuner/identify/ground.py NOISE), so on a walk only this value is accepted
+ENCODER_NOISE = 0.001
+
 
 @click.group()
 def log() -> None:
@@ -129,7 +133,7 @@ def identify() -> None:
                    "and report.txt.")
 @click.option("--by", type=click.Choice(["groups", "joints"]), default="groups", show_default=True,
               help="Share the servo's numbers over hips, knees, ankles, arms and head, or fit each joint.")
-@click.option("--noise", default=0.001, show_default=True, type=Span(1e-6, 0.1),
+@click.option("--noise", default=ENCODER_NOISE, show_default=True, type=Span(1e-6, 0.1),
               help="The encoders' noise [rad]: the residual's unit.")
 @click.option("--fit", "fit_fields", default=None, metavar="FIELD,...",
               help="What to fit; the others keep the map's values. Default for a sweep: "
@@ -172,10 +176,10 @@ def identify_servos_cmd(robot_name: str | None, recordings: tuple[Path, ...], to
             p, why = walks[0]
             raise UserError(f"identify servos: {p} is a walk ({why}) and the others are sweeps hanging in a harness: "
                             f"fit them apart (a walk tells the legs' gains and the latency, a sweep the rest)")
-        if by != "groups" or noise != 0.001:
+        if by != "groups" or noise != ENCODER_NOISE:
             raise UserError(f"identify servos {'--by joints' if by != 'groups' else f'--noise {noise:g}'}: a walk's fit "
                             f"is by leg group, in each sensor's own noise (docs/servos.md); leave it out for walks")
-        _servos_from_walks(robot, [p for p, _, _ in read], topics_file, surface_name, fit_fields, out_dir,
+        _servos_from_walks(robot, [(p, rec) for p, rec, _ in read], surface_name, fit_fields, out_dir,
                            max_iters, trace, as_json, first=walks[0])
         return
     logs = []
@@ -215,12 +219,12 @@ def identify_servos_cmd(robot_name: str | None, recordings: tuple[Path, ...], to
         click.echo(f"wrote {p}")
 
 
-def _servos_from_walks(robot, paths, topics_file, surface_name, fit_fields, out_dir, max_iters, trace, as_json,
-                       first) -> None:
-    """``identify servos`` on walking recordings: what a walk tells (tuner/identify/walk_servos.py)."""
+def _servos_from_walks(robot, read, surface_name, fit_fields, out_dir, max_iters, trace, as_json, first) -> None:
+    """``identify servos`` on walking recordings (``read``: (path, recording) pairs, read once): what
+    a walk tells (tuner/identify/walk_servos.py)."""
     import json
 
-    from ..identify.ground import read_walk_logs
+    from ..identify.ground import walk_logs
     from ..identify.report import walk_fit_json, walk_fit_lines, write_walk_servo_fit
     from ..identify.walk_servos import NOT_FROM_A_WALK, WALK_FIELDS, identify_servos_from_walks
     from ..sim.surfaces import load_surface
@@ -236,7 +240,7 @@ def _servos_from_walks(robot, paths, topics_file, surface_name, fit_fields, out_
                         f"kp and the latency; not {', '.join(NOT_FROM_A_WALK)}): fit it on a sweep hanging in a "
                         f"harness (gait-tuner excite)")
     surface = load_surface(surface_name)
-    logs, notes = read_walk_logs(paths, robot, topics_file)
+    logs, notes = walk_logs(read, robot)
     for note in notes:
         click.echo(f"note: {note}", err=True)
     bar, progress = running_total("identify servos (walks)", "replays")

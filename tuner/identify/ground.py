@@ -50,7 +50,7 @@ from ..sim.rollout import Simulator
 from ..sim.surfaces import Surface
 
 __all__ = ["WalkLog", "GroundFit", "identify_ground", "ground_fields", "Replay", "replay", "walk_statistics",
-           "NOISE", "read_walk_logs", "channel_rms"]
+           "NOISE", "read_walk_logs", "walk_logs", "channel_rms"]
 
 #: the sensor noise of each fitted channel (the randomisation's defaults): roll and pitch [rad],
 #: gyro [rad/s], encoders [rad]
@@ -377,14 +377,27 @@ def walk_log(name: str, dt: float, t_targets_q, rpy, gyro, accel, joints) -> Wal
 
 
 def read_walk_logs(paths, robot: RobotModel, topics=None) -> tuple[list[WalkLog], list[str]]:
-    """Walking recordings read onto the robot's control period (:func:`walk_log`), and the notes
-    of their gaps (three a file at most); a recording that cannot serve is one line (UserError)."""
+    """Walking recordings read onto the robot's control period (:func:`walk_logs`); a recording
+    that cannot serve is one line (UserError)."""
     from .field_recordings import RecordingError, read_field_recording
-    dt = robot.sim.control_period
-    logs, notes = [], []
+    read = []
     for path in paths:
         try:
-            rec = read_field_recording(path, topics=topics, robot_joints=robot.joint_map)
+            read.append((path, read_field_recording(path, topics=topics, robot_joints=robot.joint_map)))
+        except RecordingError as exc:
+            raise UserError(str(exc)) from None
+    return walk_logs(read, robot)
+
+
+def walk_logs(read, robot: RobotModel) -> tuple[list[WalkLog], list[str]]:
+    """Recordings already read (``(path, FieldRecording)`` pairs) as walks on the robot's control
+    period (:func:`walk_log`), and the notes of their gaps (three a file at most); one that cannot
+    serve is one line (UserError)."""
+    from .field_recordings import RecordingError
+    dt = robot.sim.control_period
+    logs, notes = [], []
+    for path, rec in read:
+        try:
             joints = [j for j in rec.joints if j in robot.joint_map]
             grid = rec.on_grid(dt, joints)
             imu = rec.imu_on_grid(grid[0], rec.grid_start)

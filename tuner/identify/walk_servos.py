@@ -198,10 +198,9 @@ def identify_servos_from_walks(robot: RobotModel, surface: Surface, logs: list[W
         # the recordings (ours)
         longest = min(horizon, max((len(log.targets) - 1) * log.dt for log in logs))
         steps = [h for h in HORIZON_STAGES if h < longest - 1e-9] + [longest]
-        x = np.ones(len(names))
         best = None
         for h in steps:
-            got = stage([log.first(h) for log in logs], x if best is None else best["x"],
+            got = stage([log.first(h) for log in logs], np.ones(len(names)) if best is None else best["x"],
                         None if best is None else best["ticks"])
             if best is not None and max(got["rms"].values()) > ACCEPT_NOISES:
                 break

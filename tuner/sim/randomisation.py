@@ -122,6 +122,10 @@ class Randomisation:
 
 #: No perturbation at all (a deterministic rollout, but through the randomised code path).
 NONE = Randomisation(**{k: 0 if k in _INTEGER else 0.0 for k in _RANGES})
+#: The default randomisation's sensor noise and nothing else: the world as it is, read as a robot reads
+#: it (what the identification's tests and benchmarks record their hidden robots with).
+SENSOR_NOISE = ("imu_noise_deg", "gyro_noise", "accel_noise", "encoder_noise", "encoder_rate_noise", "force_noise")
+SENSORS_ONLY = dataclasses.replace(NONE, **{k: getattr(Randomisation(), k) for k in SENSOR_NOISE})
 
 
 def randomisation_from_mapping(doc: Any, source: str) -> Randomisation:
