@@ -70,6 +70,44 @@ def test_pose_algebra():
     np.testing.assert_allclose(relative(a, compose(a, b)), b, atol=1e-12)
 
 
+def _sole_gap_numpy(pa, pb, length, width):
+    """The sole gap as numpy writes it (the planner's own form before it ran in plain floats): the
+    corners by a rotation matrix, the separating axes and the distances by dot products and norms."""
+    def rect(pose):
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        corners = np.array([[1, 1], [-1, 1], [-1, -1], [1, -1]]) * [length / 2, width / 2]
+        return pose[:2] + corners @ np.array([[c, s], [-s, c]])
+    P, Q = rect(pa), rect(pb)
+    apart = False
+    for poly in (P, Q):
+        for i in range(4):
+            e = poly[(i + 1) % 4] - poly[i]
+            n = np.array([-e[1], e[0]])
+            apart |= bool((P @ n).max() < (Q @ n).min() or (Q @ n).max() < (P @ n).min())
+    if not apart:
+        return 0.0
+    d = math.inf
+    for X, Y in ((P, Q), (Q, P)):
+        for p in X:
+            for i in range(4):
+                a, ab = Y[i], Y[(i + 1) % 4] - Y[i]
+                u = np.clip(np.dot(p - a, ab) / np.dot(ab, ab), 0.0, 1.0)
+                d = min(d, float(np.linalg.norm(p - (a + u * ab))))
+    return d
+
+
+def test_sole_gap_is_the_numpy_reference_on_random_soles():
+    rng = np.random.default_rng(3)
+    overlapping = 0
+    for _ in range(400):
+        pa = np.array([*rng.uniform(-0.1, 0.1, 2), rng.uniform(-np.pi, np.pi)])
+        pb = np.array([*rng.uniform(-0.1, 0.1, 2), rng.uniform(-np.pi, np.pi)])
+        ours, ref = sole_gap(pa, pb, 0.1, 0.055), _sole_gap_numpy(pa, pb, 0.1, 0.055)
+        assert ours == pytest.approx(ref, abs=1e-15), (pa, pb)
+        overlapping += ref == 0.0
+    assert 50 < overlapping < 350                    # both kinds of pair were drawn
+
+
 def test_sole_gap_hand_checked():
     # side by side, 0.09 m apart centre to centre, 0.055 m wide: 0.035 m between the edges
     assert sole_gap(np.array([0, 0.045, 0]), np.array([0, -0.045, 0]), 0.1, 0.055) == pytest.approx(0.035)
