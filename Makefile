@@ -21,10 +21,11 @@ run: $(STAMP)
 # the default run on two worker processes (pytest-xdist): both cores are busy throughout, so a
 # test that waits for a window in wall time fails here (tests/run_loaded.py loads a machine by hand)
 # (the sources byte-compiled first: where PYTHONDONTWRITEBYTECODE is set, every process the tests
-# start would compile them again)
+# start would compile them again; a worker that runs out of tests takes the other's waiting ones,
+# so neither idles while the other finishes a long tail)
 test: $(STAMP)
 	$(BIN)/python -m compileall -q tuner gaits > /dev/null
-	$(BIN)/python -m pytest -q -n 2
+	$(BIN)/python -m pytest -q -n 2 --dist worksteal
 
 clean:
 	rm -rf $(VENV) runs

@@ -68,7 +68,7 @@ def test_experiment_eros_matrix_as_json_and_as_its_report(gait_tuner_cmd, run_en
     """One run of the matrix: strict JSON on stdout, the text report in report.md (--out is kept
     with --json: it was dropped)."""
     import json
-    r = run(gait_tuner_cmd, ["experiment", "eros", "--json", "--steps", "6", "--out", str(tmp_path)], run_env)
+    r = run(gait_tuner_cmd, ["experiment", "eros", "--json", "--steps", "6", "--workers", "1", "--out", str(tmp_path)], run_env)
     assert r.returncode == 0, r.stderr
     text = (tmp_path / "report.md").read_text()
     assert "Table 7 (without optimisation)" in text and "Table 8 (with optimisation)" in text
@@ -113,7 +113,8 @@ def test_surfaces_listing(gait_tuner_cmd, run_env):
 
 
 def test_compare_writes_report(gait_tuner_cmd, run_env, tmp_path):
-    r = run(gait_tuner_cmd, ["compare", "tkux-table2", "--surfaces", "rigid", "--out", str(tmp_path)], run_env)
+    r = run(gait_tuner_cmd, ["compare", "tkux-table2", "--surfaces", "rigid", "--random-rollouts", "2", "--workers",
+                                  "1", "--out", str(tmp_path)], run_env)
     assert r.returncode == 0, r.stderr
     assert r.stdout.count("| tkux-table2 | rigid |") == 1        # the baseline is not listed twice
     assert (tmp_path / "compare.md").exists() and (tmp_path / "compare.png").stat().st_size > 10_000

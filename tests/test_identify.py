@@ -222,7 +222,7 @@ def test_a_motors_extended_friction_is_fitted_where_asked_and_written_as_bams_fo
 
 def test_a_recording_the_fit_cannot_follow_writes_nothing(tmp_path, gait_tuner_cmd, run_env, kid3kg):
     h = kid3kg
-    _, targets = excitation(h, duration=5.0)
+    _, targets = excitation(h, duration=2.5)
     s = h.servo_arrays()
     q = h.run(h.compile(s), targets, s)
     i = h.joint_names.index("l_knee")

@@ -4,8 +4,11 @@ The block is read from README.md itself, so an example that stops working fails 
 order in a scratch directory (``studies/`` and ``examples/`` linked in), so that ``export`` finds
 what ``tune`` made and ``compare`` what ``export`` wrote. In the default run twelve long commands
 get a smaller budget, appended and listed in ``BUDGET`` (the same command, fewer trials,
-rollouts or iterations), and ``calibrate`` (~10 minutes) runs only in the slow suite, where every line runs
-exactly as written (``pytest -m slow tests/test_readme.py``). ``worker`` joins the study
+rollouts or iterations), ``calibrate`` (~10 minutes) runs only in the slow suite and two EROS matrices
+are left to the tests that check what they print (``ELSEWHERE``); the slow suite runs every line
+exactly as written (``pytest -m slow tests/test_readme.py``). The block is cut into chains that
+share no file (what ``export`` reads ``tune`` wrote in the same chain), one test each, so the suite's
+workers run them side by side. ``worker`` joins the study
 ``tune`` just finished (it says so and stops), and ``view``, on a machine without a display,
 must fail in one line with exit 2: the README says it needs one.
 """
@@ -27,6 +30,13 @@ BUDGET = {"tune": ["--trials", "2"], "robustness": ["--rollouts", "4", "--push-r
           "excite": ["--no-steps", "--duration", "5"], "experiment eros": ["--steps", "4", "--workers", "1"],
           "challenge push": ["--third", "front", "--step", "0.25"], "bus serve": ["--wait", "1"]}
 SLOW_ONLY = {"calibrate"}
+#: Lines a test of the default run walks with more options and checks what they print and write: the
+#: default run leaves them to it (each a whole EROS matrix, ~15 s); the slow run walks them as written.
+ELSEWHERE = {
+    ("experiment", "eros"): "test_cli_simulate.py::test_experiment_eros_matrix_as_json_and_as_its_report",
+    ("experiment", "eros", "--pedestal", "1=examples/surfaces/grass50-blades.yaml"):
+        "test_blades.py::test_the_eros_experiment_walks_a_pedestal_on_a_surface_file",
+}
 
 
 def readme_commands() -> list[list[str]]:
@@ -50,15 +60,96 @@ def test_the_block_is_found_and_covers_every_verb(gait_tuner_cmd, run_env):
     assert listed - verbs == set(), f"verbs without a README example: {listed - verbs}"
 
 
-def _run_block(monkeypatch, tmp_path, literal: bool):
+#: What the examples say they write, each checked after the chain of commands that names it.
+WRITTEN = ("runs/tk", "runs/sim/pitch.png", "runs/walk.mp4", "runs/tlipfm-robust/best.yaml",
+           "runs/cmp", "runs/turn", "runs/sweep.csv", "runs/servos/robot.yaml")
+
+
+def _resources(args: list[str]) -> set[str]:
+    """What a command shares with others of the block: a folder or file under ``runs/`` (by its first
+    two parts) and a study file (tune, worker, trials, export and compare meet in its journal)."""
+    out = set()
+    for a in args:
+        for token in a.split("="):
+            if token.startswith("runs/"):
+                out.add("/".join(token.split("/")[:2]))
+            elif token.endswith(".yaml") and (token.startswith("studies/") or token.endswith("-study.yaml")):
+                out.add(token)
+    return out
+
+
+def readme_chains() -> list[list[list[str]]]:
+    """The block's commands cut into chains that share nothing: a command joins every earlier chain
+    it shares a resource with (merged, in the block's order), so what one reads another wrote before
+    it in the same chain, and the chains run side by side on the suite's workers."""
+    commands = readme_commands()
+    chains: list[tuple[set[str], list[list[str]]]] = []
+    for args in commands:
+        res = _resources(args)
+        joined = [c for c in chains if c[0] & res]
+        merged_res = set(res).union(*(c[0] for c in joined))
+        merged_cmds = sorted((a for c in joined for a in c[1]), key=commands.index) + [args]
+        chains = [c for c in chains if c not in joined] + [(merged_res, merged_cmds)]
+    return sorted((c[1] for c in chains), key=lambda cmds: commands.index(cmds[0]))
+
+
+def _chain_id(cmds: list[list[str]]) -> str:
+    first = cmds[0]
+    words = first[:2] if len(first) > 1 and first[1].isalpha() else first[:1]
+    return "-".join(words + [str(readme_commands().index(first))])
+
+
+def _in_default_run(args: list[str]) -> bool:
+    return args[0] not in SLOW_ONLY and tuple(args) not in ELSEWHERE
+
+
+def _default_chains() -> list[list[list[str]]]:
+    """The chains the default run walks: all but those of slow-only lines and lines run elsewhere."""
+    return [c for c in readme_chains() if any(map(_in_default_run, c))]
+
+
+def test_the_lines_left_to_other_tests_are_run_there():
+    """Each line of ELSEWHERE is in the block, and its test is in the default run and runs every word
+    of it (a file by its name)."""
+    import ast
+    commands = [tuple(a) for a in readme_commands()]
+    for line, where in ELSEWHERE.items():
+        assert line in commands, line
+        module, name = where.split("::")
+        tree = ast.parse((ROOT / "tests" / module).read_text(encoding="utf-8"))
+        [fn] = [n for n in tree.body if isinstance(n, ast.FunctionDef) and n.name == name]
+        assert not any("slow" in ast.unparse(d) for d in fn.decorator_list), where
+        source = ast.unparse(fn)
+        for word in line:
+            assert word.split("=")[-1].split("/")[-1] in source, (where, word)
+
+
+def test_the_chains_hold_every_command_once_in_order():
+    commands = readme_commands()
+    chains = readme_chains()
+    assert sorted(commands) == sorted(a for c in chains for a in c)
+    for cmds in chains:
+        assert [commands.index(a) for a in cmds] == sorted(commands.index(a) for a in cmds)
+    # what one command writes, the next one reads in the same chain
+    tune = next(c for c in chains if ["tune", "studies/tlipfm-robust.yaml", "--workers", "2"] in c)
+    assert [a[0] for a in tune] == ["tune", "worker", "trials", "export", "compare"]
+    assert len(chains) > 20
+    assert [c for c in chains if c not in _default_chains()] == \
+        [c for c in chains if all(a[0] in SLOW_ONLY or tuple(a) in ELSEWHERE for a in c)]
+    for path in WRITTEN:
+        assert sum(any(path.startswith(r) for r in set().union(*map(_resources, c))) for c in chains) == 1, path
+
+
+def _run_chain(monkeypatch, tmp_path, cmds, literal: bool):
     for name in ("studies", "examples"):
         os.symlink(ROOT / name, tmp_path / name)
+    (tmp_path / "runs").mkdir()         # as after the quick start's `make run` (bus serve makes no folder)
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     monkeypatch.setenv("MPLBACKEND", "Agg")
-    for args in readme_commands():
+    for args in cmds:
         verb = args[0]
-        if verb in SLOW_ONLY and not literal:
+        if not literal and not _in_default_run(args):
             continue
         if not literal:
             args = args + BUDGET.get(verb, BUDGET.get(" ".join(args[:2]), []))
@@ -72,18 +163,21 @@ def _run_block(monkeypatch, tmp_path, literal: bool):
             continue
         assert r.returncode == 0, (shown, r.stdout[-2000:], r.stderr[-2000:])
     # what the examples say they write is there
-    for path in ("runs/tk", "runs/sim/pitch.png", "runs/walk.mp4", "runs/tlipfm-robust/best.yaml",
-                 "runs/cmp", "runs/turn", "runs/sweep.csv", "runs/servos/robot.yaml"):
-        assert (tmp_path / path).exists(), path
+    named = set().union(*map(_resources, cmds))
+    for path in WRITTEN:
+        if any(path.startswith(r) for r in named):
+            assert (tmp_path / path).exists(), path
 
 
-def test_readme_commands_run(monkeypatch, tmp_path):
-    _run_block(monkeypatch, tmp_path, literal=False)
+@pytest.mark.parametrize("cmds", _default_chains(), ids=_chain_id)
+def test_readme_commands_run(monkeypatch, tmp_path, cmds):
+    _run_chain(monkeypatch, tmp_path, cmds, literal=False)
 
 
 @pytest.mark.slow
-def test_readme_commands_run_exactly_as_written(monkeypatch, tmp_path):
-    _run_block(monkeypatch, tmp_path, literal=True)
+@pytest.mark.parametrize("cmds", readme_chains(), ids=_chain_id)
+def test_readme_commands_run_exactly_as_written(monkeypatch, tmp_path, cmds):
+    _run_chain(monkeypatch, tmp_path, cmds, literal=True)
 
 
 def _layout_section() -> str:
