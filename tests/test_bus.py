@@ -252,7 +252,7 @@ def test_a_sweep_through_the_bus_on_the_hanging_robot_identifies_its_servos(tmp_
     _served_as_read(lo, so, ticks)
     assert "on a harness" in so, so + se
     r = run_in_process(['identify', 'servos', '--robot', str(MAP), '--recording', str(tmp_path / 's.mcap'),
-                        '--out', str(tmp_path / 'fit'), '--fit', 'kp,latency', '--json'])
+                        '--out', str(tmp_path / 'fit'), '--fit', 'kp,latency', '--max-iters', '3', '--json'])
     assert r.returncode == 0, r.stderr
     p = json.loads(r.stdout)["parameters"]
     assert all(abs(p[f"{g}.kp"]["value"] - 1) < 0.03 for g in ("hips", "knees", "ankles", "arms")), p
