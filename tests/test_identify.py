@@ -55,10 +55,10 @@ def test_a_fraction_of_a_tick_moves_the_command_smoothly(kid3kg):
 
 @pytest.mark.parametrize("kind", list(ROBOTS))
 def test_a_sweep_stays_within_every_servos_range_speed_and_torque(kind):
-    """The planner's bounds hold whatever the sweep's length (6 s here: its cost is its probing,
+    """The planner's bounds hold whatever the sweep's length (4 s here: its cost is its probing,
     about a second of planning a second of sweep on kid3kg)."""
     h = Harness(load_robot(ROBOTS[kind]))
-    t, targets = excitation(h, duration=6.0)
+    t, targets = excitation(h, duration=4.0)
     s = h.servo_arrays()
     lo, hi = h.range_ours()
     assert np.all(targets >= lo + 0.05 - 1e-12) and np.all(targets <= hi - 0.05 + 1e-12)

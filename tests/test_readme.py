@@ -3,7 +3,7 @@
 The block is read from README.md itself, so an example that stops working fails here. Run in
 order in a scratch directory (``studies/`` and ``examples/`` linked in), so that ``export`` finds
 what ``tune`` made and ``compare`` what ``export`` wrote. In the default run twelve long commands
-get a smaller budget, appended and listed in ``BUDGET`` (the same command, fewer trials,
+get a smaller budget, appended and listed in ``BUDGET`` (the same command, fewer trials, sets,
 rollouts or iterations), ``calibrate`` (~10 minutes) runs only in the slow suite and two EROS matrices
 are left to the tests that check what they print (``ELSEWHERE``); the slow suite runs every line
 exactly as written (``pytest -m slow tests/test_readme.py``). The block is cut into chains that
@@ -13,6 +13,7 @@ workers run them side by side. ``worker`` joins the study
 must fail in one line with exit 2: the README says it needs one.
 """
 
+import functools
 import os
 import re
 import shlex
@@ -25,11 +26,16 @@ from conftest import ROOT, run_in_process
 BUDGET = {"tune": ["--trials", "2"], "robustness": ["--rollouts", "4", "--push-rollouts", "2"],
           "identify servos": ["--max-iters", "3"], "identify ground": ["--max-iters", "3", "--horizon", "1"],
           "versus": ["--walks", "1", "--no-challenge", "--speeds", "0.2,0,0,0"],
-          "compare": ["--random-rollouts", "2", "--surfaces", "grass50", "--workers", "1"],
+          "compare": ["--random-rollouts", "2", "--surfaces", "grass50", "--workers", "1", "--no-baselines"],
           "render": ["--duration", "2"], "transfer": ["--walks", "1"],
           "excite": ["--no-steps", "--duration", "5"], "experiment eros": ["--steps", "4", "--workers", "1"],
           "challenge push": ["--third", "front", "--step", "0.25"], "bus serve": ["--wait", "1"]}
 SLOW_ONLY = {"calibrate"}
+
+
+@functools.cache
+def _readme_text() -> str:
+    return (ROOT / "README.md").read_text(encoding="utf-8")
 #: Lines a test of the default run walks with more options and checks what they print and write: the
 #: default run leaves them to it (each a whole EROS matrix, ~15 s); the slow run walks them as written.
 ELSEWHERE = {
@@ -40,7 +46,7 @@ ELSEWHERE = {
 
 
 def readme_commands() -> list[list[str]]:
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    text = _readme_text()
     section = text.split("## Command line", 1)[1]
     block = re.search(r"```sh\n(.*?)```", section, re.S).group(1)
     commands = []
