@@ -77,8 +77,9 @@ def relative(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def _rectangle(pose, length: float, width: float) -> list[tuple[float, float]]:
-    """A sole's corners in order (world x, y) [m], as plain floats: the planner asks for ~30 distances
-    a swing sample, and numpy's per-call cost on 2-vectors was 8 % of a walk's tests."""
+    """A sole's corners in order (world x, y) [m], as plain floats: the planner asks for 32 distances
+    a swing sample, and numpy's per-call cost on 2-vectors there was 8 % of the time of five test
+    files that walk (12.7 of 160 s, profiled)."""
     x, y, yaw = float(pose[0]), float(pose[1]), float(pose[2])
     c, s = math.cos(yaw), math.sin(yaw)
     out = []

@@ -51,8 +51,8 @@ class DuplicateKey(yaml.YAMLError):
 
 #: PyYAML's safe loader on libyaml's C parser where PyYAML was built with it (its wheels are): the
 #: pure-Python scanner's cost grows with the square of a file's flow nesting (a hostile 10 kB file took
-#: 2-4 s to refuse) and it reads a shipped study or set several times slower. Both read the same
-#: documents; libyaml refuses nesting beyond 1000 levels itself.
+#: 2-4 s to refuse) and it read the shipped studies and sets at 7.6 ms a file against libyaml's 0.9 ms.
+#: Both read the same documents; libyaml refuses nesting beyond 1000 levels itself.
 _SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
 

@@ -2,7 +2,7 @@
 
 The block is read from README.md itself, so an example that stops working fails here. Run in
 order in a scratch directory (``studies/`` and ``examples/`` linked in), so that ``export`` finds
-what ``tune`` made and ``compare`` what ``export`` wrote. In the default run twelve long commands
+what ``tune`` made and ``compare`` what ``export`` wrote. In the default run eleven long commands
 get a smaller budget, appended and listed in ``BUDGET`` (the same command, fewer trials, sets,
 rollouts or iterations), ``calibrate`` (~10 minutes) runs only in the slow suite and two EROS matrices
 are left to the tests that check what they print (``ELSEWHERE``); the slow suite runs every line
@@ -28,14 +28,11 @@ BUDGET = {"tune": ["--trials", "2"], "robustness": ["--rollouts", "4", "--push-r
           "versus": ["--walks", "1", "--no-challenge", "--speeds", "0.2,0,0,0"],
           "compare": ["--random-rollouts", "2", "--surfaces", "grass50", "--workers", "1", "--no-baselines"],
           "render": ["--duration", "2"], "transfer": ["--walks", "1"],
-          "excite": ["--no-steps", "--duration", "5"], "experiment eros": ["--steps", "4", "--workers", "1"],
+          "excite": ["--no-steps", "--duration", "5"],
           "challenge push": ["--third", "front", "--step", "0.25"], "bus serve": ["--wait", "1"]}
 SLOW_ONLY = {"calibrate"}
 
 
-@functools.cache
-def _readme_text() -> str:
-    return (ROOT / "README.md").read_text(encoding="utf-8")
 #: Lines a test of the default run walks with more options and checks what they print and write: the
 #: default run leaves them to it (each a whole EROS matrix, ~15 s); the slow run walks them as written.
 ELSEWHERE = {
@@ -43,6 +40,11 @@ ELSEWHERE = {
     ("experiment", "eros", "--pedestal", "1=examples/surfaces/grass50-blades.yaml"):
         "test_blades.py::test_the_eros_experiment_walks_a_pedestal_on_a_surface_file",
 }
+
+
+@functools.cache
+def _readme_text() -> str:
+    return (ROOT / "README.md").read_text(encoding="utf-8")
 
 
 def readme_commands() -> list[list[str]]:
