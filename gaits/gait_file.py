@@ -23,7 +23,8 @@ from .imu_stabiliser import StabiliserParams, stabiliser_from_mapping
 from .families import families, family_class, params_from_mapping
 from .params import GaitParams, ParamError, fields_from_mapping
 
-__all__ = ["GaitFile", "read_yaml", "load_gait_file", "save_gait_file", "gait_file_text", "engine_from_mapping"]
+__all__ = ["GaitFile", "read_yaml", "load_gait_file", "gait_file_from_mapping", "save_gait_file", "gait_file_text",
+           "engine_from_mapping"]
 
 
 @dataclass(frozen=True)
@@ -122,9 +123,13 @@ def read_yaml(path: str | Path, what: str, error: type[Exception] = ParamError) 
 def load_gait_file(path: str | Path) -> GaitFile:
     """Read and validate a ``{gait, description, params}`` YAML file."""
     path = Path(path)
-    source = str(path)
     complete_pending_writes(path.parent)          # a group write killed after its commit: finish it first
-    doc = read_yaml(path, "parameter")
+    return gait_file_from_mapping(read_yaml(path, "parameter"), str(path))
+
+
+def gait_file_from_mapping(doc: Any, source: str) -> GaitFile:
+    """A parameter file's document (as :func:`read_yaml` gives it) validated; ``source`` names it
+    in every message."""
     if not isinstance(doc, Mapping):
         raise ParamError(f"{source}: expected a mapping with keys {', '.join(_TOP_KEYS)}")
     for key in doc:

@@ -504,15 +504,17 @@ def gains_unstated(spec: PolicySpec) -> bool:
 POLICY_FILE_KEYS = ("policy", "description", "params", "ranges", "time_limit")
 
 
-def load_policy_file(path: str | Path) -> tuple[PolicySpec, Path]:
+def load_policy_file(path: str | Path, doc: Any = None) -> tuple[PolicySpec, Path]:
     """A policy file as the robot runs it (``gait-tuner-loop POLICY.yaml``): its ``policy:`` section
     checked, its ``params:`` (a study's tuned values, :data:`TUNABLE`) in place, and its model's
     path (relative to the file), which must exist. A study's ``ranges:`` and ``time_limit:`` are
-    the simulator's and not read here. Every mistake is one :class:`ParamError` naming the file."""
+    the simulator's and not read here. ``doc``: the file's document when the caller has read it.
+    Every mistake is one :class:`ParamError` naming the file."""
     from .gait_file import read_yaml
     path = Path(path)
     source = str(path)
-    doc = read_yaml(path, "policy")
+    if doc is None:
+        doc = read_yaml(path, "policy")
     if not isinstance(doc, Mapping) or "policy" not in doc:
         raise ParamError(f"{source}: not a policy file (a mapping with a policy: section)")
     unknown = [k for k in doc if k not in POLICY_FILE_KEYS]

@@ -149,8 +149,6 @@ def _params_and_ranges(doc: Mapping, source: str, known: Mapping[str, float] | N
     return params, ranges
 
 
-
-
 def _section(doc: Mapping, keys: tuple[str, ...], what: str, read: Any, source: str) -> Any:
     """A file kind's own section (its first key) read by ``read(section, source)``, after its keys
     are checked; a ``ParamError`` becomes the one line of a ``UserError``."""

@@ -167,20 +167,24 @@ class PolicyWalk:
     """A policy file read for the loop (:func:`gaits.policy.load_policy_file`): its spec, its
     model's path and where it came from."""
 
-    def __init__(self, path: str) -> None:
+    def __init__(self, path: str, doc: Any = None) -> None:
         from gaits.policy import load_policy_file
-        self.spec, self.model = load_policy_file(path)
+        self.spec, self.model = load_policy_file(path, doc)
         self.source = str(path)
 
 
 def load_walk(path: str) -> "gaits.GaitFile | PolicyWalk":
     """What the loop walks: a gait file with an engine section, or a policy file (a ``policy:``
-    section); every mistake one ParamError naming the file."""
-    from gaits.gait_file import read_yaml
+    section), the file read once; every mistake one ParamError naming the file."""
+    from pathlib import Path
+
+    from gaits.files import complete_pending_writes
+    from gaits.gait_file import gait_file_from_mapping, read_yaml
+    complete_pending_writes(Path(path).parent)     # as load_gait_file: a killed group write finished first
     doc = read_yaml(path, "gait or policy")
     if isinstance(doc, dict) and "policy" in doc:
-        return PolicyWalk(path)
-    return gaits.load_gait_file(path)
+        return PolicyWalk(path, doc)
+    return gait_file_from_mapping(doc, str(path))
 
 
 def controller(gait: "gaits.GaitFile | PolicyWalk", geometry: Any, dt: float):
