@@ -354,11 +354,15 @@ def leg_ik_pose(p_pelvis_sole: np.ndarray, R_pelvis_sole: np.ndarray, leg: LegGe
             err = UnreachableTargetError(f"{name} {exc}")
             err.best = exc.best
             raise err from None
-    ankle = np.asarray(p_pelvis_sole, dtype=float) + R[:, 2] * leg.ankle_height
-    hip = leg.hip_in_pelvis(s)
-    r = R.T @ (hip - ankle)
+    # in plain floats (numpy's per-call cost dominates 3 x 3 products; the engine calls this every tick)
+    R00, R01, R02, R10, R11, R12, R20, R21, R22 = R.reshape(9).tolist()
+    px, py, pz = np.asarray(p_pelvis_sole, dtype=float).reshape(3).tolist()
+    ah = leg.ankle_height
+    dx, dy, dz = leg.hip_offset_x - (px + R02 * ah), s * leg.hip_offset_y - (py + R12 * ah), \
+        -leg.hip_offset_z - (pz + R22 * ah)
+    r = (R00 * dx + R10 * dy + R20 * dz, R01 * dx + R11 * dy + R21 * dz, R02 * dx + R12 * dy + R22 * dz)
     l3, l4 = leg.thigh, leg.shank
-    C2 = float(r @ r)
+    C2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2]
     cos4 = (C2 - l3 * l3 - l4 * l4) / (2 * l3 * l4)
     if cos4 > 1 + 1e-12 or cos4 < -1 - 1e-12:
         name = "left" if s == 1 else "right"
@@ -376,12 +380,13 @@ def leg_ik_pose(p_pelvis_sole: np.ndarray, R_pelvis_sole: np.ndarray, leg: LegGe
     c6, s6 = math.cos(q6), math.sin(q6)
     a = q4 + q5
     ca, sa = math.cos(a), math.sin(a)
-    Rx_m6 = np.array([[1.0, 0.0, 0.0], [0.0, c6, s6], [0.0, -s6, c6]])
-    Ry_ma = np.array([[ca, 0.0, -sa], [0.0, 1.0, 0.0], [sa, 0.0, ca]])
-    M = R @ Rx_m6 @ Ry_ma
-    q2 = math.asin(min(max(M[2, 1], -1.0), 1.0))
-    q1 = math.atan2(-M[0, 1], M[1, 1])
-    q3 = math.atan2(-M[2, 0], M[2, 2])
+    # M = R Rx(-q6) Ry(-(q4 + q5)): the entries the hip's Z-X-Y angles need
+    m02_2 = R21 * s6 + R22 * c6                # (R Rx(-q6))[2, 2]
+    M01, M11, M21 = R01 * c6 - R02 * s6, R11 * c6 - R12 * s6, R21 * c6 - R22 * s6
+    M20, M22 = R20 * ca + m02_2 * sa, -R20 * sa + m02_2 * ca
+    q2 = math.asin(min(max(M21, -1.0), 1.0))
+    q1 = math.atan2(-M01, M11)
+    q3 = math.atan2(-M20, M22)
     return np.array([q1, q2, q3, q4, q5, q6])
 
 

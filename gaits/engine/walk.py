@@ -16,7 +16,7 @@ from ..lipm import dcm_forward, propagate, zmp_at
 from ..params import ParamError
 from ..tlipfm import TlipfmParams
 from ..trajectory import GRAVITY, JOINT_NAMES
-from .estimator import CoMEstimator, _rx, _ry, _rz, sole_in_pelvis, sole_rate
+from .estimator import CoMEstimator, _ry, _rz, sole_floats, sole_rate
 from .params import EngineParams
 from .servo_load import LoadCompensation, servo_terms
 from .shaping import CommandShaper
@@ -35,6 +35,14 @@ STAND, SHIFT, WALK = "stand", "shift", "walk"
 IK_TOL, IK_STEP = 1e-7, 1e-4
 
 
+def _rot_zyx(cw: float, sw: float, pitch: float, roll: float) -> tuple:
+    """Rz(yaw) Ry(pitch) Rx(roll) as a 9-tuple, row by row (``cw``, ``sw`` the yaw's cosine and sine)."""
+    cp, sp, cr, sr = math.cos(pitch), math.sin(pitch), math.cos(roll), math.sin(roll)
+    return (cw * cp, -sw * cr + cw * sp * sr, sw * sr + cw * sp * cr,
+            sw * cp, cw * cr + sw * sp * sr, -cw * sr + sw * sp * cr,
+            -sp, cp * sr, cp * cr)
+
+
 class WalkEngine:
     """The online walk engine (module docstring). ``robot`` needs ``leg`` and ``foot_size``;
     ``limits`` are the step limits (``gaits.family("tlipfm").step_limits``)."""
@@ -50,8 +58,9 @@ class WalkEngine:
         self.duration = None
         self.walk_start = params.t_stand
         L, Wd = self.foot_size
-        self._sensors = np.array([[sx * L / 4, sy * Wd / 4] for sx, sy in ((1, 1), (1, -1), (-1, 1), (-1, -1))])
+        self._sensor_xy = tuple((sx * L / 4, sy * Wd / 4) for sx, sy in ((1, 1), (1, -1), (-1, 1), (-1, -1)))
         self._log: list[tuple] = []
+        self._sole_offsets = {side: tuple(float(v) for v in self.leg.sole_in_ankle(side)) for side in (1, -1)}
         self.shaper = CommandShaper(params, limits, gait.period, dt)
         # the most each target may move in a tick (params.servo_share of the servo's speed; inf: not capped)
         speeds = joint_speeds(robot)
@@ -246,33 +255,51 @@ class WalkEngine:
         rates = (self.params.kf_velocity > 0.0 and m.dq is not None and m.gyro is not None
                  and not (walking and self.t - self.step_t0 < self.params.lag))
         dq = m.in_our_order(m.dq) if rates else None
-        estimates, velocities = [], []
+        # in plain floats (numpy's per-call cost dominates 3-vectors; this runs every tick)
+        cr, sr, cp, sp = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch)
+        cx, cy, cz = (float(v) for v in self.leg.com_in_pelvis)
+        gyro = None if not rates else tuple(float(v) for v in m.gyro)
+        ex = ey = vx = vy = 0.0
         for side in sides:
-            p_ps, R_ps = sole_in_pelvis(q[_LEG[side]], self.leg, side)
+            leg_q = q[_LEG[side]]
+            (px, py, pz), R_ps = sole_floats(leg_q, self.leg, side)
             foot = self.feet[side]
-            yaw_pelvis = foot[2] - math.atan2(R_ps[1, 0], R_ps[0, 0])
-            R_wp = _rz(yaw_pelvis) @ _ry(pitch) @ _rx(roll)
-            arm = R_wp @ (self.leg.com_in_pelvis - p_ps)
-            estimates.append(self._sole_point(foot, side) + arm)
+            psi = float(foot[2]) - math.atan2(R_ps[3], R_ps[0])
+            cw, sw = math.cos(psi), math.sin(psi)
+            # R_wp = Rz(psi) Ry(pitch) Rx(roll)
+            w00, w01, w02 = cw * cp, -sw * cr + cw * sp * sr, sw * sr + cw * sp * cr
+            w10, w11, w12 = sw * cp, cw * cr + sw * sp * sr, -cw * sr + sw * sp * cr
+            w20, w21, w22 = -sp, cp * sr, cp * cr
+            dx, dy, dz = cx - px, cy - py, cz - pz
+            ax, ay = w00 * dx + w01 * dy + w02 * dz, w10 * dx + w11 * dy + w12 * dz
+            sx, sy = self._sole_xy(foot, side)
+            ex, ey = ex + sx + ax, ey + sy + ay
             if rates:
-                moving = sole_rate(q[_LEG[side]], dq[_LEG[side]], self.leg, side, p_ps)
-                velocities.append(np.cross(R_wp @ m.gyro, arm) - R_wp @ moving)
-        return np.mean(estimates, axis=0)[:2], (np.mean(velocities, axis=0)[:2] if rates else None)
+                az = w20 * dx + w21 * dy + w22 * dz
+                mx, my, mz = sole_rate(leg_q, dq[_LEG[side]], self.leg, side, (px, py, pz))
+                g0, g1, g2 = gyro
+                ox, oy, oz = w00 * g0 + w01 * g1 + w02 * g2, w10 * g0 + w11 * g1 + w12 * g2, w20 * g0 + w21 * g1 + w22 * g2
+                vx += (oy * az - oz * ay) - (w00 * mx + w01 * my + w02 * mz)
+                vy += (oz * ax - ox * az) - (w10 * mx + w11 * my + w12 * mz)
+        n = len(sides)
+        return np.array((ex / n, ey / n)), (np.array((vx / n, vy / n)) if rates else None)
 
     def _cop(self, m: Measurement) -> np.ndarray | None:
         if m.foot_force is None:
             return None
-        f = np.maximum(np.asarray(m.foot_force, dtype=float), 0.0)
-        total = float(f.sum())
+        f = [max(float(v), 0.0) for v in m.foot_force]      # plain floats: this runs every tick
+        total = ((f[0] + f[1]) + (f[2] + f[3])) + ((f[4] + f[5]) + (f[6] + f[7]))
         if total < 0.1 * self.weight:
             return None
-        pts = []
+        x = y = 0.0
         for side, block in ((1, f[:4]), (-1, f[4:])):
             pose = self._foot_now(side)
-            c, s = math.cos(pose[2]), math.sin(pose[2])
-            pts.append(pose[:2] + self._sensors @ np.array([[c, s], [-s, c]]))
-        pts = np.vstack(pts)
-        return (f[:, None] * pts).sum(axis=0) / total
+            px, py, yaw = float(pose[0]), float(pose[1]), float(pose[2])
+            c, s = math.cos(yaw), math.sin(yaw)
+            for fi, (sx, sy) in zip(block, self._sensor_xy):     # each sensor turned by the foot's yaw
+                x += fi * (px + (sx * c - sy * s))
+                y += fi * (py + (sx * s + sy * c))
+        return np.array((x / total, y / total))
 
     def _foot_now(self, side: int) -> np.ndarray:
         st = self.cur
@@ -525,8 +552,15 @@ class WalkEngine:
     def _sole_point(self, foot: np.ndarray, side: int) -> np.ndarray:
         """The sole point (the chain's, ``ankle_height`` below the ankle) in the world, from the sole
         centre's (x, y, yaw[, z])."""
-        z = foot[3] if len(foot) > 3 else 0.0
-        return np.array([foot[0], foot[1], z]) - _rz(foot[2]) @ self.leg.sole_in_ankle(side)
+        x, y = self._sole_xy(foot, side)
+        return np.array((x, y, (float(foot[3]) if len(foot) > 3 else 0.0) - self._sole_offsets[side][2]))
+
+    def _sole_xy(self, foot, side: int) -> tuple[float, float]:
+        """:meth:`_sole_point`'s (x, y) in plain floats."""
+        ox, oy, _ = self._sole_offsets[side]
+        yaw = float(foot[2])
+        c, s = math.cos(yaw), math.sin(yaw)
+        return float(foot[0]) - (c * ox - s * oy), float(foot[1]) - (s * ox + c * oy)
 
     # --- the swing and the joints ----------------------------------------------------------
     def _theta(self, tau: float) -> float:
@@ -573,18 +607,27 @@ class WalkEngine:
         ``level_feet`` of the measured tilt out, so its sole lands level in the world; the support
         leg keeps the plan's upright pelvis (its targets are what pushes a tilted trunk back)."""
         p, leg = self.gait.p, self.leg
-        psi = (left[2] + right[2]) / 2
-        R_plan = _rz(psi) @ _ry(p.torso_pitch)
+        # in plain floats (numpy's per-call cost dominates 3 x 3 products; this runs every tick)
+        psi = (float(left[2]) + float(right[2])) / 2
+        cw, sw = math.cos(psi), math.sin(psi)
+        R_plan = _rot_zyx(cw, sw, p.torso_pitch, 0.0)
         k = self.params.level_feet
-        R_tilted = _rz(psi) @ _ry(p.torso_pitch + k * self.tilt[1]) @ _rx(k * self.tilt[0]) if k else R_plan
-        pelvis = np.array([com[0], com[1], p.z_c - leg.com_above_pelvis]) \
-            - _rz(psi) @ np.array([leg.com_forward, leg.com_lateral, 0.0])
+        R_tilted = _rot_zyx(cw, sw, p.torso_pitch + k * float(self.tilt[1]), k * float(self.tilt[0])) if k else R_plan
+        cf, cl = leg.com_forward, leg.com_lateral
+        pelvis = (float(com[0]) - (cw * cf - sw * cl), float(com[1]) - (sw * cf + cw * cl), p.z_c - leg.com_above_pelvis)
         q = np.zeros((1, len(JOINT_NAMES)))
         for side, foot in ((1, left), (-1, right)):
-            R_wp = R_tilted if side == swing else R_plan
-            R_f = _rz(foot[2])
+            w00, w01, w02, w10, w11, w12, w20, w21, w22 = R_tilted if side == swing else R_plan
+            yaw = float(foot[2])
+            cf, sf = math.cos(yaw), math.sin(yaw)
             self._soles[side] = sole_point = self._sole_point(foot, side)
-            target, R_ps = R_wp.T @ (sole_point - pelvis), R_wp.T @ R_f
+            dx, dy, dz = (float(v) - o for v, o in zip(sole_point, pelvis))
+            # R_wp^T (sole - pelvis) and R_wp^T Rz(yaw)
+            target = np.array((w00 * dx + w10 * dy + w20 * dz, w01 * dx + w11 * dy + w21 * dz,
+                               w02 * dx + w12 * dy + w22 * dz))
+            R_ps = np.array(((w00 * cf + w10 * sf, w10 * cf - w00 * sf, w20),
+                             (w01 * cf + w11 * sf, w11 * cf - w01 * sf, w21),
+                             (w02 * cf + w12 * sf, w12 * cf - w02 * sf, w22)))
             target = self._reachable(target, R_ps, side)
             try:                                        # the numerical IK starts from the last tick's
                 q[0, _LEG[side]] = leg_ik_pose(target, R_ps, leg, side,
@@ -602,15 +645,18 @@ class WalkEngine:
         """The sole target moved toward the hip until the leg reaches it (a plan that runs away, a
         fall: the engine's targets stay a pose the leg can take, the robot falls as it would)."""
         leg = self.leg
-        hip = leg.hip_in_pelvis(side)
-        ankle = target + R_ps[:, 2] * leg.ankle_height
-        d = ankle - hip
-        n = float(np.linalg.norm(d))
+        ah = leg.ankle_height
+        zx, zy, zz = float(R_ps[0, 2]) * ah, float(R_ps[1, 2]) * ah, float(R_ps[2, 2]) * ah
+        hx, hy, hz = leg.hip_offset_x, side * leg.hip_offset_y, -leg.hip_offset_z
+        tx, ty, tz = target.tolist()
+        dx, dy, dz = tx + zx - hx, ty + zy - hy, tz + zz - hz
+        n = math.sqrt(dx * dx + dy * dy + dz * dz)
         reach = 0.999 * (leg.thigh + leg.shank)
         if n <= reach:
             return target
         self.clamped += 1
-        return hip + d * (reach / n) - R_ps[:, 2] * leg.ankle_height
+        f = reach / n
+        return np.array((hx + dx * f - zx, hy + dy * f - zy, hz + dz * f - zz))
 
 
 def joint_speeds(robot) -> np.ndarray | None:
