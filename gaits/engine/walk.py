@@ -132,6 +132,7 @@ class WalkEngine:
         self._dropping: tuple[str, ...] = ()
         self._log = []
         self._soles: dict = {}                      # this tick's sole points in the world (``_joints``)
+        self._ik_seen: dict = {1: (None, None), -1: (None, None)}   # each leg's IK answers, the last two ticks
         if self._load is not None:
             self._load.reset()
 
@@ -594,10 +595,11 @@ class WalkEngine:
                 feet[-st.side] = self._swing_pose(tau)[0]
             elif tau >= st.t2:
                 feet[-st.side] = np.append(st.target, 0.0)
-        q = self._joints(self.com, feet[1], feet[-1], swing=-support if support else 0)
+        q = self._joints(self.com, feet[1], feet[-1], swing=-support if support else 0, tick=True)
         return q[0], support, feet
 
-    def _joints(self, com: np.ndarray, left: np.ndarray, right: np.ndarray, swing: int = 0) -> np.ndarray:
+    def _joints(self, com: np.ndarray, left: np.ndarray, right: np.ndarray, swing: int = 0,
+                tick: bool = False) -> np.ndarray:
         """Leg IK for the CoM (x, y) at z_c and the soles (x, y, yaw[, z]) -> (1, 20) targets.
 
         What ``trajectory.assemble`` does for a table (the pelvis moved by the robot's CoM offset,
@@ -629,17 +631,30 @@ class WalkEngine:
                              (w01 * cf + w11 * sf, w11 * cf - w01 * sf, w21),
                              (w02 * cf + w12 * sf, w12 * cf - w02 * sf, w22)))
             target = self._reachable(target, R_ps, side)
-            try:                                        # the numerical IK starts from the last tick's
-                q[0, _LEG[side]] = leg_ik_pose(target, R_ps, leg, side,
-                                               None if self._last_q is None else self._last_q[_LEG[side]],
-                                               IK_TOL, IK_STEP)
+            try:                                        # the numerical IK starts from the last ticks'
+                q[0, _LEG[side]] = leg_ik_pose(target, R_ps, leg, side, self._ik_start(side), IK_TOL, IK_STEP)
             except UnreachableTargetError as exc:
                 best = getattr(exc, "best", None)      # the numerical IK's closest pose (gaits.leg_chain)
                 if best is None:
                     raise
                 self.clamped += 1
                 q[0, _LEG[side]] = best
+            if tick and leg.chains is not None:
+                self._ik_seen[side] = (self._ik_seen[side][1], q[0, _LEG[side]].copy())
         return q
+
+    def _ik_start(self, side: int) -> np.ndarray | None:
+        """Where the numerical leg IK starts this tick: the last two ticks' answers carried on a tick
+        (2 q[k-1] - q[k-2]: the targets move smoothly, so the first Newton step is shorter: Wolfgang-OP's
+        forward walk evaluates a leg 2.1 times a tick instead of 2.5, benchmarks/bench_tick.py; the
+        built-in robot's legs as chains 2.0 instead of 2.2, tests/test_leg_chain.py), else the last
+        targets sent (ours). The closed-form IK takes none."""
+        if self.leg.chains is None:
+            return None
+        before, last = self._ik_seen[side]
+        if last is not None and before is not None:
+            return 2.0 * last - before
+        return None if self._last_q is None else self._last_q[_LEG[side]]
 
     def _reachable(self, target: np.ndarray, R_ps: np.ndarray, side: int) -> np.ndarray:
         """The sole target moved toward the hip until the leg reaches it (a plan that runs away, a
