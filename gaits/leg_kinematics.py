@@ -381,9 +381,9 @@ def leg_ik_pose(p_pelvis_sole: np.ndarray, R_pelvis_sole: np.ndarray, leg: LegGe
     a = q4 + q5
     ca, sa = math.cos(a), math.sin(a)
     # M = R Rx(-q6) Ry(-(q4 + q5)): the entries the hip's Z-X-Y angles need
-    m02_2 = R21 * s6 + R22 * c6                # (R Rx(-q6))[2, 2]
+    t22 = R21 * s6 + R22 * c6                  # (R Rx(-q6))[2, 2]
     M01, M11, M21 = R01 * c6 - R02 * s6, R11 * c6 - R12 * s6, R21 * c6 - R22 * s6
-    M20, M22 = R20 * ca + m02_2 * sa, -R20 * sa + m02_2 * ca
+    M20, M22 = R20 * ca + t22 * sa, -R20 * sa + t22 * ca
     q2 = math.asin(min(max(M21, -1.0), 1.0))
     q1 = math.atan2(-M01, M11)
     q3 = math.atan2(-M20, M22)

@@ -621,15 +621,15 @@ class WalkEngine:
         for side, foot in ((1, left), (-1, right)):
             w00, w01, w02, w10, w11, w12, w20, w21, w22 = R_tilted if side == swing else R_plan
             yaw = float(foot[2])
-            cf, sf = math.cos(yaw), math.sin(yaw)
+            cy, sy = math.cos(yaw), math.sin(yaw)
             self._soles[side] = sole_point = self._sole_point(foot, side)
             dx, dy, dz = (float(v) - o for v, o in zip(sole_point, pelvis))
             # R_wp^T (sole - pelvis) and R_wp^T Rz(yaw)
             target = np.array((w00 * dx + w10 * dy + w20 * dz, w01 * dx + w11 * dy + w21 * dz,
                                w02 * dx + w12 * dy + w22 * dz))
-            R_ps = np.array(((w00 * cf + w10 * sf, w10 * cf - w00 * sf, w20),
-                             (w01 * cf + w11 * sf, w11 * cf - w01 * sf, w21),
-                             (w02 * cf + w12 * sf, w12 * cf - w02 * sf, w22)))
+            R_ps = np.array(((w00 * cy + w10 * sy, w10 * cy - w00 * sy, w20),
+                             (w01 * cy + w11 * sy, w11 * cy - w01 * sy, w21),
+                             (w02 * cy + w12 * sy, w12 * cy - w02 * sy, w22)))
             target = self._reachable(target, R_ps, side)
             try:                                        # the numerical IK starts from the last ticks'
                 q[0, _LEG[side]] = leg_ik_pose(target, R_ps, leg, side, self._ik_start(side), IK_TOL, IK_STEP)
