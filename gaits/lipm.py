@@ -162,6 +162,35 @@ def dcm_backward(xi_end: np.ndarray, knot_t: np.ndarray, knot_p: np.ndarray, shi
     return np.array([ex, ey])
 
 
+def _solve_small(A: list, b: list) -> list:
+    """x with A x = b for a small dense A (lists of floats): Gaussian elimination with partial
+    pivoting (LAPACK's dgesv does the same). Raises ``np.linalg.LinAlgError`` on an exactly
+    singular A, as ``np.linalg.solve`` does."""
+    n = len(b)
+    M = [list(row) + [bi] for row, bi in zip(A, b)]
+    for k in range(n):
+        piv = max(range(k, n), key=lambda i: abs(M[i][k]))
+        if M[piv][k] == 0.0:
+            raise np.linalg.LinAlgError("Singular matrix")
+        if piv != k:
+            M[k], M[piv] = M[piv], M[k]
+        rk, d = M[k], M[k][k]
+        for i in range(k + 1, n):
+            ri = M[i]
+            f = ri[k] / d
+            if f:
+                for j in range(k + 1, n + 1):
+                    ri[j] -= f * rk[j]
+    x = [0.0] * n
+    for i in range(n - 1, -1, -1):
+        ri = M[i]
+        acc = ri[n]
+        for j in range(i + 1, n):
+            acc -= ri[j] * x[j]
+        x[i] = acc / ri[i]
+    return x
+
+
 def solve_box_qp(H: np.ndarray, g: np.ndarray, lo: np.ndarray, hi: np.ndarray, iterations: int = 50) -> np.ndarray:
     """argmin 1/2 u^T H u + g^T u over the box lo <= u <= hi, H positive definite (any small n).
 
@@ -170,37 +199,37 @@ def solve_box_qp(H: np.ndarray, g: np.ndarray, lo: np.ndarray, hi: np.ndarray, i
     at a bound, stopping at the first bound met (which joins the held set); at a minimiser of the
     held set, release the bound whose multiplier is most negative, or stop when none is
     (the KKT conditions hold). Exact, and finite for a convex QP; the tests check it against
-    scipy's bounded minimiser.
+    scipy's bounded minimiser. In plain floats (the engine solves four at a step's start, n = 4:
+    numpy's per-call cost dominated them).
     """
-    H = np.asarray(H, dtype=float)
-    g = np.asarray(g, dtype=float)
-    lo = np.asarray(lo, dtype=float)
-    hi = np.asarray(hi, dtype=float)
+    H, g, lo, hi = (x if isinstance(x, list) else np.asarray(x, dtype=float).tolist() for x in (H, g, lo, hi))
     n = len(g)
-    u = np.linalg.solve(H, -g)                   # the unconstrained minimiser: the answer when feasible
-    if np.all(u >= lo) and np.all(u <= hi):
-        return u
-    u = np.clip(np.zeros(n), lo, hi)
-    held = np.zeros(n, dtype=bool)
-    at_hi = np.zeros(n, dtype=bool)
-    for i in range(n):                           # start with the bounds the start point sits on
-        if u[i] <= lo[i]:
-            held[i], at_hi[i] = True, False
-        elif u[i] >= hi[i]:
-            held[i], at_hi[i] = True, True
+    rng = range(n)
+
+    def gradient(u: list) -> list:
+        return [sum(H[i][j] * u[j] for j in rng) + g[i] for i in rng]
+
+    u = _solve_small(H, [-x for x in g])        # the unconstrained minimiser: the answer when feasible
+    if all(lo[i] <= u[i] <= hi[i] for i in rng):
+        return np.array(u)
+    u = [min(max(0.0, lo[i]), hi[i]) for i in rng]
+    held = [u[i] <= lo[i] or u[i] >= hi[i] for i in rng]     # the bounds the start point sits on
+    at_hi = [held[i] and u[i] >= hi[i] and not u[i] <= lo[i] for i in rng]
     for _ in range(iterations):
-        free = np.flatnonzero(~held)
-        step = np.zeros(n)
-        if len(free):
-            grad = H @ u + g
-            step[free] = np.linalg.solve(H[free][:, free], -grad[free])
-        if np.max(np.abs(step)) < 1e-14:
-            grad = H @ u + g
-            mult = np.where(at_hi, -grad, grad)           # >= 0 for a bound that should stay
-            mult = np.where(held, mult, np.inf)
-            i = int(np.argmin(mult))
+        free = [i for i in rng if not held[i]]
+        step = [0.0] * n
+        if free:
+            grad = gradient(u)
+            sub = _solve_small([[H[i][j] for j in free] for i in free], [-grad[i] for i in free])
+            for k, i in enumerate(free):
+                step[i] = sub[k]
+        if max(abs(x) for x in step) < 1e-14:
+            grad = gradient(u)
+            # >= 0 for a bound that should stay; the free variables' not counted
+            mult = [(-grad[i] if at_hi[i] else grad[i]) if held[i] else math.inf for i in rng]
+            i = min(rng, key=mult.__getitem__)
             if mult[i] >= -_KKT_TOL:
-                return u
+                return np.array(u)
             held[i] = False
             continue
         alpha, block = 1.0, -1
@@ -213,9 +242,9 @@ def solve_box_qp(H: np.ndarray, g: np.ndarray, lo: np.ndarray, hi: np.ndarray, i
                 continue
             if a_i < alpha:
                 alpha, block = a_i, i
-        u = np.clip(u + alpha * step, lo, hi)
+        u = [min(max(u[i] + alpha * step[i], lo[i]), hi[i]) for i in rng]
         if block >= 0:
             held[block] = True
             at_hi[block] = step[block] > 0
             u[block] = hi[block] if at_hi[block] else lo[block]
-    return u
+    return np.array(u)

@@ -192,7 +192,6 @@ def adjust_step(gait: _Gait, step: Step, tau: float, xi: np.ndarray, command: np
         J_req = Rot + gait.start_weight * (D - Rot)
 
     weights = np.array([params.zmp_weight] * 2 + [params.step_weight] * 2)[:n_var]
-    W = np.diag(weights)
     lo = np.concatenate([lo_p, lo_u - u_nom])[:n_var]
     hi = np.concatenate([hi_p, hi_u - u_nom])[:n_var]
     # the nominal timing first: when it leaves no mismatch (undisturbed walking) no shorter swing
@@ -201,6 +200,16 @@ def adjust_step(gait: _Gait, step: Step, tau: float, xi: np.ndarray, command: np
     lams = [(step.t2 - p.t1) / ssp] if fixed_target else [1.0] + [m + (1.0 - m) * k / 4 for k in range(4)]
     best = None
     dropped = False
+    # the loop in plain floats (numpy's per-call cost dominated its 2-vectors; ours): M by its columns
+    xi0, xi1 = float(xi[0]), float(xi[1])
+    kp = kp0.tolist()
+    sh0, sh1 = float(sh[0]), float(sh[1])
+    rq0, rq1 = float(req0[0]), float(req0[1])
+    (d00, d01), (d10, d11) = D.tolist()
+    (j00, j01), (j10, j11) = np.asarray(J_req, dtype=float).tolist()
+    sx, sy = float(step.support[0]), float(step.support[1])
+    un = u_nom.tolist()
+    wl, lo_l, hi_l = weights.tolist(), lo.tolist(), hi.tolist()
     for lam in lams:
         if best is not None and best[4] < 1e-4 and lam < 1.0:
             break
@@ -211,24 +220,30 @@ def adjust_step(gait: _Gait, step: Step, tau: float, xi: np.ndarray, command: np
             continue                             # the swing cannot land sooner than that
         T = t2 + tail if not fixed_target else step.T
         a, w, ws = dcm_forward_weights(tau, T, (0.0, step.t1, t2, T), gait.Tc)   # _Gait.knots' times
-        r0 = a * xi + w @ kp0 + ws * sh - req0
-        M = (w[1] + w[2]) * Rot
+        w = w.tolist()
+        r0 = (a * xi0 + (w[0] * kp[0][0] + w[1] * kp[1][0] + w[2] * kp[2][0] + w[3] * kp[3][0]) + ws * sh0 - rq0,
+              a * xi1 + (w[0] * kp[0][1] + w[1] * kp[1][1] + w[2] * kp[2][1] + w[3] * kp[3][1]) + ws * sh1 - rq1)
+        mw = w[1] + w[2]
+        cols = [(mw * c, mw * s), (-mw * s, mw * c)]
         if not fixed_target:
-            M = np.hstack([M, w[3] * D - J_req])
-        H = 2.0 * (M.T @ M + W)
-        g = 2.0 * (M.T @ r0)
-        z = solve_box_qp(H, g, lo, hi)
-        r = M @ z + r0
-        u = u_nom if fixed_target else u_nom + z[2:]
-        B_xy = step.support[:2] + Rot @ u
+            cols += [(w[3] * d00 - j00, w[3] * d10 - j10), (w[3] * d01 - j01, w[3] * d11 - j11)]
+        H = [[2.0 * (ci[0] * cj[0] + ci[1] * cj[1] + (wl[i] if i == j else 0.0)) for j, cj in enumerate(cols)]
+             for i, ci in enumerate(cols)]
+        g = [2.0 * (ci[0] * r0[0] + ci[1] * r0[1]) for ci in cols]
+        z = solve_box_qp(H, g, lo_l, hi_l).tolist()
+        r = (r0[0] + sum(col[0] * zj for col, zj in zip(cols, z)), r0[1] + sum(col[1] * zj for col, zj in zip(cols, z)))
+        u0, u1 = (un[0], un[1]) if fixed_target else (un[0] + z[2], un[1] + z[3])
+        B_xy = (sx + (c * u0 - s * u1), sy + (s * u0 + c * u1))
         if swing_pose is not None and tau >= step.t1 and not fixed_target:
             remaining = t2 - tau
-            if remaining <= 0 or np.linalg.norm(B_xy - swing_pose[:2]) / remaining > params.foot_speed:
+            if remaining <= 0 or math.hypot(B_xy[0] - float(swing_pose[0]),
+                                            B_xy[1] - float(swing_pose[1])) / remaining > params.foot_speed:
                 dropped = True
                 continue
-        cost = float(r @ r + z @ (weights * z) + params.timing_weight * (1.0 - lam) ** 2)
+        cost = (r[0] * r[0] + r[1] * r[1]) + sum(wi * zi * zi for wi, zi in zip(wl, z)) \
+            + params.timing_weight * (1.0 - lam) ** 2
         if best is None or cost < best[0]:
-            best = (cost, B_xy, lam, z.copy(), float(np.linalg.norm(r)))
+            best = (cost, np.array(B_xy), lam, np.array(z), math.sqrt(r[0] * r[0] + r[1] * r[1]))
     if best is None:                              # no lambda meets the servo speed: keep the step as it is
         return step.target.copy(), (step.t2 - p.t1) / ssp, step.offset.copy(), \
             {"residual": float("nan"), "kept": True, "binds": ("speed",)}
