@@ -199,8 +199,8 @@ def solve_box_qp(H: np.ndarray, g: np.ndarray, lo: np.ndarray, hi: np.ndarray, i
     at a bound, stopping at the first bound met (which joins the held set); at a minimiser of the
     held set, release the bound whose multiplier is most negative, or stop when none is
     (the KKT conditions hold). Exact, and finite for a convex QP; the tests check it against
-    scipy's bounded minimiser. In plain floats (the engine solves four at a step's start, n = 4:
-    numpy's per-call cost dominated them).
+    scipy's bounded minimiser and against every active set tried in turn. In plain floats (the
+    engine solves up to five at a step's start, n = 4: numpy's per-call cost dominated them).
     """
     H, g, lo, hi = (x if isinstance(x, list) else np.asarray(x, dtype=float).tolist() for x in (H, g, lo, hi))
     n = len(g)
