@@ -646,9 +646,9 @@ class WalkEngine:
     def _ik_start(self, side: int) -> np.ndarray | None:
         """Where the numerical leg IK starts this tick: the last two ticks' answers carried on a tick
         (2 q[k-1] - q[k-2]: the targets move smoothly, so the first Newton step is shorter: Wolfgang-OP's
-        forward walk evaluates a leg 2.1 times a tick instead of 2.5, benchmarks/bench_tick.py; the
-        built-in robot's legs as chains 2.0 instead of 2.2, tests/test_leg_chain.py), else the last
-        targets sent (ours). The closed-form IK takes none."""
+        forward walk of benchmarks/bench_tick.py evaluates a leg 2.1 times a tick instead of 2.5, counted
+        under cProfile; the built-in robot's legs as chains 2.0 instead of 2.2, tests/test_leg_chain.py),
+        else the last targets sent (ours). The closed-form IK takes none."""
         if self.leg.chains is None:
             return None
         before, last = self._ik_seen[side]
