@@ -112,3 +112,15 @@ def test_transfer_lines_give_units_in_a_header_not_a_letter_after_a_number():
     row = lines[3].split()
     assert row[3:7] == ["9.66", "0.050", "-", "0.100"]
     assert len(lines[3].split("kid on")[0]) == len(lines[1].split("what")[0])      # the columns line up
+
+
+def test_the_fits_sensor_noises_are_the_randomisations_and_the_clis_default_is_the_encoders():
+    """A walk's fit reads each channel in the sensor noise the randomisation draws (ground.NOISE is
+    derived from its defaults), and `identify servos --noise` defaults to the encoders' (written in the
+    CLI so its start imports no simulator): one number, tied here."""
+    import math
+
+    from tuner.cli.identify import ENCODER_NOISE
+    from tuner.identify.ground import NOISE as FIT_NOISE
+    assert FIT_NOISE == {"rpy": math.radians(NOISE.imu_noise_deg), "gyro": NOISE.gyro_noise, "q": NOISE.encoder_noise}
+    assert ENCODER_NOISE == FIT_NOISE["q"] > 0

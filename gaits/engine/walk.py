@@ -16,7 +16,7 @@ from ..lipm import dcm_forward, propagate, zmp_at
 from ..params import ParamError
 from ..tlipfm import TlipfmParams
 from ..trajectory import GRAVITY, JOINT_NAMES
-from .estimator import CoMEstimator, _ry, _rz, sole_floats, sole_rate
+from .estimator import CoMEstimator, _ry, sole_floats, sole_rate
 from .params import EngineParams
 from .servo_load import LoadCompensation, servo_terms
 from .shaping import CommandShaper
@@ -132,6 +132,7 @@ class WalkEngine:
         self._dropping: tuple[str, ...] = ()
         self._log = []
         self._soles: dict = {}                      # this tick's sole points in the world (``_joints``)
+        self._plan_rotation: tuple = ()             # this tick's pelvis as planned, Rz(psi) Ry(lean) (``_joints``)
         self._ik_seen: dict = {1: (None, None), -1: (None, None)}   # each leg's IK answers, the last two ticks
         if self._load is not None:
             self._load.reset()
@@ -257,7 +258,6 @@ class WalkEngine:
                  and not (walking and self.t - self.step_t0 < self.params.lag))
         dq = m.in_our_order(m.dq) if rates else None
         # in plain floats (numpy's per-call cost dominates 3-vectors; this runs every tick)
-        cr, sr, cp, sp = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch)
         cx, cy, cz = (float(v) for v in self.leg.com_in_pelvis)
         gyro = None if not rates else tuple(float(v) for v in m.gyro)
         ex = ey = vx = vy = 0.0
@@ -266,11 +266,7 @@ class WalkEngine:
             (px, py, pz), R_ps = sole_floats(leg_q, self.leg, side)
             foot = self.feet[side]
             psi = float(foot[2]) - math.atan2(R_ps[3], R_ps[0])
-            cw, sw = math.cos(psi), math.sin(psi)
-            # R_wp = Rz(psi) Ry(pitch) Rx(roll)
-            w00, w01, w02 = cw * cp, -sw * cr + cw * sp * sr, sw * sr + cw * sp * cr
-            w10, w11, w12 = sw * cp, cw * cr + sw * sp * sr, -cw * sr + sw * sp * cr
-            w20, w21, w22 = -sp, cp * sr, cp * cr
+            w00, w01, w02, w10, w11, w12, w20, w21, w22 = _rot_zyx(math.cos(psi), math.sin(psi), pitch, roll)
             dx, dy, dz = cx - px, cy - py, cz - pz
             ax, ay = w00 * dx + w01 * dy + w02 * dz, w10 * dx + w11 * dy + w12 * dz
             sx, sy = self._sole_xy(foot, side)
@@ -545,8 +541,7 @@ class WalkEngine:
     def _load_offsets(self, q: np.ndarray, support: int, feet: dict) -> np.ndarray:
         """What the servos will give way by under this tick's load and moves, to add to ``q``
         (``servo_load.py``), the pelvis turned as planned."""
-        psi = (feet[1][2] + feet[-1][2]) / 2
-        R_wp = _rz(psi) @ _ry(self.gait.p.torso_pitch)
+        R_wp = np.array(self._plan_rotation).reshape(3, 3)      # this tick's, from _joints
         return self._load.offsets(q, feet, self._soles, self.zmp, support, self._robot_weight, R_wp,
                                   self.foot_size)
 
@@ -612,7 +607,7 @@ class WalkEngine:
         # in plain floats (numpy's per-call cost dominates 3 x 3 products; this runs every tick)
         psi = (float(left[2]) + float(right[2])) / 2
         cw, sw = math.cos(psi), math.sin(psi)
-        R_plan = _rot_zyx(cw, sw, p.torso_pitch, 0.0)
+        self._plan_rotation = R_plan = _rot_zyx(cw, sw, p.torso_pitch, 0.0)   # _load_offsets takes it too
         k = self.params.level_feet
         R_tilted = _rot_zyx(cw, sw, p.torso_pitch + k * float(self.tilt[1]), k * float(self.tilt[0])) if k else R_plan
         cf, cl = leg.com_forward, leg.com_lateral

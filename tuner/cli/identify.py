@@ -12,7 +12,8 @@ from ..errors import UserError
 from .options import OutPath, Span, robot_option, surface_option, JSON_OPTION, RECORDING_OPTION, TOPICS_OPTION, running_total
 
 #: [rad] the encoders' noise a servo fit takes unless told: a walk's fit takes it from each sensor's
-#: own (tuner/identify/ground.py NOISE), so on a walk only this value is accepted
+#: own (tuner/identify/ground.py NOISE, the randomisation's defaults), so on a walk only this value is
+#: accepted; written here, not imported, so the verb's start imports no simulator (a test ties the two)
 ENCODER_NOISE = 0.001
 
 

@@ -46,6 +46,7 @@ from ..errors import UserError
 from ..robots.robot_model import RobotModel
 from .servos import ENTANGLED, _sysid, optimize
 from ..sim.ground import kind_of
+from ..sim.randomisation import Randomisation
 from ..sim.rollout import Simulator
 from ..sim.surfaces import Surface
 
@@ -54,7 +55,8 @@ __all__ = ["WalkLog", "GroundFit", "identify_ground", "ground_fields", "Replay",
 
 #: the sensor noise of each fitted channel (the randomisation's defaults): roll and pitch [rad],
 #: gyro [rad/s], encoders [rad]
-NOISE = {"rpy": math.radians(0.5), "gyro": 0.05, "q": 0.001}
+_DEFAULTS = Randomisation()
+NOISE = {"rpy": math.radians(_DEFAULTS.imu_noise_deg), "gyro": _DEFAULTS.gyro_noise, "q": _DEFAULTS.encoder_noise}
 FACTOR_BOUNDS = (0.3, 3.0)
 FD_STEP = 0.02
 NARROW = 0.15            # a factor is identified when its 95 % interval is within 15 % of it (ours)
