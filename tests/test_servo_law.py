@@ -227,3 +227,21 @@ def test_a_new_servo_law_is_one_class_and_one_registration(tmp_path):
         assert len(trace.t) > 50
     finally:
         del LAWS["test-stiff"]
+
+
+@pytest.mark.parametrize("name", ["wolfgang/wolfgang.yaml", "berkeley-humanoid-lite/bhl-biped.yaml",
+                                  "berkeley-humanoid-lite/bhl-biped-engine.yaml"])
+def test_the_fetched_robots_example_maps_read_under_todays_servo_laws(name):
+    """The example maps of robots that are fetched, not shipped (their files are not here, so no test
+    loads them whole), state their servos as the pd law with the gains their learned walks ran: over
+    the default a group gets when its file states none (the dc-motor law), each entry must read and
+    keep its numbers. The Berkeley Humanoid Lite maps had no ``law: pd`` and were refused once the
+    motor law became the default ("kv: not a field of the dc-motor law")."""
+    import yaml
+    from tuner.robots.robot_map import default_servo
+    doc = yaml.safe_load((ROOT / "examples" / "robots" / name).read_text())
+    assert set(doc["servo"]) == {"legs"}
+    entry = doc["servo"]["legs"]
+    servo = servo_from_mapping(entry, "servo.legs", default_servo("legs"))
+    assert isinstance(servo, PDServo)
+    assert (servo.kp, servo.kv, servo.torque) == (entry["kp"], entry["kv"], entry["torque"])
