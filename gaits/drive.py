@@ -31,7 +31,7 @@ import numpy as np
 
 from .command_stream import CommandStream
 from .control import READINGS, Controller, Stabilised, TablePlayer
-from .engine import EngineParams, WalkEngine
+from .engine import EngineParams, ResidualParams, ResidualWalk, WalkEngine
 from .online_table import OnlineTable
 from .families import RobotGeometry, command_walk, family_of
 from .gait_file import GaitFile
@@ -247,6 +247,7 @@ class Drive:
     source: str = ""                       # where the set came from, for reports
     user: UserController | None = None
     engine: EngineParams | None = None     # the online walk engine drives the set (TLIPFM)
+    residual: ResidualParams | None = None  # a trained correction on the engine's leg targets
 
     def __post_init__(self) -> None:
         if self.command is not None and self.stream is not None:
@@ -264,7 +265,8 @@ class Drive:
             raise ParamError(f"{source or 'the parameter set'} holds no stabiliser section")
         if stabiliser is False:
             stab = None
-        return cls(gait_file.params, stab, command, stream, source, engine=gait_file.engine)
+        return cls(gait_file.params, stab, command, stream, source, engine=gait_file.engine,
+                   residual=gait_file.residual)
 
     @property
     def family(self) -> str:
@@ -277,7 +279,7 @@ class Drive:
 
     def without_engine(self) -> "Drive":
         """The same set as a joint table (planned per step for a stream)."""
-        return dataclasses.replace(self, engine=None)
+        return dataclasses.replace(self, engine=None, residual=None)
 
     def the_stream(self) -> CommandStream | None:
         """What an online controller reads: the stream, or a held command for :data:`ONLINE_DURATION_S`
@@ -351,7 +353,7 @@ class Drive:
         stream = None if self.stream is None else (self.stream.t.tobytes(), self.stream.commands.tobytes(),
                                                    self.stream.tail)
         user = None if self.user is None else (self.user.source, tuple(sorted(self.user.params.items())))
-        return (self.params, self.stabiliser, self.command, stream, user, self.engine)
+        return (self.params, self.stabiliser, self.command, stream, user, self.engine, self.residual)
 
     def controller(self, robot: RobotGeometry, dt: float, table: GaitTrajectory | None = None) -> Controller:
         """The controller the loop runs: the table (``table``, or planned now), with the stabiliser
@@ -365,6 +367,8 @@ class Drive:
             limits = fam.step_limits(self.params, robot)
             if fam.engine == "feedback":
                 ctl = WalkEngine(self.params, self.engine, robot, dt, limits)
+                if self.residual is not None:
+                    ctl = ResidualWalk(ctl, self.residual)
             else:
                 ctl = OnlineTable(self.params, robot, dt, limits, preview=self.engine.preview_steps,
                                   idle=self.engine.idle)
@@ -377,7 +381,8 @@ class Drive:
     def describe(self) -> str:
         """One line: the set, how it is driven, and what it is asked to walk."""
         how = (f"controller {self.user.source}" if self.user is not None else
-               ("the online walk engine" if family_of(self.params).engine == "feedback"
+               ("the online walk engine" + (" with its trained residual" if self.residual is not None else "")
+                if family_of(self.params).engine == "feedback"
                 else "the online table (re-planned each step)") if self.engine is not None
                else "open-loop table") \
             + (" with the IMU stabiliser" if self.closed_loop else "")

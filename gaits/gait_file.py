@@ -1,8 +1,10 @@
-"""Gait parameter files: ``{gait: FAMILY, description: ..., params: {...}, stabiliser: {...}, engine: {...}}``.
+"""Gait parameter files: ``{gait: FAMILY, description: ..., params: {...}, stabiliser: {...}, engine: {...},
+residual: {...}}``.
 
 The boundary between a user's files and the typed parameters of ``gaits/params.py`` and the
 IMU stabiliser's gains (``gaits/imu_stabiliser.py``) and the online walk engine's numbers
-(``gaits/engine/``; a set with an ``engine:`` section walks online): :func:`load_gait_file` validates a file
+(``gaits/engine/``; a set with an ``engine:`` section walks online) and the residual trained on its leg
+targets (``gaits/engine/residual.py``; with the engine only): :func:`load_gait_file` validates a file
 (every error names the file, the field, the value and the allowed range), :func:`save_gait_file`
 writes one it reads back identically.
 """
@@ -18,9 +20,10 @@ import re
 import yaml
 
 from .files import MAX_BYTES, complete_pending_writes, read_bytes_checked, write_text_atomic
-from .engine import EngineParams
+from .engine import EngineParams, ResidualParams, residual_from_mapping
 from .imu_stabiliser import StabiliserParams, stabiliser_from_mapping
 from .families import families, family_class, params_from_mapping
+from .families import family as _family
 from .params import GaitParams, ParamError, fields_from_mapping
 
 __all__ = ["GaitFile", "read_yaml", "load_gait_file", "gait_file_from_mapping", "save_gait_file", "gait_file_text",
@@ -35,13 +38,14 @@ class GaitFile:
     description: str = ""
     stabiliser: StabiliserParams | None = None     # the IMU stabiliser, or None (open loop)
     engine: EngineParams | None = None             # the online walk engine, or None (a joint table)
+    residual: ResidualParams | None = None         # a correction on the engine's leg targets, or None
 
     @property
     def family(self) -> str:
         return self.params.FAMILY
 
 
-_TOP_KEYS = ("gait", "description", "params", "stabiliser", "engine")
+_TOP_KEYS = ("gait", "description", "params", "stabiliser", "engine", "residual")
 
 
 class DuplicateKey(yaml.YAMLError):
@@ -154,7 +158,14 @@ def gait_file_from_mapping(doc: Any, source: str) -> GaitFile:
     engine = None
     if doc.get("engine") is not None:
         engine = engine_from_mapping(doc["engine"], f"{source}: engine")
-    return GaitFile(params_from_mapping(family, doc.get("params"), source), description, stabiliser, engine)
+    residual = None
+    if doc.get("residual") is not None:
+        if engine is None or _family(family).engine != "feedback":
+            raise ParamError(f"{source}: residual: a correction on the online walk engine's targets needs an "
+                             f"engine: section and the tlipfm family (this set has "
+                             f"{'no engine' if engine is None else family})")
+        residual = residual_from_mapping(doc["residual"], f"{source}: residual")
+    return GaitFile(params_from_mapping(family, doc.get("params"), source), description, stabiliser, engine, residual)
 
 
 def engine_from_mapping(doc: Any, source: str = "engine") -> EngineParams:
@@ -164,13 +175,14 @@ def engine_from_mapping(doc: Any, source: str = "engine") -> EngineParams:
 
 
 def save_gait_file(path: str | Path, params: GaitParams, description: str = "",
-                   stabiliser: StabiliserParams | None = None, engine: EngineParams | None = None) -> Path:
+                   stabiliser: StabiliserParams | None = None, engine: EngineParams | None = None,
+                   residual: ResidualParams | None = None) -> Path:
     """Write a parameter file that :func:`load_gait_file` reads back identically (:func:`gait_file_text`)."""
-    return write_text_atomic(Path(path), gait_file_text(params, description, stabiliser, engine))
+    return write_text_atomic(Path(path), gait_file_text(params, description, stabiliser, engine, residual))
 
 
 def gait_file_text(params: GaitParams, description: str = "", stabiliser: StabiliserParams | None = None,
-                   engine: EngineParams | None = None) -> str:
+                   engine: EngineParams | None = None, residual: ResidualParams | None = None) -> str:
     """A parameter file's text. Each value carries its unit and meaning as a YAML comment; the IMU
     stabiliser's gains (``gaits/imu_stabiliser.py`` gives the formula) follow when one is given."""
     lines = [f"gait: {params.FAMILY}"]
@@ -187,6 +199,13 @@ def gait_file_text(params: GaitParams, description: str = "", stabiliser: Stabil
     if engine is not None:
         lines.append("engine:  # the online walk engine, ours: see gaits/engine/")
         lines += _fields(engine)
+    if residual is not None:
+        lines.append("residual:  # a correction on the engine's leg targets, trained (ours): see gaits/engine/residual.py")
+        lines.append(f"  limit: {residual.limit!r}  # [rad] the most a correction moves a joint")
+        for role in ("stance", "swing"):
+            lines.append(f"  {role}:  # rows hip_yaw .. ankle_roll; columns the twelve features [rad per unit]")
+            for row in getattr(residual, role):
+                lines.append("  - [" + ", ".join(repr(v) for v in row) + "]")
     return "\n".join(lines) + "\n"
 
 

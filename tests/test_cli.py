@@ -2,6 +2,7 @@
 
 import csv
 
+import numpy as np
 import pytest
 
 from gaits import JOINT_NAMES
@@ -125,3 +126,43 @@ def test_progress_in_a_log_is_plain_lines(capsys):
     assert "\r" not in err
     lines = err.strip().splitlines()
     assert len(lines) >= 3 and lines[-1].startswith("walks: 100%") and "3/3" in lines[-1]
+
+
+def test_train_writes_a_set_whose_residual_walks_and_goes_on_from_it(gait_tuner_cmd, run_env, tmp_path):
+    """gait-tuner train: one iteration of the random search on the built-in robot's carpet set writes
+    a set with its residual (the engine's set otherwise unchanged), the same again from the same seed
+    (the workers' timing does not enter), and `train OUT --out OUT` starts from OUT's residual; a zero
+    residual walks the engine's walk exactly; what it cannot train is one line, exit 2."""
+    import json
+    from gaits import load_gait_file
+    out = tmp_path / "res.yaml"
+    args = ["train", "kidsize-engine-carpet4", "--robot", "kidsize", "--surface", "carpet4", "--iterations", "1",
+            "--directions", "1", "--top", "1", "--walks", "1", "--seed", "4", "--json"]
+    r = run(gait_tuner_cmd, args + ["--out", out, "--workers", "2"], run_env)
+    assert r.returncode == 0, r.stderr
+    got = json.loads(r.stdout)
+    assert len(got["rewards"]) == 1 and 0.0 <= got["stood"][0] <= 1.0
+    trained = load_gait_file(out)
+    assert trained.residual is not None and np.abs(trained.residual.matrix).max() > 0
+    assert "1 of 1 iterations" in trained.description and "seed 4" in trained.description
+    again = tmp_path / "again.yaml"
+    assert run(gait_tuner_cmd, args + ["--out", again, "--workers", "1"], run_env).returncode == 0
+    assert again.read_text() == out.read_text()
+    on = tmp_path / "on.yaml"
+    assert run(gait_tuner_cmd, ["train", out] + args[2:] + ["--out", on], run_env).returncode == 0
+    first, second = trained.residual.matrix, load_gait_file(on).residual.matrix
+    assert not np.array_equal(first, second) and np.abs(second - first).max() < 10 * np.abs(first).max()
+    # a zero residual is the engine itself, tick for tick
+    zero = tmp_path / "zero.yaml"
+    zero.write_text(out.read_text().split("residual:")[0] + "residual: {}\n")
+    walks = [json.loads(run(gait_tuner_cmd, ["simulate", "--params", p, "--robot", "kidsize", "--surface", "carpet4",
+                                             "--command", "0.2,0,0", "--json"], run_env).stdout)
+             for p in ("kidsize-engine-carpet4", zero, out)]
+    assert walks[0]["metrics"] == walks[1]["metrics"] and "with its trained residual" in walks[1]["drive"]
+    assert walks[2]["metrics"]["pitch_rms_deg"] != walks[0]["metrics"]["pitch_rms_deg"]     # a trained one acts
+    for bad, said in ((["--top", "2"], "--top 2: at most --directions (1)"),
+                      (["--objective", "run"], "Invalid value for '--objective'")):
+        r = run(gait_tuner_cmd, args + ["--out", tmp_path / "b.yaml"] + bad, run_env)
+        assert r.returncode == 2 and said in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    r = run(gait_tuner_cmd, ["train", "tkux-table2"] + args[2:] + ["--out", tmp_path / "b.yaml"], run_env)
+    assert r.returncode == 2 and "tlipfm set with an engine: section" in r.stderr, r.stderr

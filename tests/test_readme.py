@@ -2,7 +2,7 @@
 
 The block is read from README.md itself, so an example that stops working fails here. Run in
 order in a scratch directory (``studies/`` and ``examples/`` linked in), so that ``export`` finds
-what ``tune`` made and ``compare`` what ``export`` wrote. In the default run eleven long commands
+what ``tune`` made and ``compare`` what ``export`` wrote. In the default run twelve long commands
 get a smaller budget, appended and listed in ``BUDGET`` (the same command, fewer trials, sets,
 rollouts or iterations), ``calibrate`` (~10 minutes) runs only in the slow suite and two EROS matrices
 are left to the tests that check what they print (``ELSEWHERE``); the slow suite runs every line
@@ -28,6 +28,7 @@ BUDGET = {"tune": ["--trials", "2"], "robustness": ["--rollouts", "4", "--push-r
           "versus": ["--walks", "1", "--no-challenge", "--speeds", "0.2,0,0,0"],
           "compare": ["--random-rollouts", "2", "--surfaces", "grass50", "--workers", "1", "--no-baselines"],
           "render": ["--duration", "2"], "transfer": ["--walks", "1"],
+          "train": ["--iterations", "1", "--directions", "1", "--top", "1", "--walks", "1"],
           "excite": ["--no-steps", "--duration", "5"],
           "challenge push": ["--third", "front", "--step", "0.25"], "bus serve": ["--wait", "1"]}
 SLOW_ONLY = {"calibrate"}
@@ -70,7 +71,7 @@ def test_the_block_is_found_and_covers_every_verb(gait_tuner_cmd, run_env):
 
 #: What the examples say they write, each checked after the chain of commands that names it.
 WRITTEN = ("runs/tk", "runs/sim/pitch.png", "runs/walk.mp4", "runs/tlipfm-robust/best.yaml",
-           "runs/cmp", "runs/turn", "runs/sweep.csv", "runs/servos/robot.yaml")
+           "runs/cmp", "runs/turn", "runs/sweep.csv", "runs/servos/robot.yaml", "runs/push-res.yaml")
 
 
 def _resources(args: list[str]) -> set[str]:

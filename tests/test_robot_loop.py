@@ -63,6 +63,43 @@ def test_the_stabiliser_of_a_set_is_in_the_robot_loop():
                 f"{s}_{j}" for s in "lr" for j in ("ankle_pitch", "hip_pitch", "ankle_roll", "hip_roll")}
 
 
+def test_a_trained_residual_of_a_set_is_in_the_robot_loop(tmp_path):
+    """A set with a trained residual (gaits/engine/residual.py) walks with it on the robot as in the
+    simulator: the loop's targets are the engine's plus the residual's correction of what it senses,
+    on the legs only; and the loop walks such a set with numpy alone."""
+    import runpy
+
+    import numpy as np
+
+    import gaits
+    from gaits.control import Measurement
+    from gaits.engine.residual import ResidualParams
+    loop = runpy.run_path(str(ROOT / "gaits" / "robot" / "loop.py"))
+    geometry = loop["RobotGeometry"](gaits.LegGeometry(), (0.10, 0.055))
+    base = gaits.load_gait_file(ROOT / "studies" / "results" / "kidsize-engine-carpet4.yaml")
+    w = np.zeros((2, 6, 12))
+    w[0, 2, 6] = 0.1                     # stance hip pitch from the pitch beyond the lean
+    path = tmp_path / "with-residual.yaml"
+    path.write_text(gaits.gait_file_text(base.params, "", base.stabiliser, base.engine,
+                                         ResidualParams.from_matrix(w)))
+    gait = gaits.load_gait_file(path)
+    n = len(gaits.JOINT_NAMES)
+    out = []
+    for g in (gait, base):
+        engine, walk = loop["controller"](g, geometry, 0.01)
+        pose = walk.start_pose().q
+        m = Measurement(0.0, q=pose, dq=np.zeros(n), imu_rpy=np.array([0.0, 0.05, 0.0]), gyro=np.zeros(3),
+                        accel=np.array([0.0, 0.0, 9.81]), foot_force=np.full(8, 6.0))
+        walk.reset(m)
+        out.append(walk.step(m, np.zeros(3)))
+    moved = {gaits.JOINT_NAMES[i] for i in np.flatnonzero(np.abs(out[0] - out[1]) > 1e-9)}
+    assert moved == {"l_hip_pitch", "r_hip_pitch"}
+    code = _RUN.format(gait=str(path), loop=str(ROOT / "examples" / "robot_loop.py"))
+    ran = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert ran.returncode == 0, ran.stderr
+    assert "imported: []" in ran.stdout and "301 ticks" in ran.stdout.splitlines()[0]
+
+
 @pytest.mark.parametrize("args, words", [
     (["--max-tilt", "nan"], "--max-tilt: 'nan' is outside (0, 90] deg"),
     (["--max-tilt", "-5"], "--max-tilt: '-5' is outside (0, 90] deg"),

@@ -57,14 +57,17 @@ The rooms: ``params.py`` the engine's numbers (:class:`EngineParams`); ``estimat
 estimator and the leg's forward kinematics; ``step_adjust.py`` a step, the rules taken from the
 TLIPFM set and the step adjustment's QP; ``shaping.py`` the command shaping (envelope, ramp, the
 gyro's turn feedback, the stride calibration); ``walk.py`` the engine: the step state machine, the
-swing and the legs' IK.
+swing and the legs' IK; ``servo_load.py`` the servos' give and lag put back into the targets;
+``residual.py`` a linear correction on the legs' targets trained in the tool's own loop.
 """
 
 from .estimator import CoMEstimator, sole_in_pelvis
 from .params import EngineParams
+from .residual import ResidualParams, ResidualWalk, residual_from_mapping
 from .shaping import CommandShaper
 from .step_adjust import Step, _Gait, adjust_step
 from .walk import SHIFT, STAND, WALK, WalkEngine
 
 __all__ = ["EngineParams", "WalkEngine", "CoMEstimator", "CommandShaper", "Step", "adjust_step", "sole_in_pelvis",
-           "STAND", "SHIFT", "WALK", "_Gait"]
+           "STAND", "SHIFT", "WALK", "_Gait", "ResidualParams", "ResidualWalk",
+           "residual_from_mapping"]

@@ -45,6 +45,7 @@ import numpy as np
 import gaits
 from gaits.files import PATH_PROBLEMS
 from gaits.control import Measurement, Stabilised
+from gaits.engine import ResidualWalk
 
 LEGS = {1: slice(gaits.JOINT_NAMES.index("l_hip_yaw"), gaits.JOINT_NAMES.index("l_hip_yaw") + 6),
         -1: slice(gaits.JOINT_NAMES.index("r_hip_yaw"), gaits.JOINT_NAMES.index("r_hip_yaw") + 6)}
@@ -188,8 +189,9 @@ def load_walk(path: str) -> "gaits.GaitFile | PolicyWalk":
 
 
 def controller(gait: "gaits.GaitFile | PolicyWalk", geometry: Any, dt: float):
-    """(the engine, what the loop calls): the engine, with the set's IMU stabiliser around it when
-    the set has one (its corrections added to the engine's targets, as in the simulator); a policy
+    """(the engine, what the loop calls): the engine, with the set's trained residual and its IMU
+    stabiliser around it when the set has them (their corrections added to the engine's targets, as
+    in the simulator); a policy
     as itself, its model opened and checked against its spec."""
     if isinstance(gait, PolicyWalk):
         from gaits.policy import PolicyController, onnx_runner
@@ -198,9 +200,10 @@ def controller(gait: "gaits.GaitFile | PolicyWalk", geometry: Any, dt: float):
         return policy, policy
     limits = gaits.family("tlipfm").step_limits(gait.params, geometry)
     engine = gaits.WalkEngine(gait.params, gait.engine, geometry, dt, limits)
+    walk = engine if gait.residual is None else ResidualWalk(engine, gait.residual)
     if gait.stabiliser is not None and gait.stabiliser.enabled:
-        return engine, Stabilised(engine, gait.stabiliser)
-    return engine, engine
+        return engine, Stabilised(walk, gait.stabiliser)
+    return engine, walk
 
 
 class _OneLine(argparse.ArgumentParser):

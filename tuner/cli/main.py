@@ -59,6 +59,9 @@ VERBS: dict[str, tuple[str, str, str]] = {
     "studies": ("robot", "studies_cmd", "List the shipped studies."),
     "surfaces": ("robot", "surfaces", "List the built-in surfaces and their contact parameters (--test: the turf test "
                                       "methods on them)."),
+    "train": ("train", "train", "Train a set's residual (a linear correction on the walk engine's leg targets) in "
+                                "the simulator's closed loop: random search over randomised match walks or push "
+                                "trials, the set written after every iteration."),
     "trajectory": ("walks", "trajectory", "Generate a gait's joint table q_ref(t) and its Cartesian references for a "
                                           "robot."),
     "transfer": ("evaluate", "transfer", "The gap before the match: SET's randomised match walks (commands every 1-3 s, "

@@ -1,0 +1,100 @@
+"""``gait-tuner train``: a set's residual trained in the closed loop (``tuner/search/train.py``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from ..errors import UserError
+from .options import JSON_OPTION, OutPath, Span, robot_option, surface_option, workers_option
+
+__all__ = ["train"]
+
+
+@click.command()
+@click.argument("set_spec", metavar="SET")
+@robot_option()
+@surface_option()
+@click.option("--objective", type=click.Choice(["match", "push"]), default="match", show_default=True,
+              help="match: randomised match walks (survival, tracking); push: the 2025 challenge's trial at "
+                   "--distance.")
+@click.option("--distance", type=Span(0.05, 1.125), default=0.5, show_default=True,
+              help="push: the bottle's release distance D [m].")
+@click.option("--iterations", type=click.IntRange(1, 10_000), default=30, show_default=True,
+              help="Random-search iterations.")
+@click.option("--directions", type=click.IntRange(1, 256), default=8, show_default=True,
+              help="Random directions walked per iteration (each both ways).")
+@click.option("--top", type=click.IntRange(1, 256), default=4, show_default=True,
+              help="The directions kept per iteration (at most --directions).")
+@click.option("--noise", type=Span(1e-4, 1.0), default=0.03, show_default=True,
+              help="A direction's size [rad per unit feature].")
+@click.option("--step", type=Span(1e-4, 1.0), default=0.02, show_default=True, help="The step along the kept "
+                                                                                    "directions.")
+@click.option("--walks", type=click.IntRange(1, 100), default=3, show_default=True,
+              help="Rollouts per evaluation (the same ones for each sign of a direction).")
+@click.option("--limit", type=Span(0.01, 1.0), default=None,
+              help="The most a correction moves a joint [rad] (default: the set's residual's, else 0.3).")
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(0, 2**31 - 1),
+              help="Seed of the directions and the rollouts (tuning seeds: never an evaluation walk).")
+@click.option("--out", "out_path", required=True, type=OutPath(dir_okay=False),
+              help="The set to write (rewritten after every iteration: an interrupted run keeps its last).")
+@workers_option()
+@JSON_OPTION
+def train(set_spec: str, robot_name: str, surface_name: str, objective: str, distance: float, iterations: int,
+          directions: int, top: int, noise: float, step: float, walks: int, limit: float | None, seed: int,
+          out_path: Path, workers: int, as_json: bool) -> None:
+    """Train a set's residual (a linear correction on the walk engine's leg targets) in the simulator's
+    closed loop: random search over randomised match walks or push trials, the set written after
+    every iteration.
+
+    The correction is a map from the IMU, the gyro, the command, the step's progress and the CoM's
+    error (gaits/engine/residual.py), searched by augmented random search (ARS) in the simulator's own
+    loop (tuner/search/train.py).
+
+    SET is an engine set (tlipfm with an engine: section); a residual it holds is the start, so
+    `train OUT --out OUT` goes on from where a run stopped. Measure the result with `versus`,
+    `robustness` or `challenge` on seeds it was not trained on (they are evaluation seeds).
+    """
+    import json
+
+    from gaits import gait_file_text
+
+    from ..params_io import resolve_drive
+    from ..robots import load_robot
+    from ..search.train import TrainSettings, train as run_train
+    from ..sim.surfaces import load_surface
+    if top > directions:
+        raise UserError(f"--top {top}: at most --directions ({directions})")
+    settings = TrainSettings(iterations=iterations, directions=directions, top=top, noise=noise, step=step,
+                             walks=walks, objective=objective, distance=distance, seed=seed)
+    drive = resolve_drive(set_spec, None)
+    if drive.user is not None:
+        raise UserError(f"{set_spec}: a controller or policy file: train needs an engine set")
+    robot = load_robot(robot_name)
+    surface = load_surface(surface_name)
+    what = (f"{objective} ({walks} walk(s) an evaluation" + (f", D {distance:g} m" if objective == "push" else "")
+            + ")")
+
+    def write(residual, done: int) -> None:
+        desc = (f"{drive.source}: its residual trained by gait-tuner train on {robot.name} / {surface.name}, "
+                f"{what}, seed {seed}: {done} of {iterations} iterations")
+        text = gait_file_text(drive.params, desc, drive.stabiliser, drive.engine, residual)
+        from gaits.files import write_text_atomic
+        write_text_atomic(out_path, text)
+
+    def progress(it: int, reward: float, stood: float) -> None:
+        if not as_json:
+            click.echo(f"iteration {it}/{iterations}: reward {reward:.3f}, stood {stood:.0%} of its "
+                       f"{walks} walk(s)", err=True)
+
+    click.echo(f"train {set_spec} on {robot.name} / {surface.name}: {what}, {iterations} iterations of "
+               f"{2 * directions + 1} evaluations, {workers} worker(s); writing {out_path}", err=True)
+    result = run_train(drive, robot_name, surface_name, settings, workers=workers, limit=limit, progress=progress,
+                       checkpoint=write)
+    if as_json:
+        click.echo(json.dumps({"out": str(out_path), "rewards": result.rewards, "stood": result.stood,
+                               "residual": result.residual.to_mapping()}, allow_nan=False))
+        return
+    click.echo(f"wrote {out_path}: measure it on evaluation seeds, e.g. gait-tuner versus {out_path} "
+               f"--robot {robot_name} --surfaces {surface_name}")
