@@ -166,3 +166,6 @@ def test_train_writes_a_set_whose_residual_walks_and_goes_on_from_it(gait_tuner_
         assert r.returncode == 2 and said in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
     r = run(gait_tuner_cmd, ["train", "tkux-table2"] + args[2:] + ["--out", tmp_path / "b.yaml"], run_env)
     assert r.returncode == 2 and "tlipfm set with an engine: section" in r.stderr, r.stderr
+    held = tmp_path / "held.yaml"          # a held command under the randomisation, as robustness walks it
+    r = run(gait_tuner_cmd, args + ["--objective", "command", "--command", "0.25,0,0", "--out", held], run_env)
+    assert r.returncode == 0 and "command (1 walk(s) an evaluation, command 0.25,0,0)" in load_gait_file(held).description

@@ -159,7 +159,9 @@ def test_train_refuses_what_it_cannot_train(tmp_path):
         train(resolve_drive("tkux-table2", None), "kidsize", "carpet4", TrainSettings(iterations=1))
     with pytest.raises(UserError, match=r"top = 5: expected a whole number in \[1, directions = 4\]"):
         TrainSettings(directions=4, top=5)
-    with pytest.raises(UserError, match=r"objective = 'run': one of match, push"):
+    with pytest.raises(UserError, match=r"objective = 'run': one of match, command, push"):
         TrainSettings(objective="run")
     with pytest.raises(UserError, match=r"distance = 2: expected a release distance"):
         TrainSettings(distance=2)
+    with pytest.raises(UserError, match=r"command = \(0.3, 0.0, 9.0\): expected \(vx, vy, wz\)"):
+        TrainSettings(objective="command", command=(0.3, 0.0, 9.0))

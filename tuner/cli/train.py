@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from ..errors import UserError
-from .options import JSON_OPTION, OutPath, Span, robot_option, surface_option, workers_option
+from .options import JSON_OPTION, OutPath, Span, parse_command, robot_option, surface_option, workers_option
 
 __all__ = ["train"]
 
@@ -16,9 +16,11 @@ __all__ = ["train"]
 @click.argument("set_spec", metavar="SET")
 @robot_option()
 @surface_option()
-@click.option("--objective", type=click.Choice(["match", "push"]), default="match", show_default=True,
-              help="match: randomised match walks (survival, tracking); push: the 2025 challenge's trial at "
-                   "--distance.")
+@click.option("--objective", type=click.Choice(["match", "command", "push"]), default="match", show_default=True,
+              help="match: randomised match walks (survival, tracking); command: --command held 10 s under the "
+                   "randomisation; push: the 2025 challenge's trial at about --distance.")
+@click.option("--command", "command_text", default="0.3,0,0", show_default=True, metavar="VX,VY,WZ",
+              help="command: the walk command held [m/s, m/s, rad/s].")
 @click.option("--distance", type=Span(0.05, 1.125), default=0.5, show_default=True,
               help="push: the bottle's release distance D [m].")
 @click.option("--iterations", type=click.IntRange(1, 10_000), default=30, show_default=True,
@@ -41,7 +43,8 @@ __all__ = ["train"]
               help="The set to write (rewritten after every iteration: an interrupted run keeps its last).")
 @workers_option()
 @JSON_OPTION
-def train(set_spec: str, robot_name: str, surface_name: str, objective: str, distance: float, iterations: int,
+def train(set_spec: str, robot_name: str, surface_name: str, objective: str, command_text: str, distance: float,
+          iterations: int,
           directions: int, top: int, noise: float, step: float, walks: int, limit: float | None, seed: int,
           out_path: Path, workers: int, as_json: bool) -> None:
     """Train a set's residual (a linear correction on the walk engine's leg targets) in the simulator's
@@ -53,8 +56,9 @@ def train(set_spec: str, robot_name: str, surface_name: str, objective: str, dis
     loop (tuner/search/train.py).
 
     SET is an engine set (tlipfm with an engine: section); a residual it holds is the start, so
-    `train OUT --out OUT` goes on from where a run stopped. Measure the result with `versus`,
-    `robustness` or `challenge` on seeds it was not trained on (they are evaluation seeds).
+    `train OUT --out OUT --seed N` goes on from where a run stopped (a new seed walks new rollouts;
+    the same seed walks the first run's again). Measure the result with `versus`, `robustness` or
+    `challenge` on seeds it was not trained on (theirs are evaluation seeds, train's tuning ones).
     """
     import json
 
@@ -66,15 +70,17 @@ def train(set_spec: str, robot_name: str, surface_name: str, objective: str, dis
     from ..sim.surfaces import load_surface
     if top > directions:
         raise UserError(f"--top {top}: at most --directions ({directions})")
+    command = parse_command(command_text)
     settings = TrainSettings(iterations=iterations, directions=directions, top=top, noise=noise, step=step,
-                             walks=walks, objective=objective, distance=distance, seed=seed)
+                             walks=walks, objective=objective, distance=distance, seed=seed,
+                             command=tuple(float(v) for v in command.as_array()))
     drive = resolve_drive(set_spec, None)
     if drive.user is not None:
         raise UserError(f"{set_spec}: a controller or policy file: train needs an engine set")
     robot = load_robot(robot_name)
     surface = load_surface(surface_name)
     what = (f"{objective} ({walks} walk(s) an evaluation" + (f", D {distance:g} m" if objective == "push" else "")
-            + ")")
+            + (f", command {command_text}" if objective == "command" else "") + ")")
 
     def write(residual, done: int) -> None:
         desc = (f"{drive.source}: its residual trained by gait-tuner train on {robot.name} / {surface.name}, "
@@ -83,10 +89,9 @@ def train(set_spec: str, robot_name: str, surface_name: str, objective: str, dis
         from gaits.files import write_text_atomic
         write_text_atomic(out_path, text)
 
-    def progress(it: int, reward: float, stood: float) -> None:
-        if not as_json:
-            click.echo(f"iteration {it}/{iterations}: reward {reward:.3f}, stood {stood:.0%} of its "
-                       f"{walks} walk(s)", err=True)
+    def progress(it: int, reward: float, stood: float) -> None:      # on stderr: --json's stdout stays one object
+        click.echo(f"iteration {it}/{iterations}: reward {reward:.3f}, stood {stood:.0%} of its "
+                   f"{walks} walk(s)", err=True)
 
     click.echo(f"train {set_spec} on {robot.name} / {surface.name}: {what}, {iterations} iterations of "
                f"{2 * directions + 1} evaluations, {workers} worker(s); writing {out_path}", err=True)

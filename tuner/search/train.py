@@ -19,6 +19,8 @@ Rewards (ours):
   3 x the share of the walk walked + 1 if it stood to the end - the forward, sideways and 0.2 x the
   turning RMS tracking errors [m/s, rad/s] x the share walked (a walk that falls early has less
   time to track badly: the error counts by the time it walked);
+* ``command``: ``command`` (vx, vy, wz) held for 10 s then a stop, under the default randomisation
+  (what ``robustness --command`` measures), seeds as above; rewarded as a match walk;
 * ``push``: the 2025 push challenge's trial (3 kg bottle, rope 1.5 m), stepping in place as the trial
   walks every set, at a release distance drawn from U(0.8, 1.2) x ``distance`` (the challenge asks
   every D up to the one it reaches, and a map trained at one D alone was seen to lose smaller ones),
@@ -39,6 +41,7 @@ from typing import Any, Callable
 import numpy as np
 
 import gaits
+from gaits.drive import ONLINE_DURATION_S
 from gaits.engine.residual import ResidualParams
 
 from ..errors import UserError
@@ -47,7 +50,7 @@ from ..sim.randomisation import TUNE, Randomisation, draw
 
 __all__ = ["TrainSettings", "TrainResult", "ars_update", "train", "OBJECTIVES", "match_reward", "push_reward"]
 
-OBJECTIVES = ("match", "push")
+OBJECTIVES = ("match", "command", "push")
 _SEED_SPACE = 0x7A1       # the rollouts' own seed namespace within the tuning one (ours)
 
 
@@ -61,8 +64,9 @@ class TrainSettings:
     noise: float = 0.03           # nu [rad per unit feature]: the size of a direction
     step: float = 0.02            # alpha: the step along the kept directions
     walks: int = 3                # rollouts per evaluation (the same for +-delta and theta)
-    objective: str = "match"      # match or push
+    objective: str = "match"      # match, command or push
     distance: float = 0.5         # [m] push: the bottle's release distance D
+    command: tuple[float, float, float] = (0.3, 0.0, 0.0)   # [m/s, m/s, rad/s] command: the one held
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -79,6 +83,9 @@ class TrainSettings:
                 raise UserError(f"{name} = {v!r}: expected a number in (0, {hi:g}]")
         if self.objective not in OBJECTIVES:
             raise UserError(f"objective = {self.objective!r}: one of {', '.join(OBJECTIVES)}")
+        if len(self.command) != 3 or not all(isinstance(v, (int, float)) and math.isfinite(v) and abs(v) <= 2.0
+                                             for v in self.command):
+            raise UserError(f"command = {self.command!r}: expected (vx, vy, wz), each within 2 m/s or rad/s")
         if not isinstance(self.distance, (int, float)) or not math.isfinite(self.distance) \
                 or not 0 < self.distance <= 1.125:
             raise UserError(f"distance = {self.distance!r}: expected a release distance in (0, 1.125] m "
@@ -141,7 +148,7 @@ def _sim(robot: str, surface: str, push: bool):
 
 def _rollout(task: tuple) -> tuple[float, bool]:
     """(reward, stood to the end) of one rollout (a worker process)."""
-    robot, surface, drive, objective, distance, seed = task
+    robot, surface, drive, objective, distance, command, seed = task
     if objective == "push":
         from ..challenge.rules import TRIAL_S, trial_2025
         sim = _sim(robot, surface, True)
@@ -152,7 +159,10 @@ def _rollout(task: tuple) -> tuple[float, bool]:
     from ..sim.match_walks import MatchDistribution, draw_scenario
     from ..sim.robustness import walk_scenario
     sim = _sim(robot, surface, False)
-    stream, pushes = draw_scenario(MatchDistribution(), seed, TUNE)
+    if objective == "command":
+        stream, pushes = gaits.CommandStream.constant(command, ONLINE_DURATION_S), []
+    else:
+        stream, pushes = draw_scenario(MatchDistribution(), seed, TUNE)
     p = draw(Randomisation(), seed, *sim.n_random(), namespace=TUNE)
     row = walk_scenario(sim, drive, stream, pushes, p)
     return match_reward(row), bool(row.get("survived"))
@@ -181,7 +191,7 @@ def train(drive: gaits.Drive, robot: str, surface: str, settings: TrainSettings 
         maps = [theta + s.noise * d for d in deltas] + [theta - s.noise * d for d in deltas] + [theta]
         seeds = [(s.seed, it, k) for k in range(s.walks)]
         tasks = [(robot, surface, dataclasses.replace(base, residual=ResidualParams.from_matrix(w, clip)),
-                  s.objective, s.distance, seed) for w in maps for seed in seeds]
+                  s.objective, s.distance, s.command, seed) for w in maps for seed in seeds]
         out = map_in_order(_rollout, tasks, workers, chunksize=1)
         rewards = np.array([r for r, _ in out]).reshape(len(maps), s.walks).mean(axis=1)
         stood = float(np.mean([ok for _, ok in out[-s.walks:]]))
