@@ -21,6 +21,7 @@ import yaml
 
 from .files import MAX_BYTES, complete_pending_writes, read_bytes_checked, write_text_atomic
 from .engine import EngineParams, ResidualParams, residual_from_mapping
+from .engine.residual import FEATURES, LEG_JOINTS
 from .imu_stabiliser import StabiliserParams, stabiliser_from_mapping
 from .families import families, family_class, params_from_mapping
 from .families import family as _family
@@ -203,7 +204,8 @@ def gait_file_text(params: GaitParams, description: str = "", stabiliser: Stabil
         lines.append("residual:  # a correction on the engine's leg targets, trained (ours): see gaits/engine/residual.py")
         lines.append(f"  limit: {residual.limit!r}  # [rad] the most a correction moves a joint")
         for role in ("stance", "swing"):
-            lines.append(f"  {role}:  # rows hip_yaw .. ankle_roll; columns the twelve features [rad per unit]")
+            lines.append(f"  {role}:  # rows {', '.join(LEG_JOINTS)}; columns {', '.join(FEATURES)} "
+                         f"[rad per unit feature]")
             for row in getattr(residual, role):
                 lines.append("  - [" + ", ".join(repr(v) for v in row) + "]")
     return "\n".join(lines) + "\n"

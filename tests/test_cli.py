@@ -164,6 +164,9 @@ def test_train_writes_a_set_whose_residual_walks_and_goes_on_from_it(gait_tuner_
                       (["--objective", "run"], "Invalid value for '--objective'")):
         r = run(gait_tuner_cmd, args + ["--out", tmp_path / "b.yaml"] + bad, run_env)
         assert r.returncode == 2 and said in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    (tmp_path / "a-file").write_text("x")
+    r = run(gait_tuner_cmd, args + ["--out", tmp_path / "a-file" / "b.yaml"], run_env)     # refused before it trains
+    assert r.returncode == 2 and "a file stands where a folder is needed" in r.stderr and "iteration" not in r.stderr, r.stderr
     r = run(gait_tuner_cmd, ["train", "tkux-table2"] + args[2:] + ["--out", tmp_path / "b.yaml"], run_env)
     assert r.returncode == 2 and "tlipfm set with an engine: section" in r.stderr, r.stderr
     held = tmp_path / "held.yaml"          # a held command under the randomisation, as robustness walks it

@@ -13,22 +13,16 @@ and its lateral joints (hip yaw, hip roll, ankle roll) take their rows times sig
 mirrored left to right gets the mirrored correction (``tests/test_residual.py``). Standing, or
 in the weight shift before the first step, both legs are in stance and the step's progress is 0.
 
-**Features** (``FEATURES``, each scaled to about 1 at its typical largest, ours):
+**Features** (``FEATURES``, each scaled to about 1 at its typical largest, ours), by column:
 
-====  =====================================================================  ========
- 0    1 (a constant)
- 1    sin(pi s), s in [0, 1] the progress of the current step
- 2    sin(2 pi s)
- 3    vx / 0.3 m/s, the command the engine plans for (after its ramp)
- 4    sigma vy / 0.3 m/s
- 5    sigma wz / 1.0 rad/s
- 6    the pitch beyond the planned lean / 0.2 rad (the engine's filtered tilt)
- 7    sigma roll / 0.2 rad
- 8    the gyro's pitch rate / 2 rad/s
- 9    sigma roll rate / 2 rad/s
-10    the CoM velocity estimated minus planned, forward / 0.2 m/s
-11    sigma the same, sideways / 0.2 m/s
-====  =====================================================================  ========
+* 0: 1 (a constant);
+* 1, 2: sin(pi s), sin(2 pi s), s in [0, 1] the progress of the current step;
+* 3, 4, 5: vx / 0.3 m/s, sigma vy / 0.3 m/s, sigma wz / 1.0 rad/s, the command the engine plans for
+  (after its ramp);
+* 6, 7: the pitch beyond the planned lean / 0.2 rad, sigma the roll / 0.2 rad (the engine's
+  filtered tilt);
+* 8, 9: the gyro's pitch rate / 2 rad/s, sigma its roll rate / 2 rad/s;
+* 10, 11: the CoM velocity estimated minus planned, forward / 0.2 m/s and sigma sideways / 0.2 m/s.
 
 A correction is clipped to +-``limit`` [rad] per joint. All-zero weights are the engine itself,
 target for target. The map's rows are the leg's joints in ``LEG_JOINTS`` order.

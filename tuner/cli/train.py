@@ -62,11 +62,9 @@ def train(set_spec: str, robot_name: str, surface_name: str, objective: str, com
     """
     import json
 
-    from gaits import gait_file_text
-
     from ..params_io import resolve_drive
     from ..robots import load_robot
-    from ..search.train import TrainSettings, train as run_train
+    from ..search.train import TrainSettings, save_trained, train as run_train
     from ..sim.surfaces import load_surface
     if top > directions:
         raise UserError(f"--top {top}: at most --directions ({directions})")
@@ -83,11 +81,12 @@ def train(set_spec: str, robot_name: str, surface_name: str, objective: str, com
             + (f", command {command_text}" if objective == "command" else "") + ")")
 
     def write(residual, done: int) -> None:
-        desc = (f"{drive.source}: its residual trained by gait-tuner train on {robot.name} / {surface.name}, "
-                f"{what}, seed {seed}: {done} of {iterations} iterations")
-        text = gait_file_text(drive.params, desc, drive.stabiliser, drive.engine, residual)
-        from gaits.files import write_text_atomic
-        write_text_atomic(out_path, text)
+        save_trained(out_path, drive, residual, f"{drive.source}: its residual trained by gait-tuner train on "
+                                                f"{robot.name} / {surface.name}, {what}, seed {seed}: {done} of "
+                                                f"{iterations} iterations")
+
+    from gaits.engine import ResidualParams
+    write(drive.residual or ResidualParams(limit=0.3 if limit is None else limit), 0)   # a bad --out: said now
 
     def progress(it: int, reward: float, stood: float) -> None:      # on stderr: --json's stdout stays one object
         click.echo(f"iteration {it}/{iterations}: reward {reward:.3f}, stood {stood:.0%} of its "

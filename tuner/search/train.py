@@ -36,6 +36,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
@@ -48,7 +49,8 @@ from ..errors import UserError
 from ..process_pool import map_in_order
 from ..sim.randomisation import TUNE, Randomisation, draw
 
-__all__ = ["TrainSettings", "TrainResult", "ars_update", "train", "OBJECTIVES", "match_reward", "push_reward"]
+__all__ = ["TrainSettings", "TrainResult", "ars_update", "train", "OBJECTIVES", "match_reward", "push_reward",
+           "save_trained"]
 
 OBJECTIVES = ("match", "command", "push")
 _SEED_SPACE = 0x7A1       # the rollouts' own seed namespace within the tuning one (ours)
@@ -166,6 +168,14 @@ def _rollout(task: tuple) -> tuple[float, bool]:
     p = draw(Randomisation(), seed, *sim.n_random(), namespace=TUNE)
     row = walk_scenario(sim, drive, stream, pushes, p)
     return match_reward(row), bool(row.get("survived"))
+
+
+def save_trained(path: Path, drive: gaits.Drive, residual: ResidualParams, description: str) -> Path:
+    """Write ``drive``'s set with ``residual`` to ``path`` (atomically: an interrupted run keeps the
+    last whole file)."""
+    from gaits.files import write_text_atomic
+    return write_text_atomic(Path(path), gaits.gait_file_text(drive.params, description, drive.stabiliser,
+                                                             drive.engine, residual))
 
 
 def train(drive: gaits.Drive, robot: str, surface: str, settings: TrainSettings = TrainSettings(), *,
