@@ -372,7 +372,7 @@ def test_the_2025_challenge_refuses_the_2019_bottle():
 
 def test_the_shipped_trained_push_set_keeps_the_trunk_where_the_engine_alone_falls():
     """kidsize-engine-push-residual (docs/walk.md): kidsize-engine-push with a residual trained on
-    push trials. One push of D 0.5 m from behind while stepping in place (3.9 N s): the engine alone
+    push trials on carpet4 and grass30. One push of D 0.5 m from behind while stepping in place (3.9 N s): the engine alone
     pitches past 20 deg within 0.3 s and falls; with the residual the torso stays within 5 deg and
     the robot stands to the end. Its description says how it was made."""
     import numpy as np
@@ -402,7 +402,7 @@ def test_the_shipped_trained_push_set_is_what_its_two_train_commands_write(tmp_p
     (train is deterministic from its seed; ten minutes on 2 cores)."""
     from conftest import run_in_process
     first, second = tmp_path / "r3.yaml", tmp_path / "r4.yaml"
-    common = ["--robot", "kidsize", "--surface", "carpet4", "--objective", "push", "--iterations", "30",
+    common = ["--robot", "kidsize", "--surface", "carpet4,grass30", "--objective", "push", "--iterations", "30",
               "--walks", "4", "--workers", "2"]
     assert run_in_process(["train", "kidsize-engine-push", *common, "--distance", "0.5", "--out", first]).returncode == 0
     assert run_in_process(["train", first, *common, "--distance", "0.55", "--seed", "1", "--out", second]).returncode == 0

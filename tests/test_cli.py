@@ -161,7 +161,8 @@ def test_train_writes_a_set_whose_residual_walks_and_goes_on_from_it(gait_tuner_
     assert walks[0]["metrics"] == walks[1]["metrics"] and "with its trained residual" in walks[1]["drive"]
     assert walks[2]["metrics"]["pitch_rms_deg"] != walks[0]["metrics"]["pitch_rms_deg"]     # a trained one acts
     for bad, said in ((["--top", "2"], "--top 2: at most --directions (1)"),
-                      (["--objective", "run"], "Invalid value for '--objective'")):
+                      (["--objective", "run"], "Invalid value for '--objective'"),
+                      (["--surface", "carpet4,grass30"], "--surface: 2 surfaces but --walks 1")):
         r = run(gait_tuner_cmd, args + ["--out", tmp_path / "b.yaml"] + bad, run_env)
         assert r.returncode == 2 and said in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
     (tmp_path / "a-file").write_text("x")

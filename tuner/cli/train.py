@@ -15,7 +15,8 @@ __all__ = ["train"]
 @click.command()
 @click.argument("set_spec", metavar="SET")
 @robot_option()
-@surface_option()
+@surface_option(help="A surface (name or file), or several comma-separated: an evaluation's rollouts take "
+                     "them in turn.")
 @click.option("--objective", type=click.Choice(["match", "command", "push"]), default="match", show_default=True,
               help="match: randomised match walks (survival, tracking); command: --command held 10 s under the "
                    "randomisation; push: the 2025 challenge's trial at about --distance.")
@@ -76,13 +77,18 @@ def train(set_spec: str, robot_name: str, surface_name: str, objective: str, com
     if drive.user is not None:
         raise UserError(f"{set_spec}: a controller or policy file: train needs an engine set")
     robot = load_robot(robot_name)
-    surface = load_surface(surface_name)
+    names = [n.strip() for n in surface_name.split(",") if n.strip()]
+    if not names:
+        raise UserError("--surface: give a surface name or file (or several, comma-separated)")
+    if len(names) > walks:
+        raise UserError(f"--surface: {len(names)} surfaces but --walks {walks}: give each surface a walk at least")
+    shown = ", ".join(load_surface(n).name for n in names)
     what = (f"{objective} ({walks} walk(s) an evaluation" + (f", D {distance:g} m" if objective == "push" else "")
             + (f", command {command_text}" if objective == "command" else "") + ")")
 
     def write(residual, done: int) -> None:
         save_trained(out_path, drive, residual, f"{drive.source}: its residual trained by gait-tuner train on "
-                                                f"{robot.name} / {surface.name}, {what}, seed {seed}: {done} of "
+                                                f"{robot.name} / {shown}, {what}, seed {seed}: {done} of "
                                                 f"{iterations} iterations")
 
     from gaits.engine import ResidualParams
@@ -92,9 +98,9 @@ def train(set_spec: str, robot_name: str, surface_name: str, objective: str, com
         click.echo(f"iteration {it}/{iterations}: reward {reward:.3f}, stood {stood:.0%} of its "
                    f"{walks} walk(s)", err=True)
 
-    click.echo(f"train {set_spec} on {robot.name} / {surface.name}: {what}, {iterations} iterations of "
+    click.echo(f"train {set_spec} on {robot.name} / {shown}: {what}, {iterations} iterations of "
                f"{2 * directions + 1} evaluations, {workers} worker(s); writing {out_path}", err=True)
-    result = run_train(drive, robot_name, surface_name, settings, workers=workers, limit=limit, progress=progress,
+    result = run_train(drive, robot_name, names, settings, workers=workers, limit=limit, progress=progress,
                        checkpoint=write)
     if as_json:
         click.echo(json.dumps({"out": str(out_path), "rewards": result.rewards, "stood": result.stood,

@@ -24,8 +24,11 @@ Rewards (ours):
 * ``push``: the 2025 push challenge's trial (3 kg bottle, rope 1.5 m), stepping in place as the trial
   walks every set, at a release distance drawn from U(0.8, 1.2) x ``distance`` (the challenge asks
   every D up to the one it reaches, and a map trained at one D alone was seen to lose smaller ones),
-  the third push from the front on even k and from behind on odd: the pushes absorbed (0-3) + the
-  share of the trial stood.
+  the third push from the front and from behind in turn: the pushes absorbed (0-3) + the share of
+  the trial stood.
+
+Several surfaces: rollout k of an evaluation walks surface k mod n (and, pushed, the third push
+alternates every n rollouts, so that each surface gets both sides).
 
 Deterministic from ``seed``: the directions come from numpy's generator of it, the rollouts' seeds
 from it, and the rewards are gathered in order whatever the workers' timing.
@@ -37,7 +40,7 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -143,20 +146,21 @@ def _sim(robot: str, surface: str, push: bool):
         return simulator(robot, surface)
     key = (robot, surface)
     if key not in _SIMS:
-        _SIMS.clear()
+        if len(_SIMS) >= 4:                      # a few surfaces' scenes kept, as tuner/sim/cache.py keeps
+            _SIMS.pop(next(iter(_SIMS)))
         _SIMS[key] = Simulator(load_robot(robot), load_surface(surface), pendulum=1.5, bottle=BOTTLES[3])
     return _SIMS[key]
 
 
 def _rollout(task: tuple) -> tuple[float, bool]:
     """(reward, stood to the end) of one rollout (a worker process)."""
-    robot, surface, drive, objective, distance, command, seed = task
+    robot, surface, drive, objective, distance, command, third, seed = task
     if objective == "push":
         from ..challenge.rules import TRIAL_S, trial_2025
         sim = _sim(robot, surface, True)
         state = np.random.SeedSequence([_SEED_SPACE, *seed]).generate_state(2)
         d = distance * (0.8 + 0.4 * float(state[1]) / 2.0**32)
-        trial = trial_2025(sim, drive, d, int(state[0]), "front" if seed[-1] % 2 == 0 else "back")
+        trial = trial_2025(sim, drive, d, int(state[0]), third)
         return push_reward(trial, TRIAL_S), trial.get("t_fall_s") is None
     from ..sim.match_walks import MatchDistribution, draw_scenario
     from ..sim.robustness import walk_scenario
@@ -178,12 +182,13 @@ def save_trained(path: Path, drive: gaits.Drive, residual: ResidualParams, descr
                                                              drive.engine, residual))
 
 
-def train(drive: gaits.Drive, robot: str, surface: str, settings: TrainSettings = TrainSettings(), *,
+def train(drive: gaits.Drive, robot: str, surface: str | Sequence[str], settings: TrainSettings = TrainSettings(), *,
           workers: int = 1, limit: float | None = None,
           progress: Callable[[int, float, float], None] | None = None,
           checkpoint: Callable[[ResidualParams, int], None] | None = None) -> TrainResult:
     """Search the residual of ``drive`` (an engine set; its own residual, if any, is the start) on
-    ``robot`` and ``surface`` (module docstring). ``progress(iteration, reward, stood)`` and
+    ``robot`` and ``surface``, or several surfaces: rollout k of an evaluation walks surface k mod n
+    (module docstring). ``progress(iteration, reward, stood)`` and
     ``checkpoint(residual, iteration)`` after each iteration."""
     if drive.engine is None or gaits.family_of(drive.params).engine != "feedback":
         raise UserError(f"{drive.source or 'the set'}: a residual corrects the online walk engine's targets: "
@@ -194,14 +199,20 @@ def train(drive: gaits.Drive, robot: str, surface: str, settings: TrainSettings 
     base = dataclasses.replace(drive, command=None, stream=None)
     rng = np.random.default_rng(np.random.SeedSequence([_SEED_SPACE, settings.seed]))
     s = settings
-    _sim(robot, surface, s.objective == "push")          # built once here: forked workers inherit it
+    surfaces = [surface] if isinstance(surface, str) else list(surface)
+    if not surfaces:
+        raise UserError("train: give at least one surface")
+    for name in surfaces:                                  # built once here: forked workers inherit them
+        _sim(robot, name, s.objective == "push")
     result = TrainResult(ResidualParams.from_matrix(theta, clip))
     for it in range(s.iterations):
         deltas = rng.standard_normal((s.directions,) + theta.shape)
         maps = [theta + s.noise * d for d in deltas] + [theta - s.noise * d for d in deltas] + [theta]
         seeds = [(s.seed, it, k) for k in range(s.walks)]
-        tasks = [(robot, surface, dataclasses.replace(base, residual=ResidualParams.from_matrix(w, clip)),
-                  s.objective, s.distance, s.command, seed) for w in maps for seed in seeds]
+        n_s = len(surfaces)
+        tasks = [(robot, surfaces[seed[-1] % n_s], dataclasses.replace(base, residual=ResidualParams.from_matrix(w, clip)),
+                  s.objective, s.distance, s.command, "front" if (seed[-1] // n_s) % 2 == 0 else "back", seed)
+                 for w in maps for seed in seeds]
         out = map_in_order(_rollout, tasks, workers, chunksize=1)
         rewards = np.array([r for r, _ in out]).reshape(len(maps), s.walks).mean(axis=1)
         stood = float(np.mean([ok for _, ok in out[-s.walks:]]))
