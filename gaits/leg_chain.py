@@ -122,11 +122,11 @@ class LegChain:
     def _chain(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The sole's pose and each joint's axis and point in the pelvis frame at ``q`` (the joints
         compose in ``order``; ``q`` and the axes and points returned are in our order)."""
-        p, R, axes, pts = self._chain_floats(q)
+        p, R, axes, pts = self.chain_floats(q)
         return np.array(p), np.array(R).reshape(3, 3), np.array(axes), np.array(pts)
 
-    def _chain_floats(self, q) -> tuple[tuple, tuple, list, list]:
-        """:meth:`_chain` in plain floats: the sole point (3-tuple), its rotation (9-tuple, row by
+    def chain_floats(self, q) -> tuple[tuple, tuple, list, list]:
+        """:meth:`_chain` in plain floats (the engine's estimator and servo model read it too): the sole point (3-tuple), its rotation (9-tuple, row by
         row), the axes and points (lists of 3-tuples). numpy's per-call cost dominates 3 x 3 products;
         this is the IK's inner loop."""
         r00, r01, r02, r10, r11, r12, r20, r21, r22 = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
@@ -166,7 +166,7 @@ class LegChain:
     def _newton_terms(self, q, pt: tuple, Rt: tuple) -> tuple[np.ndarray, np.ndarray]:
         """The error (6,) of the sole's pose at ``q`` from the target (``pt`` 3-tuple, ``Rt`` 9-tuple:
         position, then the rotation vector of Rt R^T) and the sole's Jacobian (6 x 6), in floats."""
-        (px, py, pz), R, axes, pts = self._chain_floats(q)
+        (px, py, pz), R, axes, pts = self.chain_floats(q)
         # E = Rt R^T, row i of Rt against row j of R
         t0, t1, t2, t3, t4, t5, t6, t7, t8 = Rt
         s0, s1, s2, s3, s4, s5, s6, s7, s8 = R

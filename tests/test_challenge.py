@@ -322,6 +322,31 @@ def test_absorbed_pushes_and_partial_success(t_fall, absorbed, full, partial):
     assert got == absorbed and (sum(got) == 3) == full and (sum(got) >= 2) == partial
 
 
+@pytest.mark.parametrize("outcome, fell, survived, absorbed", [
+    ("completed", False, True, 3),
+    ("fell", True, False, 1),
+    ("diverged", False, False, 1),      # not a fall, yet not standing: no push after it absorbed
+    ("impossible", False, False, 1),
+])
+def test_a_2025_trial_counts_a_push_absorbed_only_while_the_walk_still_stood(monkeypatch, outcome, fell,
+                                                                              survived, absorbed):
+    """A walk that diverged or became impossible between the second and third push has absorbed the
+    first push only, not the second and third (before, only a fall ended a trial: a diverged walk took all three)."""
+    import numpy as np
+    from types import SimpleNamespace
+    from tuner.challenge import rules as C
+    end = 14.0 if survived else 9.0          # between the second push (7.6-8.2 s) and the third
+    trace = SimpleNamespace(survived=survived, fell=fell, t_fall=end if fell else None, outcome=outcome,
+                            t=np.linspace(0.0, end, 11))
+
+    def fake_push_trial(sim, drive, distance, seed, keep_trace=False, pushes=None, record=None):
+        return {"pushes": [{"t_s": t} for t, _ in pushes], "success": survived, "trace": trace}
+    monkeypatch.setattr(C, "push_trial", fake_push_trial)
+    trial = C.trial_2025(None, None, 0.5, 0, "front")
+    assert trial["absorbed"] == absorbed and trial["success"] == (absorbed == 3)
+    assert trial["outcome"] == outcome and (trial["t_fall_s"] is None) == survived
+
+
 def test_m_by_the_2025_formula():
     from tuner.challenge.rules import rank_2025
     # L 1.5 m, D 0.5 m: H = 1.5 - sqrt(2.0) = 0.0857864 m; h_c 0.25, h_i 0.25, m_B 3, m_R 5

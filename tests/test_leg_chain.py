@@ -174,8 +174,8 @@ def test_the_solver_keeps_the_walk_engines_leg_on_a_smooth_path():
     from gaits.engine.walk import IK_STEP, IK_TOL
     chain = bent_chain()
     calls = []
-    inner = chain._chain_floats
-    object.__setattr__(chain, "_chain_floats", lambda q: calls.append(1) or inner(q))
+    inner = chain.chain_floats
+    object.__setattr__(chain, "chain_floats", lambda q: calls.append(1) or inner(q))
     p0, _ = chain.fk(np.array([0.0, 0.0, -0.5, 1.0, -0.5, 0.0]))
     start = chain.solve(p0 + np.array([0.0, 0.01, 0.0]), rot_x(0.03), q0=np.array([0.0, 0.0, -0.5, 1.0, -0.5, 0.0]))
 
@@ -279,15 +279,15 @@ def test_the_engine_starts_each_legs_ik_where_its_last_two_ticks_point():
             e._ik_start = lambda side: None if e._last_q is None else e._last_q[_LEG[side]]
         calls = []
         for c in chains.left, chains.right:
-            inner = c._chain_floats
-            object.__setattr__(c, "_chain_floats", lambda q, _inner=inner: calls.append(1) or _inner(q))
+            inner = c.chain_floats
+            object.__setattr__(c, "chain_floats", lambda q, _inner=inner: calls.append(1) or _inner(q))
         try:
             e.reset(Measurement(0.0))
             e.start_pose()
             out = [e.step(Measurement(0.01 * k), np.array([0.2, 0.0, 0.1])) for k in range(1, 300)]
         finally:
             for c in chains.left, chains.right:
-                object.__delattr__(c, "_chain_floats")
+                object.__delattr__(c, "chain_floats")
         return np.array(out), len(calls), e.steps_taken
     closed, _, steps = walk(kidsize)
     q, evaluations, _ = walk(chained)

@@ -179,15 +179,16 @@ def test_train_walks_each_surface_in_turn_and_both_sides_on_each(monkeypatch):
         seen.append(tasks)
         return [(float(i % 3), True) for i in range(len(tasks))]
     monkeypatch.setattr(tr, "map_in_order", fake_map)
-    monkeypatch.setattr(tr, "_sim", lambda robot, surface, push: None)
+    monkeypatch.setattr(tr, "_world", lambda robot, surfaces: SimpleNamespace(sims_with_pendulum=lambda *a: None))
     res = tr.train(resolve_drive("kidsize-engine-push", None), "kidsize", ["carpet4", "grass30"],
                    tr.TrainSettings(iterations=2, directions=2, top=1, walks=4, objective="push", seed=5))
     assert len(seen) == 2 and len(seen[0]) == (2 * 2 + 1) * 4
     first = seen[0][:4]
-    assert [t[1] for t in first] == ["carpet4", "grass30", "carpet4", "grass30"]
-    assert [t[6] for t in first] == ["front", "front", "back", "back"]
+    assert [t[1][t[2]] for t in first] == ["carpet4", "grass30", "carpet4", "grass30"]
+    assert [t[7] for t in first] == ["front", "front", "back", "back"]
     assert [t[-1] for t in first] == [(5, 0, k) for k in range(4)]
     for i in range(5):                                   # every map: the same four rollouts
-        assert [(t[1], t[6], t[-1]) for t in seen[0][4 * i:4 * i + 4]] == [(t[1], t[6], t[-1]) for t in first]
+        assert [t[1:3] + t[4:] for t in seen[0][4 * i:4 * i + 4]] == [t[1:3] + t[4:] for t in first]
+    assert len({id(t[3]) for t in seen[0]}) == 5          # one drive a map, shared by its four rollouts
     assert [t[-1] for t in seen[1][:4]] == [(5, 1, k) for k in range(4)]
     assert res.stood == [1.0, 1.0] and len(res.rewards) == 2

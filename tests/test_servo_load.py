@@ -12,7 +12,7 @@ from gaits.engine.servo_load import LoadCompensation, ServoTerms, servo_terms
 from gaits.leg_chain import LegChains, _log_rotation
 from gaits.leg_kinematics import LegGeometry
 from gaits.trajectory import JOINT_NAMES
-from tests.test_leg_chain import bent_chain
+from test_leg_chain import bent_chain
 
 LEFT = slice(JOINT_NAMES.index("l_hip_yaw"), JOINT_NAMES.index("l_hip_yaw") + 6)
 RIGHT = slice(JOINT_NAMES.index("r_hip_yaw"), JOINT_NAMES.index("r_hip_yaw") + 6)

@@ -40,7 +40,7 @@ def sole_floats(q, leg: LegGeometry, side: int) -> tuple[tuple, tuple]:
     row). numpy's per-call cost dominates 3 x 3 products, and this runs every tick; the products
     are the rotations' (Rz(q1) Rx(q2) Ry(q3), then Ry(q4), Ry(q5) Rx(q6)) with their zeros left out."""
     if leg.chains is not None:                      # the robot file's chain (gaits.leg_chain)
-        return leg.chains.side(side)._chain_floats(q)[:2]
+        return leg.chains.side(side).chain_floats(q)[:2]
     q1, q2, q3, q4, q5, q6 = (float(v) for v in q)
     c1, s1, c2, s2, c3, s3 = math.cos(q1), math.sin(q1), math.cos(q2), math.sin(q2), math.cos(q3), math.sin(q3)
     a00, a02, a10, a12, a20, a22 = c1, s1 * s2, s1, -c1 * s2, 0.0, c2      # Rz(q1) Rx(q2), its columns 0, 2

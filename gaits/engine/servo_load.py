@@ -100,7 +100,7 @@ class LoadCompensation:
         """The torques (6,) on the leg's joints (tau_ext, our joint order): a vertical ground force
         ``force_w`` [N] at ``cop_w`` (3,), the sole point at ``sole_w`` (3,), and the thigh's and
         calf's weight, the pelvis turned ``R_wp`` (world from pelvis)."""
-        (px, py, pz), _, axes, pts = self.chains[side]._chain_floats(q_leg)
+        (px, py, pz), _, axes, pts = self.chains[side].chain_floats(q_leg)
         ux_, uy_, uz_ = R_wp[2, 0], R_wp[2, 1], R_wp[2, 2]     # the world's up in the pelvis frame
         tau = [0.0] * 6
         if force_w:

@@ -313,7 +313,10 @@ def trial_2025(sim: Simulator, drive: gaits.Drive, distance: float, seed: int, t
     trial = push_trial(sim, drive, distance, seed, keep_trace=True, pushes=pushes_2025(seed, distance, third),
                        record=record)
     trace = trial.pop("trace")
-    trial["t_fall_s"] = float(trace.t_fall) if trace.fell else None
+    # a walk that did not end standing ended when it fell, or when it diverged or became impossible
+    # (then not ``fell``, but no push after that moment was absorbed)
+    trial["t_fall_s"] = None if trace.survived else float(trace.t_fall if trace.fell else trace.t[-1])
+    trial["outcome"] = trace.outcome
     trial["third"] = third
     got = absorbed(trial)
     for p, ok in zip(trial["pushes"], got):

@@ -133,38 +133,36 @@ def push_reward(trial: dict[str, Any], duration: float) -> float:
     return float(trial["absorbed"]) + stood
 
 
-_SIMS: dict = {}
+_WORLDS: dict = {}
 
 
-def _sim(robot: str, surface: str, push: bool):
-    from ..robots import load_robot
-    from ..sim.cache import simulator
-    from ..sim.rollout import Simulator
-    from ..sim.scene import BOTTLES
-    from ..sim.surfaces import load_surface
-    if not push:
-        return simulator(robot, surface)
-    key = (robot, surface)
-    if key not in _SIMS:
-        if len(_SIMS) >= 4:                      # a few surfaces' scenes kept, as tuner/sim/cache.py keeps
-            _SIMS.pop(next(iter(_SIMS)))
-        _SIMS[key] = Simulator(load_robot(robot), load_surface(surface), pendulum=1.5, bottle=BOTTLES[3])
-    return _SIMS[key]
+def _world(robot: str, surfaces: tuple[str, ...]):
+    """The robot on each surface (``tuner/scenarios/world.py``: one simulator per surface, and with the
+    challenge's pendulum on first use), built once per process; the parent builds it before the
+    workers fork, so they inherit it."""
+    from ..scenarios.world import World
+    key = (robot, surfaces)
+    if key not in _WORLDS:
+        _WORLDS.clear()
+        _WORLDS[key] = World(robot, surfaces)
+    return _WORLDS[key]
 
 
 def _rollout(task: tuple) -> tuple[float, bool]:
     """(reward, stood to the end) of one rollout (a worker process)."""
-    robot, surface, drive, objective, distance, command, third, seed = task
+    robot, surfaces, index, drive, objective, distance, command, third, seed = task
+    world = _world(robot, surfaces)
     if objective == "push":
         from ..challenge.rules import TRIAL_S, trial_2025
-        sim = _sim(robot, surface, True)
+        from ..sim.scene import BOTTLES
+        sim = world.sims_with_pendulum(1.5, BOTTLES[3])[index]
         state = np.random.SeedSequence([_SEED_SPACE, *seed]).generate_state(2)
         d = distance * (0.8 + 0.4 * float(state[1]) / 2.0**32)
         trial = trial_2025(sim, drive, d, int(state[0]), third)
         return push_reward(trial, TRIAL_S), trial.get("t_fall_s") is None
     from ..sim.match_walks import MatchDistribution, draw_scenario
     from ..sim.robustness import walk_scenario
-    sim = _sim(robot, surface, False)
+    sim = world.sims[index]
     if objective == "command":
         stream, pushes = gaits.CommandStream.constant(command, ONLINE_DURATION_S), []
     else:
@@ -199,20 +197,22 @@ def train(drive: gaits.Drive, robot: str, surface: str | Sequence[str], settings
     base = dataclasses.replace(drive, command=None, stream=None)
     rng = np.random.default_rng(np.random.SeedSequence([_SEED_SPACE, settings.seed]))
     s = settings
-    surfaces = [surface] if isinstance(surface, str) else list(surface)
+    surfaces = (surface,) if isinstance(surface, str) else tuple(surface)
     if not surfaces:
         raise UserError("train: give at least one surface")
-    for name in surfaces:                                  # built once here: forked workers inherit them
-        _sim(robot, name, s.objective == "push")
+    world = _world(robot, surfaces)                       # built here: forked workers inherit it
+    if s.objective == "push":
+        from ..sim.scene import BOTTLES
+        world.sims_with_pendulum(1.5, BOTTLES[3])
     result = TrainResult(ResidualParams.from_matrix(theta, clip))
     for it in range(s.iterations):
         deltas = rng.standard_normal((s.directions,) + theta.shape)
         maps = [theta + s.noise * d for d in deltas] + [theta - s.noise * d for d in deltas] + [theta]
         seeds = [(s.seed, it, k) for k in range(s.walks)]
         n_s = len(surfaces)
-        tasks = [(robot, surfaces[seed[-1] % n_s], dataclasses.replace(base, residual=ResidualParams.from_matrix(w, clip)),
-                  s.objective, s.distance, s.command, "front" if (seed[-1] // n_s) % 2 == 0 else "back", seed)
-                 for w in maps for seed in seeds]
+        drives = [dataclasses.replace(base, residual=ResidualParams.from_matrix(w, clip)) for w in maps]
+        tasks = [(robot, surfaces, seed[-1] % n_s, d, s.objective, s.distance, s.command,
+                  "front" if (seed[-1] // n_s) % 2 == 0 else "back", seed) for d in drives for seed in seeds]
         out = map_in_order(_rollout, tasks, workers, chunksize=1)
         rewards = np.array([r for r, _ in out]).reshape(len(maps), s.walks).mean(axis=1)
         stood = float(np.mean([ok for _, ok in out[-s.walks:]]))
