@@ -36,6 +36,27 @@ PATH_PROBLEMS = {errno.ENOTDIR: "a part of the path is a file, not a folder",
                  errno.EEXIST: "a file stands where a folder is needed"}
 
 
+class FolderRefused(FileNotFoundError):
+    """A folder that cannot be made where it was asked (ours): ``mkdir`` with its parents says
+    ENOENT only when the file system there takes no new folder (``/proc``, ``/sys``), the user's
+    path, not a bug; the command line and the robot loop say it in one line."""
+
+
+#: the words for :class:`FolderRefused`
+FOLDER_REFUSED = "no folder can be made there (the file system there takes none)"
+
+
+def make_folder(path: str | Path) -> Path:
+    """``path`` as a folder, made with its parents if missing; a :class:`FolderRefused` naming it
+    where the file system will not hold one."""
+    path = Path(path)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except FileNotFoundError as exc:
+        raise FolderRefused(errno.ENOENT, FOLDER_REFUSED, exc.filename or str(path)) from None
+    return path
+
+
 def write_text_atomic(path: str | Path, text: str, encoding: str = "utf-8") -> Path:
     """Write ``text`` to ``path``: all of it or, on any error, nothing (the old file stays)."""
     return write_bytes_atomic(path, text.encode(encoding))
@@ -44,7 +65,7 @@ def write_text_atomic(path: str | Path, text: str, encoding: str = "utf-8") -> P
 def write_bytes_atomic(path: str | Path, data: bytes) -> Path:
     """Write ``data`` to ``path``: all of it or, on any error, nothing (the old file stays)."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    make_folder(path.parent)
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     except OSError as exc:
@@ -166,8 +187,7 @@ def write_files_atomic(files: Mapping[str | Path, str], encoding: str = "utf-8")
     folders = {p.parent.resolve() for p in paths}
     if len(folders) != 1:
         raise ValueError(f"write_files_atomic: the files must share one folder, got {sorted(map(str, folders))}")
-    directory = paths[0].parent
-    directory.mkdir(parents=True, exist_ok=True)
+    directory = make_folder(paths[0].parent)
     complete_pending_writes(directory)
     umask = os.umask(0)
     os.umask(umask)

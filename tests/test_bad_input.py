@@ -491,6 +491,38 @@ def test_an_output_path_inside_a_file_or_too_long_is_one_line(capsys, workdir):
             "longer than the file system allows")
 
 
+REFUSING = "/proc/gait-tuner-none"           # a file system that takes no new folder (Linux)
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux's /proc")
+@pytest.mark.parametrize("argv", [
+    ["trajectory", "--gait", "tlipfm", "--out", f"{REFUSING}/t", "--no-plot"],
+    ["init", "--robot", "kidsize", "--surface", "rigid", "--out", f"{REFUSING}/start"],
+    ["train", "kidsize-engine-push", "--robot", "kidsize", "--surface", "carpet4", "--iterations", "1",
+     "--out", f"{REFUSING}/r.yaml"],
+    ["simulate", "--params", "kidsize-engine-carpet4", "--surface", "rigid", "--duration", "0.1", "--command", "0.1,0,0",
+     "--record", f"{REFUSING}/r.json"],
+], ids=["trajectory", "init", "train", "simulate"])
+def test_an_output_folder_the_file_system_refuses_is_one_line(capsys, workdir, argv):
+    """It was an internal error in every verb (mkdir's ENOENT under /proc): the path, in words."""
+    run_bad(capsys, argv, f"{REFUSING}: no folder can be made there")
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux's /proc")
+def test_a_runs_folder_the_file_system_refuses_is_one_line(capsys, workdir):
+    run_bad(capsys, ["tune", "quickstart", "--trials", "1", "--runs", REFUSING],
+            f"--runs {REFUSING}: cannot create it: no folder can be made there")
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux's /proc")
+def test_robot_loop_recording_where_no_folder_can_be_made_is_one_line():
+    r = subprocess.run([os.sys.executable, str(ROOT / "examples" / "robot_loop.py"),
+                        str(ROOT / "studies" / "results" / "kidsize-engine-carpet4.yaml"), "--dry-run",
+                        "--seconds", "0.05", "--record", f"{REFUSING}/run.mcap"], capture_output=True, text=True)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert f"{REFUSING}: no folder can be made there" in r.stderr and "Traceback" not in r.stderr
+
+
 def test_a_stream_cell_past_the_csv_limit_is_one_line(capsys, workdir):
     (workdir / "big.csv").write_text("t,vx,vy,wz\n0," + "1" * 200_000 + ",0,0\n")
     run_bad(capsys, ["simulate", "--params", "kidsize-engine-carpet4", "--commands", "big.csv"],

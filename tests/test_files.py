@@ -16,7 +16,9 @@ import subprocess
 
 import pytest
 
-from gaits.files import write_text_atomic
+from pathlib import Path
+
+from gaits.files import FOLDER_REFUSED, FolderRefused, make_folder, write_text_atomic
 
 
 def test_writes_the_whole_text_and_replaces_the_old(tmp_path):
@@ -25,6 +27,26 @@ def test_writes_the_whole_text_and_replaces_the_old(tmp_path):
     write_text_atomic(p, "new é\n")
     assert p.read_text(encoding="utf-8") == "new é\n"
     assert sorted(x.name for x in p.parent.iterdir()) == ["a.yaml"]
+
+
+def test_a_folder_the_file_system_refuses_is_named_as_such(tmp_path, monkeypatch):
+    """mkdir with its parents says ENOENT only where no folder can be made (/proc): FolderRefused,
+    naming the folder; any other error goes on as it was."""
+    real = Path.mkdir
+
+    def refusing(self, *a, **kw):
+        if self.name == "nowhere":
+            raise FileNotFoundError(errno.ENOENT, "No such file or directory", str(self))
+        return real(self, *a, **kw)
+    monkeypatch.setattr(Path, "mkdir", refusing)
+    with pytest.raises(FolderRefused) as info:
+        write_text_atomic(tmp_path / "nowhere" / "a.yaml", "x")
+    assert info.value.errno == errno.ENOENT and info.value.filename == str(tmp_path / "nowhere")
+    assert info.value.strerror == FOLDER_REFUSED
+    assert make_folder(tmp_path / "a" / "b") == tmp_path / "a" / "b" and (tmp_path / "a" / "b").is_dir()
+    (tmp_path / "f").write_text("x")
+    with pytest.raises(FileExistsError):
+        make_folder(tmp_path / "f")
 
 
 def test_an_error_half_way_leaves_the_old_file_and_no_temporary(tmp_path, monkeypatch):

@@ -43,7 +43,7 @@ import time
 import numpy as np
 
 import gaits
-from gaits.files import PATH_PROBLEMS
+from gaits.files import FOLDER_REFUSED, PATH_PROBLEMS, FolderRefused
 from gaits.control import Measurement, Stabilised
 from gaits.engine import ResidualWalk
 
@@ -249,7 +249,8 @@ def main(argv: list[str] | None = None) -> None:
             print(f"robot_loop: error: {where}{exc.strerror or exc} (a recording being written there is kept "
                   f"as NAME.partial.mcap; an older one of the name was left as it was)", file=sys.stderr)
             raise SystemExit(3) from None
-        print(f"robot_loop: error: {where}{_PATH_ERRNOS.get(exc.errno, exc.strerror or str(exc))}", file=sys.stderr)
+        why = FOLDER_REFUSED if isinstance(exc, FolderRefused) else _PATH_ERRNOS.get(exc.errno, exc.strerror or str(exc))
+        print(f"robot_loop: error: {where}{why}", file=sys.stderr)
         raise SystemExit(2) from None
     except (gaits.ParamError, ValueError) as exc:      # a file that is not what it says (binary, broken)
         print(f"robot_loop: error: {' '.join(str(exc).split())[:400]}", file=sys.stderr)

@@ -40,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from ..files import make_folder
 from ..control import FOOT_FORCE_LABELS, READINGS, Measurement, Wrapped
 from ..trajectory import JOINT_NAMES
 
@@ -134,7 +135,7 @@ class Recorder:
         Writer, Compression = _mcap()
         self.path = Path(path)
         self.partial = partial_path(self.path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
+        make_folder(self.path.parent)
         self._fh = open(self.partial, "wb")
         # small chunks (~0.3 s of a 100 Hz walk): a run killed mid-way loses at most the last one
         self._w = Writer(self._fh, compression=Compression.ZSTD, chunk_size=32 * 1024)

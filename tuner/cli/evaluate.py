@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from gaits.files import write_files_atomic
+from gaits.files import write_files_atomic, make_folder
 
 from ..errors import UserError
 from ..search.workers import tuned_study
@@ -290,7 +290,7 @@ def versus(walk_specs: tuple[str, ...], robot_name: str, surface_names: str, spe
         said = envelope_note(drive, drive.controller(robot, robot.sim.control_period)) if drive.online else None
         if said:
             click.echo(said, err=True)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    make_folder(out_dir)
     per_cell = len(speed_of) + walks + (1 if challenge else 0)
     cells = []
     with tqdm(total=len(drives) * len(names) * per_cell, desc="versus", unit="walk", **bar_options()) as bar:

@@ -178,10 +178,10 @@ def _said(exc: Exception) -> int:
         # a path that cannot name a file (inside a file, too long, a folder, a link loop): a bad --out
         # or file name, the user's mistake (gaits.files says each in words; imported here, not before
         # a verb needs it)
-        from gaits.files import PATH_PROBLEMS
-        if exc.errno in PATH_PROBLEMS:
+        from gaits.files import PATH_PROBLEMS, FolderRefused
+        if exc.errno in PATH_PROBLEMS or isinstance(exc, FolderRefused):
             where = f"{exc.filename}: " if exc.filename else ""
-            why = PATH_PROBLEMS[exc.errno]
+            why = exc.strerror if isinstance(exc, FolderRefused) else PATH_PROBLEMS[exc.errno]
             click.echo(f"gait-tuner: error: {where}{why}", err=True)
             return EXIT_USAGE
         if exc.errno in _SYSTEM_ERRNOS:

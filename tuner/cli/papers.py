@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from gaits.files import write_text_atomic
+from gaits.files import write_text_atomic, make_folder
 
 from ..errors import UserError
 from ..report.provenance import commit_of
@@ -102,7 +102,7 @@ def experiment(paper: str, robot_name: str, surface_name: str, lift_scale: float
         surface = load_surface(surface_name)
         text = f"robot {robot.name}\n" + ex.format_table3(ex.tlipfm_table3(robot, surface), surface.name)
     if out_dir is not None:                   # the report as Markdown, with --json too
-        out_dir.mkdir(parents=True, exist_ok=True)
+        make_folder(out_dir)
         write_text_atomic(out_dir / "report.md", "```\n" + text + "\n```\n")
     if report is not None:                    # strict JSON: nothing else on stdout
         click.echo(json.dumps({"robot": robot.name, **report}, allow_nan=False))
@@ -157,7 +157,7 @@ def calibrate(workers: int, lift_scale: float, layer: str, out_dir: Path | None)
     click.echo("paper    without " + " | ".join(cal._paper_pattern(False, p) for p in ex.PEDESTALS)
                + "   with " + " | ".join(cal._paper_pattern(True, p) for p in ex.PEDESTALS))
     if out_dir is not None:
-        out_dir.mkdir(parents=True, exist_ok=True)
+        make_folder(out_dir)
         made = f"gait-tuner calibrate --layer {layer} --lift-scale {lift_scale:g}{commit_of(__file__)}"
         for ped, c in best.items():
             surface = cal.pedestal_surface(ped, c.values, layer)

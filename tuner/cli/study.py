@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 import gaits
-from gaits.files import write_files_atomic
+from gaits.files import write_files_atomic, make_folder
 
 from ..errors import EXIT_INTERNAL, UserError
 from ..robots.joint_table import joint_table_file
@@ -265,7 +265,7 @@ def export(study_file: str, storage: str | None, runs_dir: Path, number: int | N
     spec, study = tuned_study(study_file, storage, runs_dir)
     if out is None:
         out = runs_of(spec, runs_dir) / spec.name / "best.yaml"
-    out.parent.mkdir(parents=True, exist_ok=True)
+    make_folder(out.parent)
     try:
         t = pick(study, pareto_pick) if pareto_pick else best_trial(study, number)
         if spec.controller is not None:

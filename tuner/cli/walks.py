@@ -9,7 +9,7 @@ import click
 
 import gaits
 from gaits import family_class
-from gaits.files import write_files_atomic
+from gaits.files import write_files_atomic, make_folder
 
 from ..errors import UserError
 from ..robots.joint_table import joint_table_file
@@ -58,7 +58,7 @@ def trajectory(family: str | None, params_spec: str | None, robot_name: str, out
         drive = drive.with_params(drive.params.replace(model=model))
     robot = load_robot(robot_name)
     traj = drive.table(robot, dt)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    make_folder(out_dir)
     csv_path, csv_text, notes = joint_table_file(traj, robot, out_dir / "joints.csv", joint_names,
                                                  f"gait {drive.describe()}", table_format, clip)
     for line in notes:

@@ -19,7 +19,7 @@ from typing import Any, Mapping
 import numpy as np
 import yaml
 
-from gaits.files import write_files_atomic
+from gaits.files import write_files_atomic, make_folder
 
 from ..servos.motor import FRICTION_MAGIC
 from .servos import EXTENDED, SCALED, ServoFit, unit_of
@@ -198,7 +198,7 @@ def write_servo_fit(fit: ServoFit, robot_map: Path | None, out_dir: Path, noise:
     files[out_dir / "report.txt"] = "\n".join(summary_lines(fit, noise)) + "\n"
     if fit.sysid:
         files[out_dir / "report.html"] = sysid_html(f"gait-tuner identify servos ({commit})", fit.sysid)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    make_folder(out_dir)
     return write_files_atomic(files)
 
 
@@ -262,7 +262,7 @@ def write_walk_servo_fit(fit: Any, robot: Any, out_dir: Path) -> list[Path]:
     files, _ = _servo_files(walk_servo_overlay(fit, robot), fit.recordings, residual, robot_map, out_dir)
     files[out_dir / "fit.json"] = json.dumps(walk_fit_json(fit), indent=1, allow_nan=False) + "\n"
     files[out_dir / "report.txt"] = "\n".join(walk_fit_lines(fit, robot.sim.control_period)) + "\n"
-    out_dir.mkdir(parents=True, exist_ok=True)
+    make_folder(out_dir)
     return write_files_atomic(files)
 
 
@@ -315,5 +315,5 @@ def write_ground_fit(fit: Any, out_dir: Path) -> list[Path]:
              out_dir / "report.txt": "\n".join(ground_lines(fit)) + "\n"}
     if fit.sysid:
         files[out_dir / "report.html"] = sysid_html(f"gait-tuner identify ground ({commit})", fit.sysid)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    make_folder(out_dir)
     return write_files_atomic(files)

@@ -11,6 +11,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from gaits import GaitTrajectory  # noqa: E402
+from gaits.files import make_folder  # noqa: E402
 
 __all__ = ["plot_references", "plot_pitch", "plot_zmp", "plot_robustness", "save_figure"]
 
@@ -29,7 +30,7 @@ def save_figure(fig, path: str | Path, dpi: int) -> Path:
 def plot_references(traj: GaitTrajectory, path: str | Path, title: str = "") -> Path:
     """CoM, ZMP reference, feet and left-leg joint targets against time, one PNG."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    make_folder(path.parent)
     fig, axes = plt.subplots(4, 1, figsize=(10, 11), sharex=True)
     t = traj.t
     zlabel = "ZMP ref" if traj.zmp_source == "model" else "ZMP (cart-table of CoM)"
@@ -66,7 +67,7 @@ def plot_references(traj: GaitTrajectory, path: str | Path, title: str = "") -> 
 def plot_pitch(traces: dict, path: str | Path, title: str = "") -> Path:
     """Torso pitch against time and against distance walked (EROS paper, Figs 24-28)."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    make_folder(path.parent)
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(10, 7))
     for label, tr in traces.items():
         deg = np.degrees(tr.pitch)
@@ -92,7 +93,7 @@ def plot_zmp(trace, path: str | Path, foot_size: tuple[float, float], title: str
     """Measured ZMP against the reference, relative to the support foot, with the sole's
     boundaries (TLIPFM paper, Figs 14-16)."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    make_folder(path.parent)
     fig, axes = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
     # double support (planned support 0 while the walk runs): the reference moves from one foot
     # to the other there, so its frame switches and the curves jump; shade those spans
@@ -126,7 +127,7 @@ def plot_zmp(trace, path: str | Path, foot_size: tuple[float, float], title: str
 def plot_robustness(report, out_dir: str | Path) -> Path:
     """Survival per push size, time to fall and pitch RMS of a robustness report, in one PNG."""
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    make_folder(out_dir)
     d = report.to_dict()
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.2))
     sizes = [0.0] + [float(k) for k in d["push_survival"]]

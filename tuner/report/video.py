@@ -24,7 +24,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from gaits.files import write_text_atomic
+from gaits.files import write_text_atomic, make_folder
 
 from ..errors import UserError
 from ..sim.rollout import Simulator, Trace
@@ -91,7 +91,7 @@ def render_trace(sim: Simulator, trace: Trace, out: Path, options: VideoOptions 
     if trace.qpos is None:
         raise ValueError("the trace has no qpos: roll out with record_qpos=True")
     out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
+    make_folder(out.parent)
     m = sim.model
     d = mujoco.MjData(m)
     try:

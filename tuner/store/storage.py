@@ -39,6 +39,8 @@ from typing import Any, Iterator
 import optuna
 from optuna.trial import TrialState
 
+from gaits.files import make_folder
+
 from ..errors import UserError
 from . import optuna_compat as compat
 from .journal import DISK_FULL, FlockLock, PackedJournalStorage, SafeJournalBackend, StorageFull, repair_journal
@@ -218,9 +220,9 @@ class StudyStore:
         if runs.exists() and not runs.is_dir():
             raise UserError(f"--runs {runs}: not a folder")
         try:
-            runs.mkdir(parents=True, exist_ok=True)
+            make_folder(runs)
         except OSError as exc:
-            raise UserError(f"--runs {runs}: cannot create it ({exc.strerror})") from None
+            raise UserError(f"--runs {runs}: cannot create it: {exc.strerror}") from None
         if not os.access(runs, os.W_OK | os.X_OK):
             raise UserError(f"--runs {runs}: folder is not writable")
         link = runs / f"{name}.journal"
