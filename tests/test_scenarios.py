@@ -3,7 +3,10 @@
 Three kinds of test: the shipped studies' trial scores replay equal to those the code before the
 wing computed (``tests/data/scenario_replay.json``: written by the evaluator of commit fa892a3,
 before the scenarios moved out of ``search/``, for the base set and the midpoint of each study's
-space, on the reduced budgets below, on the built-in robot with round one's servos, ``kidsize-pd``); every shipped study chooses the scenario its section names;
+space, on the reduced budgets below, on the built-in robot with round one's servos, ``kidsize-pd``;
+one number changed since, by design: ``kidsize-engine-match:mid``'s fall constraint, 0.401 then,
+0.401 + 1e-3 x the share of its walks not stood (0.692) since an infeasible trial's constraint
+says how long it stood, :func:`tuner.scenarios.base.survival_constraint`); every shipped study chooses the scenario its section names;
 and a sixth scenario, added in one file (here, this test module) and one registration, is read from
 a study file, walked and stored by a real study.
 """
@@ -19,7 +22,7 @@ import pytest
 from conftest import ROOT
 from tuner.errors import UserError
 from tuner.scenarios import BUILT_IN, SCENARIOS, register
-from tuner.scenarios.base import Scenario, TrialResult, check_section, fail
+from tuner.scenarios.base import Scenario, TrialResult, check_section, fail, survival_constraint
 from tuner.search.objective import Evaluator
 from tuner.search.study import list_studies, load_study
 
@@ -61,6 +64,26 @@ def test_shipped_studies_trial_scores_replay_equal(study):
                "per_surface": r.per_surface}
         # equal to the last bits: numpy's releases move a sum's rounding (2.4 did), so floats to 1e-9
         assert _close(json.loads(json.dumps(got, default=str)), want), (study, tag, got, want)
+
+
+def test_an_infeasible_trial_is_nearer_the_longer_it_stood():
+    """Trials with as many falls rank by how much of the study's walking they stood (TPE ranks the
+    infeasible by it: a study whose every trial falls was blind); a fall more is always further;
+    survival that holds is no constraint at all."""
+    # six walks, survival 0.5 allowed: the fourth fall stops the trial
+    first = survival_constraint(0.5, 4, 6, 4, True, stood=3.1)       # fell in the walks 1-4
+    later = survival_constraint(0.5, 4, 6, 6, True, stood=4.9)       # stood longer, ran them all
+    assert first == pytest.approx(0.5 - (1 - 4 / 6) + 1e-3 * (1 + (1 - 3.1 / 6)), abs=1e-15)
+    assert later == pytest.approx(0.5 - (1 - 4 / 6) + 1e-3 * (1 + (1 - 4.9 / 6)), abs=1e-15)
+    assert 0 < later < first
+    assert survival_constraint(0.5, 4, 6, 4, True) == pytest.approx(0.5 - (1 - 4 / 6) + 1e-3, abs=1e-15)
+    worst_of_fewer = survival_constraint(0.5, 4, 6, 6, False, stood=0.0)
+    best_of_more = survival_constraint(0.5, 5, 6, 6, False, stood=6.0)
+    assert worst_of_fewer < best_of_more
+    assert survival_constraint(0.5, 3, 6, 6, False, stood=3.0) is None
+    # out-of-range shares are held to [0, 1] of the walking
+    assert survival_constraint(0.9, 1, 2, 1, True, stood=9.0) == pytest.approx(0.9 - 0.5 + 1e-3, abs=1e-15)
+    assert survival_constraint(0.9, 1, 2, 1, True, stood=-1.0) == pytest.approx(0.9 - 0.5 + 2e-3, abs=1e-15)
 
 
 def _close(a, b) -> bool:

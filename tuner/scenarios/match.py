@@ -104,7 +104,9 @@ class Match(Scenario):
         for name, rows in rows_of.items():
             per[name] = {"survival": float(np.mean([r["survived"] for r in rows])), "rollouts": len(rows),
                          "fell": any(not r["survived"] for r in rows)}
-        constraint = survival_constraint(sc.min_survival, falls, total, len(scores), hopeless)
+        stood = sum(1.0 if r["survived"] else min(max(r["walked"], 0.0), 1.0)
+                    for rows in rows_of.values() for r in rows)
+        constraint = survival_constraint(sc.min_survival, falls, total, len(scores), hopeless, stood)
         if sc.servo_share is not None and asked > sc.servo_share:
             # too fast for the servos: infeasible by how far (beside any shortfall of survival)
             constraint = max(constraint or 0.0, asked - sc.servo_share)

@@ -76,6 +76,7 @@ class Robust(Scenario):
         allowed = math.floor((1.0 - rb.min_survival) * total + 1e-9)
         scores, speeds, covered_all, per = [], [], [], {}
         falls = 0
+        stood = 0.0                     # the walks run, each by the share of it walked
         hopeless = False
 
         def walk(sim: Any, i: int) -> Any:
@@ -86,8 +87,9 @@ class Robust(Scenario):
         rows_of: dict[str, list] = {}
         for name, m in world.in_order(rb.rollouts, walk):
             rows = rows_of.setdefault(name, [])
-            score, _, covered = rollout_score(m, planned, plan_dist)
+            score, frac, covered = rollout_score(m, planned, plan_dist)
             scores.append(score)
+            stood += frac
             if not m.survived:
                 falls += 1
             else:
@@ -107,7 +109,7 @@ class Robust(Scenario):
         risk = {"worst": worst[0], "mean": float(np.mean(scores)),
                 "cvar25": float(np.mean(worst[:max(1, len(worst) // 4)]))}[rb.risk]
         progress = float(np.median(covered_all)) if covered_all else (0.0 if abs(plan_dist) > 1e-3 else 1.0)
-        constraint = survival_constraint(rb.min_survival, falls, total, len(scores), hopeless)
+        constraint = survival_constraint(rb.min_survival, falls, total, len(scores), hopeless, stood)
         if constraint is not None:
             pass
         elif progress < MIN_PROGRESS:
