@@ -29,7 +29,7 @@ from .imu_stabiliser import StabiliserParams, stabiliser_corrections
 from .trajectory import JOINT_NAMES, GaitTrajectory
 
 __all__ = ["READINGS", "Measurement", "PlanRecord", "StartPose", "Controller", "TablePlayer", "Stabilised", "HoldPose",
-           "Wrapped", "WithoutReadings",
+           "Wrapped", "WithoutReadings", "innermost",
            "FOOT_FORCE_LABELS", "rpy_from_quat", "GRAVITY_ACCEL", "finite_readings"]
 
 GRAVITY_ACCEL = 9.81  # [m/s^2] what a resting accelerometer reads, upward
@@ -327,6 +327,14 @@ class Wrapped:
 
     def plan(self, n: int) -> PlanRecord:
         return self.inner.plan(n)
+
+
+def innermost(ctl: Any) -> Any:
+    """The controller at the heart of wrapped ones (a stabiliser's, a residual's, a recording's
+    ``inner``, all the way down): the engine whose mode and steps a loop reports."""
+    while getattr(ctl, "__dict__", {}).get("inner") is not None:
+        ctl = ctl.inner
+    return ctl
 
 
 class WithoutReadings(Wrapped):

@@ -100,6 +100,54 @@ def test_a_trained_residual_of_a_set_is_in_the_robot_loop(tmp_path):
     assert "imported: []" in ran.stdout and "301 ticks" in ran.stdout.splitlines()[0]
 
 
+def test_a_paper_family_s_online_set_walks_in_the_robot_loop(tmp_path):
+    """An EROS set with an engine: section (walked online, re-planned each step) was a traceback in
+    the loop (it built the TLIPFM engine from any set); the loop now builds the walk as the
+    simulator does (gaits.Drive), numpy alone, and says what it did."""
+    import yaml
+
+    import gaits
+    doc = yaml.safe_load((gaits.baselines.BASELINE_DIR / "eros-x8-with.yaml").read_text())
+    doc["engine"] = {"preview_steps": 2}
+    path = tmp_path / "eros-online.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    code = _RUN.format(gait=str(path), loop=str(ROOT / "examples" / "robot_loop.py"))
+    ran = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert ran.returncode == 0, ran.stderr
+    first = ran.stdout.splitlines()[0]
+    assert "imported: []" in ran.stdout and "301 ticks" in first and "of the online table, re-planned" in first
+
+
+def test_the_loop_s_walk_is_the_simulator_s_tick_for_tick():
+    """The loop and the simulator build a set's walk in one place (gaits.Drive.controller): the
+    engine with its residual and stabiliser gives the same targets from the same readings."""
+    import runpy
+
+    import numpy as np
+
+    import gaits
+    from gaits.control import Measurement, innermost
+    loop = runpy.run_path(str(ROOT / "gaits" / "robot" / "loop.py"))
+    geometry = loop["RobotGeometry"](gaits.LegGeometry(), (0.10, 0.055))
+    gait = gaits.load_gait_file(ROOT / "studies" / "results" / "kidsize-engine-push-residual.yaml")
+    engine, walk = loop["controller"](gait, geometry, 0.01)
+    sim_walk = gaits.Drive.of(gait).controller(geometry, 0.01)
+    assert type(walk) is type(sim_walk) and type(engine) is gaits.WalkEngine and engine is not walk
+    n = len(gaits.JOINT_NAMES)
+    rng = np.random.default_rng(4)
+    pose = walk.start_pose().q
+    assert np.array_equal(pose, sim_walk.start_pose().q)
+    for k in range(60):
+        m = Measurement(0.01 * k, q=pose + rng.normal(0, 0.01, n), dq=np.zeros(n),
+                        imu_rpy=rng.normal(0, 0.03, 3), gyro=rng.normal(0, 0.1, 3),
+                        accel=np.array([0.0, 0.0, 9.81]), foot_force=np.full(8, 6.0))
+        if k == 0:
+            walk.reset(m)
+            sim_walk.reset(m)
+        assert np.array_equal(walk.step(m, np.array([0.1, 0.0, 0.0])), sim_walk.step(m, np.array([0.1, 0.0, 0.0])))
+    assert engine.mode == innermost(sim_walk).mode
+
+
 @pytest.mark.parametrize("args, words", [
     (["--max-tilt", "nan"], "--max-tilt: 'nan' is outside (0, 90] deg"),
     (["--max-tilt", "-5"], "--max-tilt: '-5' is outside (0, 90] deg"),

@@ -44,8 +44,7 @@ import numpy as np
 
 import gaits
 from gaits.files import FOLDER_REFUSED, PATH_PROBLEMS, FolderRefused
-from gaits.control import Measurement, Stabilised
-from gaits.engine import ResidualWalk
+from gaits.control import Measurement, innermost
 
 LEGS = {1: slice(gaits.JOINT_NAMES.index("l_hip_yaw"), gaits.JOINT_NAMES.index("l_hip_yaw") + 6),
         -1: slice(gaits.JOINT_NAMES.index("r_hip_yaw"), gaits.JOINT_NAMES.index("r_hip_yaw") + 6)}
@@ -188,22 +187,18 @@ def load_walk(path: str) -> "gaits.GaitFile | PolicyWalk":
     return gait_file_from_mapping(doc, str(path))
 
 
-def controller(gait: "gaits.GaitFile | PolicyWalk", geometry: Any, dt: float):
-    """(the engine, what the loop calls): the engine, with the set's trained residual and its IMU
-    stabiliser around it when the set has them (their corrections added to the engine's targets, as
-    in the simulator); a policy
+def controller(gait: "gaits.GaitFile | PolicyWalk", geometry: Any, dt: float, source: str = ""):
+    """(the engine, what the loop calls): the set's walk as the simulator builds it
+    (:meth:`gaits.Drive.controller`: the engine, or a paper family's online table, with the set's
+    trained residual and IMU stabiliser around it when it has them), and the engine inside; a policy
     as itself, its model opened and checked against its spec."""
     if isinstance(gait, PolicyWalk):
         from gaits.policy import PolicyController, onnx_runner
         run, n_in, n_out = onnx_runner(gait.model)
         policy = PolicyController(gait.spec, run, geometry, dt, (n_in, n_out), gait.source)
         return policy, policy
-    limits = gaits.family("tlipfm").step_limits(gait.params, geometry)
-    engine = gaits.WalkEngine(gait.params, gait.engine, geometry, dt, limits)
-    walk = engine if gait.residual is None else ResidualWalk(engine, gait.residual)
-    if gait.stabiliser is not None and gait.stabiliser.enabled:
-        return engine, Stabilised(walk, gait.stabiliser)
-    return engine, walk
+    walk = gaits.Drive.of(gait, source=source).controller(geometry, dt)
+    return innermost(walk), walk
 
 
 class _OneLine(argparse.ArgumentParser):
@@ -321,7 +316,7 @@ def _main(argv: list[str] | None = None) -> None:
             raise SystemExit(2)
         raise SystemExit(run_on_bus(args, gait, robot_file, source=source))
     geometry = robot_file or RobotGeometry(gaits.LegGeometry(), (0.10, 0.055))
-    engine, walk = controller(gait, geometry, 0.01)
+    engine, walk = controller(gait, geometry, 0.01, str(args.gait))
     recorder = None
     if args.record:
         from gaits.robot.recorder import Recorder, RecordingController, RecordingMeta
@@ -371,6 +366,8 @@ def _what_it_did(engine: Any) -> str:
     """The end line's account of the walk: the engine's steps and its mode, a policy's calls."""
     if hasattr(engine, "steps_taken"):
         return f"{engine.steps_taken} steps, ended {engine.mode}"
+    if hasattr(engine, "replans"):
+        return f"{len(engine.step_starts)} steps of the online table, re-planned {engine.replans} time(s)"
     return f"{engine.calls} policy call(s)"
 
 
@@ -458,7 +455,7 @@ def run_on_bus(args: Any, gait: gaits.GaitFile | None, robot_file: Any, sweep: S
         engine = walk = sweep
         task, what = "sweep", f"joint sweep {args.sweep}"
     else:
-        engine, walk = controller(gait, robot_file, robot_file.control_period)
+        engine, walk = controller(gait, robot_file, robot_file.control_period, str(args.gait))
         task, what = "walk", f"{_kind(gait)}, {args.gait}; commands from {source.describe()}"
     recorder = None
     if args.record:
