@@ -57,6 +57,25 @@ def make_folder(path: str | Path) -> Path:
     return path
 
 
+def probe_folder(path: str | Path) -> Path:
+    """Check, before long work, that ``path`` can be a folder to write in: it is one, or it and its
+    missing parents can be made (they are made and removed again: nothing is left). The errors are
+    :func:`make_folder`'s (and an existing file's ``FileExistsError``), naming the path."""
+    path = Path(path)
+    missing = []
+    p = path
+    while not os.path.lexists(p) and p != p.parent:
+        missing.append(p)
+        p = p.parent
+    make_folder(path)
+    for made in missing:                     # the deepest first
+        try:
+            made.rmdir()
+        except OSError:                      # another process wrote there meanwhile: leave it
+            break
+    return path
+
+
 def write_text_atomic(path: str | Path, text: str, encoding: str = "utf-8") -> Path:
     """Write ``text`` to ``path``: all of it or, on any error, nothing (the old file stays)."""
     return write_bytes_atomic(path, text.encode(encoding))

@@ -509,6 +509,31 @@ def test_an_output_folder_the_file_system_refuses_is_one_line(capsys, workdir, a
 
 
 @pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux's /proc")
+@pytest.mark.parametrize("argv", [
+    ["compare", "kidsize-engine-carpet4", "--surfaces", "rigid", "--no-baselines", "--workers", "1",
+     "--random-rollouts", "0"],
+    ["experiment", "tlipfm"],
+    ["calibrate", "--workers", "1"],
+    ["identify", "servos", "--robot", "kidsize", "--recording", "sweep.csv"],
+    ["identify", "ground", "--robot", "kidsize", "--surface", "grass30", "--recording", "walk.csv"],
+], ids=["compare", "experiment", "calibrate", "identify-servos", "identify-ground"])
+def test_long_work_says_a_folder_it_cannot_write_before_it_starts(capsys, workdir, monkeypatch, argv):
+    """compare, the papers' experiments, calibrate (tens of minutes) and the fits wrote their folder
+    after the work: a bad --out lost it. Each says so first (any walk here would fail the test)."""
+    import tuner.sim.rollout as rollout
+
+    def no_walk(*a, **kw):
+        raise AssertionError("walked before the --out folder was checked")
+    monkeypatch.setattr(rollout.Simulator, "run", no_walk)
+    if argv[0] == "identify":
+        from tuner.identify import field_recordings
+        monkeypatch.setattr(field_recordings, "read_field_recording", no_walk)
+        import tuner.identify.ground as ground
+        monkeypatch.setattr(ground, "read_walk_logs", no_walk)
+    run_bad(capsys, argv + ["--out", f"{REFUSING}/out"], f"{REFUSING}: no folder can be made there")
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux's /proc")
 def test_a_runs_folder_the_file_system_refuses_is_one_line(capsys, workdir):
     run_bad(capsys, ["tune", "quickstart", "--trials", "1", "--runs", REFUSING],
             f"--runs {REFUSING}: cannot create it: no folder can be made there")

@@ -18,7 +18,7 @@ import pytest
 
 from pathlib import Path
 
-from gaits.files import FOLDER_REFUSED, FolderRefused, make_folder, write_text_atomic
+from gaits.files import FOLDER_REFUSED, FolderRefused, make_folder, probe_folder, write_text_atomic
 
 
 def test_writes_the_whole_text_and_replaces_the_old(tmp_path):
@@ -47,6 +47,23 @@ def test_a_folder_the_file_system_refuses_is_named_as_such(tmp_path, monkeypatch
     (tmp_path / "f").write_text("x")
     with pytest.raises(FileExistsError):
         make_folder(tmp_path / "f")
+
+
+def test_a_folder_probed_before_long_work_is_left_as_it_was(tmp_path):
+    """probe_folder says before the work what make_folder would say after it, and leaves nothing."""
+    assert probe_folder(tmp_path / "a" / "b" / "c") == tmp_path / "a" / "b" / "c"
+    assert list(tmp_path.iterdir()) == []
+    (tmp_path / "kept").mkdir()
+    assert probe_folder(tmp_path / "kept" / "new") and sorted(p.name for p in tmp_path.iterdir()) == ["kept"]
+    assert list((tmp_path / "kept").iterdir()) == []
+    (tmp_path / "f").write_text("x")
+    with pytest.raises(NotADirectoryError):
+        probe_folder(tmp_path / "f" / "sub")
+    with pytest.raises(FileExistsError):
+        probe_folder(tmp_path / "f")
+    if os.path.isdir("/proc/self"):
+        with pytest.raises(FolderRefused):
+            probe_folder("/proc/gait-tuner-none/sub")
 
 
 def test_an_error_half_way_leaves_the_old_file_and_no_temporary(tmp_path, monkeypatch):

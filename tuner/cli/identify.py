@@ -7,6 +7,7 @@ from pathlib import Path
 
 import click
 
+from gaits.files import probe_folder
 
 from ..errors import UserError
 from .options import OutPath, Span, robot_option, surface_option, JSON_OPTION, RECORDING_OPTION, TOPICS_OPTION, running_total
@@ -163,6 +164,7 @@ def identify_servos_cmd(robot_name: str | None, recordings: tuple[Path, ...], to
     if robot_name is None:
         raise UserError("identify servos: give --robot (your robot map)")
     robot = load_robot(robot_name)
+    probe_folder(out_dir)                    # a folder it cannot write said before the fit, not after
     h = Harness(robot)
     read = []
     for path in recordings:
@@ -292,6 +294,7 @@ def identify_ground_cmd(robot_name: str | None, surface_name: str, recordings: t
         raise UserError("identify ground: give --robot (your robot map, its servos identified)")
     robot = load_robot(robot_name)
     start = load_surface(surface_name)
+    probe_folder(out_dir)                    # a folder it cannot write said before the fit, not after
     logs, notes = read_walk_logs(recordings, robot, topics_file)
     for note in notes:
         click.echo(f"note: {note}", err=True)

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from gaits.files import write_text_atomic, make_folder
+from gaits.files import probe_folder, write_text_atomic
 
 from ..errors import UserError
 from ..report.provenance import commit_of
@@ -62,6 +62,8 @@ def experiment(paper: str, robot_name: str, surface_name: str, lift_scale: float
                         f"experiment takes it")
     tuned = None if tuned_spec is None else resolve_params(tuned_spec, "eros").params
     robot = load_robot(robot_name)
+    if out_dir is not None:                   # said before the walks, not after them
+        probe_folder(out_dir)
     if paper == "eros":
         surfaces = {p: SURFACES[name] for p, name in ex.PEDESTALS.items()}
         for spec in pedestal_specs:
@@ -102,7 +104,6 @@ def experiment(paper: str, robot_name: str, surface_name: str, lift_scale: float
         surface = load_surface(surface_name)
         text = f"robot {robot.name}\n" + ex.format_table3(ex.tlipfm_table3(robot, surface), surface.name)
     if out_dir is not None:                   # the report as Markdown, with --json too
-        make_folder(out_dir)
         write_text_atomic(out_dir / "report.md", "```\n" + text + "\n```\n")
     if report is not None:                    # strict JSON: nothing else on stdout
         click.echo(json.dumps({"robot": robot.name, **report}, allow_nan=False))
@@ -135,6 +136,8 @@ def calibrate(workers: int, lift_scale: float, layer: str, out_dir: Path | None)
     from ..report import experiments as ex
     from ..sim.surfaces import SURFACES
 
+    if out_dir is not None:                   # said before tens of minutes of work, not after
+        probe_folder(out_dir)
     n = len(cal.calibration_tasks(layer=layer))
     with tqdm(total=n, desc="calibration", unit="grid point", **bar_options()) as bar:
         gain, best, every = cal.calibrate(workers=workers, lift_scale=lift_scale, progress=bar.update, layer=layer)
@@ -157,7 +160,6 @@ def calibrate(workers: int, lift_scale: float, layer: str, out_dir: Path | None)
     click.echo("paper    without " + " | ".join(cal._paper_pattern(False, p) for p in ex.PEDESTALS)
                + "   with " + " | ".join(cal._paper_pattern(True, p) for p in ex.PEDESTALS))
     if out_dir is not None:
-        make_folder(out_dir)
         made = f"gait-tuner calibrate --layer {layer} --lift-scale {lift_scale:g}{commit_of(__file__)}"
         for ped, c in best.items():
             surface = cal.pedestal_surface(ped, c.values, layer)

@@ -27,7 +27,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import gaits  # noqa: E402
-from gaits.files import make_folder, write_text_atomic  # noqa: E402
+from gaits.files import make_folder, probe_folder, write_text_atomic  # noqa: E402
 
 from ..errors import UserError  # noqa: E402
 from .experiments import EROS_STEPS_MM  # noqa: E402
@@ -159,6 +159,7 @@ def run_compare(specs: list[str], robot_name: str, surface_names: list[str], bas
     sets = _sets(specs, baselines)
     tasks = [(robot_name, surface, drive, random_rollouts) for drive in sets
              for surface in surfaces]
+    probe_folder(out_dir)                                     # said before the walks, not after them
     rows = map_in_order(_row, tasks, workers, progress)
     make_folder(out_dir)
     lines = ["| set | surface | stability % | matrix fwd 0..24 / bwd 8..24 | pitch +- [deg] | pitch RMS [deg] "
