@@ -548,6 +548,24 @@ def test_robot_loop_recording_where_no_folder_can_be_made_is_one_line():
     assert f"{REFUSING}: no folder can be made there" in r.stderr and "Traceback" not in r.stderr
 
 
+@pytest.mark.parametrize("argv, words", [
+    (["versus", "kidsize-engine-carpet4", "nope", "--walks", "1"], "walk 'nope': no such file, and not a shipped set"),
+    (["train", "nope", "--out", "r.yaml"], "set 'nope': no such file"),
+    (["compare", "nope", "--surfaces", "rigid"], "set 'nope': no such file"),
+    (["transfer", "nope", "--robot", "kidsize", "--surface", "grass30"], "set 'nope': no such file"),
+    (["experiment", "eros", "--tuned", "nope"], "--tuned 'nope': no such file"),
+    (["simulate", "--params", "nope"], "--params 'nope': no such file"),
+], ids=["versus", "train", "compare", "transfer", "experiment", "simulate"])
+def test_an_unknown_set_is_named_as_the_verb_takes_it(capsys, workdir, argv, words):
+    """Every verb said "--params 'nope'", the verbs that take the set as an argument too."""
+    run_bad(capsys, argv, words)
+
+
+def test_a_study_s_unknown_base_is_named_as_its_field(capsys, workdir):
+    (workdir / "st.yaml").write_text("gait: tlipfm\nbase: nope\nsurfaces: [rigid]\nspace: {t1: {low: 0.1, high: 0.2}}\n")
+    run_bad(capsys, ["tune", "st.yaml"], "st.yaml: base: 'nope': no such file, and not a shipped set")
+
+
 def test_a_stream_cell_past_the_csv_limit_is_one_line(capsys, workdir):
     (workdir / "big.csv").write_text("t,vx,vy,wz\n0," + "1" * 200_000 + ",0,0\n")
     run_bad(capsys, ["simulate", "--params", "kidsize-engine-carpet4", "--commands", "big.csv"],

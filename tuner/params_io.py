@@ -37,8 +37,9 @@ def list_results() -> list[str]:
 DEFAULT_BASELINE = {f.name: f.default_baseline for f in all_families()}
 
 
-def resolve_params(spec: str | None, family: str | None) -> GaitFile:
-    """Load ``spec`` (path or baseline name), or the family's default; check the family matches."""
+def resolve_params(spec: str | None, family: str | None, what: str = "--params") -> GaitFile:
+    """Load ``spec`` (path or baseline name), or the family's default; check the family matches.
+    ``what``: how a refusal names it (the option, a verb's argument, or "" where the caller says)."""
     if spec is None:
         if family is None:
             raise UserError("give --gait or --params")
@@ -51,18 +52,18 @@ def resolve_params(spec: str | None, family: str | None) -> GaitFile:
     elif spec in list_results():
         gait_file = load_gait_file(RESULTS_DIR / f"{spec}.yaml")
     else:
-        raise UserError(f"--params {spec!r}: no such file, and not a shipped set"
+        raise UserError(f"{what + ' ' if what else ''}{spec!r}: no such file, and not a shipped set"
                         f"{did_you_mean(spec, list_baselines() + list_results())} "
                         f"(baselines: {', '.join(list_baselines())}; tuned: {', '.join(list_results()) or 'none'})")
     if family is not None and gait_file.family != family:
-        raise UserError(f"--params {spec!r} holds {gait_file.family!r} parameters, "
+        raise UserError(f"{what + ' ' if what else ''}{spec!r} holds {gait_file.family!r} parameters, "
                         f"but --gait is {family!r}")
     return gait_file
 
 
 def resolve_drive(spec: str | None, family: str | None, *, stabiliser: bool | None = None,
                   command=None, commands_file: str | Path | None = None, tail: float | None = None,
-                  controller: str | Path | None = None) -> Drive:
+                  controller: str | Path | None = None, what: str = "--params") -> Drive:
     """What drives the joints of a walk asked for on the command line, resolved once: the set
     (:func:`resolve_params`) or a controller of the user's own (``controller``: its YAML, see
     ``tuner/controllers.py``; its code is imported), its stabiliser (``stabiliser``: None as the
@@ -82,7 +83,7 @@ def resolve_drive(spec: str | None, family: str | None, *, stabiliser: bool | No
             raise UserError("--stabiliser: a controller of your own brings its own feedback")
         user = load_controller(controller)
         return Drive(None, command=command, stream=stream, source=str(controller), user=user)
-    gait_file = resolve_params(spec, family)
+    gait_file = resolve_params(spec, family, what)
     label = spec or DEFAULT_BASELINE[gait_file.family]
     try:
         return Drive.of(gait_file, source=label, stabiliser=stabiliser, command=command, stream=stream)

@@ -54,7 +54,7 @@ def compare(params_specs: tuple[str, ...], robot_name: str | None, surface_names
     if study_file is not None:
         tuned_study(study_file, None, runs_dir)     # a study with no runs: one line, before any walk
     for spec in params_specs:
-        resolve_params(spec, None)
+        resolve_params(spec, None, "set")
     from ..sim.surfaces import load_surface
     for name in names:
         load_surface(name)
@@ -213,7 +213,7 @@ def transfer(params_spec: str, robot_name: str | None, surface_name: str, defaul
     for name in (robot_name, default_robot):
         if name not in BUILTIN_ROBOTS:
             load_robot(name)
-    drive = resolve_drive(params_spec, None)
+    drive = resolve_drive(params_spec, None, what="set")
     worlds = {"default": (default_robot, default_surface), "identified": (robot_name, surface_name)}
     out = {}
     with tqdm(total=2 * walks, desc="transfer", unit="walk", **bar_options()) as bar:
@@ -279,7 +279,7 @@ def versus(walk_specs: tuple[str, ...], robot_name: str, surface_names: str, spe
     robot = load_robot(robot_name)
     for n in names:
         load_surface(n)
-    drives = [(Path(spec).stem if spec.endswith((".yaml", ".yml")) else spec, resolve_drive(spec, None))
+    drives = [(Path(spec).stem if spec.endswith((".yaml", ".yml")) else spec, resolve_drive(spec, None, what="walk"))
               for spec in walk_specs]
     labels = [label for label, _ in drives]
     if len(set(labels)) != len(labels):

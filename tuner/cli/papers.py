@@ -60,7 +60,7 @@ def experiment(paper: str, robot_name: str, surface_name: str, lift_scale: float
     if paper != "eros" and (as_json or tuned_spec or pedestal_specs):
         raise UserError(f"{'--json' if as_json else '--tuned' if tuned_spec else '--pedestal'}: only the eros "
                         f"experiment takes it")
-    tuned = None if tuned_spec is None else resolve_params(tuned_spec, "eros").params
+    tuned = None if tuned_spec is None else resolve_params(tuned_spec, "eros", "--tuned").params
     robot = load_robot(robot_name)
     if out_dir is not None:                   # said before the walks, not after them
         probe_folder(out_dir)

@@ -73,7 +73,7 @@ def train(set_spec: str, robot_name: str, surface_name: str, objective: str, com
     settings = TrainSettings(iterations=iterations, directions=directions, top=top, noise=noise, step=step,
                              walks=walks, objective=objective, distance=distance, seed=seed,
                              command=tuple(float(v) for v in command.as_array()))
-    drive = resolve_drive(set_spec, None)
+    drive = resolve_drive(set_spec, None, what="set")
     if drive.user is not None:
         raise UserError(f"{set_spec}: a controller or policy file: train needs an engine set")
     robot = load_robot(robot_name)

@@ -75,7 +75,7 @@ def _sets(specs: list[str], baselines: bool) -> list[gaits.Drive]:
     out = []
     families = []
     for s in specs:
-        d = gaits.Drive.of(resolve_params(s, None), source=s)
+        d = gaits.Drive.of(resolve_params(s, None, "set"), source=s)
         if d.engine is not None:   # an online set walks its gait's table here: no command, it would stand
             d = dataclasses.replace(d, engine=None, source=f"{s} (its table)")
         out.append(d)

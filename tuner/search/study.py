@@ -260,7 +260,7 @@ def _study_from(doc: Mapping[str, Any], path: Path, source: str) -> StudySpec:
         fail(source, str(exc))
     base_spec = doc.get("base")
     try:
-        base = resolve_params(None if base_spec is None else _beside(str(base_spec), path), gait).params
+        base = resolve_params(None if base_spec is None else _beside(str(base_spec), path), gait, "").params
     except Exception as exc:
         fail(source, f"base: {exc}")
     numeric = {f.name: f for f in fields(cls) if isinstance(f.default, (int, float))
@@ -323,7 +323,7 @@ def _study_from(doc: Mapping[str, Any], path: Path, source: str) -> StudySpec:
         fail(source, f"baselines must be a list of parameter sets, got {doc.get('baselines')!r}")
     for b in doc.get("baselines") or []:
         try:
-            gf = resolve_params(_beside(str(b), path), gait)
+            gf = resolve_params(_beside(str(b), path), gait, "")
         except Exception as exc:
             fail(source, f"baselines: {exc}")
         extra_sets.append(gf.params)
