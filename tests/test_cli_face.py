@@ -121,3 +121,53 @@ def test_a_verbs_line_in_the_roots_help_is_cut_at_a_word():
     assert _short("Walk a gait.", 40) == "Walk a gait."
     cut = _short("Compare parameter sets side by side: stability matrix, stability %, pitch", 40)
     assert cut == "Compare parameter sets side by side..." and len(cut) <= 40
+
+
+def _strict(text: str):
+    """JSON as the standard has it: no NaN or Infinity (Python's json would take them)."""
+    import json
+
+    def refuse(constant):
+        raise ValueError(f"not strict JSON: {constant}")
+    return json.loads(text, parse_constant=refuse)
+
+
+def test_the_verbs_that_gained_json_print_strict_json_alone(capsys, tmp_path, monkeypatch):
+    """studies, baselines, params, trajectory, robot export, init, tune and export had no --json (a
+    script read their words): each prints one strict JSON object or list on stdout, its words (the
+    progress, the notes) on stderr."""
+    from tuner.cli import main
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+
+    def json_of(argv):
+        assert main(argv + ["--json"]) == 0, capsys.readouterr().err
+        return _strict(capsys.readouterr().out)
+
+    studies = json_of(["studies"])
+    assert {"quickstart", "kidsize-engine-carpet4"} <= {r["name"] for r in studies}
+    assert all(r["trials"] >= 1 and r["surfaces"] for r in studies)
+    assert {r["name"] for r in json_of(["baselines"])} >= {"eros-x8-with", "cosine-setiono"}
+    p = json_of(["params", "tlipfm"])
+    assert p["family"] == "tlipfm" and "period" in {r["name"] for r in p["params"]} and p["commands"]
+    t = json_of(["trajectory", "--gait", "tlipfm", "--out", "t", "--no-plot"])
+    assert t["wrote"] == ["t/joints.csv", "t/params.yaml"] and t["samples"] > 100 and t["walked_x_m"] > 0.1
+    r = json_of(["robot", "export", "kidsize", "--out", "r.yaml"])
+    assert r["joints"] == 20 and r["with_servo_id"] == 20 and (tmp_path / "r.yaml").is_file()
+    i = json_of(["init", "--robot", "kidsize", "--surface", "rigid", "--out", "ini"])
+    assert i["study"] == "ini/kidsize-rigid-match.yaml" and (tmp_path / i["study"]).is_file()
+    assert set(i["wrote"]) >= {i["study"], i["start"], i["stream"]} and i["falls_standing"] is None
+    assert i["values"]["period"]["value"] > 0 and i["values"]["period"]["from"]
+    assert i["next"]["tune"] == "gait-tuner tune ini/kidsize-rigid-match.yaml --workers 2"
+    run = json_of(["tune", "quickstart", "--trials", "2", "--workers", "1", "--runs", "runs"])
+    assert run["study"] == "quickstart" and run["finished"] == 2 and run["budget"] == 2
+    assert run["best"]["feasible"] and run["export"] == "gait-tuner export quickstart" and run["why"] is None
+    e = json_of(["export", "quickstart", "--runs", "runs", "--out", "b.yaml"])
+    assert e["trial"] == run["best"]["trial"] and e["values"] == run["best"]["values"]
+    assert e["wrote"] == {"params": "b.yaml", "table": "b.joints.csv"} and (tmp_path / "b.yaml").is_file()
+
+
+def test_strict_json_refuses_what_python_would_take():
+    with pytest.raises(ValueError, match="NaN"):
+        _strict('{"x": NaN}')
+    assert _strict('{"x": 1.5}') == {"x": 1.5}

@@ -24,7 +24,8 @@ def robot() -> None:
 @click.argument("robot_spec", metavar="MAP|NAME")
 @click.option("--out", "out", required=True, type=OutPath(dir_okay=False),
               help="The robot file to write (YAML, read by gaits.robot.robot_file on the robot).")
-def robot_export(robot_spec: str, out: Path) -> None:
+@JSON_OPTION
+def robot_export(robot_spec: str, out: Path, as_json: bool) -> None:
     """Write the one robot file the robot side needs: leg geometry, soles, mass, joint order and
     signs, ranges, servo limits, and each joint's servo id, units, direction and offset (the map's
     servos: section), so the loop on the robot loads no robot model and copies no number by hand."""
@@ -39,8 +40,15 @@ def robot_export(robot_spec: str, out: Path) -> None:
     save_robot_file(out, rf, f"gait-tuner robot file of {robot.name} (from {source}{commit_of(__file__)}); "
                              f"read by gaits.robot.robot_file.load_robot_file on the robot")
     with_servo = sum(j.servo is not None for j in joints.values())
-    click.echo(f"wrote {out}: {len(joints)} joints ({with_servo} with a servo id), {len(held)} held, "
-               f"{rf.mass:.2f} kg")
+    if as_json:
+        import json
+        click.echo(json.dumps({"robot": robot.name, "wrote": str(out), "joints": len(joints),
+                               "with_servo_id": with_servo, "held": len(held), "mass_kg": float(rf.mass),
+                               "without_servo_id": [n for n, j in joints.items() if j.servo is None]},
+                              indent=2, allow_nan=False))
+    else:
+        click.echo(f"wrote {out}: {len(joints)} joints ({with_servo} with a servo id), {len(held)} held, "
+                   f"{rf.mass:.2f} kg")
     if with_servo < len(joints):
         click.echo(f"note: {len(joints) - with_servo} joint(s) have no servo id: give the map a servos: section "
                    f"(id, ticks_per_turn or units_per_rad, centre, direction, offset) to drive them", err=True)
@@ -70,13 +78,23 @@ def robot_check(robot_spec: str, as_json: bool, no_stand: bool, duration: float)
 
 
 @click.command(name="studies")
-def studies_cmd() -> None:
+@JSON_OPTION
+def studies_cmd(as_json: bool) -> None:
     """List the shipped studies."""
+    import json
+
     from ..search.study import list_studies, load_study
+    rows = []
     for path in list_studies():
         spec = load_study(str(path))
-        click.echo(f"{path.stem:26s} {spec.gait:7s} {','.join(spec.surfaces):32s} {spec.trials:4d} trials  "
-                   f"{spec.description[:60]}")
+        rows.append({"name": path.stem, "gait": spec.gait, "surfaces": list(spec.surfaces), "trials": spec.trials,
+                     "scenario": spec.kind, "objectives": list(spec.objectives), "description": spec.description})
+    if as_json:
+        click.echo(json.dumps(rows, indent=2, allow_nan=False))
+        return
+    for r in rows:
+        click.echo(f"{r['name']:26s} {r['gait']:7s} {','.join(r['surfaces']):32s} {r['trials']:4d} trials  "
+                   f"{r['description'][:60]}")
 
 
 @click.command()
@@ -114,11 +132,17 @@ def surfaces(run_tests: bool, surface_names: tuple[str, ...], as_json: bool) -> 
 
 
 @click.command()
-def baselines() -> None:
+@JSON_OPTION
+def baselines(as_json: bool) -> None:
     """List the papers' shipped parameter sets (`gait-tuner sets` lists the tuned ones too)."""
-    for name in list_baselines():
-        gf = load_baseline(name)
-        click.echo(f"{name:22s} {gf.family:7s} {gf.description[:90]}")
+    import json
+    rows = [{"name": name, "family": gf.family, "source": gf.description}
+            for name, gf in ((n, load_baseline(n)) for n in list_baselines())]
+    if as_json:
+        click.echo(json.dumps(rows, indent=2, allow_nan=False))
+        return
+    for r in rows:
+        click.echo(f"{r['name']:22s} {r['family']:7s} {r['source'][:90]}")
 
 
 @click.command()
@@ -157,7 +181,9 @@ def sets(as_json: bool) -> None:
                    "reach it.")
 @click.option("--out", "out_dir", type=OutPath(file_okay=False), default=None,
               help="Folder for the study and its starting set [default: runs/init/ROBOT-SURFACE-PURPOSE].")
-def init(robot_name: str, surface_name: str, purpose: str, top_speed: float, out_dir: Path | None) -> None:
+@JSON_OPTION
+def init(robot_name: str, surface_name: str, purpose: str, top_speed: float, out_dir: Path | None,
+         as_json: bool) -> None:
     """Make a walk for a robot: a starting set whose gait model has the robot's own masses, CoM
     height, stance and a step its knees' servos can carry, and the study that tunes it on the
     surface (tune it with `gait-tuner tune`, then `export`). Says where each number came from."""
@@ -215,6 +241,33 @@ def init(robot_name: str, surface_name: str, purpose: str, top_speed: float, out
                     "# robot, surfaces, scenario, objectives - is kept with the trials: a change of it is a new name)\n"
                     + yaml.safe_dump(iw.study, sort_keys=False))
     write_files_atomic(files)
+    best = out_dir / "best.yaml"
+    fell = falls_standing(walked, surface, str(start))
+    if as_json:
+        import json
+        nxt = {"tune": f"gait-tuner tune {study} --workers 2", "export": f"gait-tuner export {study} --out {best}"}
+        if stream_file is not None:
+            nxt["robustness"] = (f"gait-tuner robustness --robot {walked} --params {best} --surface {surface.name} "
+                                 f"--commands {stream_file}")
+        click.echo(json.dumps({
+            "robot": robot.name, "surface": surface.name, "purpose": purpose,
+            "values": {k: {"value": iw.value(k), "from": why} for k, why in iw.sources.items()},
+            "t1": iw.params.t1, "t2": iw.params.t2,
+            "also_tried": [{"period_s": rung.period, "knee_speed_share": share} for share, rung in iw.ladder],
+            "servo": {"legs": dict(iw.servo) if iw.servo else None, "from": iw.servo_source},
+            "study": str(study), "start": str(start), "robot_file": None if robot_file is None else str(robot_file),
+            "stream": None if stream_file is None else str(stream_file), "wrote": [str(p) for p in files],
+            "next": nxt, "falls_standing": fell}, indent=2, allow_nan=False))
+    else:
+        _said_init(robot, surface, purpose, iw, files, study, best, walked, stream_file)
+    if fell is not None:
+        click.echo(f"warning: standing still in the start set's pose the robot falls ({fell}): a study from it "
+                   f"will keep nothing; give its legs servos that hold its weight (the map's servo:, "
+                   f"`gait-tuner robot check`)", err=True)
+
+
+def _said_init(robot, surface, purpose, iw, files, study, best, walked, stream_file) -> None:
+    """init's account in words: each number and where it came from, the files, what to run next."""
     click.echo(f"{robot.name} on {surface.name}, for {purpose}:")
     for k, why in iw.sources.items():
         click.echo(f"  {k:11s} {iw.value(k):8.4g}  from {why}")
@@ -227,16 +280,10 @@ def init(robot_name: str, surface_name: str, purpose: str, top_speed: float, out
     else:
         click.echo(f"  {'servo gains':11s} {'':8s}  {iw.servo_source}")
     click.echo("".join(f"wrote {p}\n" for p in files) + f"tune it: gait-tuner tune {study} --workers 2")
-    best = out_dir / "best.yaml"
     click.echo(f"then:    gait-tuner export {study} --out {best}")
     if stream_file is not None:
         click.echo(f"and:     gait-tuner robustness --robot {walked} --params {best} --surface {surface.name} "
                    f"--commands {stream_file}")
-    fell = falls_standing(walked, surface, str(start))
-    if fell is not None:
-        click.echo(f"warning: standing still in the start set's pose the robot falls ({fell}): a study from it "
-                   f"will keep nothing; give its legs servos that hold its weight (the map's servo:, "
-                   f"`gait-tuner robot check`)", err=True)
 
 
 @click.group()

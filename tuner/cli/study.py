@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Callable
 
 import click
 
@@ -39,74 +40,98 @@ def _study_progress(spec, total: int):
 
 
 def _run_and_report(spec, store, study_file: str, storage: str | None, total: int | None, workers: int,
-                    seed: int, verb: str) -> None:
+                    seed: int, verb: str, as_json: bool = False) -> None:
     """Prepare the study, run its workers here with a bar, then say its best trial and how to export it
-    (a full disk said in one line)."""
+    (a full disk said in one line). ``as_json``: the words go to stderr and stdout is one JSON object
+    (the study, its budget and counts, its best trial or why there is none, the export command)."""
     import optuna
 
-    from ..search.trials import DONE_STATES, NothingWalked, best_trial, trial_feasible, trial_fell
-    from ..search.workers import WorkersDying, prepare_study, run_workers
     from ..store.storage import full_disk_in_one_line
     optuna.logging.set_verbosity(optuna.logging.WARNING)
+    result: dict = {"study": spec.name, "storage": str(store.where)}
+
+    def say(line: str) -> None:
+        click.echo(line, err=as_json)
+
     with full_disk_in_one_line(store.where):
-        study, budget, run = prepare_study(spec, store, total, seed)
-        done = len(study.get_trials(deepcopy=False, states=DONE_STATES))
-        click.echo(f"study {spec.name}: {spec.gait} on {spec.robot} / {', '.join(spec.surfaces)} "
-                   f"({spec.aggregate if len(spec.surfaces) > 1 else 'single surface'}), "
-                   f"budget {budget} trials ({done} finished), {workers} worker(s) here, storage {store.where}")
-        if spec.controller is not None:
-            click.echo(f"study {spec.name} runs the code of a controller of your own: {spec.controller.source}")
-        if done >= budget:
-            click.echo(f"study {spec.name} is finished: {done} of {budget} trials "
-                       f"(raise the budget with `gait-tuner tune {study_file} --trials N`)")
-        else:
-            if workers > 1:
-                click.echo("note: with several workers the trials' order, and so the best trial, depends on "
-                           "timing; --workers 1 --seed S gives the same study every run")
-            bar, progress = _study_progress(spec, budget)
-            try:
-                study = run_workers(spec, store, study, budget, workers, seed, progress, run=run)
-            except KeyboardInterrupt:
-                bar.close()
-                click.echo(f"interrupted: finished trials are kept in {store.where}; "
-                           f"run the same command to resume", err=True)
-                raise SystemExit(130) from None
-            except WorkersDying as exc:
-                bar.close()
-                click.echo(f"gait-tuner: error: {exc}", err=True)
-                raise SystemExit(EXIT_INTERNAL) from None
-            finally:
-                bar.close()
-        if verb == "worker":
-            click.echo(f"study {spec.name}: budget reached")
-            return
+        _run_and_say(spec, store, study_file, storage, total, workers, seed, verb, say, result)
+    if as_json:
+        import json
+        click.echo(json.dumps(result, indent=2, allow_nan=False))
+
+
+def _run_and_say(spec, store, study_file: str, storage: str | None, total: int | None, workers: int, seed: int,
+                 verb: str, say: Callable[[str], None], result: dict) -> None:
+    """:func:`_run_and_report`'s work: its lines through ``say``, its figures into ``result``."""
+    from ..search.trials import DONE_STATES, NothingWalked, best_trial, trial_feasible, trial_fell
+    from ..search.workers import WorkersDying, prepare_study, run_workers
+    study, budget, run = prepare_study(spec, store, total, seed)
+    done = len(study.get_trials(deepcopy=False, states=DONE_STATES))
+    say(f"study {spec.name}: {spec.gait} on {spec.robot} / {', '.join(spec.surfaces)} "
+        f"({spec.aggregate if len(spec.surfaces) > 1 else 'single surface'}), "
+        f"budget {budget} trials ({done} finished), {workers} worker(s) here, storage {store.where}")
+    if spec.controller is not None:
+        say(f"study {spec.name} runs the code of a controller of your own: {spec.controller.source}")
+    if done >= budget:
+        say(f"study {spec.name} is finished: {done} of {budget} trials "
+            f"(raise the budget with `gait-tuner tune {study_file} --trials N`)")
+    else:
+        if workers > 1:
+            say("note: with several workers the trials' order, and so the best trial, depends on "
+                "timing; --workers 1 --seed S gives the same study every run")
+        bar, progress = _study_progress(spec, budget)
         try:
-            t = best_trial(study)
-        except NothingWalked as exc:
-            if exc.fell:
-                click.echo(f"no trial kept a walk yet: {exc}; no best trial to export: start from a set that "
-                           f"stands its walks, or lower the scenario's min_survival")
-            else:
-                click.echo(f"no trial walked yet: {exc}; no best trial to export: narrow the space "
-                           f"to draws that can walk")
-            return
-        except KeyError:          # every trial was pruned (a randomised trial stopped at its falls) or failed
-            states = [x.state.name.lower() for x in study.get_trials(deepcopy=False)]
-            counts = ", ".join(f"{states.count(k)} {k}" for k in dict.fromkeys(states))
-            click.echo(f"no trial of study {spec.name} completed yet ({counts}): no best trial to export; give it "
-                       f"more trials (resume with the same command and --trials N), or a wider space")
-            return
-        n_fell = sum(1 for x in study.get_trials(deepcopy=False, states=DONE_STATES) if trial_fell(x))
-        n_infeasible = sum(1 for x in study.get_trials(deepcopy=False, states=DONE_STATES) if not trial_feasible(x))
-        click.echo(spec.scenario_room.describe_best(spec.settings, t, fell=trial_fell(t), falls=n_fell,
-                                                    infeasible=n_infeasible))
-        if not trial_feasible(t):
-            click.echo(f"no feasible trial of study {spec.name} yet: nothing worth exporting; give it more trials "
-                       f"(resume with the same command and --trials N), or a wider space (`export --trial N` "
-                       f"writes one anyway)")
-            return
-        click.echo(f"export it with: gait-tuner export {study_file}"
-                   + (f" --storage {storage}" if storage else "") + (" --pareto-pick knee" if len(spec.objectives) > 1 else ""))
+            study = run_workers(spec, store, study, budget, workers, seed, progress, run=run)
+        except KeyboardInterrupt:
+            bar.close()
+            click.echo(f"interrupted: finished trials are kept in {store.where}; "
+                       f"run the same command to resume", err=True)
+            raise SystemExit(130) from None
+        except WorkersDying as exc:
+            bar.close()
+            click.echo(f"gait-tuner: error: {exc}", err=True)
+            raise SystemExit(EXIT_INTERNAL) from None
+        finally:
+            bar.close()
+    finished = study.get_trials(deepcopy=False, states=DONE_STATES)
+    result.update(budget=budget, finished=len(finished), feasible=sum(1 for x in finished if trial_feasible(x)),
+                  fell=sum(1 for x in finished if trial_fell(x)), best=None, export=None, why=None)
+    if verb == "worker":
+        say(f"study {spec.name}: budget reached")
+        return
+    try:
+        t = best_trial(study)
+    except NothingWalked as exc:
+        if exc.fell:
+            result["why"] = (f"no trial kept a walk yet: {exc}; no best trial to export: start from a set that "
+                             f"stands its walks, or lower the scenario's min_survival")
+        else:
+            result["why"] = (f"no trial walked yet: {exc}; no best trial to export: narrow the space "
+                             f"to draws that can walk")
+        say(result["why"])
+        return
+    except KeyError:          # every trial was pruned (a randomised trial stopped at its falls) or failed
+        states = [x.state.name.lower() for x in study.get_trials(deepcopy=False)]
+        counts = ", ".join(f"{states.count(k)} {k}" for k in dict.fromkeys(states))
+        result["why"] = (f"no trial of study {spec.name} completed yet ({counts}): no best trial to export; give it "
+                         f"more trials (resume with the same command and --trials N), or a wider space")
+        say(result["why"])
+        return
+    n_fell = result["fell"]
+    n_infeasible = result["finished"] - result["feasible"]
+    say(spec.scenario_room.describe_best(spec.settings, t, fell=trial_fell(t), falls=n_fell,
+                                         infeasible=n_infeasible))
+    result["best"] = {"trial": t.number, "values": dict(zip(spec.objectives, (float(v) for v in t.values))),
+                      "feasible": bool(trial_feasible(t)), "fell": bool(trial_fell(t))}
+    if not trial_feasible(t):
+        result["why"] = (f"no feasible trial of study {spec.name} yet: nothing worth exporting; give it more trials "
+                         f"(resume with the same command and --trials N), or a wider space (`export --trial N` "
+                         f"writes one anyway)")
+        say(result["why"])
+        return
+    result["export"] = (f"gait-tuner export {study_file}" + (f" --storage {storage}" if storage else "")
+                        + (" --pareto-pick knee" if len(spec.objectives) > 1 else ""))
+    say(f"export it with: {result['export']}")
 
 
 @click.command()
@@ -118,8 +143,9 @@ def _run_and_report(spec, store, study_file: str, storage: str | None, total: in
 @storage_option
 @click.option("--seed", type=click.IntRange(0, 2 ** 31 - 1), help="Sampler seed (default: the file's sampler_seed).")
 @RUNS_OPTION
+@JSON_OPTION
 def tune(study_file: str, trials: int | None, workers: int, storage: str | None, seed: int | None,
-         runs_dir: Path) -> None:
+         runs_dir: Path, as_json: bool) -> None:
     """Run (or resume) a tuning study: Optuna search seeded by CasADi, against MuJoCo walks.
 
     The progress bar shows finished trials of the budget, the best score so far
@@ -133,7 +159,7 @@ def tune(study_file: str, trials: int | None, workers: int, storage: str | None,
     spec = load_study(study_file)
     store = StudyStore.open(spec.name, storage, runs_of(spec, runs_dir))
     _run_and_report(spec, store, study_file, storage, trials,
-                    workers, spec.sampler_seed if seed is None else seed, "tune")
+                    workers, spec.sampler_seed if seed is None else seed, "tune", as_json)
 
 
 @click.command()
@@ -248,9 +274,10 @@ def trials(study_file: str, storage: str | None, runs_dir: Path, pareto: bool, s
 @JOINT_NAMES_OPTION
 @FORMAT_OPTION
 @CLIP_OPTION
+@JSON_OPTION
 def export(study_file: str, storage: str | None, runs_dir: Path, number: int | None, pareto_pick: str | None,
            out: Path | None, command: str | None, commands_file: Path | None, duration: float | None,
-           joint_names: str, table_format: str, clip: bool) -> None:
+           joint_names: str, table_format: str, clip: bool, as_json: bool) -> None:
     """Write a study's best (or a chosen) trial as a parameter YAML plus its joint table.
 
     STUDY is the study file (or shipped study name). The YAML is accepted as it
@@ -269,7 +296,7 @@ def export(study_file: str, storage: str | None, runs_dir: Path, number: int | N
     try:
         t = pick(study, pareto_pick) if pareto_pick else best_trial(study, number)
         if spec.controller is not None:
-            return _export_controller(spec, t, out)
+            return _export_controller(spec, t, out, as_json)
         params = trial_params(spec.gait, t)
     except KeyError as exc:
         raise UserError(str(exc.args[0])) from None
@@ -306,10 +333,24 @@ def export(study_file: str, storage: str | None, runs_dir: Path, number: int | N
         click.echo(f"note: {line}", err=True)
     # the set and its table as one: after a kill at any moment both are new or both old
     write_files_atomic({table: table_text, out: gaits.gait_file_text(params, desc, trial_stabiliser(t), engine)})
-    click.echo(f"trial {t.number} (score {t.values[0]:.4f}) -> {out} and {table}")
+    if as_json:
+        _exported_json(spec, t, {"params": str(out), "table": str(table)})
+    else:
+        click.echo(f"trial {t.number} (score {t.values[0]:.4f}) -> {out} and {table}")
 
 
-def _export_controller(spec, t, out: Path) -> None:
+def _exported_json(spec, t, files: dict) -> None:
+    """export --json: the trial written, its values by objective, and the files."""
+    import json
+
+    from ..search.trials import trial_fell
+    click.echo(json.dumps({"study": spec.name, "trial": t.number,
+                           "values": dict(zip(spec.objectives, (float(v) for v in t.values))),
+                           "fell": bool(trial_fell(t)), "surfaces": list(spec.surfaces), "robot": spec.robot,
+                           "wrote": files}, indent=2, allow_nan=False))
+
+
+def _export_controller(spec, t, out: Path, as_json: bool = False) -> None:
     """A controller study's trial as a controller file (its class, the tuned values, the ranges)."""
     from ..controllers import save_controller
     from ..search.trials import trial_fell
@@ -320,6 +361,9 @@ def _export_controller(spec, t, out: Path) -> None:
     desc = (f"study {spec.name} trial {t.number}{commit_of(spec.source)}: score {t.values[0]:.6g}"
             + (" (fell)" if trial_fell(t) else "") + f"; surfaces {', '.join(spec.surfaces)}; robot {spec.robot}")
     save_controller(out, user, desc)
+    if as_json:
+        _exported_json(spec, t, {"controller": str(out)})
+        return
     click.echo(f"trial {t.number} (score {t.values[0]:.4f}) -> {out} (a controller file: "
                f"gait-tuner simulate --controller {out})")
 

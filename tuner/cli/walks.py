@@ -34,9 +34,10 @@ from .options import OutPath, FamilyChoice, robot_option, GAIT_OPTION, PARAMS_OP
 @FORMAT_OPTION
 @CLIP_OPTION
 @click.option("--no-plot", is_flag=True, help="Skip the PNG.")
+@JSON_OPTION
 def trajectory(family: str | None, params_spec: str | None, robot_name: str, out_dir: Path, dt: float,
                model: str | None, command: str | None, commands_file: Path | None, duration: float | None,
-               joint_names: str, table_format: str, clip: bool, no_plot: bool) -> None:
+               joint_names: str, table_format: str, clip: bool, no_plot: bool, as_json: bool) -> None:
     """Generate a gait's joint table q_ref(t) and its Cartesian references for a robot.
 
     Writes OUT/joints.csv (a comment line naming the robot, then time, the joint targets
@@ -66,15 +67,21 @@ def trajectory(family: str | None, params_spec: str | None, robot_name: str, out
     yaml_path = out_dir / "params.yaml"
     write_files_atomic({csv_path: csv_text, yaml_path: gaits.gait_file_text(
         drive.params, resolve_params(params_spec, family).description, drive.stabiliser)})
-    click.echo(f"{traj.family} for robot {robot.name}: {len(traj.t)} samples every {dt:g} s, "
-               f"{traj.duration:.2f} s, walked {traj.p_world_com[-1, 0] - traj.p_world_com[0, 0]:+.3f} m")
-    click.echo(f"wrote {csv_path}")
-    click.echo(f"wrote {yaml_path}")
+    walked = float(traj.p_world_com[-1, 0] - traj.p_world_com[0, 0])
+    wrote = [str(csv_path), str(yaml_path)]
     if not no_plot:
         from ..report.plots import plot_references
-        png = plot_references(traj, out_dir / "references.png",
-                              title=f"{traj.family} ({drive.source}), robot {robot.name}")
-        click.echo(f"wrote {png}")
+        wrote.append(str(plot_references(traj, out_dir / "references.png",
+                                         title=f"{traj.family} ({drive.source}), robot {robot.name}")))
+    if as_json:
+        import json
+        click.echo(json.dumps({"family": traj.family, "robot": robot.name, "samples": len(traj.t), "dt_s": dt,
+                               "duration_s": float(traj.duration), "walked_x_m": walked, "wrote": wrote},
+                              indent=2, allow_nan=False))
+        return
+    click.echo(f"{traj.family} for robot {robot.name}: {len(traj.t)} samples every {dt:g} s, "
+               f"{traj.duration:.2f} s, walked {walked:+.3f} m")
+    click.echo("".join(f"wrote {p}\n" for p in wrote), nl=False)
 
 
 def _tail(duration: float | None, commands_file) -> float | None:
@@ -319,16 +326,24 @@ def simulate(robot_name: str, surface_name: str, family: str | None, params_spec
 
 @click.command(name="params")
 @click.argument("family", type=FamilyChoice())
-def params_cmd(family: str) -> None:
+@JSON_OPTION
+def params_cmd(family: str, as_json: bool) -> None:
     """Print a family's parameters (name, default, unit, allowed range, paper symbol) and the walk
     commands it takes."""
-    for row in family_class(family).field_table():
+    table = family_class(family).field_table()
+    online = ("the walk engine, footsteps and CoM re-planned each step from the measured state (gaits/engine/)"
+              if gaits.family(family).engine == "feedback" else
+              "the family's table re-planned at each step start for the current command, no state feedback "
+              "(gaits/online_table.py)")
+    if as_json:
+        import json
+        click.echo(json.dumps({"family": family, "params": table, "commands": gaits.family(family).commands_text,
+                               "online": online}, indent=2, allow_nan=False))
+        return
+    for row in table:
         paper = row["paper"] or ""
         click.echo(f"{row['name']:22s} {str(row['default']):>12.12s}  {row['range']:28s} "
                    f"{paper:8s} {row['doc']}")
     click.echo(f"walk command (--command): {gaits.family(family).commands_text}")
-    click.echo("online (an engine: section): " + ("the walk engine, footsteps and CoM re-planned each step from "
-               "the measured state (gaits/engine/)" if gaits.family(family).engine == "feedback" else
-               "the family's table re-planned at each step start for the current command, no state feedback "
-               "(gaits/online_table.py)"))
+    click.echo("online (an engine: section): " + online)
 
