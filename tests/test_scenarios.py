@@ -5,8 +5,8 @@ wing computed (``tests/data/scenario_replay.json``: written by the evaluator of 
 before the scenarios moved out of ``search/``, for the base set and the midpoint of each study's
 space, on the reduced budgets below, on the built-in robot with round one's servos, ``kidsize-pd``;
 one number changed since, by design: ``kidsize-engine-match:mid``'s fall constraint, 0.401 then,
-0.401 + 1e-3 x the share of its walks not stood (0.692) since an infeasible trial's constraint
-says how long it stood, :func:`tuner.scenarios.base.survival_constraint`); every shipped study chooses the scenario its section names;
+0.401 + the share of its walks not stood (0.692) / 3 since an infeasible trial's constraint says
+how long it stood, :func:`tuner.scenarios.base.survival_constraint`); every shipped study chooses the scenario its section names;
 and a sixth scenario, added in one file (here, this test module) and one registration, is read from
 a study file, walked and stored by a real study.
 """
@@ -73,17 +73,20 @@ def test_an_infeasible_trial_is_nearer_the_longer_it_stood():
     # six walks, survival 0.5 allowed: the fourth fall stops the trial
     first = survival_constraint(0.5, 4, 6, 4, True, stood=3.1)       # fell in the walks 1-4
     later = survival_constraint(0.5, 4, 6, 6, True, stood=4.9)       # stood longer, ran them all
-    assert first == pytest.approx(0.5 - (1 - 4 / 6) + 1e-3 * (1 + (1 - 3.1 / 6)), abs=1e-15)
-    assert later == pytest.approx(0.5 - (1 - 4 / 6) + 1e-3 * (1 + (1 - 4.9 / 6)), abs=1e-15)
+    assert first == pytest.approx(0.5 - (1 - 4 / 6) + 1e-3 + (1 - 3.1 / 6) / 7, abs=1e-15)
+    assert later == pytest.approx(0.5 - (1 - 4 / 6) + 1e-3 + (1 - 4.9 / 6) / 7, abs=1e-15)
     assert 0 < later < first
     assert survival_constraint(0.5, 4, 6, 4, True) == pytest.approx(0.5 - (1 - 4 / 6) + 1e-3, abs=1e-15)
     worst_of_fewer = survival_constraint(0.5, 4, 6, 6, False, stood=0.0)
     best_of_more = survival_constraint(0.5, 5, 6, 6, False, stood=6.0)
     assert worst_of_fewer < best_of_more
+    for total in (2, 6, 1000, 6000):       # at any size: a fall more outweighs every share not stood
+        assert (survival_constraint(1.0, 2, total, total, False, stood=0.0)
+                < survival_constraint(1.0, 3, total, total, False, stood=float(total)))
     assert survival_constraint(0.5, 3, 6, 6, False, stood=3.0) is None
     # out-of-range shares are held to [0, 1] of the walking
     assert survival_constraint(0.9, 1, 2, 1, True, stood=9.0) == pytest.approx(0.9 - 0.5 + 1e-3, abs=1e-15)
-    assert survival_constraint(0.9, 1, 2, 1, True, stood=-1.0) == pytest.approx(0.9 - 0.5 + 2e-3, abs=1e-15)
+    assert survival_constraint(0.9, 1, 2, 1, True, stood=-1.0) == pytest.approx(0.9 - 0.5 + 1e-3 + 1 / 3, abs=1e-15)
 
 
 def _close(a, b) -> bool:

@@ -102,17 +102,17 @@ def survival_constraint(min_survival: float, falls: int, total: int, walked: int
     study's ``total`` walks allow; None when survival holds.
 
     ``stood``: the walks run, each counted by the share of it walked before it fell (1 for one that
-    stayed up). A trial the falls made infeasible is then further by up to 1e-3 for each share of
-    the study's walking it did not stand (ours): among trials with as many falls, the one that
-    stood longer is nearer. Without it a study whose every trial falls (a robot's soft servos, a
-    first start that cannot walk) gave the sampler one value for all of them, and TPE, which ranks
-    the infeasible by how far they are, searched blind; with it, it climbs toward the sets that
-    stand longest. A whole fall more is still further than any share not stood (1 / ``total``
-    > 2e-3 while ``total`` < 500)."""
+    stayed up). A trial the falls made infeasible is then further by the share of the study's
+    walking it did not stand, over ``total + 1`` (ours): among trials with as many falls the one
+    that stood longer is nearer, and a whole fall more (1 / ``total``) still weighs more than any
+    share not stood. Without it a study whose every trial falls (a robot's soft servos, a first
+    start that cannot walk) gave the sampler one value for all of them, and TPE, which ranks the
+    infeasible by how far they are, searched blind; with it, it climbs toward the sets that stand
+    longest."""
     survival = 1.0 - falls / walked
     if survival < min_survival or hopeless:
         unstood = 0.0 if stood is None else min(max(1.0 - stood / total, 0.0), 1.0)
-        return min_survival - (1.0 - falls / total) + 1e-3 * (1.0 + unstood)
+        return min_survival - (1.0 - falls / total) + 1e-3 + unstood / (total + 1)
     return None
 
 
