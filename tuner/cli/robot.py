@@ -242,6 +242,8 @@ def init(robot_name: str, surface_name: str, purpose: str, top_speed: float, out
                     + yaml.safe_dump(iw.study, sort_keys=False))
     write_files_atomic(files)
     best = out_dir / "best.yaml"
+    if not as_json:                     # the words first: the stand test below takes a second
+        _said_init(robot, surface, purpose, iw, files, study, best, walked, stream_file)
     fell = falls_standing(walked, surface, str(start))
     if as_json:
         import json
@@ -258,8 +260,6 @@ def init(robot_name: str, surface_name: str, purpose: str, top_speed: float, out
             "study": str(study), "start": str(start), "robot_file": None if robot_file is None else str(robot_file),
             "stream": None if stream_file is None else str(stream_file), "wrote": [str(p) for p in files],
             "next": nxt, "falls_standing": fell}, indent=2, allow_nan=False))
-    else:
-        _said_init(robot, surface, purpose, iw, files, study, best, walked, stream_file)
     if fell is not None:
         click.echo(f"warning: standing still in the start set's pose the robot falls ({fell}): a study from it "
                    f"will keep nothing; give its legs servos that hold its weight (the map's servo:, "
