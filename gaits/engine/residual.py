@@ -54,6 +54,9 @@ FEATURES = ("constant", "sin(pi s)", "sin(2 pi s)", "vx", "vy", "wz", "pitch", "
 _SCALES = (1.0, 1.0, 1.0, 1 / 0.3, 1 / 0.3, 1 / 1.0, 1 / 0.2, 1 / 0.2, 1 / 2.0, 1 / 2.0, 1 / 0.2, 1 / 0.2)
 _MIRRORED = (False, False, False, False, True, True, False, True, False, True, False, True)
 N_FEATURES = len(FEATURES)
+#: each side's factor per feature: its scale, times the side's sign where the feature is lateral
+_SIDE_SCALES = {sign: np.array([s * (sign if m else 1.0) for s, m in zip(_SCALES, _MIRRORED)])
+                for sign in (1, -1)}
 _COLUMNS = {1: np.array([JOINT_NAMES.index(f"l_{j}") for j in LEG_JOINTS]),
             -1: np.array([JOINT_NAMES.index(f"r_{j}") for j in LEG_JOINTS])}
 LIMIT_RANGE = (0.0, 1.0)      # [rad] the clip a file may set: (0, 1]
@@ -125,11 +128,16 @@ def features(progress: float, command: np.ndarray, tilt: np.ndarray, gyro: np.nd
     """(12,) the features of the leg of side ``sign`` (+1 left, -1 right): ``progress`` s in [0, 1],
     ``command`` (vx, vy, wz), ``tilt`` (roll, pitch beyond the planned lean) [rad], ``gyro`` (roll,
     pitch, yaw rates) [rad/s] or None (no reading: zero), ``vel_error`` (2,) [m/s]."""
+    return _raw_features(progress, command, tilt, gyro, vel_error) * _SIDE_SCALES[1 if sign > 0 else -1]
+
+
+def _raw_features(progress: float, command: np.ndarray, tilt: np.ndarray, gyro: np.ndarray | None,
+                  vel_error: np.ndarray) -> np.ndarray:
+    """(12,) the features before each side's scale and sign (:func:`features`): the same for both legs."""
     gx, gy = (0.0, 0.0) if gyro is None else (float(gyro[0]), float(gyro[1]))
-    raw = (1.0, math.sin(math.pi * progress), math.sin(2 * math.pi * progress),
-           float(command[0]), float(command[1]), float(command[2]),
-           float(tilt[1]), float(tilt[0]), gy, gx, float(vel_error[0]), float(vel_error[1]))
-    return np.array([v * s * (sign if m else 1.0) for v, s, m in zip(raw, _SCALES, _MIRRORED)])
+    return np.array((1.0, math.sin(math.pi * progress), math.sin(2 * math.pi * progress),
+                     float(command[0]), float(command[1]), float(command[2]),
+                     float(tilt[1]), float(tilt[0]), gy, gx, float(vel_error[0]), float(vel_error[1])))
 
 
 class ResidualWalk(Wrapped):
@@ -159,10 +167,10 @@ class ResidualWalk(Wrapped):
         vel_error = eng.estimator.velocity - eng.vel
         lim = self.params.limit
         out = np.zeros(len(JOINT_NAMES))
+        raw = _raw_features(progress, eng.command, eng.tilt, self._gyro, vel_error)    # once a tick, both legs
         for sign in (1, -1):
             role = 0 if cur is None or cur.side == sign else 1
-            f = features(progress, eng.command, eng.tilt, self._gyro, vel_error, float(sign))
-            d = self._w[role] @ f
+            d = self._w[role] @ (raw * _SIDE_SCALES[sign])
             d[_LATERAL] *= sign
             out[_COLUMNS[sign]] = np.clip(d, -lim, lim)
         self.last_correction = out

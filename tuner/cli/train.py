@@ -91,8 +91,8 @@ def train(set_spec: str, robot_name: str, surface_name: str, objective: str, com
                                                 f"{robot.name} / {shown}, {what}, seed {seed}: {done} of "
                                                 f"{iterations} iterations")
 
-    from gaits.engine import ResidualParams
-    write(drive.residual or ResidualParams(limit=0.3 if limit is None else limit), 0)   # a bad --out: said now
+    from gaits.files import probe_folder
+    probe_folder(out_path.parent)        # a place the set cannot be written: said before any other line
 
     def progress(it: int, reward: float, stood: float) -> None:      # on stderr: --json's stdout stays one object
         click.echo(f"iteration {it}/{iterations}: reward {reward:.3f}, stood {stood:.0%} of its "

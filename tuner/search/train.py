@@ -186,8 +186,8 @@ def train(drive: gaits.Drive, robot: str, surface: str | Sequence[str], settings
           checkpoint: Callable[[ResidualParams, int], None] | None = None) -> TrainResult:
     """Search the residual of ``drive`` (an engine set; its own residual, if any, is the start) on
     ``robot`` and ``surface``, or several surfaces: rollout k of an evaluation walks surface k mod n
-    (module docstring). ``progress(iteration, reward, stood)`` and
-    ``checkpoint(residual, iteration)`` after each iteration."""
+    (module docstring). ``checkpoint(residual, iteration)`` with the start (iteration 0) and after each
+    iteration, ``progress(iteration, reward, stood)`` after each."""
     if drive.engine is None or gaits.family_of(drive.params).engine != "feedback":
         raise UserError(f"{drive.source or 'the set'}: a residual corrects the online walk engine's targets: "
                         f"train needs a tlipfm set with an engine: section")
@@ -200,11 +200,13 @@ def train(drive: gaits.Drive, robot: str, surface: str | Sequence[str], settings
     surfaces = (surface,) if isinstance(surface, str) else tuple(surface)
     if not surfaces:
         raise UserError("train: give at least one surface")
+    result = TrainResult(ResidualParams.from_matrix(theta, clip))
+    if checkpoint is not None:              # the start, before any work: a place it cannot be written is said now
+        checkpoint(result.residual, 0)
     world = _world(robot, surfaces)                       # built here: forked workers inherit it
     if s.objective == "push":
         from ..sim.scene import BOTTLES
         world.sims_with_pendulum(1.5, BOTTLES[3])
-    result = TrainResult(ResidualParams.from_matrix(theta, clip))
     for it in range(s.iterations):
         deltas = rng.standard_normal((s.directions,) + theta.shape)
         maps = [theta + s.noise * d for d in deltas] + [theta - s.noise * d for d in deltas] + [theta]
